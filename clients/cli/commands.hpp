@@ -1,0 +1,16 @@
+// The subcommands of `lipsync`. Each takes the words after its name, prints
+// to stdout, returns the exit status, and throws UsageError, FileError or
+// lipsync::InputError for main() to report.
+#pragma once
+
+#include <span>
+#include <string_view>
+
+namespace lipsync::cli {
+
+int run_render(std::span<const std::string_view> args);
+int run_demo(std::span<const std::string_view> args);
+int run_model(std::span<const std::string_view> args);
+int run_phone_sets(std::span<const std::string_view> args);
+
+}  // namespace lipsync::cli

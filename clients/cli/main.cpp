@@ -1,0 +1,94 @@
+// lipsync: the command-line client of lipsyncd. Dispatches to a subcommand
+// and turns every failure into one line on stderr and an exit status:
+// 0 success, 1 bad input or a file problem, 2 a mistake on the command line.
+#include <exception>
+#include <iostream>
+#include <new>
+#include <stdexcept>
+#include <string_view>
+#include <vector>
+
+#include "cli_error.hpp"
+#include "commands.hpp"
+#include "lipsync/error.hpp"
+
+namespace {
+
+using namespace lipsync::cli;
+
+struct Command {
+  std::string_view name;
+  std::string_view summary;
+  int (*run)(std::span<const std::string_view>);
+};
+
+constexpr Command kCommands[] = {
+    {"render", "render a timed phoneme file to an animation track", run_render},
+    {"demo", "render the built-in demo utterance to lipsync-demo.json", run_demo},
+    {"model", "model dump: print the articulation model JSON", run_model},
+    {"phone-sets", "list the built-in phone sets", run_phone_sets},
+};
+
+constexpr std::string_view kOverview =
+    "lipsync: coarticulated lip-sync animation from timed phonemes.\n"
+    "\n"
+    "Usage: lipsync COMMAND [options]\n"
+    "\n"
+    "Commands:\n";
+
+constexpr std::string_view kFooter =
+    "\n"
+    "Run 'lipsync COMMAND --help' for the options of a command, 'lipsync --version'\n"
+    "for the version. Exit status: 0 success, 1 bad input or file, 2 bad command line.\n";
+
+void print_overview(std::ostream& out) {
+  out << kOverview;
+  for (const Command& command : kCommands) {
+    out << "  " << command.name << std::string(12 - command.name.size(), ' ') << command.summary << '\n';
+  }
+  out << kFooter;
+}
+
+int fail(std::string_view message, int status) {
+  std::cerr << "lipsync: error: " << message << '\n';
+  return status;
+}
+
+int dispatch(const std::vector<std::string_view>& args) {
+  if (args.empty()) {
+    print_overview(std::cerr);
+    return kExitUsageError;
+  }
+  const std::string_view name = args.front();
+  if (name == "-h" || name == "--help" || name == "help") {
+    print_overview(std::cout);
+    return 0;
+  }
+  if (name == "--version") {
+    std::cout << "lipsync " << LIPSYNC_VERSION << '\n';
+    return 0;
+  }
+  for (const Command& command : kCommands) {
+    if (command.name == name) return command.run(std::span(args).subspan(1));
+  }
+  throw UsageError("unknown command '" + std::string(name) + "' (see 'lipsync --help')");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const std::vector<std::string_view> args(argv + 1, argv + argc);
+  try {
+    return dispatch(args);
+  } catch (const UsageError& error) {
+    return fail(error.what(), kExitUsageError);
+  } catch (const lipsync::InputError& error) {
+    return fail(error.what(), kExitInputError);
+  } catch (const FileError& error) {
+    return fail(error.what(), kExitInputError);
+  } catch (const std::bad_alloc&) {
+    return fail("out of memory", kExitInputError);
+  } catch (const std::exception& error) {
+    return fail(std::string("internal error: ") + error.what(), kExitInputError);
+  }
+}

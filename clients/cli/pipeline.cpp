@@ -1,0 +1,93 @@
+#include "pipeline.hpp"
+
+#include <iostream>
+
+#include "cli_error.hpp"
+#include "files.hpp"
+#include "lipsync/error.hpp"
+
+namespace lipsync::cli {
+
+ModelSource::ModelSource(const std::optional<std::string>& path) {
+  if (!path) {
+    json_text_ = std::string(ArticulationModel::builtin_json());
+    return;
+  }
+  json_text_ = read_file(*path);
+  loaded_ = ArticulationModel::from_json(json_text_, *path == "-" ? std::string(kStdinName) : *path);
+}
+
+TrackFormat parse_track_format_option(std::string_view text) {
+  if (const auto format = track_format_from_string(text)) return *format;
+  throw UsageError("--format: unknown track format '" + std::string(text) + "' (choose json, csv or arkit-csv)");
+}
+
+InputFormat parse_input_format_option(std::string_view text) {
+  if (const auto format = input_format_from_string(text)) return *format;
+  throw UsageError("--input-format: unknown input format '" + std::string(text) +
+                   "' (choose json, textgrid, timit, lab, pho or flite)");
+}
+
+std::string phone_set_choices() {
+  std::string names;
+  for (const std::string& name : PhoneSet::builtin_names()) names += name + ", ";
+  return names + "auto";
+}
+
+const PhoneSet& choose_phone_set(const std::optional<std::string>& requested,
+                                 const LabeledUtterance& utterance, const ArticulationModel& model,
+                                 std::vector<PhoneSet>& candidates) {
+  candidates.clear();
+  const std::string name = requested ? *requested : utterance.phone_set;
+  if (!name.empty() && name != "auto") {
+    if (auto set = PhoneSet::builtin(name, model)) {
+      candidates.push_back(std::move(*set));
+      return candidates.front();
+    }
+    const std::string message = "unknown phone set '" + name + "' (choose one of: " + phone_set_choices() + ")";
+    if (requested) throw UsageError("--phone-set: " + message);
+    throw InputError(utterance.source, 0, "the file declares an " + message + "; override it with --phone-set");
+  }
+  candidates = PhoneSet::builtin_all(model);
+  if (candidates.empty()) throw InputError(utterance.source, 0, "no built-in phone set to detect from");
+  std::vector<std::string_view> labels;
+  labels.reserve(utterance.intervals.size());
+  for (const LabeledInterval& interval : utterance.intervals) labels.push_back(interval.label);
+  return detect_phone_set(candidates, labels);
+}
+
+Track render_utterance(const LabeledUtterance& utterance, const ArticulationModel& model,
+                       const PhoneSet& phone_set, const TrackRequest& request) {
+  if (!request.incremental) {
+    return render_track(model, build_segments(utterance, model, phone_set, request.segments), request.render);
+  }
+  if (utterance.intervals.empty()) throw InputError(utterance.source, 0, "the utterance has no phonemes");
+  SegmentBuilder builder(model, phone_set, utterance.source, request.segments);
+  StreamingRenderer renderer(model, request.render);
+  Track track;
+  track.channel_count = model.channel_count();
+  track.fps = request.render.fps;
+  std::vector<Segment> segments;
+  for (const LabeledInterval& interval : utterance.intervals) {
+    segments.clear();
+    builder.push(interval, segments);
+    for (const Segment& segment : segments) renderer.push(segment, track);
+  }
+  renderer.finish(track);
+  return track;
+}
+
+void write_output(const Track& track, const ArticulationModel& model, TrackFormat format,
+                  const std::string& output) {
+  if (output == "-") {
+    write_track(track, model, format, std::cout);
+    std::cout.flush();
+    if (!std::cout) throw FileError("cannot write the track to standard output");
+    return;
+  }
+  AtomicOutputFile file(output);
+  write_track(track, model, format, file.stream());
+  file.commit();
+}
+
+}  // namespace lipsync::cli

@@ -1,0 +1,68 @@
+// The render pipeline shared by `lipsync render` and `lipsync demo`:
+//
+//   bytes → format (detected or named) → LabeledUtterance → phone set
+//         → segments → track → writer → stdout or an atomic output file
+//
+// The incremental path feeds the same intervals one at a time through
+// SegmentBuilder::push and StreamingRenderer::push; its output is the same
+// track, byte for byte, which is what the CLI tests check from the outside.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lipsync/formats.hpp"
+#include "lipsync/model.hpp"
+#include "lipsync/phone_set.hpp"
+#include "lipsync/renderer.hpp"
+#include "lipsync/segment.hpp"
+#include "lipsync/track.hpp"
+#include "lipsync/track_writer.hpp"
+#include "lipsync/utterance.hpp"
+
+namespace lipsync::cli {
+
+/// The built-in model, or `path` read and validated (errors name the file).
+class ModelSource {
+ public:
+  explicit ModelSource(const std::optional<std::string>& path);
+  const ArticulationModel& model() const { return loaded_ ? *loaded_ : ArticulationModel::builtin(); }
+  /// The model's JSON text as read (the embedded text for the built-in model).
+  const std::string& json_text() const { return json_text_; }
+
+ private:
+  std::optional<ArticulationModel> loaded_;
+  std::string json_text_;
+};
+
+/// --format and --input-format values; UsageError listing the choices otherwise.
+TrackFormat parse_track_format_option(std::string_view text);
+InputFormat parse_input_format_option(std::string_view text);
+
+/// Names of the built-in phone sets plus "auto", for messages.
+std::string phone_set_choices();
+
+/// The phone set for `utterance`: `requested` if given ("auto" detects), else
+/// the set the file declares, else detection over all built-in sets. Throws
+/// UsageError for an unknown requested name, InputError for an unknown
+/// declared name. The result points into `candidates`.
+const PhoneSet& choose_phone_set(const std::optional<std::string>& requested,
+                                 const LabeledUtterance& utterance, const ArticulationModel& model,
+                                 std::vector<PhoneSet>& candidates);
+
+struct TrackRequest {
+  SegmentOptions segments;
+  RenderOptions render;
+  bool incremental = false;  ///< stream the intervals one at a time
+};
+
+/// Segments and renders `utterance`. Throws InputError for bad timing or labels.
+Track render_utterance(const LabeledUtterance& utterance, const ArticulationModel& model,
+                       const PhoneSet& phone_set, const TrackRequest& request);
+
+/// Writes `track` to `output` ("-" for standard output) atomically. Throws FileError.
+void write_output(const Track& track, const ArticulationModel& model, TrackFormat format,
+                  const std::string& output);
+
+}  // namespace lipsync::cli

@@ -1,0 +1,93 @@
+// Cohen–Massaro coarticulation with the windowing of Albrecht, Haber & Seidel.
+//
+// The value of channel m at time t is the dominance-weighted mean of the
+// targets of the segments around t (Eq. 5):
+//
+//     F_m(t) = Σ_s D_{s,m}(t) · T_{s,m} / Σ_s D_{s,m}(t)
+//
+// with D the negative exponential of Eq. 2 for segments up to 6 away from the
+// segment c that contains t, a cubic Hermite fade to zero across the 7th
+// segment (Eq. 4), and nothing beyond: at most 15 segments per sample.
+//
+// Numerics (docs/coarticulation.md):
+//   - Dominances are handled as logarithms and each channel's weights are
+//     scaled by the largest one before exponentiation, so a ten-minute pause
+//     (θ·|τ| in the thousands) gives exact 1·T/1 instead of 0/0.
+//   - The Hermite fade h(u) = P·u²·((3−2u) + (u−1)·Δ·g) (fade-in; g = D'/D at
+//     the border, Δ the segment length) is non-negative on [0,1] iff Δ·g ≤ 3;
+//     the slope is clamped to that bound (and to ≥ −3 for the fade-out), so no
+//     weight is ever negative and the output is a convex combination.
+//   - The result is clamped to the [min, max] of the targets that carry
+//     weight, which removes the last-ulp overshoot of the division.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "lipsync/model.hpp"
+#include "lipsync/segment.hpp"
+
+namespace lipsync {
+
+/// Segments considered on each side of the current one (6 full + 1 faded).
+inline constexpr int kWindowRadius = 7;
+/// A channel whose scaled denominator falls below this is recomputed in log space.
+inline constexpr double kUnderflowGuard = 1e-200;
+
+/// Evaluates Eq. 4–5 for one time instant. Holds scratch space sized for the
+/// model, so evaluation allocates nothing; one instance per thread.
+class CoarticulationEvaluator {
+ public:
+  explicit CoarticulationEvaluator(const ArticulationModel& model);
+
+  /// Channel values at `t_us`. `window` holds consecutive segments, and
+  /// `current` indexes the one that contains t (t may equal the end of the last
+  /// segment). Segments further than kWindowRadius from `current` are ignored;
+  /// a window shorter on one side (utterance edge, or lookahead) simply has
+  /// fewer contributors. Writes channel_count() values to `out`.
+  void evaluate(std::span<const Segment> window, std::size_t current, std::int64_t t_us,
+                std::span<float> out);
+
+ private:
+  void evaluate_channel_in_log_space(std::span<const Segment> window, std::size_t first, std::size_t last,
+                                     std::size_t channel);
+
+  const ArticulationModel& model_;
+  std::size_t channels_;
+  std::size_t padded_channels_;  // channels_ rounded up to whole vector blocks
+  // Per phoneme, its distinct dominance shapes (θ−, θ+, c, t_off; α = 1):
+  // shapes_[shape_begin_[p] .. shape_begin_[p + 1]).
+  std::vector<DominanceParams> shapes_;
+  std::vector<std::uint32_t> shape_begin_;
+  std::size_t max_shapes_ = 1;
+  // Phoneme × padded channel tables.
+  std::vector<std::uint32_t> channel_shape_;  // index into the phoneme's shapes
+  std::vector<double> alpha_;
+  std::vector<double> target_;
+  std::vector<double> alpha_target_;
+  // Scratch, sized once.
+  std::vector<double> log_shape_;  // window × max_shapes_: log(D/α)
+  std::vector<double> shape_weight_;
+  std::vector<double> channel_weight_;
+  std::vector<double> numerator_;
+  std::vector<double> denominator_;
+  std::vector<double> low_;
+  std::vector<double> high_;
+};
+
+/// The Hermite fade of Eq. 4 divided by the border dominance P, for u ∈ [0, 1]
+/// across a segment of `length_s` seconds, with `slope_per_s` = D'/D at the
+/// border. The slope is first clamped so that the result is never negative.
+/// Fade-in (in s₋₇, 0 at u = 0, 1 at u = 1): u² · ((3 − 2u) + (u − 1) · Δ · g), g ≤ 3/Δ.
+double fade_in_shape(double u, double length_s, double slope_per_s);
+/// Fade-out (in s₊₇, 1 at u = 0, 0 at u = 1): (1 − u)² · ((1 + 2u) + u · Δ · g), g ≥ −3/Δ.
+double fade_out_shape(double u, double length_s, double slope_per_s);
+
+/// The original, unwindowed Cohen–Massaro (Eq. 1): every segment of the
+/// utterance contributes with the plain exponential dominance. Same log-space
+/// normalisation. O(segments) per sample: kept for tests and benchmarks.
+void evaluate_unwindowed(const ArticulationModel& model, std::span<const Segment> segments,
+                         std::int64_t t_us, std::span<float> out);
+
+}  // namespace lipsync

@@ -1,0 +1,293 @@
+// Eq. 2–5 of Albrecht, Haber & Seidel (2002); see lipsync/coarticulation.hpp
+// for the numerical safeguards (log-space weights, clamped Hermite slopes).
+#include "lipsync/coarticulation.hpp"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <limits>
+
+namespace lipsync {
+namespace {
+
+constexpr double kNegativeInfinity = -std::numeric_limits<double>::infinity();
+
+/// τ of Eq. 3 in seconds: distance from t to the dominance peak (positive
+/// before the peak). Release phonemes peak at the start of their interval
+/// (Section 3.2). The segment centre and t are combined in integer µs first.
+inline double tau_s(const Segment& segment, const DominanceParams& params, std::int64_t t_us) {
+  if (segment.phoneme_class == PhonemeClass::release) {
+    return static_cast<double>(segment.start_us - t_us) * 1e-6;
+  }
+  return static_cast<double>(segment.start_us + segment.end_us - 2 * t_us) * 0.5e-6 - params.t_off_s;
+}
+
+inline double power(double base, double exponent) {
+  if (exponent == 1.0) return base;
+  if (exponent == 0.0) return 1.0;
+  if (exponent == 2.0) return base * base;
+  return std::pow(base, exponent);
+}
+
+/// log D of Eq. 2: log α − θ± · |τ|^c, with θ+ while rising (τ ≥ 0).
+inline double log_dominance(const DominanceParams& params, double log_alpha, double tau) {
+  const double theta = tau >= 0.0 ? params.theta_plus_per_s : params.theta_minus_per_s;
+  return log_alpha - theta * power(std::fabs(tau), params.c);
+}
+
+/// d(log D)/dt at a segment border. At the peak itself the paper takes the
+/// descending side for a left border (`descending_at_peak`) and the ascending
+/// side for a right border.
+inline double log_dominance_slope(const DominanceParams& params, double tau, bool descending_at_peak) {
+  // log D = log α − θ |τ|^c with dτ/dt = −1, so d/dt = θ c |τ|^(c−1) sign(τ).
+  const bool rising = tau > 0.0 || (tau == 0.0 && !descending_at_peak);
+  const double theta = rising ? params.theta_plus_per_s : params.theta_minus_per_s;
+  const double magnitude = theta * params.c * power(std::fabs(tau), params.c - 1.0);
+  return rising ? magnitude : -magnitude;
+}
+
+// Channel tables are padded to a multiple of kLanes (padding: α = 0, target 0)
+// so that the loops below run in whole vectors. They are compiled twice,
+// for AVX2 and for baseline x86-64, and the loader picks the best the CPU has;
+// both give the same numbers (the same operations in the same order per lane).
+constexpr std::size_t kLanes = 4;
+
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define LIPSYNC_VECTOR_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define LIPSYNC_VECTOR_CLONES
+#endif
+
+/// One segment's share of Eq. 5 for every channel, with one weight per
+/// channel (a phoneme whose channels use several dominance shapes), and the
+/// range of the targets that carry weight.
+LIPSYNC_VECTOR_CLONES
+void accumulate(std::size_t padded_channels, const double* __restrict weight, const double* __restrict alpha,
+                const double* __restrict alpha_target, const double* __restrict target,
+                double* __restrict numerator, double* __restrict denominator, double* __restrict low,
+                double* __restrict high) {
+  for (std::size_t c = 0; c < padded_channels; ++c) {
+    numerator[c] += alpha_target[c] * weight[c];
+    denominator[c] += alpha[c] * weight[c];
+    // Loaded into locals first: then the selects if-convert and the loop vectorises.
+    const double goal = target[c];
+    const double lowest = low[c];
+    const double highest = high[c];
+    low[c] = goal < lowest ? goal : lowest;
+    high[c] = goal > highest ? goal : highest;
+  }
+}
+
+/// The same with one weight for all channels (one dominance shape: the common case).
+LIPSYNC_VECTOR_CLONES
+void accumulate_uniform(std::size_t padded_channels, double weight, const double* __restrict alpha,
+                        const double* __restrict alpha_target, const double* __restrict target,
+                        double* __restrict numerator, double* __restrict denominator, double* __restrict low,
+                        double* __restrict high) {
+  for (std::size_t c = 0; c < padded_channels; ++c) {
+    numerator[c] += alpha_target[c] * weight;
+    denominator[c] += alpha[c] * weight;
+    // Loaded into locals first: then the selects if-convert and the loop vectorises.
+    const double goal = target[c];
+    const double lowest = low[c];
+    const double highest = high[c];
+    low[c] = goal < lowest ? goal : lowest;
+    high[c] = goal > highest ? goal : highest;
+  }
+}
+
+bool same_shape(const DominanceParams& a, const DominanceParams& b) {
+  return a.theta_minus_per_s == b.theta_minus_per_s && a.theta_plus_per_s == b.theta_plus_per_s && a.c == b.c &&
+         a.t_off_s == b.t_off_s;
+}
+
+}  // namespace
+
+double fade_in_shape(double u, double length_s, double slope_per_s) {
+  const double slope = std::min(slope_per_s, 3.0 / length_s);
+  return u * u * std::max(0.0, (3.0 - 2.0 * u) + (u - 1.0) * length_s * slope);
+}
+
+double fade_out_shape(double u, double length_s, double slope_per_s) {
+  const double slope = std::max(slope_per_s, -3.0 / length_s);
+  const double v = 1.0 - u;
+  return v * v * std::max(0.0, (1.0 + 2.0 * u) + u * length_s * slope);
+}
+
+CoarticulationEvaluator::CoarticulationEvaluator(const ArticulationModel& model)
+    : model_(model),
+      channels_(model.channel_count()),
+      padded_channels_((model.channel_count() + kLanes - 1) / kLanes * kLanes) {
+  // Group each phoneme's channels by dominance shape (θ−, θ+, c, t_off): the
+  // default model gives most phonemes one or two shapes for 16 channels, and
+  // exp() is then taken once per shape instead of once per channel.
+  shape_begin_.push_back(0);
+  for (const PhonemeSpec& phoneme : model.phonemes()) {
+    const std::size_t first_shape = shapes_.size();
+    for (std::size_t c = 0; c < channels_; ++c) {
+      DominanceParams shape = phoneme.dominance[c];
+      shape.alpha = 1.0;
+      std::size_t local = 0;
+      while (first_shape + local < shapes_.size() && !same_shape(shapes_[first_shape + local], shape)) ++local;
+      if (first_shape + local == shapes_.size()) shapes_.push_back(shape);
+      channel_shape_.push_back(static_cast<std::uint32_t>(local));
+      alpha_.push_back(phoneme.dominance[c].alpha);
+      target_.push_back(phoneme.targets[c]);
+      alpha_target_.push_back(phoneme.dominance[c].alpha * phoneme.targets[c]);
+    }
+    for (std::size_t c = channels_; c < padded_channels_; ++c) {
+      channel_shape_.push_back(0);
+      alpha_.push_back(0.0);
+      target_.push_back(0.0);
+      alpha_target_.push_back(0.0);
+    }
+    shape_begin_.push_back(static_cast<std::uint32_t>(shapes_.size()));
+    max_shapes_ = std::max(max_shapes_, shapes_.size() - first_shape);
+  }
+  const std::size_t window = 2 * kWindowRadius + 1;
+  log_shape_.resize(window * max_shapes_);
+  shape_weight_.resize(max_shapes_);
+  channel_weight_.resize(padded_channels_);
+  numerator_.resize(padded_channels_);
+  denominator_.resize(padded_channels_);
+  low_.resize(padded_channels_);
+  high_.resize(padded_channels_);
+}
+
+void CoarticulationEvaluator::evaluate(std::span<const Segment> window, std::size_t current,
+                                       std::int64_t t_us, std::span<float> out) {
+  assert(current < window.size());
+  const std::size_t channels = channels_;
+  const std::size_t first = current >= kWindowRadius ? current - kWindowRadius : 0;
+  const std::size_t last = std::min(window.size() - 1, current + kWindowRadius);
+  const Segment& here = window[current];
+  const double here_length_s = static_cast<double>(here.end_us - here.start_us) * 1e-6;
+  const double u = static_cast<double>(t_us - here.start_us) / static_cast<double>(here.end_us - here.start_us);
+
+  // Pass 1: log D / α for every segment of the window and every shape of its
+  // phoneme (Eq. 2, or Eq. 4's Hermite fade for the 7th segment on each side).
+  double max_log = kNegativeInfinity;
+  for (std::size_t i = first; i <= last; ++i) {
+    const Segment& segment = window[i];
+    const auto phoneme = static_cast<std::size_t>(segment.phoneme);
+    const std::ptrdiff_t distance = static_cast<std::ptrdiff_t>(i) - static_cast<std::ptrdiff_t>(current);
+    double* log_shape = log_shape_.data() + (i - first) * max_shapes_;
+    for (std::uint32_t k = shape_begin_[phoneme]; k < shape_begin_[phoneme + 1]; ++k) {
+      const DominanceParams& params = shapes_[k];
+      double value = 0.0;
+      if (distance == kWindowRadius) {
+        // t lies in s₋₇ of this segment: fade in across the current segment,
+        // from 0 at its start to D at its end (= start of s₋₆).
+        const double tau_border = tau_s(segment, params, here.end_us);
+        value = log_dominance(params, 0.0, tau_border) +
+                std::log(fade_in_shape(u, here_length_s, log_dominance_slope(params, tau_border, true)));
+      } else if (distance == -kWindowRadius) {
+        // t lies in s₊₇: fade out from D at the current segment's start (= end of s₊₆).
+        const double tau_border = tau_s(segment, params, here.start_us);
+        value = log_dominance(params, 0.0, tau_border) +
+                std::log(fade_out_shape(u, here_length_s, log_dominance_slope(params, tau_border, false)));
+      } else {
+        value = log_dominance(params, 0.0, tau_s(segment, params, t_us));
+      }
+      log_shape[k - shape_begin_[phoneme]] = value;
+      max_log = std::max(max_log, value);
+    }
+  }
+
+  // Pass 2: Eq. 5 with weights α · exp(log D/α − max): the largest shape
+  // weight is 1, so nothing overflows and, for all but pathological inputs,
+  // every channel's denominator stays far from underflow.
+  const std::size_t n = padded_channels_;
+  std::fill_n(numerator_.data(), n, 0.0);
+  std::fill_n(denominator_.data(), n, 0.0);
+  std::fill_n(low_.data(), n, std::numeric_limits<double>::infinity());
+  std::fill_n(high_.data(), n, -std::numeric_limits<double>::infinity());
+  double* shape_weight = shape_weight_.data();
+  for (std::size_t i = first; i <= last; ++i) {
+    const auto phoneme = static_cast<std::size_t>(window[i].phoneme);
+    const std::size_t shape_count = shape_begin_[phoneme + 1] - shape_begin_[phoneme];
+    const double* log_shape = log_shape_.data() + (i - first) * max_shapes_;
+    bool carries_weight = false;
+    for (std::size_t k = 0; k < shape_count; ++k) {
+      shape_weight[k] = std::exp(log_shape[k] - max_log);
+      carries_weight = carries_weight || shape_weight[k] > 0.0;
+    }
+    if (!carries_weight) continue;  // far away in time: adds nothing, and its targets do not bound the result
+    const std::size_t row = phoneme * padded_channels_;
+    if (shape_count == 1) {
+      accumulate_uniform(n, shape_weight[0], alpha_.data() + row, alpha_target_.data() + row, target_.data() + row,
+                         numerator_.data(), denominator_.data(), low_.data(), high_.data());
+    } else {
+      const std::uint32_t* shape_of = channel_shape_.data() + row;
+      for (std::size_t c = 0; c < n; ++c) channel_weight_[c] = shape_weight[shape_of[c]];
+      accumulate(n, channel_weight_.data(), alpha_.data() + row, alpha_target_.data() + row, target_.data() + row,
+                 numerator_.data(), denominator_.data(), low_.data(), high_.data());
+    }
+  }
+  for (std::size_t c = 0; c < channels; ++c) {
+    if (denominator_[c] < kUnderflowGuard) evaluate_channel_in_log_space(window, first, last, c);
+  }
+  for (std::size_t c = 0; c < channels; ++c) {
+    // Clamping to the contributing targets removes the division's last-ulp overshoot.
+    out[c] = static_cast<float>(std::clamp(numerator_[c] / denominator_[c], low_[c], high_[c]));
+  }
+}
+
+void CoarticulationEvaluator::evaluate_channel_in_log_space(std::span<const Segment> window, std::size_t first,
+                                                            std::size_t last, std::size_t channel) {
+  // The slow, always-safe path: this channel's weights scaled by their own
+  // largest, as logarithms. Taken only when the shared scaling underflowed
+  // (shapes of one phoneme that differ by hundreds of orders of magnitude).
+  double max_log = kNegativeInfinity;
+  const auto log_weight = [&](std::size_t i) {
+    const auto phoneme = static_cast<std::size_t>(window[i].phoneme);
+    const std::size_t shape = channel_shape_[phoneme * padded_channels_ + channel];
+    return std::log(alpha_[phoneme * padded_channels_ + channel]) + log_shape_[(i - first) * max_shapes_ + shape];
+  };
+  for (std::size_t i = first; i <= last; ++i) max_log = std::max(max_log, log_weight(i));
+  double numerator = 0.0;
+  double denominator = 0.0;
+  double low = std::numeric_limits<double>::infinity();
+  double high = -std::numeric_limits<double>::infinity();
+  for (std::size_t i = first; i <= last; ++i) {
+    const double weight = std::exp(log_weight(i) - max_log);
+    if (weight == 0.0) continue;
+    const double target = target_[static_cast<std::size_t>(window[i].phoneme) * padded_channels_ + channel];
+    numerator += weight * target;
+    denominator += weight;
+    low = std::min(low, target);
+    high = std::max(high, target);
+  }
+  numerator_[channel] = numerator;
+  denominator_[channel] = denominator;
+  low_[channel] = low;
+  high_[channel] = high;
+}
+
+void evaluate_unwindowed(const ArticulationModel& model, std::span<const Segment> segments,
+                         std::int64_t t_us, std::span<float> out) {
+  const std::size_t channels = model.channel_count();
+  std::vector<double> log_weight(segments.size() * channels);
+  std::vector<double> max_log(channels, kNegativeInfinity);
+  for (std::size_t i = 0; i < segments.size(); ++i) {
+    const PhonemeSpec& spec = model.phoneme(segments[i].phoneme);
+    for (std::size_t c = 0; c < channels; ++c) {
+      const DominanceParams& params = spec.dominance[c];
+      const double value = log_dominance(params, std::log(params.alpha), tau_s(segments[i], params, t_us));
+      log_weight[i * channels + c] = value;
+      max_log[c] = std::max(max_log[c], value);
+    }
+  }
+  for (std::size_t c = 0; c < channels; ++c) {
+    double numerator = 0.0;
+    double denominator = 0.0;
+    for (std::size_t i = 0; i < segments.size(); ++i) {
+      const double weight = std::exp(log_weight[i * channels + c] - max_log[c]);
+      numerator += weight * model.phoneme(segments[i].phoneme).targets[c];
+      denominator += weight;
+    }
+    out[c] = static_cast<float>(numerator / denominator);
+  }
+}
+
+}  // namespace lipsync

@@ -1,0 +1,152 @@
+// Phone-set tables (schema: docs/phone-sets.md): input label → model phoneme.
+//
+// A label is normalised before lookup: the set's ignored code points (stress
+// digits, IPA stress marks) are removed and, for case-insensitive sets, ASCII
+// letters are lower-cased. Table keys go through the same normalisation, so a
+// table cannot hold two keys that would collide.
+#include "lipsync/phone_set.hpp"
+
+#include <algorithm>
+#include <nlohmann/json.hpp>
+
+#include "embedded_data.hpp"
+#include "lipsync/error.hpp"
+#include "lipsync/model.hpp"
+
+namespace lipsync {
+namespace {
+
+using nlohmann::json;
+
+/// Splits UTF-8 text into code points (each as its byte sequence).
+std::vector<std::string> code_points(std::string_view text) {
+  std::vector<std::string> points;
+  for (std::size_t i = 0; i < text.size();) {
+    const auto lead = static_cast<unsigned char>(text[i]);
+    std::size_t length = 1;
+    if (lead >= 0xF0) length = 4;
+    else if (lead >= 0xE0) length = 3;
+    else if (lead >= 0xC0) length = 2;
+    length = std::min(length, text.size() - i);
+    points.emplace_back(text.substr(i, length));
+    i += length;
+  }
+  return points;
+}
+
+// The order in which `auto` detection tries the built-in sets: the most common
+// aligner output first; sets that share labels map them identically.
+constexpr std::string_view kDetectionOrder[] = {"arpabet", "radio", "timit", "ipa", "espeak", "sampa"};
+
+}  // namespace
+
+PhoneSet PhoneSet::from_json(std::string_view json_text, std::string_view source_name,
+                             const ArticulationModel& model) {
+  const std::string source(source_name);
+  json root;
+  try {
+    root = json::parse(json_text.begin(), json_text.end());
+  } catch (const json::parse_error& e) {
+    throw InputError(source, 0, std::string("not valid JSON: ") + e.what());
+  }
+  const auto fail = [&](const std::string& message) { throw InputError(source, 0, message); };
+  if (!root.is_object()) fail("a phone set must be a JSON object");
+  for (const auto& [key, value] : root.items()) {
+    static const std::vector<std::string> known = {"format", "version", "name", "description",
+                                                   "case_sensitive", "ignore_characters", "phones"};
+    if (std::find(known.begin(), known.end(), key) == known.end()) fail("unknown field '" + key + "'");
+  }
+  if (root.value("format", "") != "lipsync-phone-set") fail("field 'format' must be \"lipsync-phone-set\"");
+  if (!root.contains("version") || root["version"] != 1) fail("field 'version' must be 1");
+  if (!root.contains("name") || !root["name"].is_string()) fail("field 'name' must be a string");
+  if (!root.contains("phones") || !root["phones"].is_object()) fail("field 'phones' must be an object");
+
+  PhoneSet set;
+  set.name_ = root["name"].get<std::string>();
+  set.description_ = root.value("description", "");
+  if (root.contains("case_sensitive")) {
+    if (!root["case_sensitive"].is_boolean()) fail("field 'case_sensitive' must be true or false");
+    set.case_sensitive_ = root["case_sensitive"].get<bool>();
+  }
+  if (root.contains("ignore_characters")) {
+    if (!root["ignore_characters"].is_string()) fail("field 'ignore_characters' must be a string");
+    set.ignored_ = code_points(root["ignore_characters"].get<std::string>());
+  }
+  set.silence_phoneme_ = model.silence_phoneme();
+  for (const auto& [label, target] : root["phones"].items()) {
+    if (!target.is_string()) fail("phones '" + label + "': the model phoneme must be a string");
+    const auto phoneme = model.find_phoneme(target.get<std::string>());
+    if (!phoneme) {
+      fail("phones '" + label + "': maps to '" + target.get<std::string>() + "', which model '" +
+           model.name() + "' does not have");
+    }
+    const std::string key = set.normalise(label);
+    if (key.empty()) fail("phones '" + label + "': the label is empty after normalisation");
+    if (!set.phoneme_by_label_.emplace(key, *phoneme).second) {
+      fail("phones '" + label + "': duplicates another label after normalisation ('" + key + "')");
+    }
+  }
+  return set;
+}
+
+std::vector<std::string> PhoneSet::builtin_names() {
+  return {std::begin(kDetectionOrder), std::end(kDetectionOrder)};
+}
+
+std::vector<PhoneSet> PhoneSet::builtin_all(const ArticulationModel& model) {
+  std::vector<PhoneSet> sets;
+  for (std::string_view name : kDetectionOrder) {
+    if (auto set = builtin(name, model)) sets.push_back(std::move(*set));
+  }
+  return sets;
+}
+
+std::optional<PhoneSet> PhoneSet::builtin(std::string_view name, const ArticulationModel& model) {
+  for (const auto& file : embedded::phone_set_files()) {
+    if (file.name == name) {
+      return from_json(file.text, "built-in phone set '" + std::string(name) + "'", model);
+    }
+  }
+  return std::nullopt;
+}
+
+std::string PhoneSet::normalise(std::string_view label) const {
+  std::string out;
+  out.reserve(label.size());
+  for (const std::string& point : code_points(label)) {
+    if (std::find(ignored_.begin(), ignored_.end(), point) != ignored_.end()) continue;
+    if (!case_sensitive_ && point.size() == 1 && point[0] >= 'A' && point[0] <= 'Z') {
+      out.push_back(static_cast<char>(point[0] - 'A' + 'a'));
+    } else {
+      out += point;
+    }
+  }
+  return out;
+}
+
+std::optional<int> PhoneSet::lookup(std::string_view label) const {
+  if (label.empty()) return silence_phoneme_;
+  const auto it = phoneme_by_label_.find(normalise(label));
+  if (it == phoneme_by_label_.end()) return std::nullopt;
+  return it->second;
+}
+
+const PhoneSet& detect_phone_set(const std::vector<PhoneSet>& candidates,
+                                 const std::vector<std::string_view>& labels) {
+  const PhoneSet* best = &candidates.front();
+  std::size_t best_unknown = labels.size() + 1;
+  for (const PhoneSet& set : candidates) {
+    std::size_t unknown = 0;
+    for (std::string_view label : labels) {
+      if (!set.lookup(label)) ++unknown;
+    }
+    if (unknown == 0) return set;
+    if (unknown < best_unknown) {
+      best = &set;
+      best_unknown = unknown;
+    }
+  }
+  return *best;
+}
+
+}  // namespace lipsync

@@ -1,0 +1,113 @@
+// Offline and streaming rendering share the scheduler and the evaluator, and
+// hand the evaluator the same window of segments for each frame: that is what
+// makes the stream identical to the offline render (lipsync/renderer.hpp).
+#include "lipsync/renderer.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace lipsync {
+namespace {
+
+void check_options(const RenderOptions& options) {
+  if (options.lookahead < 0 || options.lookahead > kWindowRadius) {
+    throw std::invalid_argument("lookahead must be 0 to 7 segments, got " + std::to_string(options.lookahead));
+  }
+}
+
+ScheduleOptions schedule_options(const RenderOptions& options) {
+  check_options(options);
+  return {options.fps, options.fixed_rate};
+}
+
+/// Global index range [first, last] of the segments a frame in segment
+/// `frame_segment` sees, given `known` segments so far.
+struct WindowRange {
+  std::size_t first;
+  std::size_t last;
+};
+
+WindowRange window_range(std::size_t frame_segment, std::size_t known, int lookahead) {
+  const std::size_t first = frame_segment >= kWindowRadius ? frame_segment - kWindowRadius : 0;
+  const std::size_t last = std::min(known - 1, frame_segment + static_cast<std::size_t>(lookahead));
+  return {first, last};
+}
+
+void append_frame(Track& out, const ScheduledFrame& frame, CoarticulationEvaluator& evaluator,
+                  std::span<const Segment> window, std::size_t current) {
+  const std::size_t offset = out.values.size();
+  out.values.resize(offset + out.channel_count);
+  evaluator.evaluate(window, current, frame.t_us, std::span<float>(out.values.data() + offset, out.channel_count));
+  out.t_us.push_back(frame.t_us);
+  out.kinds.push_back(frame.kind);
+}
+
+}  // namespace
+
+Track render_track(const ArticulationModel& model, const std::vector<Segment>& segments,
+                   const RenderOptions& options) {
+  FrameScheduler scheduler(model, schedule_options(options));
+  std::vector<ScheduledFrame> frames;
+  for (std::size_t i = 0; i < segments.size(); ++i) scheduler.add_segment(segments[i], i, frames);
+  scheduler.finish(frames);
+
+  Track track;
+  track.channel_count = model.channel_count();
+  track.fps = options.fps;
+  track.t_us.reserve(frames.size());
+  track.kinds.reserve(frames.size());
+  track.values.reserve(frames.size() * track.channel_count);
+  CoarticulationEvaluator evaluator(model);
+  const std::span<const Segment> all(segments);
+  for (const ScheduledFrame& frame : frames) {
+    const auto [first, last] = window_range(frame.segment, segments.size(), options.lookahead);
+    append_frame(track, frame, evaluator, all.subspan(first, last - first + 1), frame.segment - first);
+  }
+  return track;
+}
+
+StreamingRenderer::StreamingRenderer(const ArticulationModel& model, const RenderOptions& options)
+    : model_(model), options_(options), scheduler_(model, schedule_options(options)), evaluator_(model) {
+  scratch_window_.reserve(2 * kWindowRadius + 1);
+}
+
+void StreamingRenderer::push(const Segment& segment, Track& out) {
+  if (finished_) throw std::logic_error("StreamingRenderer::push after finish");
+  window_.push_back(segment);
+  scheduler_.add_segment(segment, pushed_, scheduled_);
+  ++pushed_;
+  pending_.insert(pending_.end(), scheduled_.begin(), scheduled_.end());
+  scheduled_.clear();
+  emit_ready(out, false);
+}
+
+void StreamingRenderer::finish(Track& out) {
+  if (finished_) return;
+  scheduler_.finish(scheduled_);
+  pending_.insert(pending_.end(), scheduled_.begin(), scheduled_.end());
+  scheduled_.clear();
+  finished_ = true;
+  emit_ready(out, true);
+}
+
+void StreamingRenderer::emit_ready(Track& out, bool finishing) {
+  const auto lookahead = static_cast<std::size_t>(options_.lookahead);
+  while (!pending_.empty()) {
+    const ScheduledFrame& frame = pending_.front();
+    if (!finishing && frame.segment + lookahead >= pushed_) break;  // segment k+lookahead not known yet
+    const auto [first, last] = window_range(frame.segment, pushed_, options_.lookahead);
+    scratch_window_.assign(window_.begin() + static_cast<std::ptrdiff_t>(first - first_index_),
+                           window_.begin() + static_cast<std::ptrdiff_t>(last - first_index_ + 1));
+    append_frame(out, frame, evaluator_, scratch_window_, frame.segment - first);
+    pending_.pop_front();
+  }
+  // Keep only the segments a future frame can still see.
+  const std::size_t oldest_needed = pending_.empty() ? pushed_ : pending_.front().segment;
+  const std::size_t keep_from = oldest_needed >= kWindowRadius ? oldest_needed - kWindowRadius : 0;
+  while (first_index_ < keep_from && !window_.empty()) {
+    window_.pop_front();
+    ++first_index_;
+  }
+}
+
+}  // namespace lipsync

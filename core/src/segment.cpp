@@ -1,0 +1,87 @@
+// Validation of input timing and mapping of labels to model segments
+// (the rules are listed in lipsync/segment.hpp).
+#include "lipsync/segment.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "lipsync/error.hpp"
+#include "lipsync/phone_set.hpp"
+#include "lipsync/time.hpp"
+
+namespace lipsync {
+namespace {
+
+std::string quoted(std::string_view label) { return "'" + std::string(label) + "'"; }
+
+std::string seconds(std::int64_t time_us) { return format_seconds(time_us) + " s"; }
+
+}  // namespace
+
+SegmentBuilder::SegmentBuilder(const ArticulationModel& model, const PhoneSet& phone_set,
+                               std::string source, SegmentOptions options)
+    : model_(model), phone_set_(phone_set), source_(std::move(source)), options_(options) {
+  if (!(options_.closure_fraction > 0.0 && options_.closure_fraction < 1.0)) {
+    throw std::invalid_argument("closure fraction must lie strictly between 0 and 1, got " +
+                                std::to_string(options_.closure_fraction));
+  }
+}
+
+void SegmentBuilder::push(const LabeledInterval& interval, std::vector<Segment>& out) {
+  const auto fail = [&](const std::string& message) {
+    throw InputError(source_, interval.line, "phoneme " + quoted(interval.label) + ": " + message);
+  };
+  if (interval.start_us < 0) fail("start time " + seconds(interval.start_us) + " is negative");
+  if (interval.end_us > kMaxTimeUs || interval.start_us > kMaxTimeUs) {
+    fail("time " + seconds(std::max(interval.start_us, interval.end_us)) +
+         " is beyond 24 hours; are the times in the right unit?");
+  }
+  if (interval.end_us == interval.start_us) {
+    fail("zero duration (starts and ends at " + seconds(interval.start_us) + ")");
+  }
+  if (interval.end_us < interval.start_us) {
+    fail("ends (" + seconds(interval.end_us) + ") before it starts (" + seconds(interval.start_us) + ")");
+  }
+  if (interval.start_us < end_us_) {
+    std::string previous = last_line_ > 0 ? " (line " + std::to_string(last_line_) + ")" : "";
+    fail("starts at " + seconds(interval.start_us) + ", before the previous phoneme" + previous +
+         " ends at " + seconds(end_us_) + ": phonemes must be in time order and must not overlap");
+  }
+  const auto phoneme = phone_set_.lookup(interval.label);
+  if (!phoneme) fail("unknown label in phone set '" + phone_set_.name() + "'");
+
+  const PhonemeSpec& spec = model_.phoneme(*phoneme);
+  if (interval.start_us > end_us_) {
+    out.push_back({model_.silence_phoneme(), PhonemeClass::silence, end_us_, interval.start_us, 0});
+    last_phoneme_ = model_.silence_phoneme();
+  }
+  std::int64_t start_us = interval.start_us;
+  const std::int64_t duration_us = interval.end_us - interval.start_us;
+  if (spec.phoneme_class == PhonemeClass::release && spec.closure_phoneme >= 0 &&
+      last_phoneme_ != spec.closure_phoneme && duration_us >= 2) {
+    auto closure_us = static_cast<std::int64_t>(
+        std::llround(static_cast<double>(duration_us) * options_.closure_fraction));
+    closure_us = std::clamp<std::int64_t>(closure_us, 1, duration_us - 1);
+    out.push_back({spec.closure_phoneme, PhonemeClass::closure, start_us, start_us + closure_us, interval.line});
+    start_us += closure_us;
+  }
+  out.push_back({*phoneme, spec.phoneme_class, start_us, interval.end_us, interval.line});
+  last_phoneme_ = *phoneme;
+  last_line_ = interval.line;
+  end_us_ = interval.end_us;
+}
+
+std::vector<Segment> build_segments(const LabeledUtterance& utterance, const ArticulationModel& model,
+                                    const PhoneSet& phone_set, SegmentOptions options) {
+  if (utterance.intervals.empty()) {
+    throw InputError(utterance.source, 0, "the utterance has no phonemes");
+  }
+  SegmentBuilder builder(model, phone_set, utterance.source, options);
+  std::vector<Segment> segments;
+  segments.reserve(utterance.intervals.size() + utterance.intervals.size() / 4 + 1);
+  for (const LabeledInterval& interval : utterance.intervals) builder.push(interval, segments);
+  return segments;
+}
+
+}  // namespace lipsync

@@ -1,0 +1,107 @@
+// What a smaller lookahead costs: renders real utterances (flite's timing for
+// the Harvard sentences below) at every lookahead 0–7 and compares each with
+// the exact render (lookahead 7), channel by channel. Prints a Markdown table
+// for docs/streaming.md.
+//
+//   build/tests/bench/lookahead_error [--fps N]
+// Needs /usr/bin/flite (Debian package flite).
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <string>
+
+#include "lipsync/formats.hpp"
+#include "lipsync/phone_set.hpp"
+#include "lipsync/renderer.hpp"
+
+namespace {
+
+constexpr std::array<const char*, 20> kSentences = {
+    "The birch canoe slid on the smooth planks.",
+    "Glue the sheet to the dark blue background.",
+    "It's easy to tell the depth of a well.",
+    "These days a chicken leg is a rare dish.",
+    "Rice is often served in round bowls.",
+    "The juice of lemons makes fine punch.",
+    "The box was thrown beside the parked truck.",
+    "The hogs were fed chopped corn and garbage.",
+    "Four hours of steady work faced us.",
+    "A large size in stockings is hard to sell.",
+    "The boy was there when the sun rose.",
+    "A rod is used to catch pink salmon.",
+    "The source of the huge river is the clear spring.",
+    "Kick the ball straight and follow through.",
+    "Help the woman get back to her feet.",
+    "A pot of tea helps to pass the evening.",
+    "Smoky fires lack flame and heat.",
+    "The soft cushion broke the man's fall.",
+    "The salt breeze came across from the sea.",
+    "The girl at the booth sold fifty bonds.",
+};
+
+std::string flite_timing(const std::string& sentence) {
+  const std::string command = "flite -voice slt -psdur -o none -t \"" + sentence + "\"";
+  std::unique_ptr<FILE, int (*)(FILE*)> pipe(popen(command.c_str(), "r"), pclose);
+  if (!pipe) throw std::runtime_error("cannot run flite");
+  std::string output;
+  std::array<char, 4096> buffer{};
+  while (std::size_t n = std::fread(buffer.data(), 1, buffer.size(), pipe.get())) output.append(buffer.data(), n);
+  return output;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace lipsync;
+  int fps = 30;
+  if (argc == 3 && std::string(argv[1]) == "--fps") fps = std::stoi(argv[2]);
+  const ArticulationModel& model = ArticulationModel::builtin();
+  const PhoneSet radio = *PhoneSet::builtin("radio", model);
+
+  std::vector<std::vector<Segment>> utterances;
+  for (const char* sentence : kSentences) {
+    const LabeledUtterance parsed = parse_utterance(flite_timing(sentence), InputFormat::flite, "flite");
+    utterances.push_back(build_segments(parsed, model, radio));
+  }
+  std::size_t jaw = 0;
+  for (std::size_t c = 0; c < model.channel_count(); ++c) {
+    if (model.channels()[c].name == "jaw_rotation") jaw = c;
+  }
+
+  std::cout << "| lookahead | latency added (segments) | RMS error, all channels | max error, all channels | "
+               "max error, jaw_rotation | frames off by > 0.01 |\n|---|---|---|---|---|---|\n";
+  for (int lookahead = 0; lookahead <= 7; ++lookahead) {
+    double squared = 0.0;
+    double worst = 0.0;
+    double worst_jaw = 0.0;
+    std::size_t values = 0;
+    std::size_t frames = 0;
+    std::size_t frames_off = 0;
+    for (const auto& segments : utterances) {
+      const Track exact = render_track(model, segments, {.fps = fps});
+      const Track approx = render_track(model, segments, {.fps = fps, .lookahead = lookahead});
+      for (std::size_t f = 0; f < exact.frame_count(); ++f) {
+        double frame_worst = 0.0;
+        for (std::size_t c = 0; c < model.channel_count(); ++c) {
+          // Errors relative to the channel's range, so tongue (−1..1) and muscles (0..1) compare.
+          const double range = model.channels()[c].max - model.channels()[c].min;
+          const double error = std::fabs(exact.frame_values(f)[c] - approx.frame_values(f)[c]) / range;
+          squared += error * error;
+          worst = std::max(worst, error);
+          frame_worst = std::max(frame_worst, error);
+          if (c == jaw) worst_jaw = std::max(worst_jaw, error);
+          ++values;
+        }
+        ++frames;
+        if (frame_worst > 0.01) ++frames_off;
+      }
+    }
+    std::printf("| %d | %d | %.5f | %.4f | %.4f | %.1f %% |\n", lookahead, lookahead,
+                std::sqrt(squared / static_cast<double>(values)), worst, worst_jaw,
+                100.0 * static_cast<double>(frames_off) / static_cast<double>(frames));
+  }
+  std::printf("\n%zu utterances, %d fps; errors are fractions of each channel's range.\n", utterances.size(), fps);
+  return 0;
+}

@@ -1,0 +1,470 @@
+// End-to-end tests of the `lipsync` command line: each test runs the real
+// binary in a fresh temporary directory (fork + exec, stdout and stderr
+// captured to files outside it) and checks the exit status, the messages and
+// which files exist afterwards. Fixtures live in tests/data/cli/.
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "lipsync/model.hpp"
+#include "lipsync/phone_set.hpp"
+
+namespace lipsync {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+using ::testing::StartsWith;
+
+const fs::path kFixtures = fs::path(LIPSYNC_TEST_DATA_DIR) / "cli";
+
+struct RunResult {
+  int status = -1;
+  std::string out;
+  std::string err;
+};
+
+std::string read_text(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+void write_text(const fs::path& path, std::string_view text) {
+  std::ofstream(path, std::ios::binary) << text;
+}
+
+fs::path make_temp_dir(const std::string& prefix) {
+  std::string pattern = (fs::temp_directory_path() / (prefix + "XXXXXX")).string();
+  if (::mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
+  return pattern;
+}
+
+/// Runs lipsync with `args` in `cwd`; stdin from `stdin_file` (or /dev/null);
+/// stdout and stderr go through files in `capture`.
+RunResult run_lipsync(const std::vector<std::string>& args, const fs::path& cwd, const fs::path& capture,
+                      const std::optional<fs::path>& stdin_file) {
+  const fs::path out_path = capture / "stdout";
+  const fs::path err_path = capture / "stderr";
+  const std::string binary = LIPSYNC_CLI_BINARY;
+  std::vector<std::string> argv_text = {binary};
+  argv_text.insert(argv_text.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (std::string& arg : argv_text) argv.push_back(arg.data());
+  argv.push_back(nullptr);
+
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const std::string in_path = stdin_file ? stdin_file->string() : "/dev/null";
+    const int in = ::open(in_path.c_str(), O_RDONLY);
+    const int out = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int err = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (in < 0 || out < 0 || err < 0 || ::chdir(cwd.c_str()) != 0) ::_exit(126);
+    ::dup2(in, STDIN_FILENO);
+    ::dup2(out, STDOUT_FILENO);
+    ::dup2(err, STDERR_FILENO);
+    ::execv(binary.c_str(), argv.data());
+    ::_exit(127);
+  }
+  RunResult result;
+  int status = 0;
+  if (pid < 0 || ::waitpid(pid, &status, 0) != pid) return result;
+  result.status = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  result.out = read_text(out_path);
+  result.err = read_text(err_path);
+  return result;
+}
+
+std::vector<std::string> directory_listing(const fs::path& directory) {
+  std::vector<std::string> names;
+  for (const auto& entry : fs::directory_iterator(directory)) names.push_back(entry.path().filename().string());
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+std::string fixture(std::string_view name) { return (kFixtures / name).string(); }
+
+class CliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = make_temp_dir("lipsync-cli-test-");
+    capture_ = make_temp_dir("lipsync-cli-capture-");
+  }
+  void TearDown() override {
+    fs::remove_all(dir_);
+    fs::remove_all(capture_);
+  }
+
+  RunResult run(const std::vector<std::string>& args, const std::optional<fs::path>& stdin_file = std::nullopt) {
+    return run_lipsync(args, dir_, capture_, stdin_file);
+  }
+
+  fs::path dir_;      // the working directory of the command: must hold only what it wrote
+  fs::path capture_;  // stdout and stderr files
+};
+
+std::string describe(const RunResult& result) {
+  return "exit " + std::to_string(result.status) + "\n--- stderr:\n" + result.err + "--- stdout (start):\n" +
+         result.out.substr(0, 400);
+}
+
+// ---------------------------------------------------------------------------
+// Help and version
+
+TEST_F(CliTest, help_lists_every_command) {
+  const RunResult result = run({"--help"});
+  ASSERT_EQ(result.status, 0) << describe(result);
+  for (const char* command : {"render", "demo", "model", "phone-sets"}) {
+    EXPECT_THAT(result.out, HasSubstr("\n  " + std::string(command) + " ")) << command;
+  }
+}
+
+TEST_F(CliTest, no_command_is_a_usage_error) {
+  EXPECT_EQ(run({}).status, 2);
+  const RunResult result = run({"frobnicate"});
+  EXPECT_EQ(result.status, 2);
+  EXPECT_EQ(result.err, "lipsync: error: unknown command 'frobnicate' (see 'lipsync --help')\n");
+}
+
+TEST_F(CliTest, version_prints_one_line) {
+  const RunResult result = run({"--version"});
+  EXPECT_EQ(result.status, 0);
+  EXPECT_THAT(result.out, StartsWith("lipsync "));
+}
+
+TEST_F(CliTest, render_help_documents_every_option_with_its_default) {
+  const RunResult result = run({"render", "--help"});
+  ASSERT_EQ(result.status, 0) << describe(result);
+  EXPECT_THAT(result.out, StartsWith("Usage: lipsync render INPUT [options]\n"));
+  const std::vector<std::pair<std::string, std::string>> options = {
+      {"-o, --output FILE", "stdout"},      {"--format FORMAT", "json"},
+      {"--fps N", "30"},                    {"--model FILE", "the built-in model"},
+      {"--phone-set NAME", "auto"},         {"--input-format FORMAT", "detected"},
+      {"--tier NAME", "phones"},            {"--sample-rate HZ", "16000"},
+      {"--closure-fraction F", "0.6"},      {"--fixed-rate", "off"},
+      {"--incremental", "off"},             {"--lookahead N", "7"},
+  };
+  // One entry per option: its first line plus the wrapped continuation lines.
+  std::vector<std::string> entries;
+  std::istringstream lines(result.out);
+  for (std::string line; std::getline(lines, line);) {
+    const auto text = line.find_first_not_of(' ');
+    if (text == std::string::npos) continue;
+    if (line[text] == '-') {
+      entries.push_back(line);
+    } else if (!entries.empty() && text > 10) {
+      entries.back() += " " + line.substr(text);
+    }
+  }
+  std::map<std::string, std::string> line_of;
+  for (const std::string& entry : entries) {
+    for (const auto& [option, value] : options) {
+      if (entry.find(option + " ") != std::string::npos) line_of[option] = entry;
+    }
+  }
+  for (const auto& [option, value] : options) {
+    ASSERT_TRUE(line_of.count(option)) << option << " missing from:\n" << result.out;
+    EXPECT_THAT(line_of[option], HasSubstr("(default: ")) << option;
+    EXPECT_THAT(line_of[option], HasSubstr(value)) << option;
+  }
+}
+
+TEST_F(CliTest, every_command_has_help) {
+  for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{
+           {"demo", "--help"}, {"model", "--help"}, {"model", "dump", "--help"}, {"phone-sets", "-h"}}) {
+    const RunResult result = run(args);
+    EXPECT_EQ(result.status, 0) << args[0];
+    EXPECT_THAT(result.out, StartsWith("Usage: lipsync ")) << args[0];
+    EXPECT_THAT(result.out, HasSubstr("-h, --help")) << args[0];
+  }
+}
+
+// ---------------------------------------------------------------------------
+// demo
+
+TEST_F(CliTest, demo_writes_the_file_and_prints_the_path) {
+  const RunResult result = run({"demo"});
+  ASSERT_EQ(result.status, 0) << describe(result);
+  EXPECT_EQ(directory_listing(dir_), std::vector<std::string>{"lipsync-demo.json"});
+  const fs::path written = fs::canonical(dir_ / "lipsync-demo.json");
+  EXPECT_THAT(result.out, HasSubstr(written.string()));
+  EXPECT_EQ(std::count(result.out.begin(), result.out.end(), '\n'), 1) << result.out;
+  EXPECT_TRUE(result.err.empty()) << result.err;
+
+  const auto track = nlohmann::json::parse(read_text(written));
+  EXPECT_EQ(track["format"], "lipsync-track");
+  EXPECT_EQ(track["fps"], 30);
+  const std::size_t frames = track["frames"].size();
+  EXPECT_GE(frames, 59U) << "1.96 s at 30 fps";
+  EXPECT_THAT(result.out, HasSubstr(" " + std::to_string(frames) + " frames"));
+  EXPECT_THAT(result.out, HasSubstr("1.960000 s"));
+}
+
+TEST_F(CliTest, demo_follows_format_and_output) {
+  RunResult result = run({"demo", "--format", "arkit-csv", "--fps", "60"});
+  ASSERT_EQ(result.status, 0) << describe(result);
+  EXPECT_EQ(directory_listing(dir_), std::vector<std::string>{"lipsync-demo.arkit.csv"});
+  EXPECT_THAT(read_text(dir_ / "lipsync-demo.arkit.csv"), StartsWith("Timecode,BlendShapeCount,EyeBlinkLeft,"));
+
+  result = run({"demo", "-o", "-"});
+  ASSERT_EQ(result.status, 0) << describe(result);
+  EXPECT_TRUE(nlohmann::json::accept(result.out));
+  EXPECT_THAT(result.err, HasSubstr("standard output"));
+}
+
+// ---------------------------------------------------------------------------
+// render
+
+TEST_F(CliTest, render_json_has_the_grid_frames) {
+  // hello.json ends at 1.238 s: grid frames at round(i·10⁶/fps) < 1.238 s.
+  for (const auto& [fps, expected] : std::vector<std::pair<int, std::size_t>>{{30, 38}, {60, 75}, {24, 30}}) {
+    const RunResult result =
+        run({"render", fixture("hello.json"), "--fixed-rate", "--fps", std::to_string(fps)});
+    ASSERT_EQ(result.status, 0) << describe(result);
+    const auto track = nlohmann::json::parse(result.out);
+    EXPECT_EQ(track["fps"], fps);
+    ASSERT_EQ(track["frames"].size(), expected) << fps << " fps";
+    for (std::size_t i = 0; i < expected; ++i) {
+      const auto& frame = track["frames"][i];
+      const auto t_us = static_cast<std::int64_t>((static_cast<std::int64_t>(i) * 1'000'000 + fps / 2) / fps);
+      EXPECT_EQ(frame["t_us"].get<std::int64_t>(), t_us) << i;
+      EXPECT_EQ(frame["kind"], "uniform");
+      EXPECT_EQ(frame["values"].size(), track["channels"].size());
+      EXPECT_EQ(frame["arkit"].size(), 52U);
+    }
+  }
+}
+
+TEST_F(CliTest, render_adds_key_frames_at_closures) {
+  const RunResult result = run({"render", fixture("bump_map.json")});
+  ASSERT_EQ(result.status, 0) << describe(result);
+  const auto track = nlohmann::json::parse(result.out);
+  std::set<std::string> kinds;
+  std::int64_t previous = -1;
+  for (const auto& frame : track["frames"]) {
+    kinds.insert(frame["kind"].get<std::string>());
+    EXPECT_GT(frame["t_us"].get<std::int64_t>(), previous);
+    previous = frame["t_us"].get<std::int64_t>();
+  }
+  EXPECT_TRUE(kinds.count("closure_start"));
+  EXPECT_TRUE(kinds.count("closure_end"));
+}
+
+TEST_F(CliTest, render_to_file_equals_stdout_and_reads_stdin) {
+  const RunResult to_stdout = run({"render", fixture("bump_map.lab"), "--format", "csv"});
+  ASSERT_EQ(to_stdout.status, 0) << describe(to_stdout);
+  const RunResult to_file = run({"render", fixture("bump_map.lab"), "--format=csv", "-o", "track.csv"});
+  ASSERT_EQ(to_file.status, 0) << describe(to_file);
+  EXPECT_TRUE(to_file.out.empty());
+  EXPECT_EQ(directory_listing(dir_), std::vector<std::string>{"track.csv"});
+  EXPECT_EQ(read_text(dir_ / "track.csv"), to_stdout.out);
+
+  const RunResult from_stdin = run({"render", "-", "--format", "csv"}, kFixtures / "bump_map.lab");
+  ASSERT_EQ(from_stdin.status, 0) << describe(from_stdin);
+  EXPECT_EQ(from_stdin.out, to_stdout.out);
+}
+
+TEST_F(CliTest, every_input_format_renders_the_same_utterance) {
+  // "bump the map" with the same timings in five formats and four phone sets
+  // (arpabet, radio, sampa; TextGrid detected): the same model phonemes, so the
+  // same bytes. The TIMIT file differs on purpose (explicit closure labels).
+  const RunResult reference = run({"render", fixture("bump_map.psdur"), "--format", "csv"});
+  ASSERT_EQ(reference.status, 0) << describe(reference);
+  EXPECT_THAT(reference.out, StartsWith("t,t_us,kind,"));
+  EXPECT_GT(std::count(reference.out.begin(), reference.out.end(), '\n'), 30);
+  for (const char* name : {"bump_map.json", "bump_map.lab", "bump_map.pho", "bump_map.TextGrid"}) {
+    const RunResult result = run({"render", fixture(name), "--format", "csv"});
+    ASSERT_EQ(result.status, 0) << name << "\n" << describe(result);
+    EXPECT_TRUE(result.out == reference.out)
+        << name << " renders differently from bump_map.psdur: do the phone-set tables map its labels "
+        << "to the same model phonemes?";
+  }
+  const RunResult timit = run({"render", fixture("bump_map.PHN"), "--format", "csv"});
+  ASSERT_EQ(timit.status, 0) << describe(timit);
+  EXPECT_THAT(timit.out, StartsWith("t,t_us,kind,"));
+}
+
+TEST_F(CliTest, incremental_output_is_byte_identical_to_offline) {
+  const std::vector<std::string> inputs = {"hello.json",  "bump_map.json", "bump_map.psdur", "bump_map.lab",
+                                           "bump_map.PHN", "bump_map.pho",  "bump_map.TextGrid"};
+  const std::vector<std::vector<std::string>> option_sets = {
+      {}, {"--fps", "60"}, {"--fixed-rate"}, {"--lookahead", "2"}, {"--fps", "24", "--closure-fraction", "0.3"}};
+  for (const std::string& input : inputs) {
+    for (const char* format : {"json", "csv", "arkit-csv"}) {
+      for (const auto& options : option_sets) {
+        std::vector<std::string> args = {"render", fixture(input), "--format", format};
+        args.insert(args.end(), options.begin(), options.end());
+        const RunResult offline = run(args);
+        args.push_back("--incremental");
+        const RunResult incremental = run(args);
+        std::string label = input + " " + format;
+        for (const auto& option : options) label += " " + option;
+        ASSERT_EQ(offline.status, 0) << label << "\n" << describe(offline);
+        ASSERT_EQ(incremental.status, 0) << label << "\n" << describe(incremental);
+        EXPECT_FALSE(offline.out.empty()) << label;
+        EXPECT_TRUE(offline.out == incremental.out) << label << ": incremental output differs";
+      }
+    }
+  }
+}
+
+TEST_F(CliTest, phone_set_can_be_forced) {
+  // bump_map.json declares arpabet; forcing radio makes its upper-case stressed
+  // labels unknown (radio has no "AH1"), which proves the option is used.
+  const RunResult forced = run({"render", fixture("bump_map.json"), "--phone-set", "radio"});
+  EXPECT_EQ(forced.status, 1) << describe(forced);
+  EXPECT_THAT(forced.err, HasSubstr("radio"));
+  const RunResult detected = run({"render", fixture("bump_map.psdur"), "--phone-set", "auto"});
+  EXPECT_EQ(detected.status, 0) << describe(detected);
+}
+
+// ---------------------------------------------------------------------------
+// Errors: status, one-line message naming the culprit, and no file left behind
+
+struct ErrorCase {
+  std::vector<std::string> args;
+  int status;
+  std::vector<std::string> message_parts;
+};
+
+TEST_F(CliTest, errors_name_the_culprit_and_leave_no_file) {
+  const std::vector<ErrorCase> cases = {
+      {{"render", fixture("unknown_label.json")}, 1, {"unknown_label.json:3", "'XQ'", "arpabet"}},
+      {{"render", fixture("overlap.json")}, 1, {"overlap.json:2", "0.250000"}},
+      {{"render", fixture("bad_time.lab")}, 1, {"bad_time.lab:5", "0.24x000"}},
+      {{"render", fixture("missing.json")}, 1, {"missing.json", "No such file or directory"}},
+      {{"render", kFixtures.string()}, 1, {"Is a directory"}},
+      {{"render", fixture("hello.json"), "--model", fixture("bad_model.json")}, 1, {"bad_model.json: ", "aa"}},
+      {{"render", fixture("hello.json"), "--model", fixture("no_model.json")}, 1, {"no_model.json", "No such file"}},
+      {{"render", fixture("hello.json"), "--fps", "30x"}, 2, {"--fps", "'30x'"}},
+      {{"render", fixture("hello.json"), "--fps", "0"}, 2, {"--fps", "'0'", "1 to 240"}},
+      {{"render", fixture("hello.json"), "--fps", "241"}, 2, {"--fps", "'241'"}},
+      {{"render", fixture("hello.json"), "--fps", "99999999999999999999"}, 2, {"--fps"}},
+      {{"render", fixture("hello.json"), "--fps"}, 2, {"--fps", "needs a value"}},
+      {{"render", fixture("hello.json"), "--frobnicate"}, 2, {"'--frobnicate'"}},
+      {{"render", fixture("hello.json"), "-x"}, 2, {"'-x'"}},
+      {{"render", fixture("hello.json"), "--fixed-rate=yes"}, 2, {"--fixed-rate", "takes no value"}},
+      {{"render", fixture("hello.json"), "--lookahead", "8"}, 2, {"--lookahead", "'8'", "0 to 7"}},
+      {{"render", fixture("hello.json"), "--closure-fraction", "1"}, 2, {"--closure-fraction", "'1'"}},
+      {{"render", fixture("hello.json"), "--closure-fraction", "0.5.1"}, 2, {"--closure-fraction", "'0.5.1'"}},
+      {{"render", fixture("hello.json"), "--closure-fraction", "nan"}, 2, {"--closure-fraction", "'nan'"}},
+      {{"render", fixture("hello.json"), "--sample-rate", "0"}, 2, {"--sample-rate", "'0'"}},
+      {{"render", fixture("hello.json"), "--format", "xml"}, 2, {"--format", "'xml'"}},
+      {{"render", fixture("hello.json"), "--input-format", "wav"}, 2, {"--input-format", "'wav'"}},
+      {{"render", fixture("hello.json"), "--phone-set", "klingon"}, 2, {"--phone-set", "'klingon'", "arpabet"}},
+      {{"render"}, 2, {"INPUT"}},
+      {{"render", fixture("hello.json"), fixture("hello.json")}, 2, {"one INPUT"}},
+      {{"demo", "--fps", "-3"}, 2, {"--fps", "'-3'"}},
+  };
+  for (const ErrorCase& error_case : cases) {
+    std::vector<std::string> args = error_case.args;
+    args.insert(args.end(), {"-o", "out.json"});
+    std::string label;
+    for (const auto& arg : args) label += arg + " ";
+    const RunResult result = run(args);
+    EXPECT_EQ(result.status, error_case.status) << label << "\n" << describe(result);
+    EXPECT_THAT(result.err, StartsWith("lipsync: error: ")) << label;
+    EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << label << "\n" << result.err;
+    for (const std::string& part : error_case.message_parts) EXPECT_THAT(result.err, HasSubstr(part)) << label;
+    EXPECT_TRUE(result.out.empty()) << label;
+    EXPECT_TRUE(directory_listing(dir_).empty()) << label << ": left a file behind";
+  }
+}
+
+TEST_F(CliTest, a_failed_render_keeps_the_previous_output) {
+  write_text(dir_ / "out.json", "previous track");
+  const RunResult result = run({"render", fixture("overlap.json"), "-o", "out.json"});
+  EXPECT_EQ(result.status, 1);
+  EXPECT_EQ(directory_listing(dir_), std::vector<std::string>{"out.json"});
+  EXPECT_EQ(read_text(dir_ / "out.json"), "previous track");
+
+  const RunResult success = run({"render", fixture("hello.json"), "-o", "out.json"});
+  ASSERT_EQ(success.status, 0) << describe(success);
+  EXPECT_EQ(directory_listing(dir_), std::vector<std::string>{"out.json"});
+  EXPECT_TRUE(nlohmann::json::accept(read_text(dir_ / "out.json")));
+}
+
+TEST_F(CliTest, unwritable_output_is_an_error_naming_it) {
+  const RunResult missing_dir = run({"render", fixture("hello.json"), "-o", "no/such/dir/out.json"});
+  EXPECT_EQ(missing_dir.status, 1);
+  EXPECT_THAT(missing_dir.err, HasSubstr("'no/such/dir/out.json'"));
+  fs::create_directory(dir_ / "sub");
+  const RunResult is_dir = run({"render", fixture("hello.json"), "-o", "sub"});
+  EXPECT_EQ(is_dir.status, 1);
+  EXPECT_THAT(is_dir.err, HasSubstr("'sub'"));
+  EXPECT_EQ(directory_listing(dir_), std::vector<std::string>{"sub"});
+  EXPECT_TRUE(directory_listing(dir_ / "sub").empty());
+}
+
+// ---------------------------------------------------------------------------
+// model dump, phone-sets
+
+TEST_F(CliTest, model_dump_reloads) {
+  const RunResult result = run({"model", "dump"});
+  ASSERT_EQ(result.status, 0) << describe(result);
+  const ArticulationModel model = ArticulationModel::from_json(result.out, "dump");
+  EXPECT_EQ(model.name(), ArticulationModel::builtin().name());
+  EXPECT_EQ(model.channel_count(), ArticulationModel::builtin().channel_count());
+
+  write_text(dir_ / "mine.json", result.out);
+  const RunResult again = run({"model", "dump", "--model", "mine.json"});
+  ASSERT_EQ(again.status, 0) << describe(again);
+  EXPECT_EQ(again.out, result.out);
+
+  const RunResult render = run({"render", fixture("hello.json"), "--model", "mine.json"});
+  const RunResult builtin = run({"render", fixture("hello.json")});
+  ASSERT_EQ(render.status, 0) << describe(render);
+  EXPECT_EQ(render.out, builtin.out);
+}
+
+TEST_F(CliTest, model_errors) {
+  EXPECT_EQ(run({"model"}).status, 2);
+  EXPECT_EQ(run({"model", "show"}).status, 2);
+  const RunResult bad = run({"model", "dump", "--model", fixture("bad_model.json")});
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_THAT(bad.err, StartsWith("lipsync: error: " + fixture("bad_model.json") + ": "));
+  EXPECT_TRUE(bad.out.empty());
+}
+
+TEST_F(CliTest, phone_sets_lists_every_builtin_set) {
+  const RunResult result = run({"phone-sets"});
+  ASSERT_EQ(result.status, 0) << describe(result);
+  // One entry per set: "name  description", the description wrapped onto
+  // indented continuation lines.
+  std::vector<std::string> entries;
+  std::istringstream text(result.out);
+  for (std::string line; std::getline(text, line);) {
+    if (!line.empty() && line[0] != ' ') {
+      entries.push_back(line);
+    } else if (!entries.empty()) {
+      entries.back() += " " + line.substr(line.find_first_not_of(' '));
+    }
+  }
+  const std::vector<PhoneSet> sets = PhoneSet::builtin_all(ArticulationModel::builtin());
+  ASSERT_EQ(entries.size(), sets.size() + 1) << result.out;
+  for (std::size_t i = 0; i < sets.size(); ++i) {
+    const std::string& name = sets[i].name();
+    ASSERT_THAT(entries[i], StartsWith(name + "  "));
+    std::string description = entries[i].substr(entries[i].find_first_not_of(' ', name.size()));
+    EXPECT_EQ(description, sets[i].description()) << name;
+  }
+  EXPECT_THAT(entries.back(), StartsWith("auto  "));
+}
+
+}  // namespace
+}  // namespace lipsync

@@ -1,0 +1,181 @@
+#include "lipsync/coarticulation.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "random_segments.hpp"
+#include "test_model.hpp"
+
+namespace lipsync {
+namespace {
+
+using testing::make_segments;
+using testing::test_model;
+
+std::vector<float> evaluate_at(const std::vector<Segment>& segments, std::int64_t t_us) {
+  const ArticulationModel& model = test_model();
+  CoarticulationEvaluator evaluator(model);
+  std::size_t current = 0;
+  while (current + 1 < segments.size() && segments[current].end_us <= t_us) ++current;
+  std::vector<float> out(model.channel_count());
+  evaluator.evaluate(segments, current, t_us, out);
+  return out;
+}
+
+TEST(Coarticulation, TwoSegmentsGiveASmoothMonotoneTransition) {
+  // Paper Fig. 2: targets 0.1 then 0.9, equal dominance functions.
+  const auto segments = make_segments(test_model(), {{"low", 0.0, 0.2}, {"high", 0.2, 0.4}});
+  std::vector<float> lips;
+  for (std::int64_t t = 0; t <= 400'000; t += 1'000) lips.push_back(evaluate_at(segments, t)[0]);
+  for (std::size_t i = 1; i < lips.size(); ++i) {
+    EXPECT_GE(lips[i], lips[i - 1]) << "decreasing at t = " << i << " ms";
+    // Between the two peaks (0.1 s and 0.3 s) the blend moves all the time;
+    // outside them (c = 1) the ratio of the two exponentials is constant.
+    if (i > 100 && i <= 300) {
+      EXPECT_GT(lips[i], lips[i - 1]) << "flat at t = " << i << " ms";
+    }
+    EXPECT_LT(lips[i] - lips[i - 1], 0.02F) << "jump at t = " << i << " ms";
+  }
+  EXPECT_NEAR(lips.front(), 0.1, 0.05);
+  EXPECT_NEAR(lips[200], 0.5, 1e-6);  // symmetric dominance: the midpoint at the boundary
+  EXPECT_NEAR(lips.back(), 0.9, 0.05);
+}
+
+TEST(Coarticulation, WindowedEqualsUnwindowedUpToSevenSegments) {
+  const ArticulationModel& model = test_model();
+  CoarticulationEvaluator evaluator(model);
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    const auto segments = testing::random_segments(model, 7, seed);
+    for (std::int64_t t = 0; t < segments.back().end_us; t += 7'919) {
+      std::size_t current = 0;
+      while (segments[current].end_us <= t) ++current;
+      std::vector<float> windowed(model.channel_count());
+      std::vector<float> reference(model.channel_count());
+      evaluator.evaluate(segments, current, t, windowed);
+      evaluate_unwindowed(model, segments, t, reference);
+      ASSERT_THAT(windowed, ::testing::Pointwise(::testing::FloatNear(1e-6F), reference))
+          << "seed " << seed << ", t = " << t << " µs";
+    }
+  }
+}
+
+TEST(Coarticulation, WindowedStaysCloseToUnwindowedOnLongUtterances) {
+  const ArticulationModel& model = test_model();
+  CoarticulationEvaluator evaluator(model);
+  const auto segments = testing::random_segments(model, 400, 7);
+  double worst = 0.0;
+  std::size_t current = 0;
+  for (std::int64_t t = 0; t < segments.back().end_us; t += 10'007) {
+    while (segments[current].end_us <= t) ++current;
+    std::vector<float> windowed(model.channel_count());
+    std::vector<float> reference(model.channel_count());
+    evaluator.evaluate(segments, current, t, windowed);
+    evaluate_unwindowed(model, segments, t, reference);
+    for (std::size_t c = 0; c < windowed.size(); ++c) {
+      worst = std::max(worst, static_cast<double>(std::fabs(windowed[c] - reference[c])));
+    }
+  }
+  // Segments 7 away carry almost no weight (θ = 20/s), but very short
+  // segments can bring far ones close in time: bound, not zero.
+  EXPECT_LT(worst, 0.05);
+}
+
+TEST(Coarticulation, OutputIsAConvexCombinationOfTheWindowTargets) {
+  const ArticulationModel& model = test_model();
+  CoarticulationEvaluator evaluator(model);
+  for (std::uint64_t seed = 100; seed < 110; ++seed) {
+    const auto segments = testing::random_segments(model, 200, seed);
+    std::size_t current = 0;
+    for (std::int64_t t = 0; t <= segments.back().end_us; t += 3'001) {
+      while (current + 1 < segments.size() && segments[current].end_us <= t) ++current;
+      std::vector<float> values(model.channel_count());
+      evaluator.evaluate(segments, current, t, values);
+      const std::size_t first = current >= 7 ? current - 7 : 0;
+      const std::size_t last = std::min(segments.size() - 1, current + 7);
+      for (std::size_t c = 0; c < values.size(); ++c) {
+        double low = 1e9;
+        double high = -1e9;
+        for (std::size_t i = first; i <= last; ++i) {
+          low = std::min(low, model.phoneme(segments[i].phoneme).targets[c]);
+          high = std::max(high, model.phoneme(segments[i].phoneme).targets[c]);
+        }
+        ASSERT_TRUE(std::isfinite(values[c]));
+        ASSERT_GE(values[c], static_cast<float>(low)) << "seed " << seed << " t " << t << " channel " << c;
+        ASSERT_LE(values[c], static_cast<float>(high)) << "seed " << seed << " t " << t << " channel " << c;
+      }
+    }
+  }
+}
+
+TEST(Coarticulation, TenMinutePauseStaysFiniteAndAtRest) {
+  const auto segments =
+      make_segments(test_model(), {{"aa", 0.0, 0.1}, {"sil", 0.1, 600.1}, {"iy", 600.1, 600.2}});
+  for (std::int64_t t : {100'000LL, 1'000'000LL, 300'000'000LL, 599'000'000LL, 600'100'000LL - 1}) {
+    const auto values = evaluate_at(segments, t);
+    for (float v : values) ASSERT_TRUE(std::isfinite(v)) << "t = " << t;
+  }
+  EXPECT_THAT(evaluate_at(segments, 300'000'000), ::testing::ElementsAre(0.0F, 0.0F, 0.0F));
+}
+
+TEST(Coarticulation, TimesFarFromEveryPeakStayFinite) {
+  // A single segment of 20 hours: |τ| is huge everywhere but at the centre.
+  const auto segments = make_segments(test_model(), {{"high", 0.0, 72'000.0}});
+  EXPECT_THAT(evaluate_at(segments, 0), ::testing::ElementsAre(0.9F, 0.9F, 0.5F));
+}
+
+TEST(HermiteFade, StartsAtZeroEndsAtOneAndNeverGoesNegative) {
+  for (double length_s : {0.001, 0.05, 0.3, 2.0}) {
+    for (double slope : {-500.0, -20.0, 0.0, 5.0, 20.0, 60.0, 1e6}) {
+      EXPECT_DOUBLE_EQ(fade_in_shape(0.0, length_s, slope), 0.0);
+      EXPECT_NEAR(fade_in_shape(1.0, length_s, slope), 1.0, 1e-12);
+      EXPECT_NEAR(fade_out_shape(0.0, length_s, slope), 1.0, 1e-12);
+      EXPECT_DOUBLE_EQ(fade_out_shape(1.0, length_s, slope), 0.0);
+      for (double u = 0.0; u <= 1.0; u += 1.0 / 64) {
+        EXPECT_GE(fade_in_shape(u, length_s, slope), 0.0) << "Δ " << length_s << " g " << slope << " u " << u;
+        EXPECT_GE(fade_out_shape(u, length_s, -slope), 0.0) << "Δ " << length_s << " g " << -slope << " u " << u;
+      }
+    }
+  }
+}
+
+TEST(HermiteFade, MatchesTheDominanceSlopeAtTheBorderWhenNotClamped) {
+  // d/du of the fade at the inner border equals Δ·g: the fade joins Eq. 2 with
+  // a continuous first derivative (Eq. 4).
+  const double length_s = 0.08;
+  const double slope = 20.0;  // Δ·g = 1.6 < 3: not clamped
+  const double h = 1e-6;
+  const double in_derivative = (fade_in_shape(1.0, length_s, slope) - fade_in_shape(1.0 - h, length_s, slope)) / h;
+  EXPECT_NEAR(in_derivative, length_s * slope, 1e-4);
+  const double out_derivative = (fade_out_shape(h, length_s, -slope) - fade_out_shape(0.0, length_s, -slope)) / h;
+  EXPECT_NEAR(out_derivative, -length_s * slope, 1e-4);
+}
+
+TEST(Coarticulation, ReleasePeaksAtTheStartOfItsInterval) {
+  // p's jaw target is 0.2, silence's 0. With the peak at the centre (0.75 s),
+  // jaw would be about 0.13 at 0.5 s and 0.19 at 0.95 s; with the peak at the
+  // start it is about 0.2 at 0.5 s and under 0.05 at 0.95 s.
+  const auto segments = make_segments(test_model(), {{"sil", 0.0, 0.5}, {"p", 0.5, 1.0}, {"sil", 1.0, 1.5}});
+  EXPECT_GT(evaluate_at(segments, 500'000)[1], 0.18F);
+  EXPECT_LT(evaluate_at(segments, 950'000)[1], 0.05F);
+}
+
+TEST(Coarticulation, IsDeterministic) {
+  const ArticulationModel& model = test_model();
+  const auto segments = testing::random_segments(model, 50, 3);
+  CoarticulationEvaluator a(model);
+  CoarticulationEvaluator b(model);
+  for (std::int64_t t = 0; t < segments.back().end_us; t += 12'345) {
+    std::size_t current = 0;
+    while (segments[current].end_us <= t) ++current;
+    std::vector<float> first(model.channel_count());
+    std::vector<float> second(model.channel_count());
+    a.evaluate(segments, current, t, first);
+    b.evaluate(segments, current, t, second);
+    ASSERT_EQ(first, second);
+  }
+}
+
+}  // namespace
+}  // namespace lipsync
