@@ -3,6 +3,7 @@
 #include "lipsync/coarticulation.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cassert>
 #include <cmath>
 #include <limits>
@@ -58,17 +59,21 @@ constexpr std::size_t kLanes = 4;
 #define LIPSYNC_VECTOR_CLONES
 #endif
 
-/// One segment's share of Eq. 5 for every channel, with one weight per
-/// channel (a phoneme whose channels use several dominance shapes), and the
-/// range of the targets that carry weight.
-LIPSYNC_VECTOR_CLONES
-void accumulate(std::size_t padded_channels, const double* __restrict weight, const double* __restrict alpha,
-                const double* __restrict alpha_target, const double* __restrict target,
-                double* __restrict numerator, double* __restrict denominator, double* __restrict low,
-                double* __restrict high) {
+/// One dominance shape's share of Eq. 5: its channels' α · T and α, scaled by
+/// the shape's weight (channels of other shapes have α = 0 in these rows).
+LIPSYNC_VECTOR_CLONES void accumulate(std::size_t padded_channels, double weight, const double* __restrict alpha,
+                                      const double* __restrict alpha_target, double* __restrict numerator,
+                                      double* __restrict denominator) {
   for (std::size_t c = 0; c < padded_channels; ++c) {
-    numerator[c] += alpha_target[c] * weight[c];
-    denominator[c] += alpha[c] * weight[c];
+    numerator[c] += alpha_target[c] * weight;
+    denominator[c] += alpha[c] * weight;
+  }
+}
+
+/// Widens each channel's [low, high] to include a contributing segment's target.
+LIPSYNC_VECTOR_CLONES void widen_range(std::size_t padded_channels, const double* __restrict target,
+                                       double* __restrict low, double* __restrict high) {
+  for (std::size_t c = 0; c < padded_channels; ++c) {
     // Loaded into locals first: then the selects if-convert and the loop vectorises.
     const double goal = target[c];
     const double lowest = low[c];
@@ -78,23 +83,57 @@ void accumulate(std::size_t padded_channels, const double* __restrict weight, co
   }
 }
 
-/// The same with one weight for all channels (one dominance shape: the common case).
-LIPSYNC_VECTOR_CLONES
-void accumulate_uniform(std::size_t padded_channels, double weight, const double* __restrict alpha,
-                        const double* __restrict alpha_target, const double* __restrict target,
-                        double* __restrict numerator, double* __restrict denominator, double* __restrict low,
-                        double* __restrict high) {
-  for (std::size_t c = 0; c < padded_channels; ++c) {
-    numerator[c] += alpha_target[c] * weight;
-    denominator[c] += alpha[c] * weight;
-    // Loaded into locals first: then the selects if-convert and the loop vectorises.
-    const double goal = target[c];
-    const double lowest = low[c];
-    const double highest = high[c];
-    low[c] = goal < lowest ? goal : lowest;
-    high[c] = goal > highest ? goal : highest;
+/// Splits of ln 2 for the range reduction: k · kLn2Hi is exact for |k| < 2^11.
+constexpr double kLn2Hi = 0x1.62e42fee00000p-1;
+constexpr double kLn2Lo = 0x1.a39ef35793c76p-33;
+constexpr double kLog2E = 0x1.71547652b82fep0;
+/// Adding 1.5 · 2^52 rounds to an integer and leaves it in the low mantissa bits.
+constexpr double kRoundingShift = 0x1.8p52;
+/// Below this e^x is subnormal; such weights are negligible next to the largest (1).
+constexpr double kSmallestExponent = -708.0;
+
+}  // namespace
+
+namespace {
+
+/// e^v for v in [−708, 0], in place: e^v = 2^k · e^r with k = round(v / ln 2)
+/// and |r| ≤ ln 2 / 2, e^r by its Taylor series to degree 12 (truncation error
+/// below 2·10⁻¹⁶). Straight-line arithmetic, so the loop vectorises.
+LIPSYNC_VECTOR_CLONES void exp_in_range(double* __restrict values, std::size_t count) {
+  for (std::size_t i = 0; i < count; ++i) {
+    const double v = values[i];
+    const double shifted = v * kLog2E + kRoundingShift;
+    const double k = shifted - kRoundingShift;
+    const double r = (v - k * kLn2Hi) - k * kLn2Lo;
+    double p = 1.0 / 479001600.0;
+    p = p * r + 1.0 / 39916800.0;
+    p = p * r + 1.0 / 3628800.0;
+    p = p * r + 1.0 / 362880.0;
+    p = p * r + 1.0 / 40320.0;
+    p = p * r + 1.0 / 5040.0;
+    p = p * r + 1.0 / 720.0;
+    p = p * r + 1.0 / 120.0;
+    p = p * r + 1.0 / 24.0;
+    p = p * r + 1.0 / 6.0;
+    p = p * r + 0.5;
+    p = p * r + 1.0;
+    p = p * r + 1.0;
+    // 2^k from the integer in the low bits of `shifted`: exponent field k + 1023.
+    values[i] = p * std::bit_cast<double>((std::bit_cast<std::uint64_t>(shifted) + 1023) << 52);
   }
 }
+
+}  // namespace
+
+void exp_non_positive(std::span<const double> x, std::span<double> y) {
+  for (std::size_t i = 0; i < x.size(); ++i) y[i] = std::max(x[i], kSmallestExponent);
+  exp_in_range(y.data(), y.size());
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (x[i] < kSmallestExponent) y[i] = 0.0;
+  }
+}
+
+namespace {
 
 bool same_shape(const DominanceParams& a, const DominanceParams& b) {
   return a.theta_minus_per_s == b.theta_minus_per_s && a.theta_plus_per_s == b.theta_plus_per_s && a.c == b.c &&
@@ -124,30 +163,33 @@ CoarticulationEvaluator::CoarticulationEvaluator(const ArticulationModel& model)
   shape_begin_.push_back(0);
   for (const PhonemeSpec& phoneme : model.phonemes()) {
     const std::size_t first_shape = shapes_.size();
-    for (std::size_t c = 0; c < channels_; ++c) {
-      DominanceParams shape = phoneme.dominance[c];
-      shape.alpha = 1.0;
+    for (std::size_t c = 0; c < padded_channels_; ++c) {
+      const bool real = c < channels_;
       std::size_t local = 0;
-      while (first_shape + local < shapes_.size() && !same_shape(shapes_[first_shape + local], shape)) ++local;
-      if (first_shape + local == shapes_.size()) shapes_.push_back(shape);
+      if (real) {
+        DominanceParams shape = phoneme.dominance[c];
+        shape.alpha = 1.0;
+        while (first_shape + local < shapes_.size() && !same_shape(shapes_[first_shape + local], shape)) ++local;
+        if (first_shape + local == shapes_.size()) shapes_.push_back(shape);
+      }
       channel_shape_.push_back(static_cast<std::uint32_t>(local));
-      alpha_.push_back(phoneme.dominance[c].alpha);
-      target_.push_back(phoneme.targets[c]);
-      alpha_target_.push_back(phoneme.dominance[c].alpha * phoneme.targets[c]);
+      target_.push_back(real ? phoneme.targets[c] : 0.0);
     }
-    for (std::size_t c = channels_; c < padded_channels_; ++c) {
-      channel_shape_.push_back(0);
-      alpha_.push_back(0.0);
-      target_.push_back(0.0);
-      alpha_target_.push_back(0.0);
+    // One row of α and α·T per shape, zero for the channels of other shapes
+    // and for the padding.
+    for (std::size_t k = first_shape; k < shapes_.size(); ++k) {
+      for (std::size_t c = 0; c < padded_channels_; ++c) {
+        const bool in_shape = c < channels_ && channel_shape_[channel_shape_.size() - padded_channels_ + c] == k - first_shape;
+        alpha_.push_back(in_shape ? phoneme.dominance[c].alpha : 0.0);
+        alpha_target_.push_back(in_shape ? phoneme.dominance[c].alpha * phoneme.targets[c] : 0.0);
+      }
     }
     shape_begin_.push_back(static_cast<std::uint32_t>(shapes_.size()));
     max_shapes_ = std::max(max_shapes_, shapes_.size() - first_shape);
   }
   const std::size_t window = 2 * kWindowRadius + 1;
   log_shape_.resize(window * max_shapes_);
-  shape_weight_.resize(max_shapes_);
-  channel_weight_.resize(padded_channels_);
+  shape_weight_.resize(window * max_shapes_);
   numerator_.resize(padded_channels_);
   denominator_.resize(padded_channels_);
   low_.resize(padded_channels_);
@@ -167,6 +209,8 @@ void CoarticulationEvaluator::evaluate(std::span<const Segment> window, std::siz
   // Pass 1: log D / α for every segment of the window and every shape of its
   // phoneme (Eq. 2, or Eq. 4's Hermite fade for the 7th segment on each side).
   double max_log = kNegativeInfinity;
+  const std::size_t slots = (last - first + 1) * max_shapes_;
+  std::fill_n(log_shape_.data(), slots, kNegativeInfinity);  // phonemes with fewer shapes leave some unused
   for (std::size_t i = first; i <= last; ++i) {
     const Segment& segment = window[i];
     const auto phoneme = static_cast<std::size_t>(segment.phoneme);
@@ -202,27 +246,22 @@ void CoarticulationEvaluator::evaluate(std::span<const Segment> window, std::siz
   std::fill_n(denominator_.data(), n, 0.0);
   std::fill_n(low_.data(), n, std::numeric_limits<double>::infinity());
   std::fill_n(high_.data(), n, -std::numeric_limits<double>::infinity());
-  double* shape_weight = shape_weight_.data();
+  for (std::size_t slot = 0; slot < slots; ++slot) log_shape_[slot] -= max_log;
+  exp_non_positive(std::span<const double>(log_shape_.data(), slots), std::span<double>(shape_weight_.data(), slots));
   for (std::size_t i = first; i <= last; ++i) {
     const auto phoneme = static_cast<std::size_t>(window[i].phoneme);
     const std::size_t shape_count = shape_begin_[phoneme + 1] - shape_begin_[phoneme];
-    const double* log_shape = log_shape_.data() + (i - first) * max_shapes_;
+    const double* shape_weight = shape_weight_.data() + (i - first) * max_shapes_;
     bool carries_weight = false;
     for (std::size_t k = 0; k < shape_count; ++k) {
-      shape_weight[k] = std::exp(log_shape[k] - max_log);
-      carries_weight = carries_weight || shape_weight[k] > 0.0;
+      if (shape_weight[k] == 0.0) continue;
+      const std::size_t row = (shape_begin_[phoneme] + k) * n;
+      accumulate(n, shape_weight[k], alpha_.data() + row, alpha_target_.data() + row, numerator_.data(),
+                 denominator_.data());
+      carries_weight = true;
     }
-    if (!carries_weight) continue;  // far away in time: adds nothing, and its targets do not bound the result
-    const std::size_t row = phoneme * padded_channels_;
-    if (shape_count == 1) {
-      accumulate_uniform(n, shape_weight[0], alpha_.data() + row, alpha_target_.data() + row, target_.data() + row,
-                         numerator_.data(), denominator_.data(), low_.data(), high_.data());
-    } else {
-      const std::uint32_t* shape_of = channel_shape_.data() + row;
-      for (std::size_t c = 0; c < n; ++c) channel_weight_[c] = shape_weight[shape_of[c]];
-      accumulate(n, channel_weight_.data(), alpha_.data() + row, alpha_target_.data() + row, target_.data() + row,
-                 numerator_.data(), denominator_.data(), low_.data(), high_.data());
-    }
+    // A segment far away in time adds nothing, and its targets do not bound the result.
+    if (carries_weight) widen_range(n, target_.data() + phoneme * n, low_.data(), high_.data());
   }
   for (std::size_t c = 0; c < channels; ++c) {
     if (denominator_[c] < kUnderflowGuard) evaluate_channel_in_log_space(window, first, last, c);
@@ -242,7 +281,8 @@ void CoarticulationEvaluator::evaluate_channel_in_log_space(std::span<const Segm
   const auto log_weight = [&](std::size_t i) {
     const auto phoneme = static_cast<std::size_t>(window[i].phoneme);
     const std::size_t shape = channel_shape_[phoneme * padded_channels_ + channel];
-    return std::log(alpha_[phoneme * padded_channels_ + channel]) + log_shape_[(i - first) * max_shapes_ + shape];
+    const double alpha = alpha_[(shape_begin_[phoneme] + shape) * padded_channels_ + channel];
+    return std::log(alpha) + log_shape_[(i - first) * max_shapes_ + shape];
   };
   for (std::size_t i = first; i <= last; ++i) max_log = std::max(max_log, log_weight(i));
   double numerator = 0.0;

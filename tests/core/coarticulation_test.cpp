@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 
 #include "random_segments.hpp"
 #include "test_model.hpp"
@@ -174,6 +175,27 @@ TEST(Coarticulation, IsDeterministic) {
     a.evaluate(segments, current, t, first);
     b.evaluate(segments, current, t, second);
     ASSERT_EQ(first, second);
+  }
+}
+
+}  // namespace
+}  // namespace lipsync
+
+namespace lipsync {
+namespace {
+
+TEST(ExpNonPositive, AgreesWithStdExpWithinTwoUlp) {
+  std::vector<double> x;
+  for (double v = -708.0; v <= 0.0; v += 0.0137) x.push_back(v);
+  for (double v : {0.0, -0.0, -1e-300, -1e-17, -0.34657359027997264, -0.3465735902799727, -1.0, -745.0, -1e6,
+                   -std::numeric_limits<double>::infinity()}) {
+    x.push_back(v);
+  }
+  std::vector<double> y(x.size());
+  exp_non_positive(x, y);
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    const double expected = x[i] < -708.0 ? 0.0 : std::exp(x[i]);
+    ASSERT_NEAR(y[i], expected, 2.0 * std::numeric_limits<double>::epsilon() * expected) << "x = " << x[i];
   }
 }
 

@@ -63,13 +63,13 @@ class CoarticulationEvaluator {
   std::size_t max_shapes_ = 1;
   // Phoneme × padded channel tables.
   std::vector<std::uint32_t> channel_shape_;  // index into the phoneme's shapes
-  std::vector<double> alpha_;
   std::vector<double> target_;
+  // Shape × padded channel tables: α and α·T of the channels of that shape, 0 elsewhere.
+  std::vector<double> alpha_;
   std::vector<double> alpha_target_;
   // Scratch, sized once.
   std::vector<double> log_shape_;  // window × max_shapes_: log(D/α)
   std::vector<double> shape_weight_;
-  std::vector<double> channel_weight_;
   std::vector<double> numerator_;
   std::vector<double> denominator_;
   std::vector<double> low_;
@@ -83,6 +83,11 @@ class CoarticulationEvaluator {
 double fade_in_shape(double u, double length_s, double slope_per_s);
 /// Fade-out (in s₊₇, 1 at u = 0, 0 at u = 1): (1 − u)² · ((1 + 2u) + u · Δ · g), g ≥ −3/Δ.
 double fade_out_shape(double u, double length_s, double slope_per_s);
+
+/// y[i] = e^x[i] for x[i] ≤ 0 (−∞ allowed), within 2 ulp of std::exp, and 0
+/// where e^x would be subnormal (x < −708). The evaluator's weights go through
+/// here in one vectorised batch per frame instead of one libm call each.
+void exp_non_positive(std::span<const double> x, std::span<double> y);
 
 /// The original, unwindowed Cohen–Massaro (Eq. 1): every segment of the
 /// utterance contributes with the plain exponential dominance. Same log-space
