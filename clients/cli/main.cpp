@@ -11,6 +11,9 @@
 #include "cli_error.hpp"
 #include "commands.hpp"
 #include "lipsync/error.hpp"
+#ifdef LIPSYNC_WITH_NETWORK
+#include "lipsync/client/animation_client.hpp"
+#endif
 
 namespace {
 
@@ -27,6 +30,12 @@ constexpr Command kCommands[] = {
     {"demo", "render the built-in demo utterance to lipsync-demo.json", run_demo},
     {"model", "model dump: print the articulation model JSON", run_model},
     {"phone-sets", "list the built-in phone sets", run_phone_sets},
+#ifdef LIPSYNC_WITH_NETWORK
+    {"stream", "stream a phoneme file to lipsyncd and write the frames it sends", run_stream},
+    {"subscribe", "follow a lipsyncd session and write its frames", run_subscribe},
+    {"play", "play a lipsyncd session in the terminal in real time", run_play},
+    {"loadtest", "load-test a lipsyncd on this machine", run_loadtest},
+#endif
 };
 
 constexpr std::string_view kOverview =
@@ -86,6 +95,10 @@ int main(int argc, char** argv) {
     return fail(error.what(), kExitInputError);
   } catch (const FileError& error) {
     return fail(error.what(), kExitInputError);
+#ifdef LIPSYNC_WITH_NETWORK
+  } catch (const lipsync::client::CallError& error) {
+    return fail(error.what(), kExitInputError);
+#endif
   } catch (const std::bad_alloc&) {
     return fail("out of memory", kExitInputError);
   } catch (const std::exception& error) {

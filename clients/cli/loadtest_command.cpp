@@ -1,0 +1,524 @@
+// `lipsync loadtest`: N concurrent producers stream synthetic utterances to
+// lipsyncd back to back for a fixed time, optionally with M subscribers per
+// session, and report throughput, latency, errors by status code and whether
+// every frame arrived.
+//
+// Each utterance (lipsync::synthesize_utterance, ARPAbet) is rendered offline
+// first, through the same SegmentBuilder and StreamingRenderer the server
+// uses, recording for every frame which phoneme's arrival released it: the
+// frame of segment k can be computed once segment k+7 is known (or at the end
+// marker). A frame's latency is its arrival time minus the send time of that
+// phoneme, so it measures the server and the network, not the lookahead the
+// algorithm needs by design. The received frames are checked against the
+// offline render (count and times): "every frame arrived" means each
+// utterance that ended OK delivered exactly the offline frames, to its
+// producer and to each subscriber.
+//
+// --realtime sends each phoneme when its start time arrives (and the end
+// marker at the utterance's end); --fast sends everything at once. All timing
+// runs on one thread with Boost.Asio steady timers; the streams use gRPC's
+// callback API, so 200 streams need no 200 threads. The run is bounded: no
+// utterance starts after --duration, and whatever still runs 30 s later is
+// cancelled (and counted as CANCELLED). Only loopback servers are accepted.
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/executor_work_guard.hpp>
+#include <boost/asio/post.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <chrono>
+#include <cstdint>
+#include <cstdio>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <nlohmann/json.hpp>
+
+#include "arguments.hpp"
+#include "cli_error.hpp"
+#include "commands.hpp"
+#include "lipsync/phone_set.hpp"
+#include "lipsync/renderer.hpp"
+#include "lipsync/segment.hpp"
+#include "lipsync/synthetic.hpp"
+#include "network.hpp"
+
+namespace lipsync::cli {
+namespace {
+
+namespace asio = boost::asio;
+using Clock = std::chrono::steady_clock;
+
+constexpr OptionSpec kOptions[] = {
+    kServerOption,
+    {"producers", 0, "N", "concurrent Animate streams, 1 to 2000", "10"},
+    {"subscribers-per-session", 0, "M", "subscribers following each producer's session, 0 to 16", "0"},
+    {"duration", 0, "S", "seconds during which new utterances start, 1 to 600", "10"},
+    {"realtime", 0, "", "send each phoneme when its start time arrives (the default)", ""},
+    {"fast", 0, "", "send each utterance as fast as possible", ""},
+    {"phonemes-per-utterance", 0, "K", "phonemes per synthetic utterance, 1 to 10000", "30"},
+    {"seed", 0, "S", "seed of the synthetic utterances, 0 to 2147483647", "1"},
+    {"connections", 0, "N", "HTTP/2 connections the streams are spread over, 1 to 64", "4"},
+    {"json", 0, "", "print the report as JSON", ""},
+};
+
+constexpr std::string_view kUsage = "lipsync loadtest [options]";
+constexpr std::string_view kDescription =
+    "Load test of a lipsyncd on this machine: N producers stream synthetic utterances\n"
+    "back to back for --duration seconds (with M subscribers per session), then a report:\n"
+    "frames/s, latency from the moment a frame could be computed to its arrival\n"
+    "(p50/p95/p99/max), errors by status code, and whether every frame arrived.\n"
+    "Exit status 0 when there were no errors and every frame arrived, 1 otherwise.";
+
+constexpr std::size_t kUtterancePool = 64;
+constexpr auto kGrace = std::chrono::seconds(30);
+constexpr auto kPauseAfterError = std::chrono::milliseconds(100);
+
+/// One synthetic utterance and what the server must send for it.
+struct Utterance {
+  std::vector<client::v1::Phoneme> phonemes;
+  std::vector<std::int64_t> frame_t_us;     ///< the offline render's frame times
+  std::vector<std::uint32_t> released_by;   ///< per frame: phoneme index that released it (size() = end marker)
+};
+
+Utterance make_utterance(std::uint64_t seed, std::size_t phonemes, const ArticulationModel& model,
+                         const PhoneSet& phone_set) {
+  SyntheticOptions options;
+  options.phonemes = phonemes;
+  options.seed = seed;
+  std::vector<LabeledInterval> intervals = synthesize_utterance(options);
+  Utterance utterance;
+  SegmentBuilder builder(model, phone_set, "synthetic utterance");
+  StreamingRenderer renderer(model);
+  Track streamed;
+  streamed.channel_count = model.channel_count();
+  std::vector<Segment> segments;
+  for (std::size_t i = 0; i < intervals.size(); ++i) {
+    intervals[i].line = static_cast<int>(i) + 1;
+    utterance.phonemes.push_back(client::to_wire(intervals[i]));
+    segments.clear();
+    builder.push(intervals[i], segments);
+    for (const Segment& segment : segments) renderer.push(segment, streamed);
+    utterance.released_by.resize(streamed.frame_count(), static_cast<std::uint32_t>(i));
+  }
+  renderer.finish(streamed);
+  utterance.released_by.resize(streamed.frame_count(), static_cast<std::uint32_t>(intervals.size()));
+  LabeledUtterance whole{"synthetic utterance", "arpabet", intervals};
+  const Track offline = render_track(model, build_segments(whole, model, phone_set));
+  if (offline.t_us != streamed.t_us) throw std::logic_error("streaming and offline renders differ");
+  utterance.frame_t_us = offline.t_us;
+  return utterance;
+}
+
+/// What one stream (a producer's Animate or a subscriber) received.
+struct StreamTally {
+  std::uint64_t frames = 0;
+  std::uint64_t unexpected = 0;  ///< frames not in the offline render (wrong index or time)
+  std::vector<std::int32_t> latencies_us;
+};
+
+/// One Animate call of one utterance. Send times are written by the timer
+/// thread before each send and read by gRPC threads when frames arrive.
+struct Run {
+  const Utterance* utterance = nullptr;
+  std::unique_ptr<std::atomic<std::int64_t>[]> sent_us;  // per phoneme, then the end marker
+  Clock::time_point start;
+  std::size_t next_phoneme = 0;
+  std::unique_ptr<client::AnimateCall> call;
+  std::vector<std::unique_ptr<client::SubscribeCall>> subscribers;
+  std::vector<std::unique_ptr<StreamTally>> subscriber_tallies;
+  std::vector<grpc::Status> subscriber_status;
+  StreamTally producer_tally;
+  grpc::Status producer_status;
+  int pending = 0;  // calls not yet done
+  bool producer_done = false;
+};
+
+std::int64_t since_epoch_us(Clock::time_point time) {
+  return std::chrono::duration_cast<std::chrono::microseconds>(time.time_since_epoch()).count();
+}
+
+void count_frames(const client::v1::TrackMessage& message, const Run& run, StreamTally& tally) {
+  if (!message.has_frames()) return;
+  const std::int64_t arrival_us = since_epoch_us(Clock::now());
+  const auto& batch = message.frames();
+  const Utterance& utterance = *run.utterance;
+  for (int i = 0; i < batch.t_us_size(); ++i) {
+    const std::uint64_t index = batch.first_frame() + static_cast<std::uint64_t>(i);
+    ++tally.frames;
+    if (index >= utterance.frame_t_us.size() || utterance.frame_t_us[index] != batch.t_us(i)) {
+      ++tally.unexpected;
+      continue;
+    }
+    const std::int64_t sent = run.sent_us[utterance.released_by[index]].load(std::memory_order_acquire);
+    tally.latencies_us.push_back(static_cast<std::int32_t>(std::clamp<std::int64_t>(arrival_us - sent, 0, INT32_MAX)));
+  }
+}
+
+struct Totals {
+  std::uint64_t utterances_started = 0;
+  std::uint64_t utterances_complete = 0;
+  std::uint64_t producer_frames = 0;
+  std::uint64_t subscriber_frames = 0;
+  std::uint64_t subscriptions = 0;
+  std::uint64_t subscriptions_complete = 0;
+  std::uint64_t missing_frames = 0;
+  std::uint64_t unexpected_frames = 0;
+  std::map<std::string, std::uint64_t> errors;
+  std::vector<std::int32_t> producer_latencies_us;
+  std::vector<std::int32_t> subscriber_latencies_us;
+};
+
+struct LoadTestConfig {
+  int producers = 10;
+  int subscribers = 0;
+  std::chrono::seconds duration{10};
+  bool realtime = true;
+  std::size_t phonemes = 30;
+  std::uint64_t seed = 1;
+};
+
+class LoadTest {
+ public:
+  LoadTest(const LoadTestConfig& config, const std::vector<std::unique_ptr<client::AnimationClient>>& clients,
+           const std::vector<Utterance>& pool)
+      : config_(config), clients_(clients), pool_(pool), work_(asio::make_work_guard(io_)), stop_timer_(io_) {}
+
+  Totals run() {
+    start_ = Clock::now();
+    end_ = start_ + config_.duration;
+    const auto stagger = std::min<Clock::duration>(std::chrono::seconds(1), config_.duration / 10);
+    for (int p = 0; p < config_.producers; ++p) {
+      producers_.push_back(std::make_unique<Producer>(io_));
+      Producer& producer = *producers_.back();
+      producer.index = p;
+      producer.timer.expires_at(start_ + stagger * p / config_.producers);
+      producer.timer.async_wait([this, &producer](const boost::system::error_code& error) {
+        if (!error) start_utterance(producer);
+      });
+    }
+    active_ = config_.producers;
+    stop_timer_.expires_at(end_ + kGrace);
+    stop_timer_.async_wait([this](const boost::system::error_code& error) {
+      if (error) return;
+      stopping_ = true;
+      for (auto& producer : producers_) {
+        if (producer->run && producer->run->call) producer->run->call->cancel();
+        if (producer->run) {
+          for (auto& subscriber : producer->run->subscribers) subscriber->cancel();
+        }
+      }
+    });
+    io_.run();
+    totals_.producer_latencies_us.shrink_to_fit();
+    return std::move(totals_);
+  }
+
+  std::chrono::duration<double> elapsed() const { return finished_at_ - start_; }
+
+ private:
+  struct Producer {
+    explicit Producer(asio::io_context& io) : timer(io) {}
+    int index = 0;
+    std::uint64_t runs = 0;
+    asio::steady_timer timer;
+    std::unique_ptr<Run> run;
+  };
+
+  void start_utterance(Producer& producer) {
+    if (stopping_ || Clock::now() >= end_) {
+      if (--active_ == 0) {
+        finished_at_ = Clock::now();
+        stop_timer_.cancel();
+        work_.reset();
+      }
+      return;
+    }
+    const std::size_t which = (static_cast<std::size_t>(producer.index) * 7 + producer.runs) % pool_.size();
+    auto run = std::make_unique<Run>();
+    run->utterance = &pool_[which];
+    const std::size_t slots = run->utterance->phonemes.size() + 1;
+    run->sent_us = std::make_unique<std::atomic<std::int64_t>[]>(slots);
+    for (std::size_t i = 0; i < slots; ++i) run->sent_us[i].store(0);
+    run->pending = 1;
+    ++totals_.utterances_started;
+
+    client::v1::AnimationSettings settings;
+    settings.set_phone_set("arpabet");
+    settings.mutable_outputs()->set_channels(true);
+    const std::string session = config_.subscribers > 0 ? "loadtest-" + std::to_string(::getpid()) + "-" +
+                                                              std::to_string(producer.index) + "-" +
+                                                              std::to_string(producer.runs)
+                                                        : std::string();
+    settings.set_session(session);
+    ++producer.runs;
+    Run* raw = run.get();
+    producer.run = std::move(run);
+    const client::AnimationClient& connection = *clients_[static_cast<std::size_t>(producer.index) % clients_.size()];
+    raw->start = Clock::now();
+    raw->call = connection.start_animate(
+        settings,
+        [this, raw, &producer, session, &connection](const client::v1::TrackMessage& message) {
+          count_frames(message, *raw, raw->producer_tally);
+          if (message.has_header() && config_.subscribers > 0) {
+            asio::post(io_, [this, raw, &producer, session, &connection] {
+              start_subscribers(producer, *raw, session, connection);
+            });
+          }
+        },
+        [this, raw, &producer](const grpc::Status& status) {
+          asio::post(io_, [this, raw, &producer, status] {
+            raw->producer_status = status;
+            raw->producer_done = true;
+            call_done(producer, *raw);
+          });
+        });
+    send_due(producer, *raw);
+  }
+
+  void start_subscribers(Producer& producer, Run& run, const std::string& session,
+                         const client::AnimationClient& connection) {
+    if (stopping_ || run.producer_done || !run.subscribers.empty()) return;
+    for (int s = 0; s < config_.subscribers; ++s) {
+      run.subscriber_tallies.push_back(std::make_unique<StreamTally>());
+      run.subscriber_status.emplace_back();
+      StreamTally* tally = run.subscriber_tallies.back().get();
+      const std::size_t slot = run.subscriber_status.size() - 1;
+      ++run.pending;
+      ++totals_.subscriptions;
+      Run* raw = &run;
+      run.subscribers.push_back(connection.start_subscribe(
+          session, client::v1::SubscribeRequest::START_FROM_BEGINNING,
+          [raw, tally](const client::v1::TrackMessage& message) { count_frames(message, *raw, *tally); },
+          [this, raw, &producer, slot](const grpc::Status& status) {
+            asio::post(io_, [this, raw, &producer, slot, status] {
+              raw->subscriber_status[slot] = status;
+              call_done(producer, *raw);
+            });
+          }));
+    }
+  }
+
+  /// Sends every phoneme whose time has come, then waits for the next one.
+  void send_due(Producer& producer, Run& run) {
+    if (run.producer_done || run.pending == 0) return;
+    const auto& phonemes = run.utterance->phonemes;
+    while (run.next_phoneme <= phonemes.size()) {
+      const std::size_t i = run.next_phoneme;
+      const std::int64_t due_us = i < phonemes.size() ? phonemes[i].start_us() : phonemes.back().end_us();
+      const auto due = run.start + std::chrono::microseconds(due_us);
+      if (config_.realtime && due > Clock::now()) {
+        producer.timer.expires_at(due);
+        producer.timer.async_wait([this, &producer, &run](const boost::system::error_code& error) {
+          if (!error) send_due(producer, run);
+        });
+        return;
+      }
+      run.sent_us[i].store(since_epoch_us(Clock::now()), std::memory_order_release);
+      ++run.next_phoneme;
+      if (i == phonemes.size()) {
+        run.call->end();
+      } else if (!run.call->send({phonemes[i]})) {
+        return;  // the stream has ended; call_done reports why
+      }
+    }
+  }
+
+  void call_done(Producer& producer, Run& run) {
+    if (--run.pending > 0) return;
+    producer.timer.cancel();
+    const Utterance& utterance = *run.utterance;
+    const auto expected = utterance.frame_t_us.size();
+    const auto tally = [&](const StreamTally& stream, const grpc::Status& status, std::vector<std::int32_t>& sink) {
+      totals_.unexpected_frames += stream.unexpected;
+      sink.insert(sink.end(), stream.latencies_us.begin(), stream.latencies_us.end());
+      if (!status.ok()) {
+        ++totals_.errors[std::string(client::status_code_name(status.error_code()))];
+        return false;
+      }
+      const std::uint64_t good = stream.frames - stream.unexpected;
+      if (good < expected) totals_.missing_frames += expected - good;
+      return good == expected && stream.unexpected == 0;
+    };
+    totals_.producer_frames += run.producer_tally.frames;
+    if (tally(run.producer_tally, run.producer_status, totals_.producer_latencies_us)) ++totals_.utterances_complete;
+    for (std::size_t s = 0; s < run.subscribers.size(); ++s) {
+      totals_.subscriber_frames += run.subscriber_tallies[s]->frames;
+      if (tally(*run.subscriber_tallies[s], run.subscriber_status[s], totals_.subscriber_latencies_us)) {
+        ++totals_.subscriptions_complete;
+      }
+    }
+    // Destroying the calls here is safe: each has posted its last act. After an
+    // error the producer pauses, so that a refusing server is not hammered.
+    const bool failed = !run.producer_status.ok() ||
+                        std::any_of(run.subscriber_status.begin(), run.subscriber_status.end(),
+                                    [](const grpc::Status& status) { return !status.ok(); });
+    asio::post(io_, [this, &producer, failed] {
+      producer.run.reset();
+      if (!failed) {
+        start_utterance(producer);
+        return;
+      }
+      producer.timer.expires_after(kPauseAfterError);
+      producer.timer.async_wait([this, &producer](const boost::system::error_code& error) {
+        if (!error) start_utterance(producer);
+      });
+    });
+  }
+
+  const LoadTestConfig& config_;
+  const std::vector<std::unique_ptr<client::AnimationClient>>& clients_;
+  const std::vector<Utterance>& pool_;
+  asio::io_context io_;
+  asio::executor_work_guard<asio::io_context::executor_type> work_;
+  asio::steady_timer stop_timer_;
+  std::vector<std::unique_ptr<Producer>> producers_;
+  Clock::time_point start_;
+  Clock::time_point end_;
+  Clock::time_point finished_at_;
+  int active_ = 0;
+  bool stopping_ = false;
+  Totals totals_;
+};
+
+struct Percentiles {
+  double p50_ms = 0, p95_ms = 0, p99_ms = 0, max_ms = 0;
+};
+
+Percentiles percentiles(std::vector<std::int32_t>& values) {
+  Percentiles result;
+  if (values.empty()) return result;
+  std::sort(values.begin(), values.end());
+  const auto at = [&](double q) {
+    const auto index = static_cast<std::size_t>(q * static_cast<double>(values.size() - 1) + 0.5);
+    return static_cast<double>(values[index]) / 1000.0;
+  };
+  result.p50_ms = at(0.50);
+  result.p95_ms = at(0.95);
+  result.p99_ms = at(0.99);
+  result.max_ms = static_cast<double>(values.back()) / 1000.0;
+  return result;
+}
+
+nlohmann::json to_json(const Percentiles& p) {
+  return {{"p50", p.p50_ms}, {"p95", p.p95_ms}, {"p99", p.p99_ms}, {"max", p.max_ms}};
+}
+
+std::string to_text(const Percentiles& p) {
+  char text[128];
+  std::snprintf(text, sizeof text, "p50 %.2f ms  p95 %.2f ms  p99 %.2f ms  max %.2f ms", p.p50_ms, p.p95_ms,
+                p.p99_ms, p.max_ms);
+  return text;
+}
+
+}  // namespace
+
+int run_loadtest(std::span<const std::string_view> args) {
+  const Arguments arguments = Arguments::parse(args, kOptions, "loadtest");
+  if (arguments.help()) {
+    std::cout << format_help(kUsage, kDescription, kOptions);
+    return 0;
+  }
+  if (!arguments.positional().empty()) {
+    throw UsageError("loadtest takes no arguments, got '" + arguments.positional().front() + "'");
+  }
+  const std::string address = server_address(arguments);
+  if (!is_loopback_address(address)) {
+    throw UsageError("--server: '" + address + "' is not on this machine; loadtest only runs against loopback "
+                     "addresses (127.0.0.1:PORT, localhost:PORT, [::1]:PORT, unix:PATH)");
+  }
+  if (arguments.flag("realtime") && arguments.flag("fast")) throw UsageError("choose one of --realtime and --fast");
+  LoadTestConfig config;
+  config.producers = parse_int_option("producers", arguments.value("producers").value_or("10"), 1, 2000);
+  config.subscribers =
+      parse_int_option("subscribers-per-session", arguments.value("subscribers-per-session").value_or("0"), 0, 16);
+  config.duration = std::chrono::seconds(parse_int_option("duration", arguments.value("duration").value_or("10"), 1, 600));
+  config.realtime = !arguments.flag("fast");
+  config.phonemes = static_cast<std::size_t>(
+      parse_int_option("phonemes-per-utterance", arguments.value("phonemes-per-utterance").value_or("30"), 1, 10'000));
+  config.seed = static_cast<std::uint64_t>(parse_int_option("seed", arguments.value("seed").value_or("1"), 0, INT32_MAX));
+  const int connections = parse_int_option("connections", arguments.value("connections").value_or("4"), 1, 64);
+
+  const ArticulationModel& model = ArticulationModel::builtin();
+  const std::optional<PhoneSet> arpabet = PhoneSet::builtin("arpabet", model);
+  if (!arpabet) throw std::logic_error("the built-in ARPAbet phone set is missing");
+  std::vector<Utterance> pool;
+  const std::size_t pool_size = std::min<std::size_t>(kUtterancePool, static_cast<std::size_t>(config.producers) * 4);
+  for (std::size_t i = 0; i < pool_size; ++i) {
+    pool.push_back(make_utterance(config.seed * 1'000'003 + i, config.phonemes, model, *arpabet));
+  }
+
+  client::ClientOptions client_options;
+  client_options.stream_timeout = config.duration + kGrace + std::chrono::seconds(5);
+  std::vector<std::unique_ptr<client::AnimationClient>> clients;
+  for (int c = 0; c < connections; ++c) {
+    clients.push_back(std::make_unique<client::AnimationClient>(address, client_options));
+    clients.back()->wait_connected();
+  }
+
+  LoadTest test(config, clients, pool);
+  Totals totals = test.run();
+  const double seconds = test.elapsed().count();
+  const Percentiles producer_latency = percentiles(totals.producer_latencies_us);
+  const Percentiles subscriber_latency = percentiles(totals.subscriber_latencies_us);
+  std::uint64_t error_count = 0;
+  for (const auto& [code, count] : totals.errors) error_count += count;
+  const bool every_frame = totals.missing_frames == 0 && totals.unexpected_frames == 0 && error_count == 0 &&
+                           totals.utterances_complete == totals.utterances_started &&
+                           totals.subscriptions_complete == totals.subscriptions;
+
+  if (arguments.flag("json")) {
+    nlohmann::json report = {
+        {"server", address},
+        {"mode", config.realtime ? "realtime" : "fast"},
+        {"producers", config.producers},
+        {"subscribers_per_session", config.subscribers},
+        {"duration_s", config.duration.count()},
+        {"elapsed_s", seconds},
+        {"phonemes_per_utterance", config.phonemes},
+        {"seed", config.seed},
+        {"utterances", {{"started", totals.utterances_started}, {"complete", totals.utterances_complete}}},
+        {"subscriptions", {{"started", totals.subscriptions}, {"complete", totals.subscriptions_complete}}},
+        {"frames",
+         {{"producers", totals.producer_frames},
+          {"subscribers", totals.subscriber_frames},
+          {"per_second", static_cast<double>(totals.producer_frames + totals.subscriber_frames) / seconds},
+          {"missing", totals.missing_frames},
+          {"unexpected", totals.unexpected_frames}}},
+        {"latency_ms", {{"producers", to_json(producer_latency)}, {"subscribers", to_json(subscriber_latency)}}},
+        {"errors", totals.errors},
+        {"every_frame_arrived", every_frame},
+    };
+    std::cout << report.dump(2) << '\n';
+  } else {
+    char line[256];
+    std::snprintf(line, sizeof line, "loadtest: %d producers (%s), %d subscribers per session, %.1f s, seed %llu\n",
+                  config.producers, config.realtime ? "real time" : "fast", config.subscribers, seconds,
+                  static_cast<unsigned long long>(config.seed));
+    std::cout << line;
+    std::cout << "utterances: " << totals.utterances_started << " started, " << totals.utterances_complete
+              << " complete; subscriptions: " << totals.subscriptions << " started, "
+              << totals.subscriptions_complete << " complete\n";
+    std::snprintf(line, sizeof line, "frames: %llu to producers, %llu to subscribers, %.0f/s; %llu missing, %llu unexpected\n",
+                  static_cast<unsigned long long>(totals.producer_frames),
+                  static_cast<unsigned long long>(totals.subscriber_frames),
+                  static_cast<double>(totals.producer_frames + totals.subscriber_frames) / seconds,
+                  static_cast<unsigned long long>(totals.missing_frames),
+                  static_cast<unsigned long long>(totals.unexpected_frames));
+    std::cout << line;
+    std::cout << "latency, computable to arrival (producers): " << to_text(producer_latency) << '\n';
+    if (config.subscribers > 0) {
+      std::cout << "latency, computable to arrival (subscribers): " << to_text(subscriber_latency) << '\n';
+    }
+    std::cout << "errors:";
+    if (totals.errors.empty()) std::cout << " none";
+    for (const auto& [code, count] : totals.errors) std::cout << ' ' << code << ' ' << count;
+    std::cout << '\n' << (every_frame ? "result: every frame arrived\n" : "result: FAILED (errors or missing frames)\n");
+  }
+  return every_frame ? 0 : kExitInputError;
+}
+
+}  // namespace lipsync::cli

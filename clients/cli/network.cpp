@@ -1,0 +1,55 @@
+#include "network.hpp"
+
+#include <chrono>
+
+#include "cli_error.hpp"
+#include "lipsync/error.hpp"
+
+namespace lipsync::cli {
+
+std::string server_address(const Arguments& arguments) {
+  std::string address = arguments.value("server").value_or(std::string(kDefaultServer));
+  if (address.empty()) throw UsageError("--server: the address must not be empty (HOST:PORT)");
+  return address;
+}
+
+bool is_loopback_address(std::string_view address) {
+  if (address.starts_with("unix:")) return true;
+  if (address.starts_with("ipv4:") || address.starts_with("dns:")) {
+    address.remove_prefix(address.find(':') + 1);
+    if (address.starts_with("///")) address.remove_prefix(3);
+  }
+  if (address.starts_with("[::1]:") || address.starts_with("ipv6:[::1]:")) return true;
+  const std::string_view host = address.substr(0, address.rfind(':'));
+  if (host == "localhost") return true;
+  if (!host.starts_with("127.")) return false;
+  return host.find_first_not_of("0123456789.") == std::string_view::npos;
+}
+
+Track track_for_writing(const client::ReceivedTrack& received, const ArticulationModel& model,
+                        const std::string& source) {
+  const auto& channels = received.header.channels();
+  if (channels.empty()) throw InputError(source, 0, "the track carries no channel values (only ARKit weights)");
+  bool same = static_cast<std::size_t>(channels.size()) == model.channel_count();
+  for (std::size_t c = 0; same && c < model.channel_count(); ++c) {
+    same = channels[static_cast<int>(c)] == model.channels()[c].name;
+  }
+  if (!same) {
+    throw InputError(source, 0,
+                     "the server's model '" + received.header.model() + "' has other channels than '" +
+                         model.name() + "', so its frames cannot be written in this format");
+  }
+  return received.track;
+}
+
+std::int64_t unix_now_us() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+std::int64_t steady_now_us() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+}  // namespace lipsync::cli

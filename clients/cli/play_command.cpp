@@ -1,0 +1,233 @@
+// `lipsync play SESSION`: plays a session's frames in the terminal in real
+// time, as a renderer in sync with the audio would.
+//
+// Frames arrive from a Subscribe stream (on gRPC's threads) into a
+// PlaybackBuffer anchored to the session's media clock: the producer's
+// utterance_zero_us on the "unix" (wall) or "steady" clock, or, for a clock
+// this machine cannot read, the arrival of the first frame. A Boost.Asio
+// steady_timer ticks at the display rate; each tick samples the buffer at the
+// clock's current reading and draws the mouth (jaw rotation and lip
+// compression as bars) with the measured drift: how far the newest frame is
+// ahead of the audio (lead) and how late the newest frame arrived for its play
+// time (late). Playback ends when the session ends and its last frame played.
+#include <unistd.h>
+
+#include <algorithm>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <chrono>
+#include <cstdio>
+#include <functional>
+#include <iostream>
+#include <mutex>
+
+#include "arguments.hpp"
+#include "cli_error.hpp"
+#include "commands.hpp"
+#include "lipsync/client/playback_buffer.hpp"
+#include "network.hpp"
+
+namespace lipsync::cli {
+namespace {
+
+constexpr OptionSpec kOptions[] = {
+    kServerOption,
+    {"from-now", 0, "", "only frames produced after joining (default: replay what the server holds)", ""},
+    {"rate", 0, "N", "display updates per second, 1 to 240", "the track's fps"},
+    {"frames", 0, "N", "stop after N display updates, 1 to 10000000", "when the session ends"},
+    {"no-tty", 0, "", "print one line per update instead of redrawing one line", "redraw on a terminal"},
+    {"wait", 0, "S", "if the session does not exist yet, keep asking for up to S seconds, 0 to 3600", "0"},
+};
+
+constexpr std::string_view kUsage = "lipsync play SESSION [options]";
+constexpr std::string_view kDescription =
+    "Plays the frames of SESSION in real time against its media clock, showing the jaw\n"
+    "opening and lip compression, the lead of the received frames over the audio clock,\n"
+    "how late the newest frame arrived, and underruns.";
+
+constexpr int kBarWidth = 20;
+
+enum class AnchorClock { unix_wall, steady };
+
+/// Everything the gRPC threads and the display timer share.
+struct PlayState {
+  std::mutex mutex;
+  std::optional<client::PlaybackBuffer> buffer;
+  AnchorClock clock = AnchorClock::steady;
+  bool anchor_on_first_frame = false;
+  std::string anchor_text;
+  int fps = 30;
+  std::vector<int> jaw_channels;
+  std::vector<int> lip_channels;
+  std::optional<grpc::Status> status;
+
+  std::int64_t now_us() const { return clock == AnchorClock::unix_wall ? unix_now_us() : steady_now_us(); }
+
+  void take(const client::v1::TrackMessage& message) {
+    std::lock_guard lock(mutex);
+    if (message.has_header()) {
+      const auto& header = message.header();
+      if (header.channels().empty()) throw std::runtime_error("the session carries no channel values");
+      buffer.emplace(static_cast<std::size_t>(header.channels_size()));
+      fps = header.fps() == 0 ? 30 : static_cast<int>(header.fps());
+      for (int c = 0; c < header.channels_size(); ++c) {
+        const std::string& name = header.channels(c);
+        if (name == "jaw_rotation") jaw_channels.push_back(c);
+        if (name.starts_with("orbicularis_oris")) lip_channels.push_back(c);
+      }
+      const std::string& clock_name = header.media_clock().clock();
+      if (clock_name == "unix" || clock_name == "steady") {
+        clock = clock_name == "unix" ? AnchorClock::unix_wall : AnchorClock::steady;
+        buffer->anchor(header.media_clock().utterance_zero_us());
+        anchor_text = "media clock '" + clock_name + "'";
+      } else {
+        clock = AnchorClock::steady;
+        anchor_on_first_frame = true;
+        anchor_text = clock_name.empty() ? "first frame (no media clock)"
+                                         : "first frame (clock '" + clock_name + "' is not readable here)";
+      }
+      return;
+    }
+    if (!message.has_frames() || !buffer) return;
+    const auto& batch = message.frames();
+    const std::size_t channels = buffer->channel_count();
+    for (int i = 0; i < batch.t_us_size(); ++i) {
+      const std::int64_t arrival_us = now_us();
+      if (anchor_on_first_frame && !buffer->anchored()) buffer->anchor(arrival_us - batch.t_us(i));
+      const std::span<const float> values(batch.values().data() + static_cast<std::size_t>(i) * channels, channels);
+      buffer->push(batch.t_us(i), values, arrival_us);
+    }
+  }
+};
+
+std::string bar(double fraction) {
+  const int filled = static_cast<int>(std::clamp(fraction, 0.0, 1.0) * kBarWidth + 0.5);
+  return std::string(static_cast<std::size_t>(filled), '#') + std::string(static_cast<std::size_t>(kBarWidth - filled), '.');
+}
+
+double mean_of(const std::vector<float>& values, const std::vector<int>& channels) {
+  if (channels.empty()) return 0.0;
+  double sum = 0.0;
+  for (const int c : channels) sum += values[static_cast<std::size_t>(c)];
+  return sum / static_cast<double>(channels.size());
+}
+
+std::string milliseconds(std::optional<std::int64_t> us) {
+  if (!us) return "   -   ";
+  char text[32];
+  std::snprintf(text, sizeof text, "%+6.0f ms", static_cast<double>(*us) / 1000.0);
+  return text;
+}
+
+}  // namespace
+
+int run_play(std::span<const std::string_view> args) {
+  const Arguments arguments = Arguments::parse(args, kOptions, "play");
+  if (arguments.help()) {
+    std::cout << format_help(kUsage, kDescription, kOptions);
+    return 0;
+  }
+  if (arguments.positional().size() != 1 || arguments.positional().front().empty()) {
+    throw UsageError("play needs exactly one SESSION name (see 'lipsync play --help')");
+  }
+  const std::string& session = arguments.positional().front();
+  const std::string address = server_address(arguments);
+  const auto start = arguments.flag("from-now") ? client::v1::SubscribeRequest::START_FROM_NOW
+                                                : client::v1::SubscribeRequest::START_FROM_BEGINNING;
+  std::optional<int> rate;
+  if (const auto text = arguments.value("rate")) rate = parse_int_option("rate", *text, 1, 240);
+  std::optional<long> max_updates;
+  if (const auto text = arguments.value("frames")) max_updates = parse_int_option("frames", *text, 1, 10'000'000);
+  const bool redraw = !arguments.flag("no-tty") && ::isatty(STDOUT_FILENO) == 1;
+  const int wait_s = parse_int_option("wait", arguments.value("wait").value_or("0"), 0, 3600);
+
+  const client::AnimationClient connection(address);
+  connection.wait_connected();
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(wait_s);
+
+  PlayState state;
+  const auto subscribe = [&] {
+    return connection.start_subscribe(
+        session, start, [&](const client::v1::TrackMessage& message) { state.take(message); },
+        [&](const grpc::Status& status) {
+          std::lock_guard lock(state.mutex);
+          state.status = status;
+          if (state.buffer) state.buffer->finish();
+        });
+  };
+  std::unique_ptr<client::SubscribeCall> call = subscribe();
+
+  boost::asio::io_context io;
+  boost::asio::steady_timer timer(io);
+  long updates = 0;
+  std::vector<float> values;
+  std::optional<grpc::Status> failure;
+  std::function<void()> tick;
+  tick = [&] {
+    std::string line;
+    bool stop = false;
+    {
+      std::unique_lock lock(state.mutex);
+      if (state.status && !state.buffer) {
+        const grpc::Status status = *state.status;
+        if (status.error_code() == grpc::StatusCode::NOT_FOUND && std::chrono::steady_clock::now() < give_up) {
+          state.status.reset();
+          lock.unlock();
+          call = subscribe();
+          lock.lock();
+        } else {
+          failure = status.ok() ? grpc::Status(grpc::StatusCode::INTERNAL, "the session ended without a header")
+                                : status;
+          stop = true;
+        }
+      }
+      if (!stop && state.buffer && state.buffer->anchored()) {
+        client::PlaybackBuffer& buffer = *state.buffer;
+        values.resize(buffer.channel_count());
+        const client::PlaybackSample sample = buffer.sample(state.now_us(), values);
+        if (sample.state != client::SampleState::no_frames) {
+          const double jaw = mean_of(values, state.jaw_channels) / 0.35;  // jaw_rotation: radians, ~0.35 wide open
+          const double lips = mean_of(values, state.lip_channels);
+          char head[64];
+          std::snprintf(head, sizeof head, "t=%8.3f s", static_cast<double>(sample.utterance_us) / 1e6);
+          line = std::string(head) + "  jaw |" + bar(jaw) + "|  lips |" + bar(lips) + "|  lead " +
+                 milliseconds(sample.lead_us) + "  late " + milliseconds(buffer.stats().last_lateness_us) +
+                 "  underruns " + std::to_string(buffer.stats().underruns);
+          ++updates;
+        }
+        if (sample.state == client::SampleState::ended) {
+          stop = true;
+          if (state.status && !state.status->ok()) failure = *state.status;
+        }
+      }
+      if (max_updates && updates >= *max_updates) stop = true;
+      if (!line.empty()) {
+        std::cout << (redraw ? "\r" : "") << line << (redraw ? "" : "\n") << std::flush;
+      }
+      if (stop && state.buffer) {
+        const auto& stats = state.buffer->stats();
+        std::cout << (redraw ? "\n" : "") << "played " << updates << " updates anchored to " << state.anchor_text
+                  << ": " << stats.frames_pushed << " frames, " << stats.underruns << " underruns, max behind "
+                  << stats.max_behind_us / 1000 << " ms, max lateness "
+                  << (stats.max_lateness_us ? std::to_string(*stats.max_lateness_us / 1000) + " ms" : "-") << "\n";
+      }
+    }
+    if (stop) return;
+    const int per_second = rate.value_or(state.fps);
+    timer.expires_at(timer.expiry() + std::chrono::microseconds(1'000'000 / per_second));
+    timer.async_wait([&](const boost::system::error_code& error) {
+      if (!error) tick();
+    });
+  };
+  timer.expires_after(std::chrono::milliseconds(0));
+  timer.async_wait([&](const boost::system::error_code& error) {
+    if (!error) tick();
+  });
+  io.run();
+  call.reset();
+  if (failure) throw client::CallError("Subscribe to session '" + session + "' on " + address,
+                                       failure->error_code(), failure->error_message());
+  return 0;
+}
+
+}  // namespace lipsync::cli

@@ -1,0 +1,144 @@
+// `lipsync stream INPUT`: sends a timed phoneme file to lipsyncd over an
+// Animate stream and writes the frames that come back.
+//
+// The file goes through the same reading and phone-set steps as `lipsync
+// render`, and the frames go through the same writers, so with the default
+// settings the output equals `lipsync render INPUT` byte for byte.
+//
+// --realtime sends each chunk when the start time of its last phoneme arrives
+// on a steady clock started at the first send (and the end marker at the end
+// of the last phoneme), as a TTS front-end would; --fast sends everything at
+// once. The session's media clock says utterance time 0 plays
+// --playout-delay after the stream starts, on the "unix" clock.
+#include <algorithm>
+#include <chrono>
+#include <mutex>
+#include <iostream>
+#include <thread>
+
+#include "arguments.hpp"
+#include "cli_error.hpp"
+#include "commands.hpp"
+#include "files.hpp"
+#include "lipsync/error.hpp"
+#include "network.hpp"
+#include "pipeline.hpp"
+
+namespace lipsync::cli {
+namespace {
+
+constexpr OptionSpec kOptions[] = {
+    kServerOption,
+    {"output", 'o', "FILE", "write the track to FILE (all or nothing, via a temporary file); - for stdout",
+     "stdout"},
+    {"format", 0, "FORMAT", "track format: json, csv or arkit-csv (Unreal Live Link Face CSV)", "json"},
+    {"realtime", 0, "", "send each phoneme when its start time arrives (the default)", ""},
+    {"fast", 0, "", "send all phonemes as fast as possible", ""},
+    {"chunk", 0, "N", "phonemes per message, 1 to 10000", "1"},
+    {"session", 0, "NAME", "publish the frames under this session name for subscribers", "private"},
+    {"playout-delay", 0, "MS",
+     "media clock: utterance time 0 plays this long after the stream starts, 0 to 600000", "1000"},
+    {"fps", 0, "N", "frames per second of the uniform grid, 1 to 240", "30"},
+    {"phone-set", 0, "NAME", "phone set of the labels (see 'lipsync phone-sets'), or auto to detect it",
+     "the set the file declares, else auto"},
+    {"input-format", 0, "FORMAT", "json, textgrid, timit, lab, pho or flite",
+     "detected from the content, then the file extension"},
+    {"tier", 0, "NAME", "TextGrid tier that holds the phonemes", "phones"},
+    {"sample-rate", 0, "HZ", "sample rate of the sample numbers in a TIMIT .PHN file, > 0", "16000"},
+    {"lookahead", 0, "N",
+     "segments after a frame's own that must be known before it is sent, 0 to 7 (7 is exact)", "7"},
+    {"timeout", 0, "S", "give up when the stream has not finished after S seconds, 1 to 86400", "3600"},
+};
+
+constexpr std::string_view kUsage = "lipsync stream INPUT [options]";
+constexpr std::string_view kDescription =
+    "Streams a timed phoneme file (INPUT, or - for standard input) to lipsyncd over one\n"
+    "Animate stream and writes the frames it sends back. With the default settings the\n"
+    "track equals 'lipsync render INPUT' byte for byte.";
+
+}  // namespace
+
+int run_stream(std::span<const std::string_view> args) {
+  const Arguments arguments = Arguments::parse(args, kOptions, "stream");
+  if (arguments.help()) {
+    std::cout << format_help(kUsage, kDescription, kOptions);
+    return 0;
+  }
+  if (arguments.positional().size() != 1) {
+    throw UsageError("stream needs exactly one INPUT file (or - for standard input) (see 'lipsync stream --help')");
+  }
+  const std::string& input = arguments.positional().front();
+  const std::string address = server_address(arguments);
+  const std::string output = arguments.value("output").value_or("-");
+  const TrackFormat format = parse_track_format_option(arguments.value("format").value_or("json"));
+  if (arguments.flag("realtime") && arguments.flag("fast")) throw UsageError("choose one of --realtime and --fast");
+  const bool realtime = !arguments.flag("fast");
+  const int chunk_size = parse_int_option("chunk", arguments.value("chunk").value_or("1"), 1, 10'000);
+  const int delay_ms = parse_int_option("playout-delay", arguments.value("playout-delay").value_or("1000"), 0, 600'000);
+  const int timeout_s = parse_int_option("timeout", arguments.value("timeout").value_or("3600"), 1, 86'400);
+
+  std::optional<InputFormat> input_format;
+  if (const auto text = arguments.value("input-format")) input_format = parse_input_format_option(*text);
+  ParseOptions parse_options;
+  if (const auto tier = arguments.value("tier")) {
+    if (tier->empty()) throw UsageError("--tier: the tier name must not be empty");
+    parse_options.tier = *tier;
+  }
+  if (const auto rate = arguments.value("sample-rate")) {
+    parse_options.timit_sample_rate_hz = parse_int_option("sample-rate", *rate, 1, 100'000'000);
+  }
+  client::v1::AnimationSettings settings;
+  settings.set_fps(static_cast<std::uint32_t>(parse_int_option("fps", arguments.value("fps").value_or("30"), 1, 240)));
+  if (const auto lookahead = arguments.value("lookahead")) {
+    settings.set_lookahead(static_cast<std::uint32_t>(parse_int_option("lookahead", *lookahead, 0, 7)));
+  }
+  settings.mutable_outputs()->set_channels(true);
+  if (const auto session = arguments.value("session")) {
+    if (session->empty()) throw UsageError("--session: the name must not be empty");
+    settings.set_session(*session);
+  }
+  const std::optional<std::string> phone_set_name = arguments.value("phone-set");
+  if (phone_set_name && phone_set_name->empty()) throw UsageError("--phone-set: the name must not be empty");
+
+  const ArticulationModel& model = ArticulationModel::builtin();
+  const std::string content = read_file(input);
+  const std::string source = input == "-" ? std::string(kStdinName) : input;
+  const InputFormat chosen_format = input_format ? *input_format : detect_input_format(source, content);
+  const LabeledUtterance utterance = parse_utterance(content, chosen_format, source, parse_options);
+  if (utterance.intervals.empty()) throw InputError(source, 0, "the utterance has no phonemes");
+  std::vector<PhoneSet> candidates;
+  settings.set_phone_set(choose_phone_set(phone_set_name, utterance, model, candidates).name());
+
+  client::ClientOptions client_options;
+  client_options.stream_timeout = std::chrono::seconds(timeout_s);
+  const client::AnimationClient connection(address, client_options);
+  connection.wait_connected();
+
+  client::ReceivedTrack received;
+  std::mutex received_mutex;
+  const auto start = std::chrono::steady_clock::now();
+  settings.mutable_media_clock()->set_clock("unix");
+  settings.mutable_media_clock()->set_utterance_zero_us(unix_now_us() + delay_ms * 1000LL);
+  auto call = connection.start_animate(settings, [&](const client::v1::TrackMessage& message) {
+    std::lock_guard lock(received_mutex);
+    received.add(message);
+  });
+  const auto& intervals = utterance.intervals;
+  for (std::size_t first = 0; first < intervals.size(); first += static_cast<std::size_t>(chunk_size)) {
+    const std::size_t last = std::min(intervals.size(), first + static_cast<std::size_t>(chunk_size));
+    if (realtime) std::this_thread::sleep_until(start + std::chrono::microseconds(intervals[last - 1].start_us));
+    std::vector<client::v1::Phoneme> chunk;
+    for (std::size_t i = first; i < last; ++i) chunk.push_back(client::to_wire(intervals[i]));
+    if (!call->send(std::move(chunk))) break;
+  }
+  if (realtime) std::this_thread::sleep_until(start + std::chrono::microseconds(intervals.back().end_us));
+  call->end();
+  const grpc::Status status = call->wait();
+  if (!status.ok()) throw client::CallError("Animate on " + address, status.error_code(), status.error_message());
+
+  std::lock_guard lock(received_mutex);
+  write_output(track_for_writing(received, model, "lipsyncd at " + address), model, format, output);
+  return 0;
+}
+
+}  // namespace lipsync::cli

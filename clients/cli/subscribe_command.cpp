@@ -1,0 +1,75 @@
+// `lipsync subscribe SESSION`: follows the frames of a session that another
+// client is streaming to lipsyncd, and writes them once the producer has
+// finished (all or nothing: a session that fails leaves no file).
+#include <chrono>
+#include <iostream>
+#include <thread>
+
+#include "arguments.hpp"
+#include "cli_error.hpp"
+#include "commands.hpp"
+#include "files.hpp"
+#include "network.hpp"
+#include "pipeline.hpp"
+
+namespace lipsync::cli {
+namespace {
+
+constexpr OptionSpec kOptions[] = {
+    kServerOption,
+    {"output", 'o', "FILE", "write the track to FILE (all or nothing, via a temporary file); - for stdout",
+     "stdout"},
+    {"format", 0, "FORMAT", "track format: json, csv or arkit-csv (Unreal Live Link Face CSV)", "json"},
+    {"from-beginning", 0, "", "replay the frames the server still holds, then follow (the default)", ""},
+    {"from-now", 0, "", "only frames produced after joining", ""},
+    {"wait", 0, "S", "if the session does not exist yet, keep asking for up to S seconds, 0 to 3600", "0"},
+    {"timeout", 0, "S", "give up when the session has not finished after S seconds, 1 to 86400", "3600"},
+};
+
+constexpr std::string_view kUsage = "lipsync subscribe SESSION [options]";
+constexpr std::string_view kDescription =
+    "Follows the frames of SESSION (published by 'lipsync stream --session SESSION' or any\n"
+    "Animate stream with a session name) until its producer finishes, then writes them.";
+
+}  // namespace
+
+int run_subscribe(std::span<const std::string_view> args) {
+  const Arguments arguments = Arguments::parse(args, kOptions, "subscribe");
+  if (arguments.help()) {
+    std::cout << format_help(kUsage, kDescription, kOptions);
+    return 0;
+  }
+  if (arguments.positional().size() != 1 || arguments.positional().front().empty()) {
+    throw UsageError("subscribe needs exactly one SESSION name (see 'lipsync subscribe --help')");
+  }
+  const std::string& session = arguments.positional().front();
+  const std::string address = server_address(arguments);
+  const std::string output = arguments.value("output").value_or("-");
+  const TrackFormat format = parse_track_format_option(arguments.value("format").value_or("json"));
+  if (arguments.flag("from-beginning") && arguments.flag("from-now")) {
+    throw UsageError("choose one of --from-beginning and --from-now");
+  }
+  const auto start = arguments.flag("from-now") ? client::v1::SubscribeRequest::START_FROM_NOW
+                                                : client::v1::SubscribeRequest::START_FROM_BEGINNING;
+  const int wait_s = parse_int_option("wait", arguments.value("wait").value_or("0"), 0, 3600);
+  const int timeout_s = parse_int_option("timeout", arguments.value("timeout").value_or("3600"), 1, 86'400);
+
+  client::ClientOptions client_options;
+  client_options.stream_timeout = std::chrono::seconds(timeout_s);
+  const client::AnimationClient connection(address, client_options);
+  connection.wait_connected();
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(wait_s);
+  for (;;) {
+    try {
+      const client::ReceivedTrack received = connection.subscribe(session, start);
+      const ArticulationModel& model = ArticulationModel::builtin();
+      write_output(track_for_writing(received, model, "session '" + session + "'"), model, format, output);
+      return 0;
+    } catch (const client::CallError& error) {
+      if (error.code() != grpc::StatusCode::NOT_FOUND || std::chrono::steady_clock::now() >= give_up) throw;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+  }
+}
+
+}  // namespace lipsync::cli

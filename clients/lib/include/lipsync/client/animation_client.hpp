@@ -1,0 +1,179 @@
+// AnimationClient: the C++ client of lipsyncd's lipsync.v1.LipSync service.
+//
+//   render     one utterance in, the whole track out (unary, blocking)
+//   animate    an Animate stream: settings, phoneme chunks as the caller
+//              produces them, an end marker; every TrackMessage goes to a
+//              handler as it arrives (callback API: no thread per stream)
+//   subscribe  follow a session's frames until its producer finishes
+//
+// Every call carries a deadline (ClientOptions). A failed call becomes a
+// CallError with the gRPC status code and the server's message, prefixed with
+// what was being done and where, e.g. "Animate on 127.0.0.1:50051 failed:
+// INVALID_ARGUMENT: phoneme 3: ...".
+//
+// Message handlers run on gRPC's threads, one message at a time per call, and
+// must return quickly (append to a buffer, record a time); they must not throw.
+#pragma once
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <grpcpp/grpcpp.h>
+
+#include "lipsync/track.hpp"
+#include "lipsync/utterance.hpp"
+#include "lipsync/v1/lipsync.grpc.pb.h"
+
+namespace lipsync::client {
+
+namespace v1 = ::lipsync::v1;
+
+/// "INVALID_ARGUMENT" for grpc::StatusCode::INVALID_ARGUMENT, and so on.
+std::string_view status_code_name(grpc::StatusCode code);
+
+/// A call that ended with a status other than OK.
+class CallError : public std::runtime_error {
+ public:
+  /// `what` reads "<context> failed: <CODE>: <message>".
+  CallError(std::string_view context, grpc::StatusCode code, std::string message);
+  grpc::StatusCode code() const noexcept { return code_; }
+  const std::string& server_message() const noexcept { return message_; }
+
+ private:
+  grpc::StatusCode code_;
+  std::string message_;
+};
+
+struct ClientOptions {
+  std::chrono::milliseconds connect_timeout{5000};  ///< wait_connected()
+  std::chrono::milliseconds unary_timeout{30000};   ///< Render, ListModels, GetModel
+  std::chrono::milliseconds stream_timeout{3600 * 1000};  ///< whole Animate / Subscribe stream
+};
+
+/// A track as received: the header, the frames gathered into a core Track
+/// (channel values; arkit weights beside it) and the summary.
+struct ReceivedTrack {
+  v1::TrackHeader header;
+  Track track;               ///< channel_count = header.channels_size(), fps = header.fps()
+  std::vector<float> arkit;  ///< frame_count() × header.arkit_names_size()
+  std::optional<v1::TrackSummary> summary;
+  std::uint64_t first_frame = 0;  ///< track index of track.t_us[0] (> 0 for a subscriber joining late)
+
+  /// Takes one stream message. Throws CallError (INTERNAL) naming the problem when
+  /// the server breaks the protocol (frames before the header, wrong sizes,
+  /// times not increasing, a gap in frame indices after the first batch).
+  void add(const v1::TrackMessage& message);
+  void add_frames(const v1::FrameBatch& batch);
+};
+
+FrameKind to_core(v1::FrameKind kind);
+
+/// One phoneme for the wire.
+v1::Phoneme to_wire(const LabeledInterval& interval);
+
+using MessageHandler = std::function<void(const v1::TrackMessage&)>;
+/// Called once when a stream is over, on a gRPC thread, as the call's last act.
+/// It must not destroy the call itself (post that to another thread).
+using DoneHandler = std::function<void(const grpc::Status&)>;
+
+namespace detail {
+class AnimateReactor;
+class SubscribeReactor;
+}  // namespace detail
+
+/// A running Animate stream. Thread-safe: send() and end() may be called from
+/// any thread while messages arrive on gRPC's threads.
+class AnimateCall {
+ public:
+  ~AnimateCall();  ///< cancels the stream if it is still running, and waits for it
+  AnimateCall(const AnimateCall&) = delete;
+  AnimateCall& operator=(const AnimateCall&) = delete;
+
+  /// Queues a chunk of phonemes. Returns false once the stream has ended (the
+  /// server closed it: wait() says why).
+  bool send(std::vector<v1::Phoneme> phonemes);
+  /// Queues the end marker and closes the sending side.
+  void end();
+  /// Asks the server to drop the stream (it ends with CANCELLED).
+  void cancel();
+  /// Blocks until the stream is over; the final status.
+  grpc::Status wait();
+  bool done() const;
+
+ private:
+  friend class AnimationClient;
+  explicit AnimateCall(std::unique_ptr<detail::AnimateReactor> reactor);
+  std::unique_ptr<detail::AnimateReactor> reactor_;
+};
+
+/// A running Subscribe stream.
+class SubscribeCall {
+ public:
+  ~SubscribeCall();
+  SubscribeCall(const SubscribeCall&) = delete;
+  SubscribeCall& operator=(const SubscribeCall&) = delete;
+
+  void cancel();
+  grpc::Status wait();
+  /// Waits at most `timeout`; nullopt if the stream is still running.
+  std::optional<grpc::Status> wait_for(std::chrono::milliseconds timeout);
+  bool done() const;
+
+ private:
+  friend class AnimationClient;
+  explicit SubscribeCall(std::unique_ptr<detail::SubscribeReactor> reactor);
+  std::unique_ptr<detail::SubscribeReactor> reactor_;
+};
+
+class AnimationClient {
+ public:
+  /// A client for lipsyncd at `address` ("127.0.0.1:50051", "localhost:50051",
+  /// "unix:/path"), without TLS. Connects lazily; see wait_connected().
+  explicit AnimationClient(std::string address, ClientOptions options = {});
+
+  const std::string& address() const { return address_; }
+  const ClientOptions& options() const { return options_; }
+
+  /// Waits until the channel is connected. Throws CallError (UNAVAILABLE)
+  /// saying the server cannot be reached at address() within connect_timeout.
+  void wait_connected() const;
+
+  /// Renders a whole utterance. Throws CallError.
+  ReceivedTrack render(const v1::AnimationSettings& settings, std::span<const v1::Phoneme> phonemes) const;
+
+  /// Starts an Animate stream and sends `settings`; messages go to `handler`.
+  std::unique_ptr<AnimateCall> start_animate(const v1::AnimationSettings& settings, MessageHandler handler,
+                                             DoneHandler on_done = {}) const;
+  /// Sends `chunks` as fast as possible, then the end marker; returns what came
+  /// back (every message also goes to `handler` if given). Throws CallError.
+  ReceivedTrack animate(const v1::AnimationSettings& settings, std::span<const std::vector<v1::Phoneme>> chunks,
+                        const MessageHandler& handler = {}) const;
+
+  /// Starts following `session`; messages go to `handler`.
+  std::unique_ptr<SubscribeCall> start_subscribe(const std::string& session, v1::SubscribeRequest::Start start,
+                                                 MessageHandler handler, DoneHandler on_done = {}) const;
+  /// Follows `session` until its producer finishes. Throws CallError.
+  ReceivedTrack subscribe(const std::string& session, v1::SubscribeRequest::Start start,
+                          const MessageHandler& handler = {}) const;
+
+  v1::ListModelsResponse list_models() const;
+  v1::ModelInfo get_model(const std::string& name) const;
+
+ private:
+  std::string address_;
+  ClientOptions options_;
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<v1::LipSync::Stub> stub_;
+};
+
+}  // namespace lipsync::client

@@ -1,0 +1,492 @@
+// The client side of lipsync.v1.LipSync (see animation_client.hpp).
+//
+// Streams use gRPC's callback API. An Animate reactor keeps a queue of
+// requests and at most one write in flight; a hold keeps the call open until
+// the caller has sent the end marker (or the stream has failed), so that a
+// send() from the caller's thread never races the end of the call. gRPC
+// operations are started outside the reactor's mutex, because a RemoveHold may
+// run OnDone, which takes it.
+#include "lipsync/client/animation_client.hpp"
+
+#include <deque>
+#include <utility>
+
+namespace lipsync::client {
+namespace {
+
+std::chrono::system_clock::time_point deadline_after(std::chrono::milliseconds timeout) {
+  return std::chrono::system_clock::now() + timeout;
+}
+
+void throw_unless_ok(const grpc::Status& status, std::string_view context) {
+  if (!status.ok()) throw CallError(context, status.error_code(), status.error_message());
+}
+
+CallError protocol_error(const std::string& message) {
+  return CallError("reading the server's answer", grpc::StatusCode::INTERNAL, message);
+}
+
+}  // namespace
+
+std::string_view status_code_name(grpc::StatusCode code) {
+  switch (code) {
+    case grpc::StatusCode::OK: return "OK";
+    case grpc::StatusCode::CANCELLED: return "CANCELLED";
+    case grpc::StatusCode::UNKNOWN: return "UNKNOWN";
+    case grpc::StatusCode::INVALID_ARGUMENT: return "INVALID_ARGUMENT";
+    case grpc::StatusCode::DEADLINE_EXCEEDED: return "DEADLINE_EXCEEDED";
+    case grpc::StatusCode::NOT_FOUND: return "NOT_FOUND";
+    case grpc::StatusCode::ALREADY_EXISTS: return "ALREADY_EXISTS";
+    case grpc::StatusCode::PERMISSION_DENIED: return "PERMISSION_DENIED";
+    case grpc::StatusCode::UNAUTHENTICATED: return "UNAUTHENTICATED";
+    case grpc::StatusCode::RESOURCE_EXHAUSTED: return "RESOURCE_EXHAUSTED";
+    case grpc::StatusCode::FAILED_PRECONDITION: return "FAILED_PRECONDITION";
+    case grpc::StatusCode::ABORTED: return "ABORTED";
+    case grpc::StatusCode::OUT_OF_RANGE: return "OUT_OF_RANGE";
+    case grpc::StatusCode::UNIMPLEMENTED: return "UNIMPLEMENTED";
+    case grpc::StatusCode::INTERNAL: return "INTERNAL";
+    case grpc::StatusCode::UNAVAILABLE: return "UNAVAILABLE";
+    case grpc::StatusCode::DATA_LOSS: return "DATA_LOSS";
+    default: return "UNKNOWN_STATUS";
+  }
+}
+
+CallError::CallError(std::string_view context, grpc::StatusCode code, std::string message)
+    : std::runtime_error(std::string(context) + " failed: " + std::string(status_code_name(code)) +
+                         (message.empty() ? std::string() : ": " + message)),
+      code_(code),
+      message_(std::move(message)) {}
+
+FrameKind to_core(v1::FrameKind kind) {
+  switch (kind) {
+    case v1::FRAME_KIND_CLOSURE_START: return FrameKind::closure_start;
+    case v1::FRAME_KIND_CLOSURE_END: return FrameKind::closure_end;
+    case v1::FRAME_KIND_SHORT_SEGMENT: return FrameKind::short_segment;
+    default: return FrameKind::uniform;
+  }
+}
+
+v1::Phoneme to_wire(const LabeledInterval& interval) {
+  v1::Phoneme phoneme;
+  phoneme.set_label(interval.label);
+  phoneme.set_start_us(interval.start_us);
+  phoneme.set_end_us(interval.end_us);
+  return phoneme;
+}
+
+void ReceivedTrack::add(const v1::TrackMessage& message) {
+  switch (message.kind_case()) {
+    case v1::TrackMessage::kHeader:
+      header = message.header();
+      track = Track{};
+      track.channel_count = static_cast<std::size_t>(header.channels_size());
+      track.fps = static_cast<int>(header.fps());
+      arkit.clear();
+      first_frame = 0;
+      break;
+    case v1::TrackMessage::kFrames:
+      add_frames(message.frames());
+      break;
+    case v1::TrackMessage::kSummary:
+      summary = message.summary();
+      break;
+    default:
+      throw protocol_error("a stream message with no content");
+  }
+}
+
+void ReceivedTrack::add_frames(const v1::FrameBatch& batch) {
+  if (header.fps() == 0) throw protocol_error("frames arrived before the track header");
+  const auto frames = static_cast<std::size_t>(batch.t_us_size());
+  const auto arkit_count = static_cast<std::size_t>(header.arkit_names_size());
+  if (track.t_us.empty()) first_frame = batch.first_frame();
+  if (batch.first_frame() != first_frame + track.frame_count()) {
+    throw protocol_error("frame batch starts at frame " + std::to_string(batch.first_frame()) + ", expected " +
+                         std::to_string(first_frame + track.frame_count()));
+  }
+  if (static_cast<std::size_t>(batch.values_size()) != frames * track.channel_count ||
+      static_cast<std::size_t>(batch.arkit_size()) != frames * arkit_count ||
+      (batch.kinds_size() != 0 && static_cast<std::size_t>(batch.kinds_size()) != frames)) {
+    throw protocol_error("frame batch at frame " + std::to_string(batch.first_frame()) +
+                         " has sizes that do not match its " + std::to_string(frames) + " frames");
+  }
+  for (std::size_t i = 0; i < frames; ++i) {
+    const std::int64_t t_us = batch.t_us(static_cast<int>(i));
+    if (!track.t_us.empty() && t_us <= track.t_us.back()) {
+      throw protocol_error("frame times do not increase at frame " + std::to_string(track.frame_count()));
+    }
+    track.t_us.push_back(t_us);
+    track.kinds.push_back(batch.kinds_size() == 0 ? FrameKind::uniform
+                                                  : to_core(batch.kinds(static_cast<int>(i))));
+  }
+  track.values.insert(track.values.end(), batch.values().begin(), batch.values().end());
+  arkit.insert(arkit.end(), batch.arkit().begin(), batch.arkit().end());
+}
+
+namespace detail {
+
+/// Calls `handler` for each message; a throwing handler cancels the call and
+/// its message becomes the call's status (INTERNAL).
+class HandlerGuard {
+ public:
+  explicit HandlerGuard(MessageHandler handler) : handler_(std::move(handler)) {}
+  bool deliver(const v1::TrackMessage& message, grpc::ClientContext& context) {
+    if (!handler_) return true;
+    try {
+      handler_(message);
+      return true;
+    } catch (const std::exception& error) {
+      error_ = error.what();
+    } catch (...) {
+      error_ = "the message handler failed";
+    }
+    context.TryCancel();
+    return false;
+  }
+  grpc::Status adjust(const grpc::Status& status) const {
+    if (error_.empty()) return status;
+    return grpc::Status(grpc::StatusCode::INTERNAL, error_);
+  }
+
+ private:
+  MessageHandler handler_;
+  std::string error_;
+};
+
+class AnimateReactor : public grpc::ClientBidiReactor<v1::AnimateRequest, v1::TrackMessage> {
+ public:
+  AnimateReactor(v1::LipSync::Stub& stub, const v1::AnimationSettings& settings, MessageHandler handler,
+                 DoneHandler on_done, std::chrono::milliseconds timeout)
+      : guard_(std::move(handler)), on_done_(std::move(on_done)) {
+    context_.set_deadline(deadline_after(timeout));
+    stub.async()->Animate(&context_, this);
+    AddHold();
+    hold_held_ = true;
+    v1::AnimateRequest first;
+    *first.mutable_settings() = settings;
+    queue_.push_back(std::move(first));
+    act(next_action_locked());
+    StartRead(&incoming_);
+    StartCall();
+  }
+
+  bool send(std::vector<v1::Phoneme> phonemes) {
+    v1::AnimateRequest request;
+    auto* chunk = request.mutable_phonemes();
+    chunk->mutable_phonemes()->Reserve(static_cast<int>(phonemes.size()));
+    for (v1::Phoneme& phoneme : phonemes) *chunk->add_phonemes() = std::move(phoneme);
+    return enqueue(std::move(request), false);
+  }
+
+  void end() {
+    v1::AnimateRequest request;
+    request.mutable_end();
+    enqueue(std::move(request), true);
+  }
+
+  void cancel() {
+    context_.TryCancel();
+    Action action = Action::none;
+    {
+      std::lock_guard lock(mutex_);
+      aborted_ = true;
+      if (!writing_) action = next_action_locked();
+    }
+    act(action);
+  }
+
+  grpc::Status wait() {
+    std::unique_lock lock(mutex_);
+    done_changed_.wait(lock, [&] { return done_; });
+    return status_;
+  }
+
+  bool done() const {
+    std::lock_guard lock(mutex_);
+    return done_;
+  }
+
+  void OnReadDone(bool ok) override {
+    if (ok && guard_.deliver(incoming_, context_)) {
+      StartRead(&incoming_);
+      return;
+    }
+    Action action = Action::none;
+    {
+      std::lock_guard lock(mutex_);
+      aborted_ = true;
+      if (!writing_) action = next_action_locked();
+    }
+    act(action);
+  }
+
+  void OnWriteDone(bool ok) override {
+    Action action;
+    {
+      std::lock_guard lock(mutex_);
+      writing_ = false;
+      if (!ok) aborted_ = true;
+      action = next_action_locked();
+    }
+    act(action);
+  }
+
+  // done_ is set last: a waiter may destroy this reactor as soon as it sees it.
+  void OnDone(const grpc::Status& status) override {
+    const grpc::Status final_status = guard_.adjust(status);
+    const DoneHandler on_done = std::move(on_done_);
+    if (on_done) on_done(final_status);
+    std::lock_guard lock(mutex_);
+    status_ = final_status;
+    done_ = true;
+    done_changed_.notify_all();
+  }
+
+ private:
+  enum class Action { none, write, close_and_release, release };
+
+  bool enqueue(v1::AnimateRequest request, bool is_end) {
+    Action action = Action::none;
+    {
+      std::lock_guard lock(mutex_);
+      if (aborted_ || end_queued_) return false;
+      queue_.push_back(std::move(request));
+      end_queued_ = is_end;
+      if (!writing_) action = next_action_locked();
+    }
+    act(action);
+    return true;
+  }
+
+  Action next_action_locked() {
+    if (aborted_) {
+      queue_.clear();
+      if (!hold_held_) return Action::none;
+      hold_held_ = false;
+      return Action::release;
+    }
+    if (!queue_.empty()) {
+      current_ = std::move(queue_.front());
+      queue_.pop_front();
+      writing_ = true;
+      return Action::write;
+    }
+    if (end_queued_ && hold_held_) {
+      hold_held_ = false;
+      return Action::close_and_release;
+    }
+    return Action::none;
+  }
+
+  void act(Action action) {
+    switch (action) {
+      case Action::none: break;
+      case Action::write: StartWrite(&current_); break;
+      case Action::close_and_release:
+        StartWritesDone();
+        RemoveHold();
+        break;
+      case Action::release: RemoveHold(); break;
+    }
+  }
+
+  grpc::ClientContext context_;
+  HandlerGuard guard_;
+  DoneHandler on_done_;
+  v1::TrackMessage incoming_;
+  v1::AnimateRequest current_;  // the request being written
+
+  mutable std::mutex mutex_;
+  std::condition_variable done_changed_;
+  std::deque<v1::AnimateRequest> queue_;
+  bool writing_ = false;
+  bool hold_held_ = false;
+  bool end_queued_ = false;
+  bool aborted_ = false;
+  bool done_ = false;
+  grpc::Status status_;
+};
+
+class SubscribeReactor : public grpc::ClientReadReactor<v1::TrackMessage> {
+ public:
+  SubscribeReactor(v1::LipSync::Stub& stub, const v1::SubscribeRequest& request, MessageHandler handler,
+                   DoneHandler on_done, std::chrono::milliseconds timeout)
+      : guard_(std::move(handler)), on_done_(std::move(on_done)), request_(request) {
+    context_.set_deadline(deadline_after(timeout));
+    stub.async()->Subscribe(&context_, &request_, this);
+    StartRead(&incoming_);
+    StartCall();
+  }
+
+  void cancel() { context_.TryCancel(); }
+
+  std::optional<grpc::Status> wait_for(std::optional<std::chrono::milliseconds> timeout) {
+    std::unique_lock lock(mutex_);
+    if (timeout) {
+      if (!done_changed_.wait_for(lock, *timeout, [&] { return done_; })) return std::nullopt;
+    } else {
+      done_changed_.wait(lock, [&] { return done_; });
+    }
+    return status_;
+  }
+
+  bool done() const {
+    std::lock_guard lock(mutex_);
+    return done_;
+  }
+
+  void OnReadDone(bool ok) override {
+    if (ok && guard_.deliver(incoming_, context_)) StartRead(&incoming_);
+  }
+
+  // done_ is set last: a waiter may destroy this reactor as soon as it sees it.
+  void OnDone(const grpc::Status& status) override {
+    const grpc::Status final_status = guard_.adjust(status);
+    const DoneHandler on_done = std::move(on_done_);
+    if (on_done) on_done(final_status);
+    std::lock_guard lock(mutex_);
+    status_ = final_status;
+    done_ = true;
+    done_changed_.notify_all();
+  }
+
+ private:
+  grpc::ClientContext context_;
+  HandlerGuard guard_;
+  DoneHandler on_done_;
+  v1::SubscribeRequest request_;
+  v1::TrackMessage incoming_;
+  mutable std::mutex mutex_;
+  std::condition_variable done_changed_;
+  bool done_ = false;
+  grpc::Status status_;
+};
+
+}  // namespace detail
+
+AnimateCall::AnimateCall(std::unique_ptr<detail::AnimateReactor> reactor) : reactor_(std::move(reactor)) {}
+
+AnimateCall::~AnimateCall() {
+  if (!reactor_->done()) reactor_->cancel();
+  reactor_->wait();
+}
+
+bool AnimateCall::send(std::vector<v1::Phoneme> phonemes) { return reactor_->send(std::move(phonemes)); }
+void AnimateCall::end() { reactor_->end(); }
+void AnimateCall::cancel() { reactor_->cancel(); }
+grpc::Status AnimateCall::wait() { return reactor_->wait(); }
+bool AnimateCall::done() const { return reactor_->done(); }
+
+SubscribeCall::SubscribeCall(std::unique_ptr<detail::SubscribeReactor> reactor) : reactor_(std::move(reactor)) {}
+
+SubscribeCall::~SubscribeCall() {
+  if (!reactor_->done()) reactor_->cancel();
+  reactor_->wait_for(std::nullopt);
+}
+
+void SubscribeCall::cancel() { reactor_->cancel(); }
+grpc::Status SubscribeCall::wait() { return *reactor_->wait_for(std::nullopt); }
+std::optional<grpc::Status> SubscribeCall::wait_for(std::chrono::milliseconds timeout) {
+  return reactor_->wait_for(timeout);
+}
+bool SubscribeCall::done() const { return reactor_->done(); }
+
+AnimationClient::AnimationClient(std::string address, ClientOptions options)
+    : address_(std::move(address)), options_(options) {
+  grpc::ChannelArguments arguments;
+  arguments.SetMaxReceiveMessageSize(256 * 1024 * 1024);
+  // Each client gets its own connection, so that a load test can spread its streams.
+  arguments.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
+  channel_ = grpc::CreateCustomChannel(address_, grpc::InsecureChannelCredentials(), arguments);
+  stub_ = v1::LipSync::NewStub(channel_);
+}
+
+void AnimationClient::wait_connected() const {
+  if (!channel_->WaitForConnected(deadline_after(options_.connect_timeout))) {
+    throw CallError("connecting to lipsyncd at " + address_, grpc::StatusCode::UNAVAILABLE,
+                    "no answer within " + std::to_string(options_.connect_timeout.count()) +
+                        " ms (is lipsyncd running there? see --server)");
+  }
+}
+
+ReceivedTrack AnimationClient::render(const v1::AnimationSettings& settings,
+                                      std::span<const v1::Phoneme> phonemes) const {
+  v1::RenderRequest request;
+  *request.mutable_settings() = settings;
+  request.mutable_phonemes()->Reserve(static_cast<int>(phonemes.size()));
+  for (const v1::Phoneme& phoneme : phonemes) *request.add_phonemes() = phoneme;
+  grpc::ClientContext context;
+  context.set_deadline(deadline_after(options_.unary_timeout));
+  v1::RenderResponse response;
+  throw_unless_ok(stub_->Render(&context, request, &response), "Render on " + address_);
+  ReceivedTrack received;
+  v1::TrackMessage message;
+  *message.mutable_header() = response.header();
+  received.add(message);
+  received.add_frames(response.frames());
+  received.summary = response.summary();
+  return received;
+}
+
+std::unique_ptr<AnimateCall> AnimationClient::start_animate(const v1::AnimationSettings& settings,
+                                                            MessageHandler handler, DoneHandler on_done) const {
+  return std::unique_ptr<AnimateCall>(new AnimateCall(std::make_unique<detail::AnimateReactor>(
+      *stub_, settings, std::move(handler), std::move(on_done), options_.stream_timeout)));
+}
+
+ReceivedTrack AnimationClient::animate(const v1::AnimationSettings& settings,
+                                       std::span<const std::vector<v1::Phoneme>> chunks,
+                                       const MessageHandler& handler) const {
+  ReceivedTrack received;
+  auto call = start_animate(settings, [&](const v1::TrackMessage& message) {
+    received.add(message);
+    if (handler) handler(message);
+  });
+  for (const std::vector<v1::Phoneme>& chunk : chunks) {
+    if (!call->send(chunk)) break;
+  }
+  call->end();
+  throw_unless_ok(call->wait(), "Animate on " + address_);
+  return received;
+}
+
+std::unique_ptr<SubscribeCall> AnimationClient::start_subscribe(const std::string& session,
+                                                                v1::SubscribeRequest::Start start,
+                                                                MessageHandler handler, DoneHandler on_done) const {
+  v1::SubscribeRequest request;
+  request.set_session(session);
+  request.set_start(start);
+  return std::unique_ptr<SubscribeCall>(new SubscribeCall(std::make_unique<detail::SubscribeReactor>(
+      *stub_, request, std::move(handler), std::move(on_done), options_.stream_timeout)));
+}
+
+ReceivedTrack AnimationClient::subscribe(const std::string& session, v1::SubscribeRequest::Start start,
+                                         const MessageHandler& handler) const {
+  ReceivedTrack received;
+  auto call = start_subscribe(session, start, [&](const v1::TrackMessage& message) {
+    received.add(message);
+    if (handler) handler(message);
+  });
+  throw_unless_ok(call->wait(), "Subscribe to session '" + session + "' on " + address_);
+  return received;
+}
+
+v1::ListModelsResponse AnimationClient::list_models() const {
+  grpc::ClientContext context;
+  context.set_deadline(deadline_after(options_.unary_timeout));
+  v1::ListModelsResponse response;
+  throw_unless_ok(stub_->ListModels(&context, v1::ListModelsRequest{}, &response), "ListModels on " + address_);
+  return response;
+}
+
+v1::ModelInfo AnimationClient::get_model(const std::string& name) const {
+  grpc::ClientContext context;
+  context.set_deadline(deadline_after(options_.unary_timeout));
+  v1::GetModelRequest request;
+  request.set_name(name);
+  v1::ModelInfo response;
+  throw_unless_ok(stub_->GetModel(&context, request, &response), "GetModel on " + address_);
+  return response;
+}
+
+}  // namespace lipsync::client

@@ -1,0 +1,341 @@
+"""A thin client for lipsyncd's gRPC API (lipsync.v1.LipSync).
+
+    with Client("127.0.0.1:50051") as client:
+        track = client.render([("pau", 0, 200000), ("p", 200000, 260000), ...], phone_set="radio")
+        for frame in client.animate(chunks_from_my_tts(), phone_set="radio", session="demo"):
+            ...
+        for frame in client.subscribe("demo"):
+            ...
+
+Phonemes may be given as ``(label, start_us, end_us)`` tuples, as objects with
+``label``, ``start_us`` and ``end_us`` attributes (``lipsync_client.tts.TimedPhoneme``),
+or as ``lipsync_pb2.Phoneme`` messages. Times are integer microseconds.
+
+Settings (keyword arguments of render and animate; all optional, defaults are the server's):
+    model (str), fps (int, 1..240), phone_set (str: arpabet, radio, timit, ipa, espeak,
+    sampa), lookahead (int, 0..7; unset = 7, exact), fixed_rate (bool),
+    closure_fraction (float in (0, 1)), channels (bool), arkit (bool) (which outputs the
+    frames carry; neither set = both), session (str, animate only: publish under this
+    name), media_clock ((clock_name, utterance_zero_us)).
+
+Errors are the server's: every call raises ``grpc.RpcError`` (use ``.code()`` and
+``.details()``), e.g. INVALID_ARGUMENT for a bad phoneme, DEADLINE_EXCEEDED when
+the call outlasts its timeout. Every call has a deadline (`timeout`, seconds).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Dict, Iterable, Iterator, List, Optional, Tuple
+
+import grpc
+
+try:
+    from lipsync.v1 import lipsync_pb2, lipsync_pb2_grpc
+except ImportError as _error:  # pragma: no cover - depends on the environment
+    raise ImportError(
+        "lipsync_client needs the generated gRPC stubs (package lipsync.v1): build the CMake "
+        "target lipsync_python_stubs and put <build>/clients/python/generated on PYTHONPATH "
+        f"(see docs/python-client.md); import failed with: {_error}"
+    ) from _error
+
+__all__ = ["Client", "Frame", "FrameStream", "Track", "make_settings", "KIND_NAMES"]
+
+#: FrameKind enum values to the short names used in Frame.kind.
+KIND_NAMES: Dict[int, str] = {
+    lipsync_pb2.FRAME_KIND_UNSPECIFIED: "unspecified",
+    lipsync_pb2.FRAME_KIND_UNIFORM: "uniform",
+    lipsync_pb2.FRAME_KIND_CLOSURE_START: "closure_start",
+    lipsync_pb2.FRAME_KIND_CLOSURE_END: "closure_end",
+    lipsync_pb2.FRAME_KIND_SHORT_SEGMENT: "short_segment",
+}
+
+DEFAULT_TIMEOUT_S = 60.0
+DEFAULT_CHUNK_SIZE = 16
+
+
+@dataclasses.dataclass(frozen=True)
+class Frame:
+    """One animation frame.
+
+    index: position in the track (0-based); t_us: utterance time in integer µs;
+    kind: "uniform", "closure_start", "closure_end" or "short_segment";
+    channels: model channel name -> value (empty if not selected);
+    arkit: ARKit blendshape name (Apple's spelling, e.g. "jawOpen") -> weight.
+    """
+
+    index: int
+    t_us: int
+    kind: str
+    channels: Dict[str, float]
+    arkit: Dict[str, float]
+
+
+@dataclasses.dataclass
+class Track:
+    """A whole track: the header, the frames and the summary (protobuf messages for
+    header and summary: lipsync_pb2.TrackHeader, lipsync_pb2.TrackSummary)."""
+
+    header: Any
+    frames: List[Frame]
+    summary: Any
+
+
+def _phoneme(item: Any) -> Any:
+    if isinstance(item, lipsync_pb2.Phoneme):
+        return item
+    if hasattr(item, "label") and hasattr(item, "start_us") and hasattr(item, "end_us"):
+        label, start_us, end_us = item.label, item.start_us, item.end_us
+    else:
+        try:
+            label, start_us, end_us = item
+        except (TypeError, ValueError):
+            raise TypeError(
+                f"a phoneme is (label, start_us, end_us) or has those attributes, not {item!r}"
+            ) from None
+    for name, value in (("start_us", start_us), ("end_us", end_us)):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise TypeError(f"phoneme {label!r}: {name} must be an integer count of µs, not {value!r}")
+    return lipsync_pb2.Phoneme(label=str(label), start_us=start_us, end_us=end_us)
+
+
+def _is_phoneme(item: Any) -> bool:
+    if isinstance(item, lipsync_pb2.Phoneme) or hasattr(item, "label"):
+        return True
+    return (
+        isinstance(item, (tuple, list)) and len(item) == 3 and isinstance(item[0], str)
+    )
+
+
+def make_settings(
+    *,
+    model: str = "",
+    fps: int = 0,
+    phone_set: str = "",
+    lookahead: Optional[int] = None,
+    fixed_rate: bool = False,
+    closure_fraction: float = 0.0,
+    channels: bool = False,
+    arkit: bool = False,
+    session: str = "",
+    media_clock: Optional[Tuple[str, int]] = None,
+) -> Any:
+    """Builds a lipsync_pb2.AnimationSettings from keyword arguments (see the module doc).
+    Unknown keywords raise TypeError."""
+    settings = lipsync_pb2.AnimationSettings(
+        model=model,
+        fps=fps,
+        phone_set=phone_set,
+        fixed_rate=fixed_rate,
+        closure_fraction=closure_fraction,
+        session=session,
+    )
+    if lookahead is not None:
+        settings.lookahead = lookahead
+    if channels or arkit:
+        settings.outputs.channels = channels
+        settings.outputs.arkit = arkit
+    if media_clock is not None:
+        clock, zero_us = media_clock
+        settings.media_clock.clock = clock
+        settings.media_clock.utterance_zero_us = zero_us
+    return settings
+
+
+class _Decoder:
+    """Turns FrameBatch messages into Frames, using the header's channel and ARKit names."""
+
+    def __init__(self, header: Any) -> None:
+        self.channel_names = list(header.channels)
+        self.arkit_names = list(header.arkit_names)
+        self.next_index = 0
+
+    def frames(self, batch: Any) -> Iterator[Frame]:
+        count = len(batch.t_us)
+        width, arkit_width = len(self.channel_names), len(self.arkit_names)
+        if len(batch.kinds) != count or len(batch.values) != count * width or len(
+            batch.arkit
+        ) != count * arkit_width:
+            raise ValueError(
+                f"malformed frame batch at frame {batch.first_frame}: {count} times, "
+                f"{len(batch.kinds)} kinds, {len(batch.values)} values ({width} channels), "
+                f"{len(batch.arkit)} ARKit weights ({arkit_width} names)"
+            )
+        values, arkit = batch.values, batch.arkit
+        for i in range(count):
+            yield Frame(
+                index=batch.first_frame + i,
+                t_us=batch.t_us[i],
+                kind=KIND_NAMES.get(batch.kinds[i], str(batch.kinds[i])),
+                channels=dict(zip(self.channel_names, values[i * width : (i + 1) * width])),
+                arkit=dict(zip(self.arkit_names, arkit[i * arkit_width : (i + 1) * arkit_width])),
+            )
+        self.next_index = batch.first_frame + count
+
+
+class FrameStream:
+    """The frames of an Animate or Subscribe call, as they arrive.
+
+    Iterate over it to get Frames. `header` (lipsync_pb2.TrackHeader) is set once
+    the header has arrived (before the first frame), `summary`
+    (lipsync_pb2.TrackSummary) once the stream has ended. `cancel()` ends the call.
+    Iteration raises grpc.RpcError if the call fails.
+    """
+
+    def __init__(self, call: Any) -> None:
+        self._call = call
+        self.header: Any = None
+        self.summary: Any = None
+        self._decoder: Optional[_Decoder] = None
+
+    def __iter__(self) -> Iterator[Frame]:
+        for message in self._call:
+            kind = message.WhichOneof("kind")
+            if kind == "header":
+                self.header = message.header
+                self._decoder = _Decoder(message.header)
+            elif kind == "frames":
+                if self._decoder is None:
+                    raise ValueError("the server sent frames before the track header")
+                yield from self._decoder.frames(message.frames)
+            elif kind == "summary":
+                self.summary = message.summary
+
+    def cancel(self) -> None:
+        self._call.cancel()
+
+    def collect(self) -> Track:
+        """Reads the whole stream into a Track."""
+        frames = list(self)
+        return Track(self.header, frames, self.summary)
+
+
+class Client:
+    """A connection to lipsyncd.
+
+    target: "host:port" (insecure channel), or pass a ready `channel`.
+    timeout: default deadline of every call, in seconds (a whole stream for
+    Animate and Subscribe).
+    """
+
+    def __init__(
+        self,
+        target: str = "127.0.0.1:50051",
+        *,
+        timeout: float = DEFAULT_TIMEOUT_S,
+        channel: Optional[grpc.Channel] = None,
+    ) -> None:
+        self._channel = channel if channel is not None else grpc.insecure_channel(target)
+        self._owns_channel = channel is None
+        self.timeout = timeout
+        self.stub = lipsync_pb2_grpc.LipSyncStub(self._channel)
+
+    def close(self) -> None:
+        if self._owns_channel:
+            self._channel.close()
+
+    def __enter__(self) -> "Client":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def wait_ready(self, timeout: Optional[float] = None) -> None:
+        """Blocks until the channel is connected; raises grpc.FutureTimeoutError otherwise."""
+        grpc.channel_ready_future(self._channel).result(
+            timeout=self.timeout if timeout is None else timeout
+        )
+
+    def render(
+        self, phonemes: Iterable[Any], *, timeout: Optional[float] = None, **settings: Any
+    ) -> Track:
+        """Renders a whole utterance at once (unary Render) and returns its Track."""
+        settings.pop("session", None)  # ignored by Render
+        request = lipsync_pb2.RenderRequest(
+            settings=make_settings(**settings), phonemes=[_phoneme(p) for p in phonemes]
+        )
+        response = self.stub.Render(request, timeout=self.timeout if timeout is None else timeout)
+        decoder = _Decoder(response.header)
+        frames = list(decoder.frames(response.frames)) if response.HasField("frames") else []
+        return Track(response.header, frames, response.summary)
+
+    def animate(
+        self,
+        phonemes: Iterable[Any],
+        *,
+        timeout: Optional[float] = None,
+        chunk_size: int = DEFAULT_CHUNK_SIZE,
+        **settings: Any,
+    ) -> FrameStream:
+        """Streams one utterance (bidirectional Animate) and returns its FrameStream.
+
+        `phonemes` is either an iterable of phonemes (sent in chunks of
+        `chunk_size`) or an iterable of chunks (each a sequence of phonemes or a
+        lipsync_pb2.PhonemeChunk), sent one message per chunk as the iterable
+        yields them: a generator fed by a streaming TTS front-end is read lazily,
+        on gRPC's thread, while the frames come back. The end marker follows the
+        last chunk.
+        """
+        if chunk_size < 1:
+            raise ValueError("chunk_size must be at least 1")
+        first_request = lipsync_pb2.AnimateRequest(settings=make_settings(**settings))
+        call = self.stub.Animate(
+            self._requests(first_request, phonemes, chunk_size),
+            timeout=self.timeout if timeout is None else timeout,
+        )
+        return FrameStream(call)
+
+    @staticmethod
+    def _requests(first: Any, source: Iterable[Any], chunk_size: int) -> Iterator[Any]:
+        yield first
+        pending: List[Any] = []
+        for item in source:
+            if _is_phoneme(item):
+                pending.append(_phoneme(item))
+                if len(pending) >= chunk_size:
+                    yield lipsync_pb2.AnimateRequest(
+                        phonemes=lipsync_pb2.PhonemeChunk(phonemes=pending)
+                    )
+                    pending = []
+                continue
+            if pending:
+                yield lipsync_pb2.AnimateRequest(phonemes=lipsync_pb2.PhonemeChunk(phonemes=pending))
+                pending = []
+            if isinstance(item, lipsync_pb2.PhonemeChunk):
+                chunk = item
+            else:
+                chunk = lipsync_pb2.PhonemeChunk(phonemes=[_phoneme(p) for p in item])
+            yield lipsync_pb2.AnimateRequest(phonemes=chunk)
+        if pending:
+            yield lipsync_pb2.AnimateRequest(phonemes=lipsync_pb2.PhonemeChunk(phonemes=pending))
+        yield lipsync_pb2.AnimateRequest(end=lipsync_pb2.EndOfUtterance())
+
+    def subscribe(
+        self, session: str, from_beginning: bool = True, *, timeout: Optional[float] = None
+    ) -> FrameStream:
+        """Follows the frames of `session` (published by an Animate call with that
+        session name): from what the server still holds, or only new frames."""
+        start = (
+            lipsync_pb2.SubscribeRequest.START_FROM_BEGINNING
+            if from_beginning
+            else lipsync_pb2.SubscribeRequest.START_FROM_NOW
+        )
+        call = self.stub.Subscribe(
+            lipsync_pb2.SubscribeRequest(session=session, start=start),
+            timeout=self.timeout if timeout is None else timeout,
+        )
+        return FrameStream(call)
+
+    def list_models(self, *, timeout: Optional[float] = None) -> List[Any]:
+        """The models this server can animate with (lipsync_pb2.ModelInfo messages)."""
+        response = self.stub.ListModels(
+            lipsync_pb2.ListModelsRequest(), timeout=self.timeout if timeout is None else timeout
+        )
+        return list(response.models)
+
+    def get_model(self, name: str = "", *, timeout: Optional[float] = None) -> Any:
+        """One model's layout (lipsync_pb2.ModelInfo); "" = the default model."""
+        return self.stub.GetModel(
+            lipsync_pb2.GetModelRequest(name=name),
+            timeout=self.timeout if timeout is None else timeout,
+        )

@@ -1,0 +1,78 @@
+// A muscle-driven mass-spring face, simulated with the local–global solver of Liu et al. 2013
+// ("Fast Simulation of Mass-Spring Systems") in the projective-dynamics form of Bouaziz et al. 2014.
+//
+// Every force is a spring pulling something toward a projection: skin edge springs and bending
+// springs (across each interior edge) toward their rest length, and one attachment per node
+// toward a target that the bones and muscles move — the node's rest position carried by the
+// skull and the jaw (anchor), plus the displacement of the muscle points it is bound to. Muscles,
+// jaw and tongue only move targets, so the system matrix
+//     A = M / h² + Σ_springs k (e_i − e_j)(e_i − e_j)ᵀ + diag(κ)
+// is constant: it is factored once (sparse Cholesky) at construction. A step of length h does
+//     y = x + h · v · exp(−h / damping_time)                 (inertia, damped)
+//     repeat `iterations` times:  p = projections(x);  x = A⁻¹ (M y / h² + Σ k Sᵀ p + κ ∘ target)
+// and then keeps the skin out of the teeth and skull and the lips from passing through each other.
+// Fixed iteration count, fixed order, double precision: bit-reproducible on one platform.
+// Units: metres, kilograms, seconds. No allocation in step().
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <span>
+
+#include "lipsync/face/face_mesh.hpp"
+#include "lipsync/face/face_rig.hpp"
+
+namespace lipsync::face {
+
+struct FaceSolverParams {
+  double time_step_s = 1.0 / 60.0;  ///< the step the matrix is factored for; step() substeps by it
+  int iterations = 5;               ///< local–global iterations per step
+  /// Skin membrane: stiffness of one edge spring (a triangle spring network's membrane stiffness
+  /// does not depend on its edge length, so this holds at every subdivision level).
+  double skin_stiffness_n_per_m = 450.0;
+  double bending_stiffness_n_per_m = 45.0;  ///< springs across each interior edge
+  /// Attachment of skin to bone per unit area: soft tissue of Young's modulus ~20 kPa over ~10 mm.
+  double anchor_stiffness_n_per_m3 = 2.0e6;
+  /// Anchors near the mouth are this much weaker (lips and cheeks move freely over the teeth).
+  double lip_anchor_scale = 0.1;
+  double cavity_anchor_scale = 5.0;  ///< the mouth cavity lining holds on to the bones
+  /// Binding of skin to a muscle per unit area at full falloff weight.
+  double binding_stiffness_n_per_m3 = 2.0e7;
+  double density_kg_per_m3 = 1000.0;
+  double tissue_thickness_m = 0.01;  ///< for the lumped mass ρ · thickness · area
+  double damping_time_s = 0.02;      ///< velocity decays as exp(−t / damping_time)
+  double teeth_margin_m = 0.0005;    ///< skin kept this far outside the teeth
+  double max_skin_sink_m = 0.004;    ///< skin may not sink deeper than this below its rest (skull)
+};
+
+class FaceSolver {
+ public:
+  /// Binds the rig to the mesh and factors the system. Throws std::invalid_argument for
+  /// parameters out of range (iterations < 1, non-positive time step or stiffness).
+  FaceSolver(const FaceMesh& mesh, const FaceRig& rig, const FaceSolverParams& params = {});
+  ~FaceSolver();
+  FaceSolver(FaceSolver&&) noexcept;
+  FaceSolver& operator=(FaceSolver&&) noexcept;
+
+  /// Advances by `dt_s` (rounded to a whole number ≥ 1 of time steps) with the channels held at
+  /// `channel_values` (one per model channel, clamped to the channel ranges the rig expects:
+  /// muscles 0..1, jaw 0..1, tongue raise −1..1, protrusion 0..1).
+  void step(std::span<const float> channel_values, double dt_s);
+  /// Back to the rest pose, at rest.
+  void reset();
+
+  /// All vertex positions (soft nodes, then teeth and tongue), metres, in mesh order.
+  std::span<const Vec3> positions() const;
+  const FaceMesh& mesh() const;
+  /// Kinetic plus elastic energy relative to the current targets, joules (not for the hot path).
+  double energy_j() const;
+  /// Number of springs (edges and bending) and muscle bindings, for reports.
+  std::size_t spring_count() const;
+  std::size_t binding_count() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace lipsync::face

@@ -1,0 +1,367 @@
+// Builds the simulated face from the canonical mesh; see face_mesh.hpp for the layout and
+// docs/face.md for the anatomy and its figures.
+#include "lipsync/face/face_mesh.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+#include <unordered_map>
+
+#include <nlohmann/json.hpp>
+
+#include "face/arch.hpp"
+#include "face/embedded_face.hpp"
+#include "lipsync/error.hpp"
+
+namespace lipsync::face {
+
+const std::array<std::uint32_t, 20> kInnerLipLoop = {78,  191, 80,  81,  82,  13,  312, 311, 310, 415,
+                                                     308, 324, 318, 402, 317, 14,  87,  178, 88,  95};
+
+namespace {
+
+constexpr double kMetresPerCentimetre = 0.01;
+constexpr std::size_t kLoopSize = kInnerLipLoop.size();
+constexpr std::size_t kUpperBegin = 1, kUpperEnd = 10;   // loop indices of the upper interior
+constexpr std::size_t kLowerBegin = 11, kLowerEnd = 20;  // lower interior (308 → 78 order)
+
+Vec3 operator+(Vec3 a, Vec3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+Vec3 operator*(double s, Vec3 a) { return {s * a.x, s * a.y, s * a.z}; }
+
+std::uint64_t edge_key(std::uint32_t a, std::uint32_t b) {
+  if (a > b) std::swap(a, b);
+  return (std::uint64_t{a} << 32) | b;
+}
+
+double smoothstep(double edge0, double edge1, double x) {
+  const double t = std::clamp((x - edge0) / (edge1 - edge0), 0.0, 1.0);
+  return t * t * (3.0 - 2.0 * t);
+}
+
+// Adds a rigid teeth arch: front and back elliptic bands between y_min and y_max, over ±80°
+// around the front, with the incisal and gum edges closed. Returns nothing; appends vertices.
+void add_arch(FaceMesh& mesh, double centre_z, double a, double b, double thickness, double y_min, double y_max,
+              FacePart part) {
+  constexpr int kSegments = 16;
+  constexpr double kHalfAngle = 80.0 * std::numbers::pi / 180.0;
+  const auto base = static_cast<std::uint32_t>(mesh.rest_positions_m.size());
+  for (int s = 0; s <= kSegments; ++s) {
+    const double angle = -kHalfAngle + 2.0 * kHalfAngle * s / kSegments;
+    for (const double shrink : {0.0, thickness}) {
+      for (const double y : {y_min, y_max}) {
+        mesh.rest_positions_m.push_back({(a - shrink) * std::sin(angle), y, centre_z + (b - shrink) * std::cos(angle)});
+        mesh.uvs.push_back({0.0F, 0.0F});
+        mesh.parts.push_back(part);
+      }
+    }
+  }
+  // Vertex (s, layer, row) = base + 4 s + 2 layer + row; layer 0 front, 1 back; row 0 bottom, 1 top.
+  auto v = [&](int s, int layer, int row) { return base + static_cast<std::uint32_t>(4 * s + 2 * layer + row); };
+  for (int s = 0; s < kSegments; ++s) {
+    auto quad = [&](std::uint32_t p, std::uint32_t q, std::uint32_t r, std::uint32_t t) {
+      mesh.triangles.push_back({p, q, r});
+      mesh.triangles.push_back({p, r, t});
+    };
+    quad(v(s, 0, 0), v(s + 1, 0, 0), v(s + 1, 0, 1), v(s, 0, 1));  // labial face, seen from the front
+    quad(v(s + 1, 1, 0), v(s, 1, 0), v(s, 1, 1), v(s + 1, 1, 1));  // lingual face
+    quad(v(s, 1, 0), v(s + 1, 1, 0), v(s + 1, 0, 0), v(s, 0, 0));  // bottom edge
+    quad(v(s, 0, 1), v(s + 1, 0, 1), v(s + 1, 1, 1), v(s, 1, 1));  // top edge
+  }
+}
+
+void add_tongue(FaceMesh& mesh) {
+  constexpr int kRings = 8, kSectors = 12;
+  const Vec3 c = mesh.tongue_centre_m;
+  const Vec3 r = mesh.anatomy.tongue_semi_axes_m;
+  const auto base = static_cast<std::uint32_t>(mesh.rest_positions_m.size());
+  // Pole along +z (the tip) and −z (the root); rings in between.
+  auto push = [&](Vec3 p) {
+    mesh.rest_positions_m.push_back(p);
+    mesh.uvs.push_back({0.0F, 0.0F});
+    mesh.parts.push_back(FacePart::tongue);
+  };
+  push({c.x, c.y, c.z + r.z});
+  for (int i = 1; i < kRings; ++i) {
+    const double polar = std::numbers::pi * i / kRings;
+    for (int j = 0; j < kSectors; ++j) {
+      const double azimuth = 2.0 * std::numbers::pi * j / kSectors;
+      push({c.x + r.x * std::sin(polar) * std::cos(azimuth), c.y + r.y * std::sin(polar) * std::sin(azimuth),
+            c.z + r.z * std::cos(polar)});
+    }
+  }
+  push({c.x, c.y, c.z - r.z});
+  const std::uint32_t tip = base, back = base + 1 + (kRings - 1) * kSectors;
+  auto ring = [&](int i, int j) { return base + 1 + static_cast<std::uint32_t>((i - 1) * kSectors + (j % kSectors)); };
+  for (int j = 0; j < kSectors; ++j) {
+    mesh.triangles.push_back({tip, ring(1, j + 1), ring(1, j)});
+    for (int i = 1; i < kRings - 1; ++i) {
+      mesh.triangles.push_back({ring(i, j), ring(i, j + 1), ring(i + 1, j + 1)});
+      mesh.triangles.push_back({ring(i, j), ring(i + 1, j + 1), ring(i + 1, j)});
+    }
+    mesh.triangles.push_back({back, ring(kRings - 1, j), ring(kRings - 1, j + 1)});
+  }
+}
+
+}  // namespace
+
+FaceAsset FaceAsset::from_json(std::string_view json_text, std::string_view source) {
+  const std::string src(source);
+  nlohmann::json doc;
+  try {
+    doc = nlohmann::json::parse(json_text);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw InputError(src, 0, std::string("not valid JSON: ") + e.what());
+  }
+  FaceAsset asset;
+  try {
+    if (doc.at("format") != "lipsync-face-asset") throw InputError(src, 0, "field 'format' must be lipsync-face-asset");
+    for (const auto& p : doc.at("positions_cm")) asset.positions_cm.push_back({p.at(0), p.at(1), p.at(2)});
+    for (const auto& uv : doc.at("uvs")) asset.uvs.push_back({uv.at(0).get<double>(), uv.at(1).get<double>()});
+    for (const auto& t : doc.at("triangles")) asset.triangles.push_back({t.at(0), t.at(1), t.at(2)});
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(src, 0, std::string("bad face asset: ") + e.what());
+  }
+  if (asset.uvs.size() != asset.positions_cm.size())
+    throw InputError(src, 0, "field 'uvs' must have one entry per position");
+  for (std::size_t t = 0; t < asset.triangles.size(); ++t)
+    for (const auto index : asset.triangles[t])
+      if (index >= asset.positions_cm.size())
+        throw InputError(src, 0, "triangle " + std::to_string(t) + " names vertex " + std::to_string(index) +
+                                     " of " + std::to_string(asset.positions_cm.size()));
+  return asset;
+}
+
+const FaceAsset& FaceAsset::builtin() {
+  static const FaceAsset asset = from_json(embedded::canonical_face_json(), "data/face/canonical_face.json");
+  return asset;
+}
+
+Subdivision subdivide(std::span<const std::array<std::uint32_t, 3>> triangles, std::uint32_t vertex_count) {
+  Subdivision out;
+  std::unordered_map<std::uint64_t, std::uint32_t> midpoint;
+  auto mid = [&](std::uint32_t a, std::uint32_t b) {
+    const auto [it, inserted] = midpoint.try_emplace(edge_key(a, b), 0);
+    if (inserted) {
+      it->second = vertex_count + static_cast<std::uint32_t>(out.midpoint_parents.size());
+      out.midpoint_parents.push_back({std::min(a, b), std::max(a, b)});
+    }
+    return it->second;
+  };
+  out.triangles.reserve(triangles.size() * 4);
+  for (const auto& [a, b, c] : triangles) {
+    const auto ab = mid(a, b), bc = mid(b, c), ca = mid(c, a);
+    out.triangles.push_back({a, ab, ca});
+    out.triangles.push_back({ab, b, bc});
+    out.triangles.push_back({ca, bc, c});
+    out.triangles.push_back({ab, bc, ca});
+  }
+  return out;
+}
+
+FaceMesh build_face_mesh(const FaceAsset& asset, int subdivision_level, const FaceAnatomy& anatomy) {
+  if (subdivision_level < 0 || subdivision_level > 2)
+    throw std::invalid_argument("face subdivision level must be 0, 1 or 2, not " + std::to_string(subdivision_level));
+  FaceMesh mesh;
+  mesh.anatomy = anatomy;
+  mesh.subdivision_level = subdivision_level;
+
+  std::vector<Vec3> pos;
+  std::vector<std::array<double, 2>> uv = asset.uvs;
+  for (const auto& p : asset.positions_cm) pos.push_back(kMetresPerCentimetre * p);
+  std::vector<double> depth(pos.size(), 0.0), side(pos.size(), 0.0);
+
+  // Open the mouth: drop every triangle whose three vertices lie on the inner-lip loop.
+  std::vector<bool> on_loop(pos.size(), false);
+  for (const auto id : kInnerLipLoop) on_loop.at(id) = true;
+  std::vector<std::array<std::uint32_t, 3>> tris;
+  for (const auto& t : asset.triangles)
+    if (!(on_loop[t[0]] && on_loop[t[1]] && on_loop[t[2]])) tris.push_back(t);
+
+  // The loop's direction as the skin's triangles traverse it: a boundary edge a→b of the skin.
+  std::map<std::pair<std::uint32_t, std::uint32_t>, int> directed;
+  for (const auto& t : tris)
+    for (int e = 0; e < 3; ++e) ++directed[{t[e], t[(e + 1) % 3]}];
+  const bool forward = directed.count({kInnerLipLoop[0], kInnerLipLoop[1]}) > 0;
+  std::array<std::uint32_t, kLoopSize> loop{};  // ordered so that loop[k]→loop[k+1] is a skin edge
+  for (std::size_t k = 0; k < kLoopSize; ++k)
+    loop[k] = forward ? kInnerLipLoop[k] : kInnerLipLoop[(kLoopSize - k) % kLoopSize];
+
+  const Vec3 centre = 0.5 * (pos[13] + pos[14]);
+  mesh.mouth_centre_m = centre;
+  const double teeth_front_z = pos[13].z - anatomy.upper_teeth_depth_m;
+
+  // Side of each loop vertex: +1 upper lip, −1 lower lip, 0 corners; and a smooth version
+  // sin(π k / 10) around the loop (k from corner 78) for the cavity's lens-shaped cross-section.
+  std::array<double, kLoopSize> loop_side{}, loop_smooth_side{};
+  for (std::size_t k = 0; k < kLoopSize; ++k) {
+    const auto id = loop[k];
+    const auto at = static_cast<std::size_t>(std::find(kInnerLipLoop.begin(), kInnerLipLoop.end(), id) - kInnerLipLoop.begin());
+    loop_side[k] = (at >= kUpperBegin && at < kUpperEnd) ? 1.0 : (at >= kLowerBegin && at < kLowerEnd) ? -1.0 : 0.0;
+    loop_smooth_side[k] = std::sin(std::numbers::pi * static_cast<double>(at) / 10.0);
+    side[id] = loop_side[k];
+  }
+
+  // Rings behind the lip line: inner lip (1, 2) and cavity (3, 4), then a fan to the back.
+  struct RingShape {
+    double x_scale, vertical_m, back_m;
+    bool smooth_side, from_centre_z;
+  };
+  constexpr std::array<RingShape, 4> kRings = {{
+      {0.97, 0.0010, 0.003, false, false},  // mucosa just behind the lip line
+      {0.93, 0.0040, 0.007, false, false},  // toward the gums (sulcus)
+      {1.05, 0.0140, 0.016, true, false},   // cavity, around the teeth
+      {0.80, 0.0160, 0.042, true, true},    // cavity, toward the pharynx
+  }};
+  std::vector<std::array<std::uint32_t, kLoopSize>> rings = {loop};
+  for (std::size_t r = 0; r < kRings.size(); ++r) {
+    const RingShape& shape = kRings[r];
+    std::array<std::uint32_t, kLoopSize> ring{};
+    for (std::size_t k = 0; k < kLoopSize; ++k) {
+      const Vec3 p = pos[loop[k]];
+      const double s = shape.smooth_side ? loop_smooth_side[k] : loop_side[k];
+      Vec3 q{centre.x + shape.x_scale * (p.x - centre.x), p.y + s * shape.vertical_m,
+             (shape.from_centre_z ? centre.z : p.z) - shape.back_m};
+      if (shape.smooth_side) q.y = centre.y + 0.4 * (p.y - centre.y) + s * shape.vertical_m;
+      ring[k] = static_cast<std::uint32_t>(pos.size());
+      pos.push_back(q);
+      uv.push_back(uv[loop[k]]);
+      depth.push_back(static_cast<double>(r + 1));
+      side.push_back(loop_side[k] != 0.0 ? loop_side[k] : (r >= 2 ? (s >= 0 ? 1.0 : -1.0) : 0.0));
+    }
+    rings.push_back(ring);
+  }
+  const auto back = static_cast<std::uint32_t>(pos.size());
+  pos.push_back({centre.x, centre.y - 0.002, centre.z - 0.052});
+  uv.push_back(uv[13]);
+  depth.push_back(5.0);
+  side.push_back(0.0);
+  for (std::size_t r = 0; r + 1 < rings.size(); ++r) {
+    for (std::size_t k = 0; k < kLoopSize; ++k) {
+      const auto v0 = rings[r][k], v1 = rings[r][(k + 1) % kLoopSize];
+      const auto w0 = rings[r + 1][k], w1 = rings[r + 1][(k + 1) % kLoopSize];
+      tris.push_back({v1, v0, w0});
+      tris.push_back({v1, w0, w1});
+    }
+  }
+  for (std::size_t k = 0; k < kLoopSize; ++k) tris.push_back({rings.back()[(k + 1) % kLoopSize], rings.back()[k], back});
+
+  // Subdivide, carrying positions, UVs, ring depth and side to the midpoints, and refining the
+  // lip lines (rings 0 and 1) as polylines.
+  auto lip_line = [&](const std::array<std::uint32_t, kLoopSize>& ring, double wanted_side) {
+    // From corner to corner through the wanted side, then ordered right (x < 0) to left.
+    std::vector<std::uint32_t> line;
+    std::size_t start = 0;
+    for (std::size_t k = 0; k < kLoopSize; ++k)
+      if (side[ring[k]] == wanted_side && side[ring[(k + kLoopSize - 1) % kLoopSize]] != wanted_side) start = k;
+    line.push_back(ring[(start + kLoopSize - 1) % kLoopSize]);
+    for (std::size_t k = start; side[ring[k % kLoopSize]] == wanted_side; ++k) line.push_back(ring[k % kLoopSize]);
+    line.push_back(ring[(start + line.size() - 1) % kLoopSize]);
+    if (pos[line.front()].x > pos[line.back()].x) std::reverse(line.begin(), line.end());
+    return line;  // with both corners
+  };
+  std::vector<std::uint32_t> up0 = lip_line(rings[0], 1.0), lo0 = lip_line(rings[0], -1.0);
+  std::vector<std::uint32_t> up1 = lip_line(rings[1], 1.0), lo1 = lip_line(rings[1], -1.0);
+  const std::uint32_t right_corner = up0.front(), left_corner = up0.back();
+
+  for (int level = 0; level < subdivision_level; ++level) {
+    const auto old_count = static_cast<std::uint32_t>(pos.size());
+    Subdivision sub = subdivide(tris, old_count);
+    std::unordered_map<std::uint64_t, std::uint32_t> mid;
+    for (std::size_t k = 0; k < sub.midpoint_parents.size(); ++k) {
+      const auto [a, b] = sub.midpoint_parents[k];
+      mid[edge_key(a, b)] = old_count + static_cast<std::uint32_t>(k);
+      pos.push_back(0.5 * (pos[a] + pos[b]));
+      uv.push_back({0.5 * (uv[a][0] + uv[b][0]), 0.5 * (uv[a][1] + uv[b][1])});
+      depth.push_back(0.5 * (depth[a] + depth[b]));
+      side.push_back(0.5 * (side[a] + side[b]));
+    }
+    for (auto* line : {&up0, &lo0, &up1, &lo1}) {
+      std::vector<std::uint32_t> refined{line->front()};
+      for (std::size_t k = 1; k < line->size(); ++k) {
+        refined.push_back(mid.at(edge_key((*line)[k - 1], (*line)[k])));
+        refined.push_back((*line)[k]);
+      }
+      *line = std::move(refined);
+    }
+    tris = std::move(sub.triangles);
+  }
+  auto interior = [](const std::vector<std::uint32_t>& line) {
+    return std::vector<std::uint32_t>(line.begin() + 1, line.end() - 1);
+  };
+  mesh.upper_lip_line = interior(up0);
+  mesh.lower_lip_line = interior(lo0);
+  mesh.upper_inner_ring = interior(up1);
+  mesh.lower_inner_ring = interior(lo1);
+  mesh.mouth_corners = {right_corner, left_corner};
+
+  // Jaw weights. Lip-line rings follow their side (upper lip on the skull, lower on the jaw).
+  // Skin follows the plane through the hinge axis and the mouth centre: below it the jaw, above it
+  // the skull, blended over a band 2 mm wide at the mouth that widens by half the lateral distance
+  // (cheeks stretch between the bones) and drops laterally so the upper cheeks stay on the skull.
+  const Vec3 hinge = anatomy.jaw_hinge_m;
+  const double slope = (centre.y - hinge.y) / (centre.z - hinge.z);
+  mesh.soft_node_count = static_cast<std::uint32_t>(pos.size());
+  mesh.jaw_weights.resize(pos.size());
+  for (std::size_t i = 0; i < pos.size(); ++i) {
+    const Vec3 p = pos[i];
+    if (depth[i] > 0.0) {
+      mesh.jaw_weights[i] = std::clamp(0.5 - 0.5 * side[i], 0.0, 1.0);
+      continue;
+    }
+    const double lateral = std::hypot(p.x - centre.x, std::max(0.0, centre.z - p.z));
+    const double line_y = hinge.y + slope * (p.z - hinge.z) - 0.2 * lateral;
+    const double band = 0.002 + 0.5 * lateral;
+    mesh.jaw_weights[i] = smoothstep(band, -band, p.y - line_y);
+  }
+  for (const auto id : up0) mesh.jaw_weights[id] = 0.0;
+  for (const auto id : lo0) mesh.jaw_weights[id] = 1.0;
+  mesh.jaw_weights[right_corner] = mesh.jaw_weights[left_corner] = 0.5;
+
+  mesh.rest_positions_m = std::move(pos);
+  for (const auto& t : uv) mesh.uvs.push_back({static_cast<float>(t[0]), static_cast<float>(t[1])});
+  mesh.triangles = std::move(tris);
+  mesh.ring_depth = std::move(depth);
+  for (std::size_t i = 0; i < mesh.soft_node_count; ++i)
+    mesh.parts.push_back(mesh.ring_depth[i] == 0.0 ? FacePart::skin
+                         : mesh.ring_depth[i] <= 2.0 ? FacePart::inner_lip
+                                                     : FacePart::mouth_cavity);
+
+  // Teeth: elliptic arches (x semi-axis a, z semi-axis b) whose front passes teeth_front_z at x = 0.
+  mesh.upper_arch_a_m = anatomy.arch_half_width_m;
+  mesh.upper_arch_b_m = anatomy.arch_depth_m;
+  mesh.upper_arch_centre_z_m = teeth_front_z - mesh.upper_arch_b_m;
+  mesh.upper_teeth_y_min_m = centre.y - anatomy.upper_teeth_edge_below_centre_m;
+  mesh.upper_teeth_y_max_m = mesh.upper_teeth_y_min_m + anatomy.teeth_height_m;
+  mesh.lower_arch_a_m = anatomy.arch_half_width_m - anatomy.overjet_m;
+  mesh.lower_arch_b_m = anatomy.arch_depth_m - anatomy.overjet_m;
+  mesh.lower_arch_centre_z_m = mesh.upper_arch_centre_z_m;
+  mesh.lower_teeth_y_max_m = centre.y + anatomy.lower_teeth_edge_above_centre_m;
+  mesh.lower_teeth_y_min_m = mesh.lower_teeth_y_max_m - anatomy.teeth_height_m;
+  mesh.upper_teeth_begin = mesh.soft_node_count;
+  add_arch(mesh, mesh.upper_arch_centre_z_m, mesh.upper_arch_a_m, mesh.upper_arch_b_m, anatomy.teeth_thickness_m,
+           mesh.upper_teeth_y_min_m, mesh.upper_teeth_y_max_m, FacePart::upper_teeth);
+  mesh.lower_teeth_begin = static_cast<std::uint32_t>(mesh.rest_positions_m.size());
+  add_arch(mesh, mesh.lower_arch_centre_z_m, mesh.lower_arch_a_m, mesh.lower_arch_b_m, anatomy.teeth_thickness_m,
+           mesh.lower_teeth_y_min_m, mesh.lower_teeth_y_max_m, FacePart::lower_teeth);
+  // The inner lips rest outside the teeth (by 1 mm), so the rest pose satisfies the contacts.
+  for (std::uint32_t i = 0; i < mesh.soft_node_count; ++i) {
+    if (mesh.ring_depth[i] == 0.0 || mesh.ring_depth[i] > 2.5) continue;
+    Vec3& p = mesh.rest_positions_m[i];
+    detail::push_out_of_arch(p, mesh.upper_arch_centre_z_m, mesh.upper_arch_a_m, mesh.upper_arch_b_m,
+                             mesh.upper_teeth_y_min_m, mesh.upper_teeth_y_max_m, 0.001);
+    detail::push_out_of_arch(p, mesh.lower_arch_centre_z_m, mesh.lower_arch_a_m, mesh.lower_arch_b_m,
+                             mesh.lower_teeth_y_min_m, mesh.lower_teeth_y_max_m, 0.001);
+  }
+  mesh.tongue_begin = static_cast<std::uint32_t>(mesh.rest_positions_m.size());
+  const Vec3 r = anatomy.tongue_semi_axes_m;
+  mesh.tongue_centre_m = {centre.x, centre.y - anatomy.tongue_below_centre_m,
+                          teeth_front_z - anatomy.tongue_tip_behind_teeth_m - r.z};
+  mesh.tongue_root_m = {centre.x, mesh.tongue_centre_m.y - r.y, mesh.tongue_centre_m.z - r.z};
+  add_tongue(mesh);
+  return mesh;
+}
+
+}  // namespace lipsync::face

@@ -1,0 +1,565 @@
+// The local–global face solver; the model and its equations are in face_solver.hpp and
+// docs/face.md. Layout: positions are n × 3 row-major doubles; the Cholesky factor of the constant
+// system matrix is copied out of Eigen into plain compressed columns so that one pass of forward
+// and one of backward substitution solves x, y and z together (1.7× faster than Eigen's solve on
+// an n × 3 block in the prototype of docs/face.md).
+#include "lipsync/face/face_solver.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <stdexcept>
+#include <utility>
+#include <vector>
+
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+
+#include "face/arch.hpp"
+
+namespace lipsync::face {
+
+namespace {
+
+struct V3 {
+  double x = 0, y = 0, z = 0;
+  V3() = default;
+  V3(double x_, double y_, double z_) : x(x_), y(y_), z(z_) {}
+  V3(Vec3 v) : x(v.x), y(v.y), z(v.z) {}  // NOLINT(google-explicit-constructor)
+  V3& operator+=(V3 o) { x += o.x; y += o.y; z += o.z; return *this; }
+  V3& operator-=(V3 o) { x -= o.x; y -= o.y; z -= o.z; return *this; }
+};
+V3 operator+(V3 a, V3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+V3 operator-(V3 a, V3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+V3 operator*(double s, V3 a) { return {s * a.x, s * a.y, s * a.z}; }
+double dot(V3 a, V3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+V3 cross(V3 a, V3 b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
+double norm(V3 a) { return std::sqrt(dot(a, a)); }
+V3 normalized(V3 a) {
+  const double n = norm(a);
+  return n > 0 ? (1.0 / n) * a : V3{};
+}
+
+double smoothstep(double edge0, double edge1, double x) {
+  const double t = std::clamp((x - edge0) / (edge1 - edge0), 0.0, 1.0);
+  return t * t * (3.0 - 2.0 * t);
+}
+
+// Rotation about the x axis through `pivot` by `angle` (positive opens the jaw: points in front
+// of the pivot move down).
+struct XRotation {
+  V3 pivot;
+  double cos_a = 1, sin_a = 0;
+  V3 apply(V3 p) const {
+    const double y = p.y - pivot.y, z = p.z - pivot.z;
+    return {p.x, pivot.y + cos_a * y - sin_a * z, pivot.z + sin_a * y + cos_a * z};
+  }
+  V3 apply_vector(V3 v) const { return {v.x, cos_a * v.y - sin_a * v.z, sin_a * v.y + cos_a * v.z}; }
+  V3 inverse(V3 p) const {
+    const double y = p.y - pivot.y, z = p.z - pivot.z;
+    return {p.x, pivot.y + cos_a * y + sin_a * z, pivot.z - sin_a * y + cos_a * z};
+  }
+};
+XRotation x_rotation(V3 pivot, double angle_rad) { return {pivot, std::cos(angle_rad), std::sin(angle_rad)}; }
+
+bool push_out_of_arch(V3& p, double centre_z, double a, double b, double y_min, double y_max, double margin) {
+  Vec3 q{p.x, p.y, p.z};
+  if (!detail::push_out_of_arch(q, centre_z, a, b, y_min, y_max, margin)) return false;
+  p = q;
+  return true;
+}
+
+struct Spring {
+  std::uint32_t i, j;
+  double stiffness_n_per_m, rest_length_m;
+};
+
+struct Binding {
+  std::uint32_t node;
+  V3 displacement_m;  // per unit contraction, in the muscle's bone frame, times the binding share β
+};
+
+struct MuscleBindings {
+  std::size_t channel;
+  bool on_jaw;
+  std::vector<Binding> bindings;
+};
+
+// Closest point of a polyline: distance and arc-length parameter t ∈ [0, 1] (0 at the first point).
+std::pair<double, double> closest_on_polyline(const std::vector<V3>& line, V3 p) {
+  double total = 0;
+  for (std::size_t k = 1; k < line.size(); ++k) total += norm(line[k] - line[k - 1]);
+  double best = 1e300, best_t = 0, walked = 0;
+  for (std::size_t k = 1; k < line.size(); ++k) {
+    const V3 a = line[k - 1], d = line[k] - a;
+    const double len2 = dot(d, d);
+    const double s = len2 > 0 ? std::clamp(dot(p - a, d) / len2, 0.0, 1.0) : 0.0;
+    const double dist = norm(p - (a + s * d));
+    const double len = std::sqrt(len2);
+    if (dist < best) {
+      best = dist;
+      best_t = total > 0 ? (walked + s * len) / total : 0.0;
+    }
+    walked += len;
+  }
+  return {best, best_t};
+}
+
+// Sparse lower Cholesky factor in compressed columns (diagonal first in each column) with its
+// fill-reducing permutation: A = Pᵀ L Lᵀ P.
+struct CholeskyFactor {
+  std::vector<int> column_start, row;
+  std::vector<double> value;
+  std::vector<int> permutation;  // (P b)[permutation[i]] = b[i]
+
+  void solve3(const std::vector<double>& b, std::vector<double>& work, std::vector<double>& x) const {
+    const int n = static_cast<int>(permutation.size());
+    for (int i = 0; i < n; ++i) {
+      const auto to = static_cast<std::size_t>(permutation[static_cast<std::size_t>(i)]) * 3;
+      const auto from = static_cast<std::size_t>(i) * 3;
+      work[to] = b[from];
+      work[to + 1] = b[from + 1];
+      work[to + 2] = b[from + 2];
+    }
+    for (int j = 0; j < n; ++j) {  // L z = P b
+      const auto jj = static_cast<std::size_t>(j);
+      const std::size_t begin = static_cast<std::size_t>(column_start[jj]), end = static_cast<std::size_t>(column_start[jj + 1]);
+      const double inv = 1.0 / value[begin];
+      double* zj = &work[3 * jj];
+      zj[0] *= inv;
+      zj[1] *= inv;
+      zj[2] *= inv;
+      for (std::size_t p = begin + 1; p < end; ++p) {
+        double* zi = &work[3 * static_cast<std::size_t>(row[p])];
+        const double l = value[p];
+        zi[0] -= l * zj[0];
+        zi[1] -= l * zj[1];
+        zi[2] -= l * zj[2];
+      }
+    }
+    for (int j = n - 1; j >= 0; --j) {  // Lᵀ w = z
+      const auto jj = static_cast<std::size_t>(j);
+      const std::size_t begin = static_cast<std::size_t>(column_start[jj]), end = static_cast<std::size_t>(column_start[jj + 1]);
+      double s0 = work[3 * jj], s1 = work[3 * jj + 1], s2 = work[3 * jj + 2];
+      for (std::size_t p = begin + 1; p < end; ++p) {
+        const double* zi = &work[3 * static_cast<std::size_t>(row[p])];
+        const double l = value[p];
+        s0 -= l * zi[0];
+        s1 -= l * zi[1];
+        s2 -= l * zi[2];
+      }
+      const double inv = 1.0 / value[begin];
+      work[3 * jj] = s0 * inv;
+      work[3 * jj + 1] = s1 * inv;
+      work[3 * jj + 2] = s2 * inv;
+    }
+    for (int i = 0; i < n; ++i) {
+      const auto from = static_cast<std::size_t>(permutation[static_cast<std::size_t>(i)]) * 3;
+      const auto to = static_cast<std::size_t>(i) * 3;
+      x[to] = work[from];
+      x[to + 1] = work[from + 1];
+      x[to + 2] = work[from + 2];
+    }
+  }
+};
+
+}  // namespace
+
+struct FaceSolver::Impl {
+  FaceMesh mesh;
+  FaceRig rig;
+  FaceSolverParams params;
+  std::size_t n = 0;  // soft nodes
+
+  std::vector<V3> rest, rest_normal;
+  std::vector<double> mass_kg, attachment_n_per_m, jaw_share;
+  std::vector<Spring> springs;
+  std::vector<MuscleBindings> muscles;
+  std::vector<std::uint8_t> teeth_contact, skull_contact;
+  std::vector<double> sink_limit_m;
+  CholeskyFactor factor;
+
+  // State and per-step scratch (allocated once).
+  std::vector<double> x, x_previous_step, velocity, y, target, rhs, work;
+  std::vector<Vec3> output;
+  XRotation jaw;
+  XRotation tongue;  // in the jaw's rest frame
+  double tongue_protrusion_m = 0;
+
+  Impl(const FaceMesh& mesh_, const FaceRig& rig_, const FaceSolverParams& params_)
+      : mesh(mesh_), rig(rig_), params(params_), n(mesh_.soft_node_count) {
+    if (params.iterations < 1 || !(params.time_step_s > 0) || !(params.skin_stiffness_n_per_m > 0) ||
+        !(params.anchor_stiffness_n_per_m3 > 0) || params.bending_stiffness_n_per_m < 0 ||
+        params.binding_stiffness_n_per_m3 < 0 || !(params.density_kg_per_m3 > 0) || !(params.damping_time_s > 0))
+      throw std::invalid_argument("FaceSolverParams: iterations ≥ 1 and positive time step, stiffness, density, damping");
+    if (rig.channel_count() == 0) throw std::invalid_argument("FaceSolver: the rig has no channels");
+    build_nodes();
+    build_springs();
+    build_bindings();
+    build_collisions();
+    factorize();
+    x.assign(3 * n, 0.0);
+    velocity.assign(3 * n, 0.0);
+    y = x_previous_step = target = rhs = work = x;
+    output.resize(mesh.vertex_count());
+    reset();
+  }
+
+  void build_nodes() {
+    rest.resize(n);
+    for (std::size_t i = 0; i < n; ++i) rest[i] = mesh.rest_positions_m[i];
+    rest_normal.assign(n, V3{});
+    std::vector<double> area_m2(n, 0.0);
+    for (const auto& t : mesh.triangles) {
+      if (t[0] >= n || t[1] >= n || t[2] >= n) continue;
+      const V3 c = cross(rest[t[1]] - rest[t[0]], rest[t[2]] - rest[t[0]]);
+      const double area = 0.5 * norm(c);
+      for (const auto v : t) {
+        area_m2[v] += area / 3.0;
+        rest_normal[v] += c;  // area-weighted
+      }
+    }
+    for (auto& nrm : rest_normal) nrm = normalized(nrm);
+    mass_kg.resize(n);
+    attachment_n_per_m.resize(n);
+    const V3 centre = mesh.mouth_centre_m;
+    for (std::size_t i = 0; i < n; ++i) {
+      mass_kg[i] = params.density_kg_per_m3 * params.tissue_thickness_m * area_m2[i];
+      double scale = params.lip_anchor_scale +
+                     (1.0 - params.lip_anchor_scale) * smoothstep(0.015, 0.040, norm(rest[i] - centre));
+      if (mesh.ring_depth[i] > 2.5) scale = params.cavity_anchor_scale;
+      attachment_n_per_m[i] = params.anchor_stiffness_n_per_m3 * area_m2[i] * scale;
+    }
+    node_area_m2 = std::move(area_m2);
+  }
+  std::vector<double> node_area_m2;
+
+  void build_springs() {
+    // Edges, then a bending spring between the two far vertices of each interior edge.
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> half_edges;  // (sorted edge, opposite vertex)
+    for (const auto& t : mesh.triangles) {
+      if (t[0] >= n || t[1] >= n || t[2] >= n) continue;
+      for (int e = 0; e < 3; ++e) {
+        std::uint32_t a = t[static_cast<std::size_t>(e)], b = t[static_cast<std::size_t>((e + 1) % 3)];
+        if (a > b) std::swap(a, b);
+        half_edges.push_back({(std::uint64_t{a} << 32) | b, t[static_cast<std::size_t>((e + 2) % 3)]});
+      }
+    }
+    std::sort(half_edges.begin(), half_edges.end());
+    std::set<std::uint64_t> bend_pairs;
+    for (std::size_t k = 0; k < half_edges.size();) {
+      std::size_t end = k;
+      while (end < half_edges.size() && half_edges[end].first == half_edges[k].first) ++end;
+      const auto a = static_cast<std::uint32_t>(half_edges[k].first >> 32);
+      const auto b = static_cast<std::uint32_t>(half_edges[k].first & 0xffffffffU);
+      springs.push_back({a, b, params.skin_stiffness_n_per_m, norm(rest[a] - rest[b])});
+      if (end - k == 2 && params.bending_stiffness_n_per_m > 0) {
+        std::uint32_t c = half_edges[k].second, d = half_edges[k + 1].second;
+        if (c > d) std::swap(c, d);
+        bend_pairs.insert((std::uint64_t{c} << 32) | d);
+      }
+      k = end;
+    }
+    std::set<std::uint64_t> edge_set;
+    for (const auto& s : springs) edge_set.insert((std::uint64_t{s.i} << 32) | s.j);
+    for (const auto key : bend_pairs) {
+      if (edge_set.count(key)) continue;
+      const auto c = static_cast<std::uint32_t>(key >> 32), d = static_cast<std::uint32_t>(key & 0xffffffffU);
+      springs.push_back({c, d, params.bending_stiffness_n_per_m, norm(rest[c] - rest[d])});
+    }
+  }
+
+  void build_bindings() {
+    // Falloff weight w = (1 − (r/R)²)² within the fibre's radius R; binding stiffness
+    // k_b = binding_stiffness · area · w. A node's attachment is the sum of its anchor and its
+    // bindings, W = κ + Σ k_b, and its target is the W-weighted mean of the anchor's target and the
+    // bound muscle points: target = B(rest) + Σ β_m (B_m(rest) − B(rest)) + Σ c_m β_m R_m D_m with
+    // β_m = k_b / W. The bone part is folded into jaw_share; the muscle part is stored per muscle.
+    const V3 centre = mesh.mouth_centre_m;
+    std::vector<std::vector<std::pair<double, V3>>> per_muscle(rig.muscles().size(),
+                                                                std::vector<std::pair<double, V3>>(n, {0.0, V3{}}));
+    for (std::size_t m = 0; m < rig.muscles().size(); ++m) {
+      const MuscleSpec& spec = rig.muscles()[m];
+      const bool on_jaw = spec.bone == Bone::jaw;
+      for (const FibreSpec& fibre : spec.fibres) {
+        std::vector<V3> line;
+        for (const auto id : fibre.path) line.push_back(mesh.rest_positions_m[id]);
+        line.front().z -= spec.origin_depth_m;
+        const V3 pull = normalized(line.front() - line.back());
+        for (std::size_t i = 0; i < n; ++i) {
+          if (mesh.ring_depth[i] > 2.5) continue;
+          // Skin on the other bone's side of the mouth is not pulled (the upper lip is not bound
+          // to a jaw muscle, the lower lip not to a skull muscle).
+          if (on_jaw ? mesh.jaw_weights[i] < 0.4 : mesh.jaw_weights[i] > 0.6) continue;
+          if (spec.kind == MuscleKind::sphincter &&
+              dot(rest[i] - centre, V3(spec.closure_direction)) > 0.001)
+            continue;
+          const auto [r, t] = closest_on_polyline(line, rest[i]);
+          if (r >= fibre.radius_m) continue;
+          const double q = r / fibre.radius_m;
+          const double w = (1.0 - q * q) * (1.0 - q * q);
+          if (w <= per_muscle[m][i].first) continue;
+          V3 d;
+          if (spec.kind == MuscleKind::linear) {
+            const double ramp = smoothstep(spec.mobile_from, 1.0, t);
+            d = (spec.max_shortening_m * ramp) * pull + (spec.bulge_m * 4.0 * t * (1.0 - t)) * rest_normal[i];
+          } else {
+            d = spec.closure_m * V3(spec.closure_direction) + V3{spec.purse * (centre.x - rest[i].x), 0.0, 0.0} +
+                V3{0.0, 0.0, spec.protrusion_m};
+          }
+          per_muscle[m][i] = {w, d};
+        }
+      }
+    }
+    jaw_share = std::vector<double>(mesh.jaw_weights.begin(), mesh.jaw_weights.begin() + static_cast<std::ptrdiff_t>(n));
+    std::vector<double> total(attachment_n_per_m);
+    for (std::size_t m = 0; m < per_muscle.size(); ++m)
+      for (std::size_t i = 0; i < n; ++i)
+        total[i] += params.binding_stiffness_n_per_m3 * node_area_m2[i] * per_muscle[m][i].first;
+    std::vector<double> bone_share_sum(n, 0.0), jaw_bound(n, 0.0);
+    for (std::size_t m = 0; m < per_muscle.size(); ++m) {
+      const MuscleSpec& spec = rig.muscles()[m];
+      MuscleBindings mb{spec.channel, spec.bone == Bone::jaw, {}};
+      for (std::size_t i = 0; i < n; ++i) {
+        if (per_muscle[m][i].first <= 0) continue;
+        const double beta = params.binding_stiffness_n_per_m3 * node_area_m2[i] * per_muscle[m][i].first / total[i];
+        bone_share_sum[i] += beta;
+        if (mb.on_jaw) jaw_bound[i] += beta;
+        mb.bindings.push_back({static_cast<std::uint32_t>(i), beta * per_muscle[m][i].second});
+      }
+      muscles.push_back(std::move(mb));
+    }
+    for (std::size_t i = 0; i < n; ++i) jaw_share[i] = (1.0 - bone_share_sum[i]) * jaw_share[i] + jaw_bound[i];
+    attachment_n_per_m = std::move(total);
+  }
+
+  void build_collisions() {
+    const V3 centre = mesh.mouth_centre_m;
+    teeth_contact.assign(n, 0);
+    skull_contact.assign(n, 0);
+    sink_limit_m.assign(n, params.max_skin_sink_m);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double d = norm(rest[i] - centre);
+      if (mesh.ring_depth[i] <= 2.5 && d < 0.035) {
+        // Only skin that rests outside the teeth is kept there.
+        V3 p = rest[i], q = rest[i];
+        const bool inside = push_out_of_arch(p, mesh.upper_arch_centre_z_m, mesh.upper_arch_a_m, mesh.upper_arch_b_m,
+                                             mesh.upper_teeth_y_min_m, mesh.upper_teeth_y_max_m, params.teeth_margin_m) ||
+                            push_out_of_arch(q, mesh.lower_arch_centre_z_m, mesh.lower_arch_a_m, mesh.lower_arch_b_m,
+                                             mesh.lower_teeth_y_min_m, mesh.lower_teeth_y_max_m, params.teeth_margin_m);
+        teeth_contact[i] = inside ? 0 : 1;
+      }
+      if (mesh.ring_depth[i] == 0.0) {
+        skull_contact[i] = 1;
+        if (d < 0.030) sink_limit_m[i] = 0.015;  // lips and the mouth's surround are thick and soft
+      }
+    }
+  }
+
+  void factorize() {
+    // A = M/h² + Σ k (e_i − e_j)(e_i − e_j)ᵀ + diag(W), one n × n matrix for x, y and z.
+    const double inv_h2 = 1.0 / (params.time_step_s * params.time_step_s);
+    std::vector<Eigen::Triplet<double>> entries;
+    entries.reserve(n + 4 * springs.size());
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto ii = static_cast<int>(i);
+      entries.emplace_back(ii, ii, mass_kg[i] * inv_h2 + attachment_n_per_m[i]);
+    }
+    for (const Spring& s : springs) {
+      const auto i = static_cast<int>(s.i), j = static_cast<int>(s.j);
+      entries.emplace_back(i, i, s.stiffness_n_per_m);
+      entries.emplace_back(j, j, s.stiffness_n_per_m);
+      entries.emplace_back(i, j, -s.stiffness_n_per_m);
+      entries.emplace_back(j, i, -s.stiffness_n_per_m);
+    }
+    Eigen::SparseMatrix<double> a(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+    a.setFromTriplets(entries.begin(), entries.end());
+    Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::AMDOrdering<int>> llt(a);
+    if (llt.info() != Eigen::Success) throw std::invalid_argument("FaceSolver: the system matrix is not positive definite");
+    const Eigen::SparseMatrix<double> l = llt.matrixL();
+    factor.column_start.assign(l.outerIndexPtr(), l.outerIndexPtr() + l.outerSize() + 1);
+    factor.row.assign(l.innerIndexPtr(), l.innerIndexPtr() + l.nonZeros());
+    factor.value.assign(l.valuePtr(), l.valuePtr() + l.nonZeros());
+    const auto& indices = llt.permutationP().indices();
+    factor.permutation.assign(indices.data(), indices.data() + indices.size());
+  }
+
+  void reset() {
+    for (std::size_t i = 0; i < n; ++i) {
+      x[3 * i] = rest[i].x;
+      x[3 * i + 1] = rest[i].y;
+      x[3 * i + 2] = rest[i].z;
+    }
+    std::fill(velocity.begin(), velocity.end(), 0.0);
+    x_previous_step = x;
+    target = x;
+    jaw = x_rotation(mesh.anatomy.jaw_hinge_m, 0.0);
+    tongue = x_rotation(mesh.tongue_root_m, 0.0);
+    tongue_protrusion_m = 0.0;
+    write_output();
+  }
+
+  double channel(std::span<const float> values, std::size_t index, double lo, double hi) const {
+    if (index >= values.size()) return 0.0;
+    const double v = static_cast<double>(values[index]);
+    return std::isfinite(v) ? std::clamp(v, lo, hi) : 0.0;
+  }
+
+  void compute_targets(std::span<const float> values) {
+    jaw = x_rotation(mesh.anatomy.jaw_hinge_m, channel(values, rig.jaw_channel(), 0.0, 1.0) * rig.max_jaw_rotation_rad());
+    tongue = x_rotation(mesh.tongue_root_m,
+                        -channel(values, rig.tongue_raise_channel(), -1.0, 1.0) * rig.max_tongue_raise_rad());
+    tongue_protrusion_m = channel(values, rig.tongue_protrusion_channel(), 0.0, 1.0) * rig.max_tongue_protrusion_m();
+    for (std::size_t i = 0; i < n; ++i) {
+      const V3 carried = rest[i] + jaw_share[i] * (jaw.apply(rest[i]) - rest[i]);
+      target[3 * i] = carried.x;
+      target[3 * i + 1] = carried.y;
+      target[3 * i + 2] = carried.z;
+    }
+    for (const MuscleBindings& mb : muscles) {
+      const double c = channel(values, mb.channel, 0.0, 1.0);
+      if (c == 0.0) continue;
+      for (const Binding& b : mb.bindings) {
+        const V3 d = mb.on_jaw ? jaw.apply_vector(c * b.displacement_m) : c * b.displacement_m;
+        target[3 * b.node] += d.x;
+        target[3 * b.node + 1] += d.y;
+        target[3 * b.node + 2] += d.z;
+      }
+    }
+  }
+
+  void substep() {
+    const double h = params.time_step_s;
+    const double inv_h2 = 1.0 / (h * h);
+    const double decay = std::exp(-h / params.damping_time_s);
+    for (std::size_t k = 0; k < 3 * n; ++k) y[k] = x[k] + h * decay * velocity[k];
+    x_previous_step = x;
+    x = y;
+    for (int iteration = 0; iteration < params.iterations; ++iteration) {
+      for (std::size_t i = 0; i < n; ++i) {
+        const double m = mass_kg[i] * inv_h2, w = attachment_n_per_m[i];
+        for (std::size_t c = 0; c < 3; ++c) rhs[3 * i + c] = m * y[3 * i + c] + w * target[3 * i + c];
+      }
+      // Local step: each spring's projection p = L (x_i − x_j)/|x_i − x_j|, added as k Sᵀ p.
+      for (const Spring& s : springs) {
+        const V3 d{x[3 * s.i] - x[3 * s.j], x[3 * s.i + 1] - x[3 * s.j + 1], x[3 * s.i + 2] - x[3 * s.j + 2]};
+        const double length = norm(d);
+        if (!(length > 1e-12)) continue;
+        const double scale = s.stiffness_n_per_m * s.rest_length_m / length;
+        rhs[3 * s.i] += scale * d.x;
+        rhs[3 * s.i + 1] += scale * d.y;
+        rhs[3 * s.i + 2] += scale * d.z;
+        rhs[3 * s.j] -= scale * d.x;
+        rhs[3 * s.j + 1] -= scale * d.y;
+        rhs[3 * s.j + 2] -= scale * d.z;
+      }
+      factor.solve3(rhs, work, x);
+    }
+    resolve_contacts();
+    const double inv_h = 1.0 / h;
+    for (std::size_t k = 0; k < 3 * n; ++k) velocity[k] = (x[k] - x_previous_step[k]) * inv_h;
+  }
+
+  V3 node(std::size_t i) const { return {x[3 * i], x[3 * i + 1], x[3 * i + 2]}; }
+  void set_node(std::size_t i, V3 p) {
+    x[3 * i] = p.x;
+    x[3 * i + 1] = p.y;
+    x[3 * i + 2] = p.z;
+  }
+
+  void resolve_contacts() {
+    // Lips do not pass through each other: a facing upper/lower pair that has crossed (upper below
+    // lower) is pressed together at its midpoint.
+    auto press = [&](const std::vector<std::uint32_t>& upper, const std::vector<std::uint32_t>& lower) {
+      for (std::size_t k = 0; k < upper.size() && k < lower.size(); ++k) {
+        const V3 u = node(upper[k]), l = node(lower[k]);
+        if (u.y >= l.y) continue;
+        const V3 mid = 0.5 * (u + l);
+        set_node(upper[k], mid);
+        set_node(lower[k], mid);
+      }
+    };
+    press(mesh.upper_lip_line, mesh.lower_lip_line);
+    press(mesh.upper_inner_ring, mesh.lower_inner_ring);
+    const double margin = params.teeth_margin_m;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (teeth_contact[i]) {
+        V3 p = node(i);
+        bool moved = push_out_of_arch(p, mesh.upper_arch_centre_z_m, mesh.upper_arch_a_m, mesh.upper_arch_b_m,
+                                      mesh.upper_teeth_y_min_m, mesh.upper_teeth_y_max_m, margin);
+        V3 q = jaw.inverse(p);
+        if (push_out_of_arch(q, mesh.lower_arch_centre_z_m, mesh.lower_arch_a_m, mesh.lower_arch_b_m,
+                             mesh.lower_teeth_y_min_m, mesh.lower_teeth_y_max_m, margin)) {
+          p = jaw.apply(q);
+          moved = true;
+        }
+        if (moved) set_node(i, p);
+      }
+      if (skull_contact[i]) {
+        // Half-space under the skin: the node's rest position carried by its bones, minus the
+        // allowed sink along the carried rest normal.
+        const V3 carried = rest[i] + jaw_share[i] * (jaw.apply(rest[i]) - rest[i]);
+        const V3 normal = normalized(rest_normal[i] + jaw_share[i] * (jaw.apply_vector(rest_normal[i]) - rest_normal[i]));
+        const V3 p = node(i);
+        const double depth = dot(p - carried, normal) + sink_limit_m[i];
+        if (depth < 0) set_node(i, p - depth * normal);
+      }
+    }
+  }
+
+  void write_output() {
+    for (std::size_t i = 0; i < n; ++i) output[i] = {x[3 * i], x[3 * i + 1], x[3 * i + 2]};
+    for (std::size_t i = mesh.upper_teeth_begin; i < mesh.lower_teeth_begin; ++i) output[i] = mesh.rest_positions_m[i];
+    for (std::size_t i = mesh.lower_teeth_begin; i < mesh.tongue_begin; ++i) {
+      const V3 p = jaw.apply(mesh.rest_positions_m[i]);
+      output[i] = {p.x, p.y, p.z};
+    }
+    for (std::size_t i = mesh.tongue_begin; i < mesh.vertex_count(); ++i) {
+      V3 p = tongue.apply(mesh.rest_positions_m[i]);
+      p.z += tongue_protrusion_m;
+      p = jaw.apply(p);
+      output[i] = {p.x, p.y, p.z};
+    }
+  }
+
+  double energy() const {
+    double e = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const V3 v{velocity[3 * i], velocity[3 * i + 1], velocity[3 * i + 2]};
+      const V3 d = node(i) - V3{target[3 * i], target[3 * i + 1], target[3 * i + 2]};
+      e += 0.5 * mass_kg[i] * dot(v, v) + 0.5 * attachment_n_per_m[i] * dot(d, d);
+    }
+    for (const Spring& s : springs) {
+      const double stretch = norm(node(s.i) - node(s.j)) - s.rest_length_m;
+      e += 0.5 * s.stiffness_n_per_m * stretch * stretch;
+    }
+    return e;
+  }
+};
+
+FaceSolver::FaceSolver(const FaceMesh& mesh, const FaceRig& rig, const FaceSolverParams& params)
+    : impl_(std::make_unique<Impl>(mesh, rig, params)) {}
+FaceSolver::~FaceSolver() = default;
+FaceSolver::FaceSolver(FaceSolver&&) noexcept = default;
+FaceSolver& FaceSolver::operator=(FaceSolver&&) noexcept = default;
+
+void FaceSolver::step(std::span<const float> channel_values, double dt_s) {
+  const double steps = std::round(dt_s / impl_->params.time_step_s);
+  const int substeps = std::isfinite(steps) ? std::clamp(static_cast<int>(steps), 1, 1000) : 1;
+  impl_->compute_targets(channel_values);
+  for (int s = 0; s < substeps; ++s) impl_->substep();
+  impl_->write_output();
+}
+
+void FaceSolver::reset() { impl_->reset(); }
+std::span<const Vec3> FaceSolver::positions() const { return impl_->output; }
+const FaceMesh& FaceSolver::mesh() const { return impl_->mesh; }
+double FaceSolver::energy_j() const { return impl_->energy(); }
+std::size_t FaceSolver::spring_count() const { return impl_->springs.size(); }
+std::size_t FaceSolver::binding_count() const {
+  std::size_t count = 0;
+  for (const auto& m : impl_->muscles) count += m.bindings.size();
+  return count;
+}
+
+}  // namespace lipsync::face

@@ -1,0 +1,6 @@
+# Source files of the physics face (included by core/CMakeLists.txt).
+set(LIPSYNC_FACE_SOURCES
+  src/face/face_mesh.cpp
+  src/face/face_rig.cpp
+  src/face/face_solver.cpp
+  ${CMAKE_CURRENT_BINARY_DIR}/embedded_face.cpp)

@@ -1,0 +1,62 @@
+// lipsyncd's configuration: listening address, admission limits, fan-out
+// buffers and shutdown behaviour.
+//
+// Values come from defaults, then an optional JSON file (`--config FILE`, keys
+// are the flag names without the dashes), then command-line flags, each
+// overriding the one before. Every value is checked once, here; a bad one
+// throws ConfigError naming the flag (or file key) and the value.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace lipsync::server {
+
+class ConfigError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// An extra articulation model given as `--model NAME=FILE`.
+struct ModelFile {
+  std::string name;
+  std::string path;
+};
+
+struct ServerConfig {
+  std::string listen = "127.0.0.1:50051";  ///< host:port; port 0 picks a free one
+  std::int64_t drain_deadline_ms = 5000;   ///< on SIGTERM: time running streams get to finish
+
+  // Admission limits (RESOURCE_EXHAUSTED beyond them).
+  std::size_t max_streams = 1000;                 ///< concurrent Animate + Subscribe streams
+  std::size_t max_sessions = 100;                 ///< named sessions held (live or retained)
+  std::size_t max_subscribers_per_session = 100;  ///< concurrent subscribers of one session
+  std::size_t max_phonemes = 100'000;             ///< phonemes per utterance
+  std::int64_t max_utterance_ms = 3'600'000;      ///< utterance length (end of the last phoneme)
+  std::size_t max_message_bytes = 4 * 1024 * 1024;  ///< largest request message
+
+  // Sessions and fan-out.
+  std::size_t replay_frames = 10'000;           ///< frames a session keeps for late joiners
+  std::size_t subscriber_queue_frames = 2'000;  ///< frames a subscriber may have waiting
+  std::int64_t session_retention_ms = 30'000;   ///< how long a finished session stays joinable
+
+  std::string log_level = "info";  ///< trace, debug, info, warn, error, off
+  std::vector<ModelFile> models;   ///< extra models beside the built-in one
+};
+
+/// The result of reading the command line: a configuration, or a request for help.
+struct CommandLine {
+  ServerConfig config;
+  bool help = false;
+};
+
+/// Parses `args` (without the program name). Throws ConfigError.
+CommandLine parse_command_line(const std::vector<std::string>& args);
+
+/// The `--help` text: every flag with its default.
+std::string help_text();
+
+}  // namespace lipsync::server

@@ -1,0 +1,44 @@
+// lipsyncd as a library: the LipSync gRPC service (Animate, Render, Subscribe,
+// ListModels, GetModel) on the callback API, with health checking and
+// reflection, listening on the configured address. The binary (main.cpp) adds
+// flags and signal handling; tests start it in-process on 127.0.0.1:0.
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <memory>
+#include <string>
+
+#include "lipsync/server/config.hpp"
+
+namespace lipsync::server {
+
+class Server {
+ public:
+  /// Loads the models (throws lipsync::InputError for a bad model file), binds
+  /// and starts serving. Throws std::runtime_error if it cannot listen.
+  explicit Server(ServerConfig config);
+  ~Server();
+  Server(const Server&) = delete;
+  Server& operator=(const Server&) = delete;
+
+  /// The port actually bound (useful with port 0).
+  int port() const;
+  /// "host:port" with the bound port.
+  std::string address() const;
+
+  /// Stops accepting calls, lets running calls finish for up to `drain`, then
+  /// cancels the rest and waits until every call has ended. Idempotent.
+  void shutdown(std::chrono::milliseconds drain);
+
+  /// Animate and Subscribe streams currently open.
+  std::size_t active_streams() const;
+  /// Sessions currently held (live, or ended within the retention time).
+  std::size_t session_count() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace lipsync::server

@@ -1,0 +1,225 @@
+// Command line and JSON configuration for lipsyncd.
+//
+// One table lists every option: its flag, a value hint, the help line, how to
+// apply a value and how to show the default. The flag parser, the JSON file
+// reader and `--help` all walk that table, so they cannot disagree.
+#include "lipsync/server/config.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <fstream>
+#include <functional>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string_view>
+
+namespace lipsync::server {
+namespace {
+
+struct Setting {
+  std::string name;   // flag or JSON key, e.g. "--max-streams"
+  std::string value;
+};
+
+std::int64_t parse_integer(const Setting& setting, std::int64_t min, std::int64_t max) {
+  std::int64_t value = 0;
+  const char* begin = setting.value.data();
+  const char* end = begin + setting.value.size();
+  const auto [ptr, error] = std::from_chars(begin, end, value);
+  if (error != std::errc() || ptr != end || setting.value.empty()) {
+    throw ConfigError(setting.name + ": expected an integer, got '" + setting.value + "'");
+  }
+  if (value < min || value > max) {
+    throw ConfigError(setting.name + ": " + setting.value + " is out of range [" +
+                      std::to_string(min) + ", " + std::to_string(max) + "]");
+  }
+  return value;
+}
+
+std::size_t parse_count(const Setting& setting, std::size_t min) {
+  return static_cast<std::size_t>(
+      parse_integer(setting, static_cast<std::int64_t>(min), std::numeric_limits<std::int32_t>::max()));
+}
+
+struct Option {
+  std::string flag;
+  std::string value_hint;
+  std::string help;
+  std::function<void(ServerConfig&, const Setting&)> apply;
+  std::function<std::string(const ServerConfig&)> show;
+};
+
+const std::vector<Option>& options() {
+  static const std::vector<Option> table = {
+      {"--listen", "HOST:PORT", "address to listen on; port 0 picks a free port",
+       [](ServerConfig& c, const Setting& s) {
+         const auto colon = s.value.rfind(':');
+         if (colon == std::string::npos || colon == 0 || colon + 1 == s.value.size()) {
+           throw ConfigError(s.name + ": expected HOST:PORT, got '" + s.value + "'");
+         }
+         parse_integer({s.name, s.value.substr(colon + 1)}, 0, 65535);
+         c.listen = s.value;
+       },
+       [](const ServerConfig& c) { return c.listen; }},
+      {"--drain-deadline-ms", "MS", "on SIGTERM/SIGINT, time running streams get to finish",
+       [](ServerConfig& c, const Setting& s) { c.drain_deadline_ms = parse_integer(s, 0, 3'600'000); },
+       [](const ServerConfig& c) { return std::to_string(c.drain_deadline_ms); }},
+      {"--max-streams", "N", "concurrent Animate and Subscribe streams",
+       [](ServerConfig& c, const Setting& s) { c.max_streams = parse_count(s, 1); },
+       [](const ServerConfig& c) { return std::to_string(c.max_streams); }},
+      {"--max-sessions", "N", "named sessions held at once (live or retained)",
+       [](ServerConfig& c, const Setting& s) { c.max_sessions = parse_count(s, 0); },
+       [](const ServerConfig& c) { return std::to_string(c.max_sessions); }},
+      {"--max-subscribers-per-session", "N", "concurrent subscribers of one session",
+       [](ServerConfig& c, const Setting& s) { c.max_subscribers_per_session = parse_count(s, 0); },
+       [](const ServerConfig& c) { return std::to_string(c.max_subscribers_per_session); }},
+      {"--max-phonemes", "N", "phonemes per utterance",
+       [](ServerConfig& c, const Setting& s) { c.max_phonemes = parse_count(s, 1); },
+       [](const ServerConfig& c) { return std::to_string(c.max_phonemes); }},
+      {"--max-utterance-ms", "MS", "utterance length (end of the last phoneme)",
+       [](ServerConfig& c, const Setting& s) { c.max_utterance_ms = parse_integer(s, 1, 86'400'000); },
+       [](const ServerConfig& c) { return std::to_string(c.max_utterance_ms); }},
+      {"--max-message-bytes", "BYTES", "largest request message",
+       [](ServerConfig& c, const Setting& s) { c.max_message_bytes = parse_count(s, 1024); },
+       [](const ServerConfig& c) { return std::to_string(c.max_message_bytes); }},
+      {"--replay-frames", "N", "frames a session keeps for subscribers that start from the beginning",
+       [](ServerConfig& c, const Setting& s) { c.replay_frames = parse_count(s, 0); },
+       [](const ServerConfig& c) { return std::to_string(c.replay_frames); }},
+      {"--subscriber-queue-frames", "N",
+       "frames a subscriber may have waiting before it is cut off (RESOURCE_EXHAUSTED)",
+       [](ServerConfig& c, const Setting& s) { c.subscriber_queue_frames = parse_count(s, 1); },
+       [](const ServerConfig& c) { return std::to_string(c.subscriber_queue_frames); }},
+      {"--session-retention-ms", "MS", "how long a finished session stays joinable",
+       [](ServerConfig& c, const Setting& s) { c.session_retention_ms = parse_integer(s, 0, 86'400'000); },
+       [](const ServerConfig& c) { return std::to_string(c.session_retention_ms); }},
+      {"--log-level", "LEVEL", "trace, debug, info, warn, error or off",
+       [](ServerConfig& c, const Setting& s) {
+         static const std::vector<std::string> levels = {"trace", "debug", "info", "warn", "error", "off"};
+         if (std::find(levels.begin(), levels.end(), s.value) == levels.end()) {
+           throw ConfigError(s.name + ": unknown level '" + s.value + "'");
+         }
+         c.log_level = s.value;
+       },
+       [](const ServerConfig& c) { return c.log_level; }},
+      {"--model", "NAME=FILE", "load an extra articulation model (repeatable)",
+       [](ServerConfig& c, const Setting& s) {
+         const auto eq = s.value.find('=');
+         if (eq == std::string::npos || eq == 0 || eq + 1 == s.value.size()) {
+           throw ConfigError(s.name + ": expected NAME=FILE, got '" + s.value + "'");
+         }
+         c.models.push_back({s.value.substr(0, eq), s.value.substr(eq + 1)});
+       },
+       [](const ServerConfig&) { return std::string("none"); }},
+  };
+  return table;
+}
+
+const Option* find_option(std::string_view flag) {
+  for (const Option& option : options()) {
+    if (option.flag == flag) return &option;
+  }
+  return nullptr;
+}
+
+std::string json_scalar(const nlohmann::json& value, const std::string& key) {
+  if (value.is_string()) return value.get<std::string>();
+  if (value.is_number_integer()) return std::to_string(value.get<std::int64_t>());
+  throw ConfigError(key + ": expected a string or an integer");
+}
+
+std::vector<Setting> read_config_file(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw ConfigError("--config: cannot open '" + path + "'");
+  std::stringstream text;
+  text << in.rdbuf();
+  const auto json = nlohmann::json::parse(text.str(), nullptr, false);
+  if (json.is_discarded() || !json.is_object()) {
+    throw ConfigError("--config: '" + path + "' is not a JSON object");
+  }
+  std::vector<Setting> settings;
+  for (const auto& [key, value] : json.items()) {
+    const std::string where = path + ": key \"" + key + "\"";
+    if (!find_option("--" + key) || key == "config") throw ConfigError(where + ": unknown setting");
+    if (key == "model" && value.is_object()) {
+      for (const auto& [name, file] : value.items()) {
+        settings.push_back({where, name + "=" + json_scalar(file, where)});
+      }
+    } else if (value.is_array()) {
+      for (const auto& item : value) settings.push_back({where, json_scalar(item, where)});
+    } else {
+      settings.push_back({where, json_scalar(value, where)});
+    }
+  }
+  return settings;
+}
+
+std::string option_of(const std::string& where) {
+  const auto quote = where.rfind("key \"");
+  if (quote == std::string::npos) return where;
+  const auto start = quote + 5;
+  return "--" + where.substr(start, where.find('"', start) - start);
+}
+
+}  // namespace
+
+CommandLine parse_command_line(const std::vector<std::string>& args) {
+  CommandLine result;
+  std::vector<Setting> flags;
+  std::string config_path;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    std::string flag = args[i];
+    if (flag == "--help" || flag == "-h") {
+      result.help = true;
+      return result;
+    }
+    std::string value;
+    bool has_value = false;
+    if (const auto eq = flag.find('='); flag.rfind("--", 0) == 0 && eq != std::string::npos) {
+      value = flag.substr(eq + 1);
+      flag = flag.substr(0, eq);
+      has_value = true;
+    }
+    if (flag != "--config" && !find_option(flag)) throw ConfigError(flag + ": unknown flag (see --help)");
+    if (!has_value) {
+      if (i + 1 >= args.size()) throw ConfigError(flag + ": missing value");
+      value = args[++i];
+    }
+    if (flag == "--config") {
+      config_path = value;
+    } else {
+      flags.push_back({flag, value});
+    }
+  }
+  std::vector<Setting> settings;
+  if (!config_path.empty()) settings = read_config_file(config_path);
+  const bool flags_have_models = std::any_of(flags.begin(), flags.end(), [](const Setting& s) {
+    return s.name == "--model";
+  });
+  for (const Setting& setting : settings) {
+    if (flags_have_models && option_of(setting.name) == "--model") continue;  // flags replace the file's list
+    find_option(option_of(setting.name))->apply(result.config, setting);
+  }
+  for (const Setting& setting : flags) find_option(setting.name)->apply(result.config, setting);
+  return result;
+}
+
+std::string help_text() {
+  const ServerConfig defaults;
+  std::ostringstream out;
+  out << "lipsyncd: coarticulated lip-sync animation over gRPC (lipsync.v1.LipSync)\n\n"
+      << "Usage: lipsyncd [--config FILE] [flags]\n\n"
+      << "  --config FILE  JSON object with any of the settings below (keys without the\n"
+      << "                 dashes); flags given on the command line override it\n";
+  for (const Option& option : options()) {
+    std::string left = "  " + option.flag + " " + option.value_hint;
+    if (left.size() < 36) left.resize(36, ' ');
+    out << left << " " << option.help << " (default: " << option.show(defaults) << ")\n";
+  }
+  out << "\nOn SIGTERM or SIGINT the server stops accepting calls, lets running streams finish\n"
+      << "for --drain-deadline-ms, cancels the rest and exits 0. Bad flags exit 2; a bad\n"
+      << "model file exits 1.\n";
+  return out.str();
+}
+
+}  // namespace lipsync::server

@@ -1,0 +1,90 @@
+#include "outbox.hpp"
+
+namespace lipsync::server {
+
+Outbox::Outbox(OutboxTarget& target, std::size_t max_frames, std::string overflow_message)
+    : target_(target), max_frames_(max_frames), overflow_message_(std::move(overflow_message)) {}
+
+bool Outbox::push(Message message, std::size_t counted_frames) {
+  {
+    std::lock_guard lock(mutex_);
+    if (finish_status_) return false;
+    if (max_frames_ > 0 && queued_frames_ + counted_frames > max_frames_) {
+      queue_.clear();
+      queued_frames_ = 0;
+      finish_status_ = grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED, overflow_message_);
+    } else {
+      queue_.emplace_back(std::move(message), counted_frames);
+      queued_frames_ += counted_frames;
+    }
+  }
+  pump();
+  std::lock_guard lock(mutex_);
+  return !finish_status_ || finish_status_->ok();
+}
+
+void Outbox::close(const grpc::Status& status) {
+  {
+    std::lock_guard lock(mutex_);
+    if (finish_status_) return;
+    finish_status_ = status;
+  }
+  pump();
+}
+
+void Outbox::abort(const grpc::Status& status) {
+  {
+    std::lock_guard lock(mutex_);
+    queue_.clear();
+    queued_frames_ = 0;
+    if (!finish_status_) finish_status_ = status;
+  }
+  pump();
+}
+
+void Outbox::on_write_done(bool ok) {
+  {
+    std::lock_guard lock(mutex_);
+    writing_ = false;
+    in_flight_.reset();
+    if (!ok) {
+      queue_.clear();
+      queued_frames_ = 0;
+      if (!finish_status_) {
+        finish_status_ = grpc::Status(grpc::StatusCode::CANCELLED, "the client went away");
+      }
+    }
+  }
+  pump();
+}
+
+std::optional<grpc::Status> Outbox::final_status() const {
+  std::lock_guard lock(mutex_);
+  return finish_status_;
+}
+
+void Outbox::pump() {
+  const v1::TrackMessage* write = nullptr;
+  std::optional<grpc::Status> finish;
+  {
+    std::lock_guard lock(mutex_);
+    if (writing_ || finish_called_) return;
+    if (!queue_.empty()) {
+      in_flight_ = std::move(queue_.front().first);
+      queued_frames_ -= queue_.front().second;
+      queue_.pop_front();
+      writing_ = true;
+      write = in_flight_.get();
+    } else if (finish_status_) {
+      finish_called_ = true;
+      finish = finish_status_;
+    }
+  }
+  if (write) {
+    target_.start_write(write);
+  } else if (finish) {
+    target_.finish(*finish);
+  }
+}
+
+}  // namespace lipsync::server

@@ -1,0 +1,72 @@
+// The outgoing side of one server stream: a queue of TrackMessages and the
+// gRPC rule that at most one write is in flight and that Finish comes only when
+// no write is outstanding.
+//
+// Anyone may push (a reaction, or a producer's thread fanning out to
+// subscribers); the first push that finds the stream idle starts the write, and
+// each write's completion (on_write_done) starts the next. StartWrite and Finish
+// are called outside the lock. A bounded outbox (max_frames > 0) that would hold
+// more counted frames ends the stream with RESOURCE_EXHAUSTED instead of
+// growing: the pusher never waits on a slow reader.
+#pragma once
+
+#include <cstddef>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+
+#include <grpcpp/grpcpp.h>
+
+#include "lipsync/v1/lipsync.pb.h"
+
+namespace lipsync::server {
+
+using Message = std::shared_ptr<const v1::TrackMessage>;
+
+/// What an outbox drives: a reactor's StartWrite and Finish.
+class OutboxTarget {
+ public:
+  virtual void start_write(const v1::TrackMessage* message) = 0;
+  virtual void finish(const grpc::Status& status) = 0;
+
+ protected:
+  ~OutboxTarget() = default;
+};
+
+class Outbox {
+ public:
+  /// `max_frames` 0: unbounded. `overflow_message` is the RESOURCE_EXHAUSTED text.
+  Outbox(OutboxTarget& target, std::size_t max_frames = 0, std::string overflow_message = {});
+
+  /// Queues a message carrying `counted_frames` frames that count toward the
+  /// bound. Returns false if the stream is closing (the message is dropped);
+  /// an overflow drops the queue and closes it with RESOURCE_EXHAUSTED.
+  bool push(Message message, std::size_t counted_frames = 0);
+  /// Finishes with `status` once every queued message is written.
+  void close(const grpc::Status& status);
+  /// Drops queued messages and finishes with `status` as soon as no write is in flight.
+  void abort(const grpc::Status& status);
+  /// The reactor's OnWriteDone.
+  void on_write_done(bool ok);
+
+  /// The status the stream is finishing with, once decided.
+  std::optional<grpc::Status> final_status() const;
+
+ private:
+  void pump();
+
+  OutboxTarget& target_;
+  const std::size_t max_frames_;
+  const std::string overflow_message_;
+  mutable std::mutex mutex_;
+  std::deque<std::pair<Message, std::size_t>> queue_;
+  std::size_t queued_frames_ = 0;
+  Message in_flight_;
+  bool writing_ = false;
+  bool finish_called_ = false;
+  std::optional<grpc::Status> finish_status_;
+};
+
+}  // namespace lipsync::server

@@ -1,0 +1,65 @@
+// Server: builds the gRPC server around LipSyncService (health checking and
+// reflection on), and shuts it down with a drain deadline.
+#include "lipsync/server/server.hpp"
+
+#include <mutex>
+#include <stdexcept>
+
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <spdlog/spdlog.h>
+
+#include "catalog.hpp"
+#include "service.hpp"
+
+namespace lipsync::server {
+
+struct Server::Impl {
+  explicit Impl(ServerConfig config_in)
+      : config(std::move(config_in)), catalog(config.models), service(config, catalog) {}
+
+  ServerConfig config;
+  ModelCatalog catalog;
+  LipSyncService service;
+  std::unique_ptr<grpc::Server> server;
+  int port = 0;
+  std::once_flag shutdown_once;
+};
+
+Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(config))) {
+  spdlog::set_level(spdlog::level::from_str(impl_->config.log_level));
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  grpc::ServerBuilder builder;
+  builder.AddListeningPort(impl_->config.listen, grpc::InsecureServerCredentials(), &impl_->port);
+  builder.SetMaxReceiveMessageSize(static_cast<int>(impl_->config.max_message_bytes));
+  builder.RegisterService(&impl_->service);
+  impl_->server = builder.BuildAndStart();
+  if (!impl_->server || impl_->port == 0) {
+    throw std::runtime_error("cannot listen on " + impl_->config.listen);
+  }
+}
+
+Server::~Server() { shutdown(std::chrono::milliseconds(0)); }
+
+int Server::port() const { return impl_->port; }
+
+std::string Server::address() const {
+  const std::string& listen = impl_->config.listen;
+  return listen.substr(0, listen.rfind(':')) + ":" + std::to_string(impl_->port);
+}
+
+void Server::shutdown(std::chrono::milliseconds drain) {
+  std::call_once(impl_->shutdown_once, [&] {
+    if (auto* health = impl_->server->GetHealthCheckService()) health->Shutdown();
+    impl_->server->Shutdown(std::chrono::system_clock::now() + drain);
+    impl_->server->Wait();
+  });
+}
+
+std::size_t Server::active_streams() const { return impl_->service.active_streams(); }
+
+std::size_t Server::session_count() const { return impl_->service.sessions().size(); }
+
+}  // namespace lipsync::server

@@ -1,0 +1,54 @@
+// The LipSync service on gRPC's callback API. Each streaming call is a reactor
+// object owned by gRPC until OnDone; the service holds what calls share: the
+// model catalog, the session registry, the limits and the open-stream count.
+#pragma once
+
+#include <atomic>
+#include <cstddef>
+
+#include "catalog.hpp"
+#include "lipsync/server/config.hpp"
+#include "session.hpp"
+
+// The generated base declares sync-API overloads of each method that the
+// callback overrides hide on purpose.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Woverloaded-virtual"
+#include "lipsync/v1/lipsync.grpc.pb.h"
+
+namespace lipsync::server {
+
+class LipSyncService final : public v1::LipSync::CallbackService {
+ public:
+  LipSyncService(const ServerConfig& config, const ModelCatalog& catalog);
+
+  grpc::ServerBidiReactor<v1::AnimateRequest, v1::TrackMessage>* Animate(
+      grpc::CallbackServerContext* context) override;
+  grpc::ServerUnaryReactor* Render(grpc::CallbackServerContext* context, const v1::RenderRequest* request,
+                                   v1::RenderResponse* response) override;
+  grpc::ServerWriteReactor<v1::TrackMessage>* Subscribe(grpc::CallbackServerContext* context,
+                                                        const v1::SubscribeRequest* request) override;
+  grpc::ServerUnaryReactor* ListModels(grpc::CallbackServerContext* context,
+                                       const v1::ListModelsRequest* request,
+                                       v1::ListModelsResponse* response) override;
+  grpc::ServerUnaryReactor* GetModel(grpc::CallbackServerContext* context, const v1::GetModelRequest* request,
+                                     v1::ModelInfo* response) override;
+
+  std::size_t active_streams() const { return active_streams_.load(); }
+  SessionRegistry& sessions() { return sessions_; }
+  const ServerConfig& config() const { return config_; }
+  const ModelCatalog& catalog() const { return catalog_; }
+
+  /// Counts a new stream in, or says which limit it is over.
+  grpc::Status admit_stream();
+  void release_stream() { --active_streams_; }
+
+ private:
+  const ServerConfig& config_;
+  const ModelCatalog& catalog_;
+  SessionRegistry sessions_;
+  std::atomic<std::size_t> active_streams_{0};
+};
+#pragma GCC diagnostic pop
+
+}  // namespace lipsync::server

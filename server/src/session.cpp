@@ -1,0 +1,140 @@
+#include "session.hpp"
+
+#include <algorithm>
+
+namespace lipsync::server {
+
+Session::Session(std::string name, Message header, std::size_t replay_frames)
+    : name_(std::move(name)), header_(std::move(header)), replay_frames_(replay_frames) {}
+
+void Session::publish(const Message& batch, std::size_t frames) {
+  std::lock_guard lock(mutex_);
+  if (state_ != State::live) return;
+  replay_.emplace_back(batch, frames);
+  replay_held_ += frames;
+  while (!replay_.empty() && replay_held_ > replay_frames_) {
+    replay_held_ -= replay_.front().second;
+    replay_.pop_front();
+  }
+  std::erase_if(subscribers_, [&](const std::shared_ptr<Outbox>& outbox) {
+    return !outbox->push(batch, frames);
+  });
+}
+
+void Session::finish(const Message& summary) {
+  std::lock_guard lock(mutex_);
+  if (state_ != State::live) return;
+  summary_ = summary;
+  for (const auto& outbox : subscribers_) {
+    outbox->push(summary);
+    outbox->close(grpc::Status::OK);
+  }
+  end_locked(State::finished);
+}
+
+void Session::fail(const std::string& reason) {
+  std::lock_guard lock(mutex_);
+  if (state_ != State::live) return;
+  failure_ = reason;
+  for (const auto& outbox : subscribers_) outbox->close(aborted_status_locked());
+  end_locked(State::failed);
+}
+
+void Session::end_locked(State state) {
+  state_ = state;
+  ended_at_ = std::chrono::steady_clock::now();
+  subscribers_.clear();
+}
+
+grpc::Status Session::aborted_status_locked() const {
+  return {grpc::StatusCode::ABORTED, "session '" + name_ + "': " + failure_};
+}
+
+grpc::Status Session::attach(const std::shared_ptr<Outbox>& outbox, bool from_beginning,
+                             std::size_t max_subscribers) {
+  std::lock_guard lock(mutex_);
+  if (state_ == State::failed) return aborted_status_locked();
+  if (state_ == State::live && subscribers_.size() >= max_subscribers) {
+    return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+            "session '" + name_ + "' already has " + std::to_string(subscribers_.size()) +
+                " subscribers (--max-subscribers-per-session=" + std::to_string(max_subscribers) + ")"};
+  }
+  // The replay does not count toward the subscriber's bound: it is shared and
+  // already held; only frames that arrive later can pile up.
+  outbox->push(header_);
+  if (from_beginning) {
+    for (const auto& [batch, frames] : replay_) outbox->push(batch);
+  }
+  if (state_ == State::finished) {
+    outbox->push(summary_);
+    outbox->close(grpc::Status::OK);
+  } else {
+    subscribers_.push_back(outbox);
+  }
+  return grpc::Status::OK;
+}
+
+void Session::detach(const Outbox* outbox) {
+  std::lock_guard lock(mutex_);
+  std::erase_if(subscribers_, [&](const std::shared_ptr<Outbox>& held) { return held.get() == outbox; });
+}
+
+bool Session::live() const {
+  std::lock_guard lock(mutex_);
+  return state_ == State::live;
+}
+
+bool Session::expired(std::chrono::steady_clock::time_point now, std::chrono::milliseconds retention) const {
+  std::lock_guard lock(mutex_);
+  return state_ != State::live && now - ended_at_ >= retention;
+}
+
+std::size_t Session::subscriber_count() const {
+  std::lock_guard lock(mutex_);
+  return subscribers_.size();
+}
+
+SessionRegistry::SessionRegistry(std::size_t max_sessions, std::size_t replay_frames,
+                                 std::chrono::milliseconds retention)
+    : max_sessions_(max_sessions), replay_frames_(replay_frames), retention_(retention) {}
+
+void SessionRegistry::sweep_locked() {
+  const auto now = std::chrono::steady_clock::now();
+  std::erase_if(sessions_, [&](const auto& entry) { return entry.second->expired(now, retention_); });
+}
+
+grpc::Status SessionRegistry::open(const std::string& name, const Message& header,
+                                   std::shared_ptr<Session>& out) {
+  std::lock_guard lock(mutex_);
+  sweep_locked();
+  if (const auto it = sessions_.find(name); it != sessions_.end()) {
+    if (it->second->live()) {
+      return {grpc::StatusCode::ALREADY_EXISTS,
+              "session '" + name + "' already has a live producer"};
+    }
+    sessions_.erase(it);
+  }
+  if (sessions_.size() >= max_sessions_) {
+    return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+            "the server already holds " + std::to_string(sessions_.size()) +
+                " sessions (--max-sessions=" + std::to_string(max_sessions_) + ")"};
+  }
+  out = std::make_shared<Session>(name, header, replay_frames_);
+  sessions_.emplace(name, out);
+  return grpc::Status::OK;
+}
+
+std::shared_ptr<Session> SessionRegistry::find(const std::string& name) {
+  std::lock_guard lock(mutex_);
+  sweep_locked();
+  const auto it = sessions_.find(name);
+  return it == sessions_.end() ? nullptr : it->second;
+}
+
+std::size_t SessionRegistry::size() {
+  std::lock_guard lock(mutex_);
+  sweep_locked();
+  return sessions_.size();
+}
+
+}  // namespace lipsync::server

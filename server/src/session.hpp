@@ -1,0 +1,92 @@
+// Sessions: one Animate stream (the producer) publishing its frames under a
+// name, any number of Subscribe streams following them.
+//
+// The producer pushes each message once; the session hands the same immutable
+// message (a shared_ptr) to every subscriber's bounded Outbox and to a replay
+// buffer that keeps the header and the last `replay_frames` frames for late
+// joiners. Pushing never waits: a subscriber whose outbox overflows is ended
+// with RESOURCE_EXHAUSTED by its outbox and dropped from the session, and the
+// producer and the other subscribers go on at full speed.
+//
+// A finished (or failed) session stays joinable for the retention time, then
+// the registry forgets it; a new producer may then reuse the name.
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <deque>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "outbox.hpp"
+
+namespace lipsync::server {
+
+class Session {
+ public:
+  Session(std::string name, Message header, std::size_t replay_frames);
+
+  const std::string& name() const { return name_; }
+
+  // Producer side.
+  void publish(const Message& batch, std::size_t frames);
+  void finish(const Message& summary);
+  void fail(const std::string& reason);
+
+  /// Adds a subscriber: queues the header, the replay (if from_beginning) and,
+  /// for an ended session, the summary or the ABORTED status. Returns
+  /// RESOURCE_EXHAUSTED if the session already has `max_subscribers`.
+  grpc::Status attach(const std::shared_ptr<Outbox>& outbox, bool from_beginning,
+                      std::size_t max_subscribers);
+  void detach(const Outbox* outbox);
+
+  bool live() const;
+  /// Ended more than `retention` ago.
+  bool expired(std::chrono::steady_clock::time_point now, std::chrono::milliseconds retention) const;
+  std::size_t subscriber_count() const;
+
+ private:
+  enum class State { live, finished, failed };
+
+  void end_locked(State state);
+  grpc::Status aborted_status_locked() const;
+
+  const std::string name_;
+  const Message header_;
+  const std::size_t replay_frames_;
+  mutable std::mutex mutex_;
+  State state_ = State::live;
+  std::deque<std::pair<Message, std::size_t>> replay_;
+  std::size_t replay_held_ = 0;
+  Message summary_;
+  std::string failure_;
+  std::chrono::steady_clock::time_point ended_at_;
+  std::vector<std::shared_ptr<Outbox>> subscribers_;
+};
+
+class SessionRegistry {
+ public:
+  SessionRegistry(std::size_t max_sessions, std::size_t replay_frames, std::chrono::milliseconds retention);
+
+  /// Opens a session for a producer. ALREADY_EXISTS if a live producer holds the
+  /// name; RESOURCE_EXHAUSTED beyond max_sessions. An ended session of that name
+  /// is replaced.
+  grpc::Status open(const std::string& name, const Message& header, std::shared_ptr<Session>& out);
+  /// nullptr if there is no such session (or it has expired).
+  std::shared_ptr<Session> find(const std::string& name);
+  std::size_t size();
+
+ private:
+  void sweep_locked();
+
+  const std::size_t max_sessions_;
+  const std::size_t replay_frames_;
+  const std::chrono::milliseconds retention_;
+  std::mutex mutex_;
+  std::map<std::string, std::shared_ptr<Session>, std::less<>> sessions_;
+};
+
+}  // namespace lipsync::server

@@ -1,0 +1,340 @@
+// The physics face: the asset as shipped, the opened and subdivided mesh, the rig's validation,
+// and what the simulated mesh does for the default model's targets (lip closure for /p b m/, the
+// lower lip at the upper teeth for /f v/, the mouth opening for open vowels), its determinism and
+// its stability. Distances in metres unless a name says otherwise.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <functional>
+#include <map>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "lipsync/error.hpp"
+#include "lipsync/face/face_mesh.hpp"
+#include "lipsync/face/face_rig.hpp"
+#include "lipsync/face/face_solver.hpp"
+#include "lipsync/model.hpp"
+
+namespace lipsync::face {
+namespace {
+
+double distance(Vec3 a, Vec3 b) { return std::hypot(a.x - b.x, a.y - b.y, a.z - b.z); }
+
+double distance_to_segment(Vec3 p, Vec3 a, Vec3 b) {
+  const Vec3 d{b.x - a.x, b.y - a.y, b.z - a.z};
+  const double len2 = d.x * d.x + d.y * d.y + d.z * d.z;
+  const double t = len2 > 0 ? std::clamp(((p.x - a.x) * d.x + (p.y - a.y) * d.y + (p.z - a.z) * d.z) / len2, 0.0, 1.0) : 0.0;
+  return distance(p, {a.x + t * d.x, a.y + t * d.y, a.z + t * d.z});
+}
+
+std::vector<float> targets_of(const std::string& phoneme) {
+  const auto& model = ArticulationModel::builtin();
+  const auto& spec = model.phoneme(*model.find_phoneme(phoneme));
+  return {spec.targets.begin(), spec.targets.end()};
+}
+
+// Holds the channels for one second at 60 frames/s (steady state).
+void hold(FaceSolver& solver, const std::vector<float>& channels, double seconds = 1.0) {
+  for (int frame = 0; frame < static_cast<int>(seconds * 60); ++frame) solver.step(channels, 1.0 / 60.0);
+}
+
+// Largest distance from an upper-lip-line node within ±10 mm of the mouth's middle to the lower
+// lip line (as a polyline through both corners).
+double lip_gap_m(const FaceSolver& solver) {
+  const FaceMesh& mesh = solver.mesh();
+  const auto x = solver.positions();
+  std::vector<std::uint32_t> lower{mesh.mouth_corners[0]};
+  lower.insert(lower.end(), mesh.lower_lip_line.begin(), mesh.lower_lip_line.end());
+  lower.push_back(mesh.mouth_corners[1]);
+  double gap = 0;
+  for (const auto u : mesh.upper_lip_line) {
+    if (std::abs(mesh.rest_positions_m[u].x - mesh.mouth_centre_m.x) > 0.010) continue;
+    double nearest = 1e9;
+    for (std::size_t k = 1; k < lower.size(); ++k)
+      nearest = std::min(nearest, distance_to_segment(x[u], x[lower[k - 1]], x[lower[k]]));
+    gap = std::max(gap, nearest);
+  }
+  return gap;
+}
+
+// Distance from p to the upper teeth's labial surface and incisal edge (skull frame).
+double distance_to_upper_teeth_m(const FaceMesh& mesh, Vec3 p) {
+  const double dy = p.y < mesh.upper_teeth_y_min_m ? mesh.upper_teeth_y_min_m - p.y
+                    : p.y > mesh.upper_teeth_y_max_m ? p.y - mesh.upper_teeth_y_max_m
+                                                     : 0.0;
+  const double u = p.x / mesh.upper_arch_a_m, w = (p.z - mesh.upper_arch_centre_z_m) / mesh.upper_arch_b_m;
+  const double radius = std::hypot(u, w);
+  // Radial distance to the ellipse, scaled back to metres by the local semi-axis.
+  const double local_axis = std::hypot(u * mesh.upper_arch_a_m, w * mesh.upper_arch_b_m) / std::max(radius, 1e-9);
+  return std::hypot(dy, std::abs(radius - 1.0) * local_axis);
+}
+
+double lower_lip_to_upper_teeth_m(const FaceSolver& solver) {
+  const auto x = solver.positions();
+  const FaceMesh& mesh = solver.mesh();
+  double nearest = 1e9;
+  for (std::uint32_t i = 0; i < mesh.soft_node_count; ++i) {
+    if (mesh.jaw_weights[i] < 0.99 || mesh.ring_depth[i] > 2.0) continue;
+    if (distance(mesh.rest_positions_m[i], mesh.mouth_centre_m) > 0.015) continue;
+    nearest = std::min(nearest, distance_to_upper_teeth_m(mesh, x[i]));
+  }
+  return nearest;
+}
+
+std::uint64_t fnv1a(std::span<const Vec3> positions) {
+  std::uint64_t hash = 1469598103934665603ULL;
+  for (const Vec3& p : positions)
+    for (const double v : {p.x, p.y, p.z}) {
+      unsigned char bytes[sizeof(double)];
+      std::memcpy(bytes, &v, sizeof v);
+      for (const unsigned char b : bytes) hash = (hash ^ b) * 1099511628211ULL;
+    }
+  return hash;
+}
+
+const FaceMesh& level1() {
+  static const FaceMesh mesh = build_face_mesh(FaceAsset::builtin(), 1);
+  return mesh;
+}
+
+TEST(FaceAsset, has_the_canonical_mesh_counts_and_a_20_vertex_mouth) {
+  const FaceAsset& asset = FaceAsset::builtin();
+  EXPECT_EQ(asset.positions_cm.size(), 468U);
+  EXPECT_EQ(asset.triangles.size(), 898U);
+  std::vector<bool> on_loop(468, false);
+  for (const auto id : kInnerLipLoop) on_loop[id] = true;
+  const auto mouth = std::count_if(asset.triangles.begin(), asset.triangles.end(), [&](const auto& t) {
+    return on_loop[t[0]] && on_loop[t[1]] && on_loop[t[2]];
+  });
+  EXPECT_EQ(mouth, 18);
+  // Lips parted about 5.5 mm at rest (13 → 14), face about 15.5 cm wide.
+  EXPECT_NEAR(distance(asset.positions_cm[13], asset.positions_cm[14]), 0.57, 0.03);
+}
+
+TEST(FaceMesh, opening_leaves_880_skin_triangles_and_a_20_vertex_boundary) {
+  const FaceMesh mesh = build_face_mesh(FaceAsset::builtin(), 0);
+  const auto skin = std::count_if(mesh.triangles.begin(), mesh.triangles.end(), [&](const auto& t) {
+    return t[0] < 468 && t[1] < 468 && t[2] < 468;
+  });
+  EXPECT_EQ(skin, 880);
+  EXPECT_EQ(mesh.upper_lip_line.size(), 9U);
+  EXPECT_EQ(mesh.lower_lip_line.size(), 9U);
+  EXPECT_EQ(mesh.upper_lip_line.size() + mesh.lower_lip_line.size() + 2, 20U);
+  EXPECT_EQ(mesh.mouth_corners[0], 78U);
+  EXPECT_EQ(mesh.mouth_corners[1], 308U);
+  // Every soft edge is shared by two triangles except the eye openings' neighbours and the
+  // outline of the mask: the mouth is closed off by the cavity.
+  std::map<std::pair<std::uint32_t, std::uint32_t>, int> directed;
+  for (const auto& t : mesh.triangles)
+    for (int e = 0; e < 3; ++e) ++directed[{t[e], t[(e + 1) % 3]}];
+  for (const auto& [edge, count] : directed) EXPECT_EQ(count, 1) << "edge " << edge.first << "-" << edge.second << " is used twice in one direction";
+  for (const auto id : kInnerLipLoop)
+    for (const auto& [edge, count] : directed)
+      if (edge.first == id) {
+        EXPECT_TRUE(directed.count({edge.second, edge.first})) << "lip vertex " << id << " on a boundary";
+      }
+}
+
+TEST(FaceMesh, subdivision_of_the_opened_canonical_mesh_gives_1790_and_6990_vertices) {
+  // With the mouth's 18 and the eyes' 14 + 14 filling triangles removed (the published counts);
+  // lipsyncd keeps the eye fills as closed lids.
+  constexpr std::array<std::uint32_t, 32> kEyeLoops = {33,  7,   163, 144, 145, 153, 154, 155, 133, 173, 157,
+                                                       158, 159, 160, 161, 246, 263, 249, 390, 373, 374, 380,
+                                                       381, 382, 362, 398, 384, 385, 386, 387, 388, 466};
+  const FaceAsset& asset = FaceAsset::builtin();
+  std::vector<int> loop_of(468, -1);
+  for (const auto id : kInnerLipLoop) loop_of[id] = 0;
+  for (std::size_t k = 0; k < kEyeLoops.size(); ++k) loop_of[kEyeLoops[k]] = 1 + static_cast<int>(k / 16);
+  std::vector<std::array<std::uint32_t, 3>> opened;
+  std::array<int, 3> removed{};
+  for (const auto& t : asset.triangles) {
+    const int loop = loop_of[t[0]];
+    if (loop >= 0 && loop_of[t[1]] == loop && loop_of[t[2]] == loop) ++removed[static_cast<std::size_t>(loop)];
+    else opened.push_back(t);
+  }
+  EXPECT_EQ(removed, (std::array<int, 3>{18, 14, 14}));
+  const Subdivision once = subdivide(opened, 468);
+  EXPECT_EQ(468 + once.midpoint_parents.size(), 1790U);
+  const Subdivision twice = subdivide(once.triangles, 1790);
+  EXPECT_EQ(1790 + twice.midpoint_parents.size(), 6990U);
+  EXPECT_EQ(twice.triangles.size(), opened.size() * 16);
+}
+
+TEST(FaceMesh, levels_keep_landmarks_and_lip_lines) {
+  for (int level = 0; level <= 2; ++level) {
+    const FaceMesh mesh = build_face_mesh(FaceAsset::builtin(), level);
+    for (std::uint32_t id = 0; id < 468; ++id)
+      EXPECT_DOUBLE_EQ(mesh.rest_positions_m[id].x, 0.01 * FaceAsset::builtin().positions_cm[id].x);
+    const std::size_t line = (10U << level) - 1;
+    EXPECT_EQ(mesh.upper_lip_line.size(), line) << "level " << level;
+    EXPECT_EQ(mesh.lower_lip_line.size(), line) << "level " << level;
+    EXPECT_EQ(mesh.upper_inner_ring.size(), line) << "level " << level;
+    EXPECT_EQ(mesh.parts.size(), mesh.vertex_count());
+    EXPECT_EQ(mesh.uvs.size(), mesh.vertex_count());
+  }
+  EXPECT_THROW(build_face_mesh(FaceAsset::builtin(), 3), std::invalid_argument);
+}
+
+TEST(FaceRig, builtin_rig_has_exactly_the_model_muscles) {
+  const FaceRig& rig = FaceRig::builtin();
+  std::vector<std::string> muscles, channels;
+  for (const auto& m : rig.muscles()) muscles.push_back(m.name);
+  for (const auto& c : ArticulationModel::builtin().channels())
+    if (c.kind == "muscle") channels.push_back(c.name);
+  EXPECT_EQ(muscles, channels);
+  EXPECT_NEAR(rig.max_jaw_rotation_rad(), 20.0 * M_PI / 180.0, 1e-12);
+}
+
+std::string rig_error(const std::function<void(nlohmann::json&)>& edit) {
+  nlohmann::json doc = nlohmann::json::parse(FaceRig::builtin_json());
+  edit(doc);
+  try {
+    FaceRig::from_json(doc.dump(), "rig.json", ArticulationModel::builtin());
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(FaceRig, errors_name_the_muscle_and_the_field) {
+  EXPECT_THAT(rig_error([](auto& d) { d["muscles"].erase(10); }),
+              testing::HasSubstr("muscle 'mentalis': channel of model 'default' has no muscle"));
+  EXPECT_THAT(rig_error([](auto& d) { d["muscles"][0]["name"] = "buccinator"; }),
+              testing::HasSubstr("muscle 'buccinator': channel 'buccinator' is not in model"));
+  EXPECT_THAT(rig_error([](auto& d) { d["muscles"][0]["fibres"][0]["path"][1] = 468; }),
+              testing::HasSubstr("muscle 'zygomaticus_major_left' fibre 0: field 'path' has 468"));
+  EXPECT_THAT(rig_error([](auto& d) { d["muscles"][2]["bone"] = "hyoid"; }),
+              testing::HasSubstr("muscle 'levator_labii_superioris_left': field 'bone'"));
+  EXPECT_THAT(rig_error([](auto& d) { d["muscles"][11].erase("closure_m"); }),
+              testing::HasSubstr("muscle 'orbicularis_oris_upper': missing field 'closure_m'"));
+  EXPECT_THAT(rig_error([](auto& d) { d["muscles"][0]["name"] = "jaw_rotation"; }),
+              testing::HasSubstr("channel 'jaw_rotation' is of kind 'jaw', not 'muscle'"));
+  EXPECT_THAT(rig_error([](auto& d) { d["jaw"]["max_rotation_deg"] = 90; }),
+              testing::HasSubstr("jaw: field 'max_rotation_deg' = 90"));
+}
+
+TEST(FaceSolver, rest_is_an_equilibrium) {
+  FaceSolver solver(level1(), FaceRig::builtin());
+  hold(solver, std::vector<float>(ArticulationModel::builtin().channel_count(), 0.0F));
+  double drift = 0;
+  std::size_t worst = 0;
+  for (std::size_t i = 0; i < level1().vertex_count(); ++i) {
+    const double d = distance(solver.positions()[i], level1().rest_positions_m[i]);
+    if (d > drift) drift = d, worst = i;
+  }
+  EXPECT_LT(drift, 1e-9) << "node " << worst << " (ring depth " << level1().ring_depth[worst] << ")";
+  EXPECT_NEAR(lip_gap_m(solver), 0.0055, 0.001);
+}
+
+TEST(FaceSolver, lips_touch_for_bilabial_closures) {
+  FaceSolver solver(level1(), FaceRig::builtin());
+  for (const char* phoneme : {"pcl", "bcl", "m"}) {
+    solver.reset();
+    hold(solver, targets_of(phoneme));
+    const double gap = lip_gap_m(solver);
+    std::printf("[ measured ] /%s/ inner-lip gap %.3f mm\n", phoneme, 1000 * gap);
+    EXPECT_LE(gap, 0.001) << phoneme;
+  }
+}
+
+TEST(FaceSolver, lower_lip_reaches_the_upper_teeth_for_labiodentals) {
+  FaceSolver solver(level1(), FaceRig::builtin());
+  const double at_rest = lower_lip_to_upper_teeth_m(solver);
+  for (const char* phoneme : {"f", "v"}) {
+    solver.reset();
+    hold(solver, targets_of(phoneme));
+    const double reach = lower_lip_to_upper_teeth_m(solver);
+    std::printf("[ measured ] /%s/ lower lip to upper teeth %.3f mm (rest %.3f mm)\n", phoneme, 1000 * reach, 1000 * at_rest);
+    EXPECT_LE(reach, 0.001) << phoneme;
+  }
+  EXPECT_GT(at_rest, 0.002);
+}
+
+TEST(FaceSolver, open_vowels_open_the_mouth_at_least_as_far_as_the_jaw_implies) {
+  const FaceMesh& mesh = level1();
+  const FaceRig& rig = FaceRig::builtin();
+  FaceSolver solver(mesh, rig);
+  for (const char* phoneme : {"aa", "ae", "ah", "ay"}) {
+    solver.reset();
+    const auto channels = targets_of(phoneme);
+    hold(solver, channels);
+    // The rest position of the lower inner lip (14) carried by the jaw alone, measured from the
+    // upper inner lip (13).
+    const double angle = channels[rig.jaw_channel()] * rig.max_jaw_rotation_rad();
+    const Vec3 hinge = mesh.anatomy.jaw_hinge_m, p = mesh.rest_positions_m[14];
+    const double y = p.y - hinge.y, z = p.z - hinge.z;
+    const Vec3 carried{p.x, hinge.y + std::cos(angle) * y - std::sin(angle) * z, hinge.z + std::sin(angle) * y + std::cos(angle) * z};
+    const double implied = distance(mesh.rest_positions_m[13], carried);
+    const double opening = distance(solver.positions()[13], solver.positions()[14]);
+    std::printf("[ measured ] /%s/ opening %.2f mm, jaw %.1f° implies %.2f mm\n", phoneme, 1000 * opening,
+                angle * 180 / M_PI, 1000 * implied);
+    EXPECT_GE(opening, implied) << phoneme;
+  }
+}
+
+TEST(FaceSolver, is_deterministic) {
+  auto run = [] {
+    FaceSolver solver(level1(), FaceRig::builtin());
+    for (const char* phoneme : {"m", "aa", "f", "iy", "uw", "sil"}) hold(solver, targets_of(phoneme), 0.25);
+    return fnv1a(solver.positions());
+  };
+  const std::uint64_t first = run();
+  EXPECT_EQ(first, run());
+  // Golden value for x86-64 Linux, GCC, Release (no -ffast-math); bit-reproducible per platform, so
+  // update it deliberately when the simulation, the rig or the asset changes.
+  EXPECT_EQ(first, 0xc0c389c7736f28efULL) << std::hex << "got 0x" << first;
+}
+
+TEST(FaceSolver, ten_minutes_of_random_speech_stay_bounded_and_return_to_rest) {
+  // Level 0 with a 30 frames/s step to keep the suite fast; the other tests use level 1.
+  const FaceMesh mesh = build_face_mesh(FaceAsset::builtin(), 0);
+  FaceSolverParams params;
+  params.time_step_s = 1.0 / 30.0;
+  FaceSolver solver(mesh, FaceRig::builtin(), params);
+  const auto& model = ArticulationModel::builtin();
+  std::mt19937 random(20240607);
+  std::vector<float> channels(model.channel_count(), 0.0F);
+  double first_minute_max = 0, last_minute_max = 0;
+  const int frames = 10 * 60 * 30;
+  for (int frame = 0; frame < frames; ++frame) {
+    if (frame % 3 == 0) {  // a new random phoneme-like activation every 100 ms
+      for (std::size_t c = 0; c < channels.size(); ++c) {
+        const auto& spec = model.channels()[c];
+        channels[c] = static_cast<float>(std::uniform_real_distribution<double>(spec.min, spec.max)(random));
+      }
+    }
+    solver.step(channels, 1.0 / 30.0);
+    const double energy = solver.energy_j();
+    ASSERT_TRUE(std::isfinite(energy)) << "frame " << frame;
+    if (frame < 30 * 60) first_minute_max = std::max(first_minute_max, energy);
+    if (frame >= frames - 30 * 60) last_minute_max = std::max(last_minute_max, energy);
+  }
+  for (const Vec3& p : solver.positions()) ASSERT_TRUE(std::isfinite(p.x + p.y + p.z));
+  std::printf("[ measured ] energy max first minute %.3g J, last minute %.3g J\n", first_minute_max, last_minute_max);
+  EXPECT_LE(last_minute_max, 1.5 * first_minute_max);
+  // Silence (the model's rest values: jaw_rotation 0.02) for 2 s, compared with a face that has
+  // held silence from the start.
+  const auto silence = targets_of("sil");
+  FaceSolver reference(mesh, FaceRig::builtin(), params);
+  for (int frame = 0; frame < 60; ++frame) {
+    solver.step(silence, 1.0 / 30.0);
+    reference.step(silence, 1.0 / 30.0);
+  }
+  double drift = 0;
+  for (std::size_t i = 0; i < mesh.vertex_count(); ++i)
+    drift = std::max(drift, distance(solver.positions()[i], reference.positions()[i]));
+  std::printf("[ measured ] after 2 s of silence: max distance from the silent pose %.4f mm\n", 1000 * drift);
+  EXPECT_LT(drift, 0.0001);
+}
+
+}  // namespace
+}  // namespace lipsync::face
