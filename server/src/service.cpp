@@ -12,6 +12,12 @@
 // Reactions never block: the engine costs about a microsecond per frame, so
 // frames are computed in OnReadDone, and writes go through an Outbox (one write
 // in flight, Finish only when none is).
+//
+// The mesh output (face_stream.hpp) is the exception to "cheap": a stream that
+// asks for it owns a FaceSolver, built when its settings arrive, and steps it
+// once per released frame inside the same reaction (about 1.4 ms per 1/60 s
+// substep at subdivision 1, two substeps per frame at 30 fps), so a chunk that
+// releases many frames holds its reaction that long (docs/server.md). Streams that do not ask for it never create or touch a solver.
 #include "service.hpp"
 
 #include <array>
@@ -41,6 +47,9 @@ struct Plan {
   SegmentOptions segment;
   bool channels = true;
   bool arkit = true;
+  bool mesh = false;
+  int mesh_subdivision = 1;
+  v1::MeshEncoding mesh_encoding = v1::MESH_ENCODING_FLOAT32;
   v1::TrackHeader header;
 };
 
@@ -80,6 +89,25 @@ grpc::Status resolve_settings(const v1::AnimationSettings& settings, const Model
   const bool any = settings.outputs().channels() || settings.outputs().arkit();
   plan.channels = !any || settings.outputs().channels();
   plan.arkit = !any || settings.outputs().arkit();
+  if (settings.outputs().has_mesh() && settings.outputs().mesh().enabled()) {
+    const v1::MeshOutput& mesh = settings.outputs().mesh();
+    plan.mesh = true;
+    if (mesh.has_subdivision()) {
+      if (mesh.subdivision() > static_cast<std::uint32_t>(FaceLibrary::kMaxSubdivision)) {
+        return invalid("settings.outputs.mesh.subdivision: " + std::to_string(mesh.subdivision()) +
+                       " is out of range 0..2 (unset means 1)");
+      }
+      plan.mesh_subdivision = static_cast<int>(mesh.subdivision());
+    }
+    switch (mesh.encoding()) {
+      case v1::MESH_ENCODING_UNSPECIFIED:
+      case v1::MESH_ENCODING_FLOAT32: plan.mesh_encoding = v1::MESH_ENCODING_FLOAT32; break;
+      case v1::MESH_ENCODING_INT16: plan.mesh_encoding = v1::MESH_ENCODING_INT16; break;
+      default:
+        return invalid("settings.outputs.mesh.encoding: unknown encoding " + std::to_string(mesh.encoding()) +
+                       " (FLOAT32 or INT16)");
+    }
+  }
 
   plan.header.set_model(plan.model->name);
   plan.header.set_fps(fps);
@@ -105,9 +133,25 @@ v1::FrameKind to_proto(FrameKind kind) {
   return v1::FRAME_KIND_UNSPECIFIED;
 }
 
-/// Frames [begin, end) of `track` into `batch`, numbered from `first_frame`.
+/// The stream's face when the plan asks for the mesh (nullptr otherwise), its
+/// topology put in the plan's header. INVALID_ARGUMENT if the model cannot drive it.
+grpc::Status start_face(Plan& plan, FaceLibrary& faces, std::unique_ptr<FaceStream>& stream) {
+  if (!plan.mesh) return grpc::Status::OK;
+  const face::FaceRig* rig = nullptr;
+  try {
+    rig = &faces.rig(*plan.model->model);
+  } catch (const InputError& error) {
+    return invalid("settings.outputs.mesh: model '" + plan.model->name + "' cannot drive the face: " + error.what());
+  }
+  stream = std::make_unique<FaceStream>(faces.topology(plan.mesh_subdivision), *rig, plan.mesh_encoding);
+  *plan.header.mutable_mesh() = stream->header_topology();
+  return grpc::Status::OK;
+}
+
+/// Frames [begin, end) of `track` into `batch`, numbered from `first_frame`;
+/// `face_stream` (if any) steps through them and adds their positions.
 void encode_frames(const Plan& plan, const Track& track, std::size_t begin, std::size_t end,
-                   std::uint64_t first_frame, v1::FrameBatch& batch) {
+                   std::uint64_t first_frame, v1::FrameBatch& batch, FaceStream* face_stream) {
   const std::size_t count = end - begin;
   const std::size_t channels = track.channel_count;
   batch.set_first_frame(first_frame);
@@ -128,6 +172,7 @@ void encode_frames(const Plan& plan, const Track& track, std::size_t begin, std:
       for (const float weight : arkit) batch.add_arkit(weight);
     }
   }
+  if (face_stream) face_stream->encode(track, begin, end, batch);
 }
 
 LabeledInterval to_interval(const v1::Phoneme& phoneme, int index) {
@@ -253,6 +298,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
 
   grpc::Status start(const v1::AnimationSettings& settings) {
     if (auto status = resolve_settings(settings, service_.catalog(), true, plan_); !status.ok()) return status;
+    if (auto status = start_face(plan_, service_.faces(), face_); !status.ok()) return status;
     auto header = std::make_shared<v1::TrackMessage>();
     *header->mutable_header() = plan_.header;
     if (!settings.session().empty()) {
@@ -308,10 +354,11 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   }
 
   void send_frames() {
-    for (std::size_t begin = 0; begin < track_.frame_count(); begin += kMaxFramesPerBatch) {
-      const std::size_t end = std::min(track_.frame_count(), begin + kMaxFramesPerBatch);
+    const std::size_t per_batch = face_ ? face_->frames_per_batch(kMaxFramesPerBatch) : kMaxFramesPerBatch;
+    for (std::size_t begin = 0; begin < track_.frame_count(); begin += per_batch) {
+      const std::size_t end = std::min(track_.frame_count(), begin + per_batch);
       auto message = std::make_shared<v1::TrackMessage>();
-      encode_frames(plan_, track_, begin, end, frames_sent_, *message->mutable_frames());
+      encode_frames(plan_, track_, begin, end, frames_sent_, *message->mutable_frames(), face_.get());
       frames_sent_ += end - begin;
       // The session first: once the producer has seen a batch, subscribers can see it too.
       if (auto session = current_session()) session->publish(message, end - begin);
@@ -344,6 +391,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   Plan plan_;
   std::optional<SegmentBuilder> builder_;
   std::optional<StreamingRenderer> renderer_;
+  std::unique_ptr<FaceStream> face_;  // only when the mesh is asked for
   std::vector<Segment> segments_;
   Track track_;
   std::size_t phonemes_ = 0;
@@ -421,8 +469,7 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
   std::uint64_t frames_sent_ = 0;
 };
 
-grpc::Status render(const LipSyncService& service, const v1::RenderRequest& request,
-                    v1::RenderResponse& response) {
+grpc::Status render(LipSyncService& service, const v1::RenderRequest& request, v1::RenderResponse& response) {
   const ServerConfig& config = service.config();
   Plan plan;
   if (auto status = resolve_settings(request.settings(), service.catalog(), false, plan); !status.ok()) {
@@ -446,9 +493,11 @@ grpc::Status render(const LipSyncService& service, const v1::RenderRequest& requ
       return too_long(index, builder.end_us(), config.max_utterance_ms);
     }
   }
+  std::unique_ptr<FaceStream> face_stream;
+  if (auto status = start_face(plan, service.faces(), face_stream); !status.ok()) return status;
   const Track track = render_track(model, segments, plan.render);
   *response.mutable_header() = plan.header;
-  encode_frames(plan, track, 0, track.frame_count(), 0, *response.mutable_frames());
+  encode_frames(plan, track, 0, track.frame_count(), 0, *response.mutable_frames(), face_stream.get());
   response.mutable_summary()->set_frames(track.frame_count());
   response.mutable_summary()->set_phonemes(static_cast<std::uint64_t>(request.phonemes_size()));
   response.mutable_summary()->set_duration_us(builder.end_us());

@@ -7,6 +7,7 @@
 #include <cstddef>
 
 #include "catalog.hpp"
+#include "face_stream.hpp"
 #include "lipsync/server/config.hpp"
 #include "session.hpp"
 
@@ -38,6 +39,8 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   SessionRegistry& sessions() { return sessions_; }
   const ServerConfig& config() const { return config_; }
   const ModelCatalog& catalog() const { return catalog_; }
+  /// Meshes and rigs shared by the streams that ask for the mesh output (built lazily).
+  FaceLibrary& faces() { return faces_; }
 
   /// Counts a new stream in, or says which limit it is over.
   grpc::Status admit_stream();
@@ -47,6 +50,7 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   const ServerConfig& config_;
   const ModelCatalog& catalog_;
   SessionRegistry sessions_;
+  FaceLibrary faces_;
   std::atomic<std::size_t> active_streams_{0};
 };
 #pragma GCC diagnostic pop

@@ -2,6 +2,17 @@
 
 #include <algorithm>
 
+namespace {
+
+/// Bytes of mesh positions in a batch (0 for every stream without the mesh output); O(1).
+std::size_t mesh_bytes(const lipsync::server::Message& batch) {
+  if (!batch->has_frames()) return 0;
+  return static_cast<std::size_t>(batch->frames().mesh_positions_size()) * sizeof(float) +
+         batch->frames().mesh_positions_int16().size();
+}
+
+}  // namespace
+
 namespace lipsync::server {
 
 Session::Session(std::string name, Message header, std::size_t replay_frames)
@@ -12,8 +23,10 @@ void Session::publish(const Message& batch, std::size_t frames) {
   if (state_ != State::live) return;
   replay_.emplace_back(batch, frames);
   replay_held_ += frames;
-  while (!replay_.empty() && replay_held_ > replay_frames_) {
+  replay_mesh_bytes_ += mesh_bytes(batch);
+  while (!replay_.empty() && (replay_held_ > replay_frames_ || replay_mesh_bytes_ > kMaxReplayMeshBytes)) {
     replay_held_ -= replay_.front().second;
+    replay_mesh_bytes_ -= mesh_bytes(replay_.front().first);
     replay_.pop_front();
   }
   std::erase_if(subscribers_, [&](const std::shared_ptr<Outbox>& outbox) {

@@ -8,6 +8,10 @@
 // with RESOURCE_EXHAUSTED by its outbox and dropped from the session, and the
 // producer and the other subscribers go on at full speed.
 //
+// A mesh session's replay is also bounded by the bytes of mesh positions it
+// holds (kMaxReplayMeshBytes): its frames are tens of kilobytes each. Sessions
+// without the mesh hold no such bytes and are bounded by frames alone.
+//
 // A finished (or failed) session stays joinable for the retention time, then
 // the registry forgets it; a new producer may then reuse the name.
 #pragma once
@@ -27,6 +31,8 @@ namespace lipsync::server {
 
 class Session {
  public:
+  static constexpr std::size_t kMaxReplayMeshBytes = std::size_t{64} << 20;
+
   Session(std::string name, Message header, std::size_t replay_frames);
 
   const std::string& name() const { return name_; }
@@ -59,8 +65,9 @@ class Session {
   const std::size_t replay_frames_;
   mutable std::mutex mutex_;
   State state_ = State::live;
-  std::deque<std::pair<Message, std::size_t>> replay_;
+  std::deque<std::pair<Message, std::size_t>> replay_;  // batch, frames
   std::size_t replay_held_ = 0;
+  std::size_t replay_mesh_bytes_ = 0;
   Message summary_;
   std::string failure_;
   std::chrono::steady_clock::time_point ended_at_;

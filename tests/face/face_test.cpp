@@ -290,8 +290,9 @@ TEST(FaceSolver, is_deterministic) {
   const std::uint64_t first = run();
   EXPECT_EQ(first, run());
   // Golden value for x86-64 Linux, GCC, Release (no -ffast-math); bit-reproducible per platform, so
-  // update it deliberately when the simulation, the rig or the asset changes.
-  EXPECT_EQ(first, 0xc0c389c7736f28efULL) << std::hex << "got 0x" << first;
+  // update it deliberately when the simulation, the rig or the asset changes (last: the float
+  // factor with double-precision residuals, docs/face.md "The solver").
+  EXPECT_EQ(first, 0xd662bf72c7a30f8aULL) << std::hex << "got 0x" << first;
 }
 
 TEST(FaceSolver, ten_minutes_of_random_speech_stay_bounded_and_return_to_rest) {

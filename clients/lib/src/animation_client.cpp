@@ -82,6 +82,7 @@ void ReceivedTrack::add(const v1::TrackMessage& message) {
       track.channel_count = static_cast<std::size_t>(header.channels_size());
       track.fps = static_cast<int>(header.fps());
       arkit.clear();
+      mesh_positions.clear();
       first_frame = 0;
       break;
     case v1::TrackMessage::kFrames:
@@ -104,8 +105,15 @@ void ReceivedTrack::add_frames(const v1::FrameBatch& batch) {
     throw protocol_error("frame batch starts at frame " + std::to_string(batch.first_frame()) + ", expected " +
                          std::to_string(first_frame + track.frame_count()));
   }
+  const std::size_t mesh_count = header.has_mesh() ? std::size_t{header.mesh().vertex_count()} * 3 : 0;
+  const bool int16 = header.has_mesh() && header.mesh().encoding() == v1::MESH_ENCODING_INT16;
+  if (int16 && header.mesh().quantisation_offset_m_size() != 3) {
+    throw protocol_error("the mesh topology has no int16 quantisation offset");
+  }
   if (static_cast<std::size_t>(batch.values_size()) != frames * track.channel_count ||
       static_cast<std::size_t>(batch.arkit_size()) != frames * arkit_count ||
+      static_cast<std::size_t>(batch.mesh_positions_size()) != (int16 ? 0 : frames * mesh_count) ||
+      batch.mesh_positions_int16().size() != (int16 ? frames * mesh_count * 2 : 0) ||
       (batch.kinds_size() != 0 && static_cast<std::size_t>(batch.kinds_size()) != frames)) {
     throw protocol_error("frame batch at frame " + std::to_string(batch.first_frame()) +
                          " has sizes that do not match its " + std::to_string(frames) + " frames");
@@ -121,6 +129,18 @@ void ReceivedTrack::add_frames(const v1::FrameBatch& batch) {
   }
   track.values.insert(track.values.end(), batch.values().begin(), batch.values().end());
   arkit.insert(arkit.end(), batch.arkit().begin(), batch.arkit().end());
+  mesh_positions.insert(mesh_positions.end(), batch.mesh_positions().begin(), batch.mesh_positions().end());
+  if (int16) {
+    const std::string& bytes = batch.mesh_positions_int16();
+    const double scale = header.mesh().quantisation_scale_m();
+    for (std::size_t i = 0; i + 1 < bytes.size(); i += 2) {
+      const auto q = static_cast<std::int16_t>(static_cast<std::uint16_t>(
+          static_cast<unsigned>(static_cast<std::uint8_t>(bytes[i])) |
+          (static_cast<unsigned>(static_cast<std::uint8_t>(bytes[i + 1])) << 8)));
+      const double offset = header.mesh().quantisation_offset_m(static_cast<int>((i / 2) % 3));
+      mesh_positions.push_back(static_cast<float>(offset + scale * q));
+    }
+  }
 }
 
 namespace detail {

@@ -16,7 +16,10 @@ Settings (keyword arguments of render and animate; all optional, defaults are th
     sampa), lookahead (int, 0..7; unset = 7, exact), fixed_rate (bool),
     closure_fraction (float in (0, 1)), channels (bool), arkit (bool) (which outputs the
     frames carry; neither set = both), session (str, animate only: publish under this
-    name), media_clock ((clock_name, utterance_zero_us)).
+    name), media_clock ((clock_name, utterance_zero_us)), mesh (bool: also the simulated
+    face's vertices, Frame.mesh), mesh_subdivision (int, 0..2; unset = 1), mesh_encoding
+    ("float32" or "int16": int16 halves the bytes, error <= half the header's
+    quantisation_scale_m, about 2.1 µm; Frame.mesh is decoded to metres either way).
 
 Errors are the server's: every call raises ``grpc.RpcError`` (use ``.code()`` and
 ``.details()``), e.g. INVALID_ARGUMENT for a bad phoneme, DEADLINE_EXCEEDED when
@@ -26,6 +29,7 @@ the call outlasts its timeout. Every call has a deadline (`timeout`, seconds).
 from __future__ import annotations
 
 import dataclasses
+import struct
 from typing import Any, Dict, Iterable, Iterator, List, Optional, Tuple
 
 import grpc
@@ -61,7 +65,9 @@ class Frame:
     index: position in the track (0-based); t_us: utterance time in integer µs;
     kind: "uniform", "closure_start", "closure_end" or "short_segment";
     channels: model channel name -> value (empty if not selected);
-    arkit: ARKit blendshape name (Apple's spelling, e.g. "jawOpen") -> weight.
+    arkit: ARKit blendshape name (Apple's spelling, e.g. "jawOpen") -> weight;
+    mesh: with the mesh output, the face's vertex positions in metres, flat
+    [x0, y0, z0, x1, ...] (header.mesh.vertex_count × 3; topology in header.mesh), else None.
     """
 
     index: int
@@ -69,6 +75,7 @@ class Frame:
     kind: str
     channels: Dict[str, float]
     arkit: Dict[str, float]
+    mesh: Optional[List[float]] = None
 
 
 @dataclasses.dataclass
@@ -119,6 +126,9 @@ def make_settings(
     arkit: bool = False,
     session: str = "",
     media_clock: Optional[Tuple[str, int]] = None,
+    mesh: bool = False,
+    mesh_subdivision: Optional[int] = None,
+    mesh_encoding: str = "float32",
 ) -> Any:
     """Builds a lipsync_pb2.AnimationSettings from keyword arguments (see the module doc).
     Unknown keywords raise TypeError."""
@@ -135,6 +145,14 @@ def make_settings(
     if channels or arkit:
         settings.outputs.channels = channels
         settings.outputs.arkit = arkit
+    if mesh:
+        settings.outputs.mesh.enabled = True
+        if mesh_subdivision is not None:
+            settings.outputs.mesh.subdivision = mesh_subdivision
+        encodings = {"float32": lipsync_pb2.MESH_ENCODING_FLOAT32, "int16": lipsync_pb2.MESH_ENCODING_INT16}
+        if mesh_encoding not in encodings:
+            raise ValueError(f"mesh_encoding must be 'float32' or 'int16', not {mesh_encoding!r}")
+        settings.outputs.mesh.encoding = encodings[mesh_encoding]
     if media_clock is not None:
         clock, zero_us = media_clock
         settings.media_clock.clock = clock
@@ -149,6 +167,25 @@ class _Decoder:
         self.channel_names = list(header.channels)
         self.arkit_names = list(header.arkit_names)
         self.next_index = 0
+        self.mesh_width = header.mesh.vertex_count * 3 if header.HasField("mesh") else 0
+        self.mesh_int16 = self.mesh_width > 0 and header.mesh.encoding == lipsync_pb2.MESH_ENCODING_INT16
+        self.mesh_scale = header.mesh.quantisation_scale_m
+        self.mesh_offset = list(header.mesh.quantisation_offset_m)
+
+    def _mesh(self, batch: Any, count: int) -> Optional[List[float]]:
+        """All the batch's coordinates in metres (None without the mesh)."""
+        if not self.mesh_width:
+            return None
+        if self.mesh_int16:
+            data = batch.mesh_positions_int16
+            if len(data) != count * self.mesh_width * 2 or len(self.mesh_offset) != 3:
+                raise ValueError(f"malformed int16 mesh positions at frame {batch.first_frame}")
+            q = struct.unpack(f"<{count * self.mesh_width}h", data)
+            scale, offset = self.mesh_scale, self.mesh_offset
+            return [offset[i % 3] + scale * value for i, value in enumerate(q)]
+        if len(batch.mesh_positions) != count * self.mesh_width:
+            raise ValueError(f"malformed mesh positions at frame {batch.first_frame}")
+        return list(batch.mesh_positions)
 
     def frames(self, batch: Any) -> Iterator[Frame]:
         count = len(batch.t_us)
@@ -162,6 +199,7 @@ class _Decoder:
                 f"{len(batch.arkit)} ARKit weights ({arkit_width} names)"
             )
         values, arkit = batch.values, batch.arkit
+        mesh, mesh_width = self._mesh(batch, count), self.mesh_width
         for i in range(count):
             yield Frame(
                 index=batch.first_frame + i,
@@ -169,6 +207,7 @@ class _Decoder:
                 kind=KIND_NAMES.get(batch.kinds[i], str(batch.kinds[i])),
                 channels=dict(zip(self.channel_names, values[i * width : (i + 1) * width])),
                 arkit=dict(zip(self.arkit_names, arkit[i * arkit_width : (i + 1) * arkit_width])),
+                mesh=None if mesh is None else mesh[i * mesh_width : (i + 1) * mesh_width],
             )
         self.next_index = batch.first_frame + count
 

@@ -1,8 +1,11 @@
 // The local–global face solver; the model and its equations are in face_solver.hpp and
-// docs/face.md. Layout: positions are n × 3 row-major doubles; the Cholesky factor of the constant
-// system matrix is copied out of Eigen into plain compressed columns so that one pass of forward
-// and one of backward substitution solves x, y and z together (1.7× faster than Eigen's solve on
-// an n × 3 block in the prototype of docs/face.md).
+// docs/face.md. Layout: positions are n × 3 row-major doubles, every per-node array in the
+// Cholesky factor's fill-reducing order (mesh order only in positions()). Each iteration forms the
+// residual of the global system in double precision (diagonal part plus the spring projections,
+// A is never stored) and solves for the correction with a single-precision copy of the factor
+// (float values, 16-bit row indices, x/y/z in one SSE vector): iterative refinement, so the
+// float rounding slows convergence by a negligible amount and does not move the fixed point, and
+// the factor's memory traffic, which bounded the solve, is halved (docs/face.md, "The solver").
 #include "lipsync/face/face_solver.hpp"
 
 #include <algorithm>
@@ -72,6 +75,14 @@ bool push_out_of_arch(V3& p, double centre_z, double a, double b, double y_min, 
 struct Spring {
   std::uint32_t i, j;
   double stiffness_n_per_m, rest_length_m;
+  double stiffness_times_length_n;  // k · L, the projection's scale numerator
+};
+
+// A spring in the hot loop: its nodes and k · L (16 bytes; k is the same for all springs of a
+// class, and the classes are stored one after the other).
+struct HotSpring {
+  std::uint32_t i, j;
+  double stiffness_times_length_n;
 };
 
 struct Binding {
@@ -105,61 +116,48 @@ std::pair<double, double> closest_on_polyline(const std::vector<V3>& line, V3 p)
   return {best, best_t};
 }
 
-// Sparse lower Cholesky factor in compressed columns (diagonal first in each column) with its
-// fill-reducing permutation: A = Pᵀ L Lᵀ P.
-struct CholeskyFactor {
-  std::vector<int> column_start, row;
-  std::vector<double> value;
-  std::vector<int> permutation;  // (P b)[permutation[i]] = b[i]
+// Four floats in one SSE register (x, y, z, unused): a node's correction in the float solve.
+typedef float Float4 __attribute__((vector_size(16)));  // NOLINT(modernize-use-using)
 
-  void solve3(const std::vector<double>& b, std::vector<double>& work, std::vector<double>& x) const {
-    const int n = static_cast<int>(permutation.size());
-    for (int i = 0; i < n; ++i) {
-      const auto to = static_cast<std::size_t>(permutation[static_cast<std::size_t>(i)]) * 3;
-      const auto from = static_cast<std::size_t>(i) * 3;
-      work[to] = b[from];
-      work[to + 1] = b[from + 1];
-      work[to + 2] = b[from + 2];
+// Sparse lower Cholesky factor of the (already permuted) system matrix, A = L Lᵀ, in single
+// precision: compressed columns of the strictly lower part with 16-bit row indices where the size
+// allows (6 bytes per entry: level 1's factor, 94k entries, then nearly fits a 512 KiB L2 cache;
+// the double factor with 32-bit indices took 1.1 MB and the solve was bound by memory traffic).
+// It solves for corrections only (iterative refinement: the residual is computed in double), so
+// its rounding changes how fast an iteration converges, not where it converges to.
+struct CholeskyFactor {
+  std::vector<int> column_start;
+  std::vector<std::uint16_t> row16;  // used when n ≤ 65536
+  std::vector<std::uint32_t> row32;  // otherwise
+  std::vector<float> value;
+  std::vector<float> inverse_diagonal;
+
+  template <typename Index>
+  void solve(const Index* row, Float4* z) const {
+    const int n = static_cast<int>(inverse_diagonal.size());
+    const int* start = column_start.data();
+    const float* l = value.data();
+    for (int j = 0; j < n; ++j) {  // L y = b, by columns: scatter
+      const Float4 zj = z[j] * inverse_diagonal[static_cast<std::size_t>(j)];
+      z[j] = zj;
+      for (int p = start[j]; p < start[j + 1]; ++p) z[row[p]] -= l[p] * zj;
     }
-    for (int j = 0; j < n; ++j) {  // L z = P b
-      const auto jj = static_cast<std::size_t>(j);
-      const std::size_t begin = static_cast<std::size_t>(column_start[jj]), end = static_cast<std::size_t>(column_start[jj + 1]);
-      const double inv = 1.0 / value[begin];
-      double* zj = &work[3 * jj];
-      zj[0] *= inv;
-      zj[1] *= inv;
-      zj[2] *= inv;
-      for (std::size_t p = begin + 1; p < end; ++p) {
-        double* zi = &work[3 * static_cast<std::size_t>(row[p])];
-        const double l = value[p];
-        zi[0] -= l * zj[0];
-        zi[1] -= l * zj[1];
-        zi[2] -= l * zj[2];
+    for (int j = n - 1; j >= 0; --j) {  // Lᵀ x = y, by columns: gather with two partial sums
+      Float4 a = {0, 0, 0, 0}, b = {0, 0, 0, 0};
+      int p = start[j];
+      for (; p + 2 <= start[j + 1]; p += 2) {
+        a += l[p] * z[row[p]];
+        b += l[p + 1] * z[row[p + 1]];
       }
+      if (p < start[j + 1]) a += l[p] * z[row[p]];
+      z[j] = (z[j] - (a + b)) * inverse_diagonal[static_cast<std::size_t>(j)];
     }
-    for (int j = n - 1; j >= 0; --j) {  // Lᵀ w = z
-      const auto jj = static_cast<std::size_t>(j);
-      const std::size_t begin = static_cast<std::size_t>(column_start[jj]), end = static_cast<std::size_t>(column_start[jj + 1]);
-      double s0 = work[3 * jj], s1 = work[3 * jj + 1], s2 = work[3 * jj + 2];
-      for (std::size_t p = begin + 1; p < end; ++p) {
-        const double* zi = &work[3 * static_cast<std::size_t>(row[p])];
-        const double l = value[p];
-        s0 -= l * zi[0];
-        s1 -= l * zi[1];
-        s2 -= l * zi[2];
-      }
-      const double inv = 1.0 / value[begin];
-      work[3 * jj] = s0 * inv;
-      work[3 * jj + 1] = s1 * inv;
-      work[3 * jj + 2] = s2 * inv;
-    }
-    for (int i = 0; i < n; ++i) {
-      const auto from = static_cast<std::size_t>(permutation[static_cast<std::size_t>(i)]) * 3;
-      const auto to = static_cast<std::size_t>(i) * 3;
-      x[to] = work[from];
-      x[to + 1] = work[from + 1];
-      x[to + 2] = work[from + 2];
-    }
+  }
+  void solve_in_place(Float4* z) const {
+    if (row32.empty())
+      solve(row16.data(), z);
+    else
+      solve(row32.data(), z);
   }
 };
 
@@ -174,13 +172,22 @@ struct FaceSolver::Impl {
   std::vector<V3> rest, rest_normal;
   std::vector<double> mass_kg, attachment_n_per_m, jaw_share;
   std::vector<Spring> springs;
+  std::vector<HotSpring> hot_springs;    // the same springs, internal indices
+  std::size_t edge_spring_count = 0;     // springs [0, count) are skin edges, the rest bending
   std::vector<MuscleBindings> muscles;
   std::vector<std::uint8_t> teeth_contact, skull_contact;
   std::vector<double> sink_limit_m;
   CholeskyFactor factor;
+  // Every per-node array above and the state below are in the factor's fill-reducing order:
+  // mesh node i is internal node internal_index[i]. Springs, bindings and the lip pairs below hold
+  // internal indices; only write_output() maps back to mesh order.
+  std::vector<std::uint32_t> internal_index;
+  std::vector<std::uint32_t> upper_lip_line, lower_lip_line, upper_inner_ring, lower_inner_ring;
 
   // State and per-step scratch (allocated once).
-  std::vector<double> x, x_previous_step, velocity, y, target, rhs, work;
+  std::vector<double> x, x_previous_step, velocity, y, target, inertia_and_attachment, residual;
+  std::vector<double> diagonal_n_per_m;  // M/h² + W per node
+  std::vector<Float4> correction;
   std::vector<Vec3> output;
   XRotation jaw;
   XRotation tongue;  // in the jaw's rest frame
@@ -198,9 +205,14 @@ struct FaceSolver::Impl {
     build_bindings();
     build_collisions();
     factorize();
+    reorder_nodes();
     x.assign(3 * n, 0.0);
     velocity.assign(3 * n, 0.0);
-    y = x_previous_step = target = rhs = work = x;
+    y = x_previous_step = target = inertia_and_attachment = residual = x;
+    correction.assign(n, Float4{0, 0, 0, 0});
+    diagonal_n_per_m.resize(n);
+    for (std::size_t i = 0; i < n; ++i)
+      diagonal_n_per_m[i] = mass_kg[i] / (params.time_step_s * params.time_step_s) + attachment_n_per_m[i];
     output.resize(mesh.vertex_count());
     reset();
   }
@@ -252,7 +264,7 @@ struct FaceSolver::Impl {
       while (end < half_edges.size() && half_edges[end].first == half_edges[k].first) ++end;
       const auto a = static_cast<std::uint32_t>(half_edges[k].first >> 32);
       const auto b = static_cast<std::uint32_t>(half_edges[k].first & 0xffffffffU);
-      springs.push_back({a, b, params.skin_stiffness_n_per_m, norm(rest[a] - rest[b])});
+      springs.push_back({a, b, params.skin_stiffness_n_per_m, norm(rest[a] - rest[b]), 0.0});
       if (end - k == 2 && params.bending_stiffness_n_per_m > 0) {
         std::uint32_t c = half_edges[k].second, d = half_edges[k + 1].second;
         if (c > d) std::swap(c, d);
@@ -260,12 +272,13 @@ struct FaceSolver::Impl {
       }
       k = end;
     }
+    edge_spring_count = springs.size();
     std::set<std::uint64_t> edge_set;
     for (const auto& s : springs) edge_set.insert((std::uint64_t{s.i} << 32) | s.j);
     for (const auto key : bend_pairs) {
       if (edge_set.count(key)) continue;
       const auto c = static_cast<std::uint32_t>(key >> 32), d = static_cast<std::uint32_t>(key & 0xffffffffU);
-      springs.push_back({c, d, params.bending_stiffness_n_per_m, norm(rest[c] - rest[d])});
+      springs.push_back({c, d, params.bending_stiffness_n_per_m, norm(rest[c] - rest[d]), 0.0});
     }
   }
 
@@ -376,12 +389,64 @@ struct FaceSolver::Impl {
     a.setFromTriplets(entries.begin(), entries.end());
     Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::AMDOrdering<int>> llt(a);
     if (llt.info() != Eigen::Success) throw std::invalid_argument("FaceSolver: the system matrix is not positive definite");
+    // L in compressed columns (diagonal first), converted to the single-precision factor.
     const Eigen::SparseMatrix<double> l = llt.matrixL();
-    factor.column_start.assign(l.outerIndexPtr(), l.outerIndexPtr() + l.outerSize() + 1);
-    factor.row.assign(l.innerIndexPtr(), l.innerIndexPtr() + l.nonZeros());
-    factor.value.assign(l.valuePtr(), l.valuePtr() + l.nonZeros());
+    const int* outer = l.outerIndexPtr();
+    const int* inner = l.innerIndexPtr();
+    const double* value = l.valuePtr();
+    const bool small = n <= 65536;
+    factor.inverse_diagonal.resize(n);
+    factor.column_start.assign(1, 0);
+    for (std::size_t j = 0; j < n; ++j) {
+      const auto begin = static_cast<std::size_t>(outer[j]), end = static_cast<std::size_t>(outer[j + 1]);
+      factor.inverse_diagonal[j] = static_cast<float>(1.0 / value[begin]);
+      for (std::size_t p = begin + 1; p < end; ++p) {
+        if (small)
+          factor.row16.push_back(static_cast<std::uint16_t>(inner[p]));
+        else
+          factor.row32.push_back(static_cast<std::uint32_t>(inner[p]));
+        factor.value.push_back(static_cast<float>(value[p]));
+      }
+      factor.column_start.push_back(static_cast<int>(factor.value.size()));
+    }
     const auto& indices = llt.permutationP().indices();
-    factor.permutation.assign(indices.data(), indices.data() + indices.size());
+    internal_index.assign(indices.data(), indices.data() + indices.size());
+  }
+
+  // Puts every per-node array, spring, binding and lip pair into the factor's order.
+  void reorder_nodes() {
+    auto permute = [&](auto& values) {
+      auto reordered = values;
+      for (std::size_t i = 0; i < n; ++i) reordered[internal_index[i]] = values[i];
+      values = std::move(reordered);
+    };
+    permute(rest);
+    permute(rest_normal);
+    permute(mass_kg);
+    permute(attachment_n_per_m);
+    permute(jaw_share);
+    permute(teeth_contact);
+    permute(skull_contact);
+    permute(sink_limit_m);
+    permute(node_area_m2);
+    for (Spring& s : springs) {
+      s.i = internal_index[s.i];
+      s.j = internal_index[s.j];
+      s.stiffness_times_length_n = s.stiffness_n_per_m * s.rest_length_m;
+      hot_springs.push_back({s.i, s.j, s.stiffness_times_length_n});
+    }
+
+    for (MuscleBindings& mb : muscles)
+      for (Binding& b : mb.bindings) b.node = internal_index[b.node];
+    auto mapped = [&](const std::vector<std::uint32_t>& ids) {
+      std::vector<std::uint32_t> out;
+      for (const auto id : ids) out.push_back(internal_index[id]);
+      return out;
+    };
+    upper_lip_line = mapped(mesh.upper_lip_line);
+    lower_lip_line = mapped(mesh.lower_lip_line);
+    upper_inner_ring = mapped(mesh.upper_inner_ring);
+    lower_inner_ring = mapped(mesh.lower_inner_ring);
   }
 
   void reset() {
@@ -435,29 +500,47 @@ struct FaceSolver::Impl {
     for (std::size_t k = 0; k < 3 * n; ++k) y[k] = x[k] + h * decay * velocity[k];
     x_previous_step = x;
     x = y;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double m = mass_kg[i] * inv_h2, w = attachment_n_per_m[i];
+      for (std::size_t c = 0; c < 3; ++c) inertia_and_attachment[3 * i + c] = m * y[3 * i + c] + w * target[3 * i + c];
+    }
+    // Each iteration solves A x' = M y/h² + W target + Σ k Sᵀ p for the correction x' − x, from the
+    // residual r = (M y/h² + W target + Σ k Sᵀ p) − A x in double precision: the diagonal part
+    // (M/h² + W) x, and per spring k Sᵀ (p − S x) = (k L/|d| − k) d with d = x_i − x_j.
     for (int iteration = 0; iteration < params.iterations; ++iteration) {
+      for (std::size_t k = 0; k < 3 * n; ++k) residual[k] = inertia_and_attachment[k] - diagonal_n_per_m[k / 3] * x[k];
+      add_spring_residuals(0, edge_spring_count, params.skin_stiffness_n_per_m);
+      add_spring_residuals(edge_spring_count, hot_springs.size(), params.bending_stiffness_n_per_m);
+      for (std::size_t i = 0; i < n; ++i)
+        correction[i] = Float4{static_cast<float>(residual[3 * i]), static_cast<float>(residual[3 * i + 1]),
+                               static_cast<float>(residual[3 * i + 2]), 0.0F};
+      factor.solve_in_place(correction.data());
       for (std::size_t i = 0; i < n; ++i) {
-        const double m = mass_kg[i] * inv_h2, w = attachment_n_per_m[i];
-        for (std::size_t c = 0; c < 3; ++c) rhs[3 * i + c] = m * y[3 * i + c] + w * target[3 * i + c];
+        x[3 * i] += static_cast<double>(correction[i][0]);
+        x[3 * i + 1] += static_cast<double>(correction[i][1]);
+        x[3 * i + 2] += static_cast<double>(correction[i][2]);
       }
-      // Local step: each spring's projection p = L (x_i − x_j)/|x_i − x_j|, added as k Sᵀ p.
-      for (const Spring& s : springs) {
-        const V3 d{x[3 * s.i] - x[3 * s.j], x[3 * s.i + 1] - x[3 * s.j + 1], x[3 * s.i + 2] - x[3 * s.j + 2]};
-        const double length = norm(d);
-        if (!(length > 1e-12)) continue;
-        const double scale = s.stiffness_n_per_m * s.rest_length_m / length;
-        rhs[3 * s.i] += scale * d.x;
-        rhs[3 * s.i + 1] += scale * d.y;
-        rhs[3 * s.i + 2] += scale * d.z;
-        rhs[3 * s.j] -= scale * d.x;
-        rhs[3 * s.j + 1] -= scale * d.y;
-        rhs[3 * s.j + 2] -= scale * d.z;
-      }
-      factor.solve3(rhs, work, x);
     }
     resolve_contacts();
     const double inv_h = 1.0 / h;
     for (std::size_t k = 0; k < 3 * n; ++k) velocity[k] = (x[k] - x_previous_step[k]) * inv_h;
+  }
+
+  void add_spring_residuals(std::size_t begin, std::size_t end, double stiffness_n_per_m) {
+    double* r = residual.data();
+    const double* p = x.data();
+    for (std::size_t k = begin; k < end; ++k) {
+      const HotSpring s = hot_springs[k];
+      const double dx = p[3 * s.i] - p[3 * s.j], dy = p[3 * s.i + 1] - p[3 * s.j + 1], dz = p[3 * s.i + 2] - p[3 * s.j + 2];
+      const double length = std::sqrt(dx * dx + dy * dy + dz * dz);
+      const double scale = (length > 1e-12 ? s.stiffness_times_length_n / length : 0.0) - stiffness_n_per_m;
+      r[3 * s.i] += scale * dx;
+      r[3 * s.i + 1] += scale * dy;
+      r[3 * s.i + 2] += scale * dz;
+      r[3 * s.j] -= scale * dx;
+      r[3 * s.j + 1] -= scale * dy;
+      r[3 * s.j + 2] -= scale * dz;
+    }
   }
 
   V3 node(std::size_t i) const { return {x[3 * i], x[3 * i + 1], x[3 * i + 2]}; }
@@ -479,8 +562,8 @@ struct FaceSolver::Impl {
         set_node(lower[k], mid);
       }
     };
-    press(mesh.upper_lip_line, mesh.lower_lip_line);
-    press(mesh.upper_inner_ring, mesh.lower_inner_ring);
+    press(upper_lip_line, lower_lip_line);
+    press(upper_inner_ring, lower_inner_ring);
     const double margin = params.teeth_margin_m;
     for (std::size_t i = 0; i < n; ++i) {
       if (teeth_contact[i]) {
@@ -508,7 +591,10 @@ struct FaceSolver::Impl {
   }
 
   void write_output() {
-    for (std::size_t i = 0; i < n; ++i) output[i] = {x[3 * i], x[3 * i + 1], x[3 * i + 2]};
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::size_t k = internal_index[i];
+      output[i] = {x[3 * k], x[3 * k + 1], x[3 * k + 2]};
+    }
     for (std::size_t i = mesh.upper_teeth_begin; i < mesh.lower_teeth_begin; ++i) output[i] = mesh.rest_positions_m[i];
     for (std::size_t i = mesh.lower_teeth_begin; i < mesh.tongue_begin; ++i) {
       const V3 p = jaw.apply(mesh.rest_positions_m[i]);

@@ -11,7 +11,8 @@
 //     y = x + h · v · exp(−h / damping_time)                 (inertia, damped)
 //     repeat `iterations` times:  p = projections(x);  x = A⁻¹ (M y / h² + Σ k Sᵀ p + κ ∘ target)
 // and then keeps the skin out of the teeth and skull and the lips from passing through each other.
-// Fixed iteration count, fixed order, double precision: bit-reproducible on one platform.
+// Fixed iteration count, fixed order, double-precision state (the factor is applied in single
+// precision to double-precision residuals): bit-reproducible on one platform.
 // Units: metres, kilograms, seconds. No allocation in step().
 #pragma once
 

@@ -31,17 +31,17 @@ struct ServerConfig {
   std::int64_t drain_deadline_ms = 5000;   ///< on SIGTERM: time running streams get to finish
 
   // Admission limits (RESOURCE_EXHAUSTED beyond them).
-  std::size_t max_streams = 1000;                 ///< concurrent Animate + Subscribe streams
-  std::size_t max_sessions = 100;                 ///< named sessions held (live or retained)
+  std::size_t max_streams = 10'000;               ///< concurrent Animate + Subscribe streams
+  std::size_t max_sessions = 10'000;              ///< named sessions held (live or retained)
   std::size_t max_subscribers_per_session = 100;  ///< concurrent subscribers of one session
   std::size_t max_phonemes = 100'000;             ///< phonemes per utterance
   std::int64_t max_utterance_ms = 3'600'000;      ///< utterance length (end of the last phoneme)
   std::size_t max_message_bytes = 4 * 1024 * 1024;  ///< largest request message
 
   // Sessions and fan-out.
-  std::size_t replay_frames = 10'000;           ///< frames a session keeps for late joiners
+  std::size_t replay_frames = 1'800;            ///< frames a session keeps for late joiners (1 min at 30 fps)
   std::size_t subscriber_queue_frames = 2'000;  ///< frames a subscriber may have waiting
-  std::int64_t session_retention_ms = 30'000;   ///< how long a finished session stays joinable
+  std::int64_t session_retention_ms = 10'000;   ///< how long a finished session stays joinable
 
   std::string log_level = "info";  ///< trace, debug, info, warn, error, off
   std::vector<ModelFile> models;   ///< extra models beside the built-in one

@@ -66,6 +66,9 @@ struct ReceivedTrack {
   v1::TrackHeader header;
   Track track;               ///< channel_count = header.channels_size(), fps = header.fps()
   std::vector<float> arkit;  ///< frame_count() × header.arkit_names_size()
+  /// With the mesh output (header.has_mesh()): frame_count() × header.mesh().vertex_count() × 3
+  /// vertex coordinates in metres, int16 batches decoded as offset + scale × q; empty otherwise.
+  std::vector<float> mesh_positions;
   std::optional<v1::TrackSummary> summary;
   std::uint64_t first_frame = 0;  ///< track index of track.t_us[0] (> 0 for a subscriber joining late)
 

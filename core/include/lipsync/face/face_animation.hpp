@@ -1,0 +1,77 @@
+// The face over time: an animation track (channel values at frame times) simulated by FaceSolver
+// on a uniform grid, and written out as a glTF 2.0 binary (.glb) that 3D tools open.
+//
+// simulate_face_animation() samples the track's channel values (linear interpolation between its
+// frames, held before the first and after the last) at every solver substep, steps the solver,
+// and records the pose at each frame of a uniform grid of `fps`. The substep is 1/(fps · s) with
+// s = ceil(60 / fps), so the solver never steps longer than 1/60 s.
+//
+// write_face_glb() stores the mesh once (rest positions, UVs, per-part colours, triangles) and the
+// motion as morph targets: one target per *key frame* (a frame that linear interpolation between
+// the previous key and a later frame cannot reproduce within `key_tolerance_m`), and one weights
+// animation with LINEAR interpolation whose weight vector is one-hot at each key time. Between two
+// keys the weights blend exactly those two targets, i.e. the positions are linearly interpolated;
+// a held pose costs one target instead of one per frame. Times in the sampler are float seconds
+// (glTF's format) converted from the exact microseconds. Pure: writes to a std::ostream only.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <ostream>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "lipsync/face/face_mesh.hpp"
+#include "lipsync/face/face_rig.hpp"
+#include "lipsync/face/face_solver.hpp"
+#include "lipsync/track.hpp"
+
+namespace lipsync::face {
+
+/// Poses of the whole mesh (all vertices, mesh order) at strictly increasing times.
+struct FaceAnimation {
+  std::size_t vertex_count = 0;
+  std::vector<std::int64_t> t_us;
+  std::vector<Vec3> positions;  ///< frame_count() × vertex_count, metres
+
+  std::size_t frame_count() const { return t_us.size(); }
+  std::span<const Vec3> frame(std::size_t k) const { return {positions.data() + k * vertex_count, vertex_count}; }
+};
+
+/// The track's channel values at `t_us`: linear between frames, held outside. `out` has
+/// track.channel_count elements.
+void sample_track(const Track& track, std::int64_t t_us, std::span<float> out);
+
+/// Simulates `track` from rest and records frames k = 0 … at t = round(k · 10⁶ / fps) µs, the
+/// last one the first at or after the track's last frame time (a video covers the whole track). Throws
+/// std::invalid_argument for fps outside 1..240 or a track whose channel count differs from the rig's.
+FaceAnimation simulate_face_animation(const FaceMesh& mesh, const FaceRig& rig, const Track& track, int fps,
+                                      FaceSolverParams params = {});
+
+struct GlbOptions {
+  /// A frame becomes a key when linear interpolation from the previous key misses any vertex of an
+  /// intermediate frame by more than this (0 keeps every frame).
+  double key_tolerance_m = 0.0001;
+  std::string name = "lipsync face";
+};
+
+struct GlbSummary {
+  std::size_t key_frames = 0;
+  std::size_t bytes = 0;
+};
+
+/// Writes `animation` of `mesh` as a glTF 2.0 binary. Throws std::invalid_argument for an empty
+/// animation or a vertex count that differs from the mesh's.
+GlbSummary write_face_glb(std::ostream& out, const FaceMesh& mesh, const FaceAnimation& animation,
+                          const GlbOptions& options = {});
+
+/// Linear RGB colour (0..1) of a mesh part, shared by the glTF export and the rasteriser.
+std::array<float, 3> part_colour(FacePart part);
+/// Per-vertex linear RGB: the part's colour, with the skin inside the outer lip contour (landmarks
+/// 61 185 40 39 37 0 267 269 270 409 291 375 321 405 314 17 84 181 91 146, seen from the front at
+/// rest) in a lip colour.
+std::vector<std::array<float, 3>> vertex_colours(const FaceMesh& mesh);
+
+}  // namespace lipsync::face

@@ -1,0 +1,255 @@
+// grpc_baseline_server: a bare gRPC server for lipsyncd's load test.
+//
+// It implements lipsync.v1.LipSync/Animate the way lipsyncd does (callback
+// API, one ServerBidiReactor per stream, a queue with one write in flight and
+// Finish only when none is) and answers with messages of the same shape: a
+// TrackHeader, FrameBatches of constant frames on the uniform grid (t_us,
+// kinds, 16 channel floats and/or 52 ARKit floats per frame, as the settings'
+// outputs ask), and a TrackSummary. Like lipsyncd with lookahead 7, a chunk
+// releases the frames before the start of the phoneme 7 places back, and `end`
+// releases the rest; batches hold at most 512 frames. There is no engine, no
+// session, no validation and no admission limit: what it costs is what gRPC
+// and protobuf cost, so `lipsync loadtest --no-verify` against it gives the
+// ceiling lipsyncd is compared with (tools/perf/server_loadtest.sh).
+//
+//   grpc_baseline_server [--listen 127.0.0.1:0]
+//
+// Prints "listening on HOST:PORT" on stdout; SIGINT/SIGTERM stop it.
+#include <signal.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <deque>
+#include <iostream>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <grpcpp/grpcpp.h>
+
+// The generated base declares sync-API overloads of Animate that the callback
+// override hides on purpose (as in server/src/service.hpp).
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Woverloaded-virtual"
+#include "lipsync/v1/lipsync.grpc.pb.h"
+
+namespace {
+
+namespace v1 = lipsync::v1;
+using Message = std::shared_ptr<const v1::TrackMessage>;
+
+constexpr int kChannels = 16;
+constexpr int kArkit = 52;
+constexpr std::size_t kLookahead = 7;
+constexpr std::int64_t kMaxFramesPerBatch = 512;
+
+class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, v1::TrackMessage> {
+ public:
+  AnimateReactor() { StartRead(&request_); }
+
+  void OnReadDone(bool ok) override {
+    if (!ok) {
+      close(ended_ ? grpc::Status::OK
+                   : grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "the client closed the stream before `end`"));
+      return;
+    }
+    if (request_.has_settings()) {
+      start(request_.settings());
+    } else if (request_.has_phonemes()) {
+      for (const v1::Phoneme& phoneme : request_.phonemes().phonemes()) {
+        starts_.push_back(phoneme.start_us());
+        end_us_ = std::max(end_us_, phoneme.end_us());
+      }
+      if (starts_.size() > kLookahead) release_before(starts_[starts_.size() - 1 - kLookahead]);
+    } else if (request_.has_end()) {
+      release_before(end_us_ + 1);
+      auto summary = std::make_shared<v1::TrackMessage>();
+      summary->mutable_summary()->set_frames(next_frame_);
+      summary->mutable_summary()->set_phonemes(starts_.size());
+      summary->mutable_summary()->set_duration_us(end_us_);
+      push(std::move(summary));
+      ended_ = true;
+    }
+    StartRead(&request_);
+  }
+
+  void OnWriteDone(bool ok) override {
+    {
+      std::lock_guard lock(mutex_);
+      writing_ = false;
+      in_flight_.reset();
+      if (!ok) {
+        queue_.clear();
+        if (!status_) status_ = grpc::Status(grpc::StatusCode::CANCELLED, "the client went away");
+      }
+    }
+    pump();
+  }
+
+  void OnCancel() override {
+    {
+      std::lock_guard lock(mutex_);
+      queue_.clear();
+      if (!status_) status_ = grpc::Status(grpc::StatusCode::CANCELLED, "cancelled");
+    }
+    pump();
+  }
+
+  void OnDone() override { delete this; }
+
+ private:
+  void start(const v1::AnimationSettings& settings) {
+    fps_ = settings.fps() == 0 ? 30 : settings.fps();
+    const bool neither = !settings.outputs().channels() && !settings.outputs().arkit();
+    channels_ = neither || settings.outputs().channels();
+    arkit_ = neither || settings.outputs().arkit();
+    auto header = std::make_shared<v1::TrackMessage>();
+    v1::TrackHeader& h = *header->mutable_header();
+    h.set_model("default");
+    h.set_fps(fps_);
+    h.set_lookahead(kLookahead);
+    h.set_session(settings.session());
+    if (channels_) {
+      for (int c = 0; c < kChannels; ++c) h.add_channels("channel_" + std::to_string(c));
+    }
+    if (arkit_) {
+      for (int a = 0; a < kArkit; ++a) h.add_arkit_names("arkit_" + std::to_string(a));
+    }
+    push(std::move(header));
+  }
+
+  std::int64_t frame_time(std::int64_t index) const {
+    return static_cast<std::int64_t>(std::llround(static_cast<double>(index) * 1e6 / fps_));
+  }
+
+  /// Sends the grid frames before `limit_us`, in batches of at most 512.
+  void release_before(std::int64_t limit_us) {
+    while (frame_time(next_frame_) < limit_us) {
+      auto message = std::make_shared<v1::TrackMessage>();
+      v1::FrameBatch& batch = *message->mutable_frames();
+      batch.set_first_frame(static_cast<std::uint64_t>(next_frame_));
+      std::int64_t count = 0;
+      while (count < kMaxFramesPerBatch && frame_time(next_frame_ + count) < limit_us) ++count;
+      batch.mutable_t_us()->Reserve(static_cast<int>(count));
+      batch.mutable_kinds()->Reserve(static_cast<int>(count));
+      for (std::int64_t i = 0; i < count; ++i) {
+        batch.add_t_us(frame_time(next_frame_ + i));
+        batch.add_kinds(v1::FRAME_KIND_UNIFORM);
+      }
+      if (channels_) batch.mutable_values()->Resize(static_cast<int>(count) * kChannels, 0.25f);
+      if (arkit_) batch.mutable_arkit()->Resize(static_cast<int>(count) * kArkit, 0.125f);
+      next_frame_ += count;
+      push(std::move(message));
+    }
+  }
+
+  void push(Message message) {
+    {
+      std::lock_guard lock(mutex_);
+      if (status_) return;
+      queue_.push_back(std::move(message));
+    }
+    pump();
+  }
+
+  void close(const grpc::Status& status) {
+    {
+      std::lock_guard lock(mutex_);
+      if (!status_) status_ = status;
+    }
+    pump();
+  }
+
+  void pump() {
+    const v1::TrackMessage* write = nullptr;
+    bool finish = false;
+    grpc::Status status;
+    {
+      std::lock_guard lock(mutex_);
+      if (writing_ || finish_called_) return;
+      if (!queue_.empty()) {
+        in_flight_ = std::move(queue_.front());
+        queue_.pop_front();
+        writing_ = true;
+        write = in_flight_.get();
+      } else if (status_) {
+        finish_called_ = true;
+        finish = true;
+        status = *status_;
+      }
+    }
+    if (write) {
+      StartWrite(write);
+    } else if (finish) {
+      Finish(status);
+    }
+  }
+
+  v1::AnimateRequest request_;
+  std::uint32_t fps_ = 30;
+  bool channels_ = true;
+  bool arkit_ = true;
+  bool ended_ = false;
+  std::vector<std::int64_t> starts_;
+  std::int64_t end_us_ = 0;
+  std::int64_t next_frame_ = 0;
+
+  std::mutex mutex_;
+  std::deque<Message> queue_;
+  Message in_flight_;
+  bool writing_ = false;
+  bool finish_called_ = false;
+  std::optional<grpc::Status> status_;
+};
+
+class BaselineService final : public v1::LipSync::CallbackService {
+  grpc::ServerBidiReactor<v1::AnimateRequest, v1::TrackMessage>* Animate(
+      grpc::CallbackServerContext* /*context*/) override {
+    return new AnimateReactor();
+  }
+};
+#pragma GCC diagnostic pop
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string listen = "127.0.0.1:0";
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--listen" && i + 1 < argc) {
+      listen = argv[++i];
+    } else if (arg == "--help" || arg == "-h") {
+      std::cout << "grpc_baseline_server [--listen 127.0.0.1:0]\n";
+      return 0;
+    } else {
+      std::cerr << "grpc_baseline_server: unknown argument '" << arg << "'\n";
+      return 2;
+    }
+  }
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  BaselineService service;
+  grpc::ServerBuilder builder;
+  int port = 0;
+  builder.AddListeningPort(listen, grpc::InsecureServerCredentials(), &port);
+  builder.RegisterService(&service);
+  std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+  if (!server || port == 0) {
+    std::cerr << "grpc_baseline_server: cannot listen on " << listen << '\n';
+    return 1;
+  }
+  std::cout << "listening on " << listen.substr(0, listen.rfind(':')) << ':' << port << std::endl;
+  int signal = 0;
+  sigwait(&signals, &signal);
+  server->Shutdown(std::chrono::system_clock::now() + std::chrono::milliseconds(500));
+  server->Wait();
+  return 0;
+}

@@ -1,0 +1,209 @@
+// End-to-end tests of the face outputs of `lipsync render` (--mesh, --video, --audio, --still):
+// the real binary runs in a fresh temporary directory; the files it leaves are checked from the
+// outside (the glTF header, and ffprobe's view of the video's streams, duration and frame count).
+// The video tests are skipped when ffmpeg/ffprobe are not installed (deploy/install-deps.sh
+// installs them); the missing-ffmpeg error is tested with an empty PATH.
+#include <fcntl.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace lipsync {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+
+const fs::path kFixtures = fs::path(LIPSYNC_TEST_DATA_DIR) / "cli";
+
+std::string read_text(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+fs::path make_temp_dir(const std::string& prefix) {
+  std::string pattern = (fs::temp_directory_path() / (prefix + "XXXXXX")).string();
+  if (::mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
+  return pattern;
+}
+
+struct RunResult {
+  int status = -1;
+  std::string out, err;
+};
+
+// Runs `argv` (argv[0] a path) in `cwd` with stdout/stderr captured; `path_env` replaces PATH.
+RunResult run_program(std::vector<std::string> argv_text, const fs::path& cwd, const fs::path& capture,
+                      const std::optional<std::string>& path_env = std::nullopt) {
+  const fs::path out_path = capture / "stdout", err_path = capture / "stderr";
+  std::vector<char*> argv;
+  for (std::string& arg : argv_text) argv.push_back(arg.data());
+  argv.push_back(nullptr);
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const int in = ::open("/dev/null", O_RDONLY);
+    const int out = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int err = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (in < 0 || out < 0 || err < 0 || ::chdir(cwd.c_str()) != 0) ::_exit(126);
+    ::dup2(in, STDIN_FILENO);
+    ::dup2(out, STDOUT_FILENO);
+    ::dup2(err, STDERR_FILENO);
+    if (path_env) ::setenv("PATH", path_env->c_str(), 1);
+    ::execv(argv_text[0].c_str(), argv.data());
+    ::_exit(127);
+  }
+  RunResult result;
+  int status = 0;
+  if (pid < 0 || ::waitpid(pid, &status, 0) != pid) return result;
+  result.status = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  result.out = read_text(out_path);
+  result.err = read_text(err_path);
+  return result;
+}
+
+std::optional<std::string> find_program(const std::string& name) {
+  for (const char* dir : {"/usr/bin", "/usr/local/bin", "/bin"}) {
+    const fs::path candidate = fs::path(dir) / name;
+    if (::access(candidate.c_str(), X_OK) == 0) return candidate.string();
+  }
+  return std::nullopt;
+}
+
+// One second of a 220 Hz tone, 16 kHz mono 16-bit PCM.
+void write_wav(const fs::path& path, double seconds) {
+  const std::uint32_t rate = 16000, samples = static_cast<std::uint32_t>(seconds * rate);
+  std::ofstream out(path, std::ios::binary);
+  const auto u32 = [&](std::uint32_t v) { out.write(reinterpret_cast<const char*>(&v), 4); };
+  const auto u16 = [&](std::uint16_t v) { out.write(reinterpret_cast<const char*>(&v), 2); };
+  out << "RIFF";
+  u32(36 + 2 * samples);
+  out << "WAVEfmt ";
+  u32(16), u16(1), u16(1), u32(rate), u32(2 * rate), u16(2), u16(16);
+  out << "data";
+  u32(2 * samples);
+  for (std::uint32_t k = 0; k < samples; ++k)
+    u16(static_cast<std::uint16_t>(static_cast<std::int16_t>(8000 * std::sin(2 * M_PI * 220 * k / rate))));
+}
+
+class FaceCliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = make_temp_dir("lipsync-face-cli-test-");
+    capture_ = make_temp_dir("lipsync-face-cli-capture-");
+  }
+  void TearDown() override {
+    fs::remove_all(dir_);
+    fs::remove_all(capture_);
+  }
+  RunResult run(std::vector<std::string> args, const std::optional<std::string>& path_env = std::nullopt) {
+    args.insert(args.begin(), LIPSYNC_CLI_BINARY);
+    return run_program(args, dir_, capture_, path_env);
+  }
+  std::vector<std::string> listing() const {
+    std::vector<std::string> names;
+    for (const auto& entry : fs::directory_iterator(dir_)) names.push_back(entry.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
+  }
+  fs::path dir_, capture_;
+};
+
+const std::string kInput = (kFixtures / "bump_map.lab").string();
+
+TEST_F(FaceCliTest, mesh_writes_a_glb_and_nothing_else) {
+  const RunResult result = run({"render", kInput, "--mesh", "face.glb", "--mesh-subdivision", "0"});
+  ASSERT_EQ(result.status, 0) << result.err;
+  EXPECT_EQ(result.out, "");  // no track on stdout unless -o is given
+  EXPECT_EQ(listing(), std::vector<std::string>{"face.glb"});
+  const std::string bytes = read_text(dir_ / "face.glb");
+  ASSERT_GT(bytes.size(), 20U);
+  EXPECT_EQ(bytes.substr(0, 4), "glTF");
+  std::uint32_t json_length = 0;
+  std::memcpy(&json_length, bytes.data() + 12, 4);
+  const auto json = nlohmann::json::parse(bytes.substr(20, json_length));
+  EXPECT_EQ(json["asset"]["version"], "2.0");
+  EXPECT_GE(json["meshes"][0]["primitives"][0]["targets"].size(), 2U);
+  EXPECT_EQ(json["animations"][0]["samplers"][0]["interpolation"], "LINEAR");
+}
+
+TEST_F(FaceCliTest, mesh_with_a_track_file_writes_both) {
+  const RunResult result = run({"render", kInput, "--mesh", "face.glb", "--mesh-subdivision=0", "-o", "track.json"});
+  ASSERT_EQ(result.status, 0) << result.err;
+  EXPECT_EQ(listing(), (std::vector<std::string>{"face.glb", "track.json"}));
+}
+
+TEST_F(FaceCliTest, bad_options_leave_no_file) {
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"render", kInput, "--mesh", "face.glb", "--mesh-subdivision", "3"},
+        std::vector<std::string>{"render", kInput, "--audio", "x.wav"},
+        std::vector<std::string>{"render", kInput, "--mesh", "no/such/dir/face.glb"}}) {
+    const RunResult result = run(args);
+    EXPECT_NE(result.status, 0);
+    EXPECT_NE(result.err, "");
+    EXPECT_TRUE(listing().empty()) << args.back();
+  }
+}
+
+TEST_F(FaceCliTest, missing_ffmpeg_is_a_clear_error_and_leaves_no_file) {
+  const RunResult result = run({"render", kInput, "--video", "face.mp4"}, (capture_ / "empty-path").string());
+  EXPECT_NE(result.status, 0);
+  EXPECT_THAT(result.err, HasSubstr("ffmpeg was not found"));
+  EXPECT_TRUE(listing().empty());
+}
+
+TEST_F(FaceCliTest, video_with_audio_has_both_streams_the_track_duration_and_frame_count) {
+  const auto ffprobe = find_program("ffprobe");
+  if (!find_program("ffmpeg") || !ffprobe) GTEST_SKIP() << "ffmpeg/ffprobe not installed";
+  write_wav(dir_ / "speech.wav", 1.2);
+  const RunResult result =
+      run({"render", kInput, "--video", "face.mp4", "--audio", "speech.wav", "--mesh-subdivision", "0"});
+  ASSERT_EQ(result.status, 0) << result.err;
+  EXPECT_EQ(listing(), (std::vector<std::string>{"face.mp4", "speech.wav"}));
+  const RunResult probe = run_program({*ffprobe, "-v", "error", "-count_frames", "-show_streams", "-show_format", "-of",
+                                       "json", (dir_ / "face.mp4").string()},
+                                      dir_, capture_);
+  ASSERT_EQ(probe.status, 0) << probe.err;
+  const auto info = nlohmann::json::parse(probe.out);
+  ASSERT_EQ(info["streams"].size(), 2U);
+  const auto& video = info["streams"][0]["codec_type"] == "video" ? info["streams"][0] : info["streams"][1];
+  const auto& audio = info["streams"][0]["codec_type"] == "audio" ? info["streams"][0] : info["streams"][1];
+  EXPECT_EQ(video["codec_type"], "video");
+  EXPECT_EQ(audio["codec_type"], "audio");
+  EXPECT_EQ(video["codec_name"], "h264");
+  EXPECT_EQ(video["r_frame_rate"], "30/1");
+  // The track of bump_map.lab ends at its last label's end; frames 0 .. ceil(end · 30).
+  const RunResult track = run({"render", kInput, "--format", "csv"});
+  ASSERT_EQ(track.status, 0);
+  const std::string last_line = track.out.substr(track.out.rfind('\n', track.out.size() - 2) + 1);
+  const double end_s = std::stod(last_line.substr(0, last_line.find(',')));
+  const int frames = static_cast<int>(std::ceil(end_s * 30 - 1e-6)) + 1;
+  EXPECT_EQ(std::stoi(video["nb_read_frames"].get<std::string>()), frames) << "end " << end_s << " s";
+  EXPECT_NEAR(std::stod(video["duration"].get<std::string>()), frames / 30.0, 0.05);
+}
+
+TEST_F(FaceCliTest, still_writes_one_png) {
+  if (!find_program("ffmpeg")) GTEST_SKIP() << "ffmpeg not installed";
+  const RunResult result =
+      run({"render", kInput, "--still", "face.png", "--still-at", "0.3", "--mesh-subdivision", "0"});
+  ASSERT_EQ(result.status, 0) << result.err;
+  EXPECT_EQ(listing(), std::vector<std::string>{"face.png"});
+  EXPECT_EQ(read_text(dir_ / "face.png").substr(1, 3), "PNG");
+}
+
+}  // namespace
+}  // namespace lipsync

@@ -1,0 +1,373 @@
+// lipsyncd's mesh output over the network: the topology once in the header,
+// per-frame positions equal to FaceSolver run offline on render_track's frames
+// (bit for bit as float32, within half a quantisation step as int16), Render =
+// Animate, subscribers get the producer's mesh, channel-only streams carry no
+// mesh bytes, bad mesh settings rejected naming the field.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <string>
+#include <thread>
+
+#include <grpcpp/grpcpp.h>
+
+#include "lipsync/face/face_mesh.hpp"
+#include "lipsync/face/face_rig.hpp"
+#include "lipsync/face/face_solver.hpp"
+#include "lipsync/model.hpp"
+#include "lipsync/phone_set.hpp"
+#include "lipsync/renderer.hpp"
+#include "lipsync/segment.hpp"
+#include "lipsync/server/config.hpp"
+#include "lipsync/server/server.hpp"
+#include "lipsync/synthetic.hpp"
+#include "lipsync/v1/lipsync.grpc.pb.h"
+
+namespace lipsync::server {
+namespace {
+
+using ::testing::HasSubstr;
+using namespace std::chrono_literals;
+
+std::vector<LabeledInterval> utterance(std::size_t phonemes, std::uint64_t seed = 3) {
+  return synthesize_utterance({.phonemes = phonemes, .seed = seed});
+}
+
+Track reference_track(const std::vector<LabeledInterval>& intervals) {
+  const ArticulationModel& model = ArticulationModel::builtin();
+  const PhoneSet arpabet = *PhoneSet::builtin("arpabet", model);
+  return render_track(model, build_segments({"test", "", intervals}, model, arpabet), {.fps = 30});
+}
+
+/// The documented rule, offline: one step per frame, dt = t_i − t_{i−1} (t_{−1} = 0). Metres, double.
+std::vector<double> reference_positions(const Track& track, int level) {
+  const face::FaceMesh mesh = face::build_face_mesh(face::FaceAsset::builtin(), level);
+  face::FaceSolver solver(mesh, face::FaceRig::builtin());
+  std::vector<double> out;
+  std::int64_t previous = 0;
+  for (std::size_t frame = 0; frame < track.frame_count(); ++frame) {
+    solver.step(track.frame_values(frame), static_cast<double>(track.t_us[frame] - previous) * 1e-6);
+    previous = track.t_us[frame];
+    for (const face::Vec3& p : solver.positions()) out.insert(out.end(), {p.x, p.y, p.z});
+  }
+  return out;
+}
+
+v1::AnimationSettings mesh_settings(int level, v1::MeshEncoding encoding = v1::MESH_ENCODING_FLOAT32) {
+  v1::AnimationSettings settings;
+  auto& mesh = *settings.mutable_outputs()->mutable_mesh();
+  mesh.set_enabled(true);
+  mesh.set_subdivision(static_cast<std::uint32_t>(level));
+  mesh.set_encoding(encoding);
+  return settings;
+}
+
+v1::Phoneme to_proto(const LabeledInterval& interval) {
+  v1::Phoneme phoneme;
+  phoneme.set_label(interval.label);
+  phoneme.set_start_us(interval.start_us);
+  phoneme.set_end_us(interval.end_us);
+  return phoneme;
+}
+
+struct Received {
+  std::vector<v1::TrackHeader> headers;
+  std::vector<v1::FrameBatch> batches;
+  std::optional<v1::TrackSummary> summary;
+  grpc::Status status;
+
+  std::size_t frames() const {
+    std::size_t n = 0;
+    for (const auto& batch : batches) n += static_cast<std::size_t>(batch.t_us_size());
+    return n;
+  }
+  std::vector<float> positions() const {
+    std::vector<float> out;
+    for (const auto& batch : batches) out.insert(out.end(), batch.mesh_positions().begin(), batch.mesh_positions().end());
+    return out;
+  }
+  std::vector<std::int16_t> quantised() const {
+    std::vector<std::int16_t> out;
+    for (const auto& batch : batches) {
+      const std::string& bytes = batch.mesh_positions_int16();
+      for (std::size_t i = 0; i + 1 < bytes.size(); i += 2) {
+        const auto low = static_cast<std::uint8_t>(bytes[i]), high = static_cast<std::uint8_t>(bytes[i + 1]);
+        out.push_back(static_cast<std::int16_t>(static_cast<std::uint16_t>(low | (high << 8))));
+      }
+    }
+    return out;
+  }
+  std::vector<float> values() const {
+    std::vector<float> out;
+    for (const auto& batch : batches) out.insert(out.end(), batch.values().begin(), batch.values().end());
+    return out;
+  }
+};
+
+void take(Received& received, const v1::TrackMessage& message) {
+  if (message.has_header()) received.headers.push_back(message.header());
+  if (message.has_frames()) received.batches.push_back(message.frames());
+  if (message.has_summary()) received.summary = message.summary();
+}
+
+void set_deadline(grpc::ClientContext& context) { context.set_deadline(std::chrono::system_clock::now() + 60s); }
+
+class MeshTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ServerConfig config;
+    config.listen = "127.0.0.1:0";
+    config.log_level = "warn";
+    server_ = std::make_unique<Server>(config);
+    grpc::ChannelArguments args;
+    args.SetMaxReceiveMessageSize(-1);
+    stub_ = v1::LipSync::NewStub(grpc::CreateCustomChannel(server_->address(), grpc::InsecureChannelCredentials(), args));
+  }
+  void TearDown() override { server_->shutdown(0ms); }
+
+  Received animate(const v1::AnimationSettings& settings, const std::vector<LabeledInterval>& intervals,
+                   std::size_t chunk = 5) {
+    grpc::ClientContext context;
+    set_deadline(context);
+    auto stream = stub_->Animate(&context);
+    Received received;
+    std::thread reader([&] {
+      v1::TrackMessage message;
+      while (stream->Read(&message)) take(received, message);
+    });
+    v1::AnimateRequest request;
+    *request.mutable_settings() = settings;
+    stream->Write(request);
+    for (std::size_t i = 0; i < intervals.size(); i += chunk) {
+      v1::AnimateRequest phonemes;
+      for (std::size_t j = i; j < std::min(intervals.size(), i + chunk); ++j) {
+        *phonemes.mutable_phonemes()->add_phonemes() = to_proto(intervals[j]);
+      }
+      if (!stream->Write(phonemes)) break;
+    }
+    v1::AnimateRequest end;
+    end.mutable_end();
+    stream->Write(end);
+    stream->WritesDone();
+    reader.join();
+    received.status = stream->Finish();
+    return received;
+  }
+
+  grpc::Status render(const v1::AnimationSettings& settings, const std::vector<LabeledInterval>& intervals,
+                      v1::RenderResponse& response) {
+    grpc::ClientContext context;
+    set_deadline(context);
+    v1::RenderRequest request;
+    *request.mutable_settings() = settings;
+    for (const auto& interval : intervals) *request.add_phonemes() = to_proto(interval);
+    return stub_->Render(&context, request, &response);
+  }
+
+  std::unique_ptr<Server> server_;
+  std::unique_ptr<v1::LipSync::Stub> stub_;
+};
+
+void expect_topology(const v1::TrackHeader& header, int level) {
+  const face::FaceMesh mesh = face::build_face_mesh(face::FaceAsset::builtin(), level);
+  ASSERT_TRUE(header.has_mesh());
+  const v1::MeshTopology& topology = header.mesh();
+  const std::size_t vertices = mesh.vertex_count();
+  EXPECT_EQ(topology.subdivision(), static_cast<std::uint32_t>(level));
+  EXPECT_EQ(topology.vertex_count(), vertices);
+  EXPECT_EQ(topology.soft_vertex_count(), mesh.soft_node_count);
+  EXPECT_EQ(topology.units(), "m");
+  ASSERT_EQ(static_cast<std::size_t>(topology.rest_positions_size()), vertices * 3);
+  ASSERT_EQ(static_cast<std::size_t>(topology.triangles_size()), mesh.triangles.size() * 3);
+  ASSERT_EQ(static_cast<std::size_t>(topology.uvs_size()), vertices * 2);
+  ASSERT_EQ(static_cast<std::size_t>(topology.parts_size()), vertices);
+  for (std::size_t v = 0; v < vertices; v += 97) {
+    EXPECT_EQ(topology.rest_positions(static_cast<int>(v * 3 + 1)), static_cast<float>(mesh.rest_positions_m[v].y));
+    EXPECT_EQ(topology.uvs(static_cast<int>(v * 2)), mesh.uvs[v][0]);
+    EXPECT_EQ(topology.parts(static_cast<int>(v)), static_cast<int>(mesh.parts[v]));
+  }
+  for (std::size_t t = 0; t < mesh.triangles.size(); t += 101) {
+    EXPECT_EQ(topology.triangles(static_cast<int>(t * 3 + 2)), mesh.triangles[t][2]);
+  }
+}
+
+TEST_F(MeshTest, AnimateFloat32EqualsTheOfflineSolverBitForBit) {
+  const auto intervals = utterance(30);
+  const Track track = reference_track(intervals);
+  const Received received = animate(mesh_settings(1), intervals);
+  ASSERT_TRUE(received.status.ok()) << received.status.error_message();
+  ASSERT_EQ(received.headers.size(), 1u);
+  expect_topology(received.headers[0], 1);
+  EXPECT_EQ(received.headers[0].mesh().encoding(), v1::MESH_ENCODING_FLOAT32);
+  const std::size_t vertices = received.headers[0].mesh().vertex_count();
+  ASSERT_EQ(received.frames(), track.frame_count());
+  for (const auto& batch : received.batches) {
+    EXPECT_EQ(static_cast<std::size_t>(batch.mesh_positions_size()),
+              static_cast<std::size_t>(batch.t_us_size()) * vertices * 3);
+    EXPECT_TRUE(batch.mesh_positions_int16().empty());
+    EXPECT_LE(batch.ByteSizeLong(), std::size_t{2} << 20);
+  }
+  EXPECT_EQ(received.values(), track.values);  // the channels are unchanged by the mesh
+  const std::vector<double> expected = reference_positions(track, 1);
+  std::vector<float> expected_float(expected.begin(), expected.end());
+  EXPECT_TRUE(received.positions() == expected_float);
+  // The face moves: some vertex leaves its rest position by more than 2 mm.
+  const auto& rest = received.headers[0].mesh().rest_positions();
+  float moved = 0;
+  for (std::size_t i = 0; i < expected_float.size(); ++i) {
+    moved = std::max(moved, std::abs(expected_float[i] - rest[static_cast<int>(i % (vertices * 3))]));
+  }
+  EXPECT_GT(moved, 0.002f);
+}
+
+TEST_F(MeshTest, Int16IsWithinHalfAQuantisationStep) {
+  const auto intervals = utterance(25, 7);
+  const Track track = reference_track(intervals);
+  const Received received = animate(mesh_settings(0, v1::MESH_ENCODING_INT16), intervals, 3);
+  ASSERT_TRUE(received.status.ok()) << received.status.error_message();
+  ASSERT_EQ(received.headers.size(), 1u);
+  expect_topology(received.headers[0], 0);
+  const v1::MeshTopology& topology = received.headers[0].mesh();
+  EXPECT_EQ(topology.encoding(), v1::MESH_ENCODING_INT16);
+  ASSERT_EQ(topology.quantisation_offset_m_size(), 3);
+  const double scale = topology.quantisation_scale_m();
+  EXPECT_GT(scale, 0.0);
+  EXPECT_LT(scale, 1e-5);  // finer than 10 µm
+  for (const auto& batch : received.batches) {
+    EXPECT_EQ(batch.mesh_positions_size(), 0);
+    EXPECT_EQ(batch.mesh_positions_int16().size(),
+              static_cast<std::size_t>(batch.t_us_size()) * topology.vertex_count() * 3 * 2);
+  }
+  const std::vector<std::int16_t> q = received.quantised();
+  const std::vector<double> expected = reference_positions(track, 0);
+  ASSERT_EQ(q.size(), expected.size());
+  double worst = 0;
+  for (std::size_t i = 0; i < q.size(); ++i) {
+    const double decoded = topology.quantisation_offset_m(static_cast<int>(i % 3)) + scale * q[i];
+    worst = std::max(worst, std::abs(decoded - expected[i]));
+  }
+  EXPECT_LE(worst, scale * 0.5 + 1e-7);
+}
+
+TEST_F(MeshTest, RenderEqualsAnimate) {
+  const auto intervals = utterance(20, 11);
+  for (const auto encoding : {v1::MESH_ENCODING_FLOAT32, v1::MESH_ENCODING_INT16}) {
+    const Received streamed = animate(mesh_settings(0, encoding), intervals, 4);
+    ASSERT_TRUE(streamed.status.ok()) << streamed.status.error_message();
+    v1::RenderResponse response;
+    const grpc::Status status = render(mesh_settings(0, encoding), intervals, response);
+    ASSERT_TRUE(status.ok()) << status.error_message();
+    EXPECT_EQ(response.header().SerializeAsString(), streamed.headers.at(0).SerializeAsString());
+    Received rendered;
+    rendered.batches.push_back(response.frames());
+    EXPECT_EQ(rendered.frames(), streamed.frames());
+    EXPECT_TRUE(rendered.positions() == streamed.positions());
+    EXPECT_TRUE(rendered.quantised() == streamed.quantised());
+    EXPECT_FALSE(encoding == v1::MESH_ENCODING_FLOAT32 ? rendered.positions().empty() : rendered.quantised().empty());
+  }
+}
+
+TEST_F(MeshTest, ChannelOnlyStreamsCarryNoMeshBytes) {
+  const auto intervals = utterance(20, 5);
+  const Track track = reference_track(intervals);
+  v1::AnimationSettings settings;
+  settings.mutable_outputs()->set_channels(true);
+  settings.mutable_outputs()->mutable_mesh()->set_subdivision(2);  // ignored: not enabled
+  const Received received = animate(settings, intervals);
+  ASSERT_TRUE(received.status.ok()) << received.status.error_message();
+  EXPECT_FALSE(received.headers.at(0).has_mesh());
+  for (const auto& batch : received.batches) {
+    v1::FrameBatch plain;  // the same frames as the server sent before the mesh existed
+    plain.set_first_frame(batch.first_frame());
+    *plain.mutable_t_us() = batch.t_us();
+    *plain.mutable_kinds() = batch.kinds();
+    *plain.mutable_values() = batch.values();
+    EXPECT_EQ(batch.ByteSizeLong(), plain.ByteSizeLong());
+    EXPECT_EQ(batch.mesh_positions_size(), 0);
+    EXPECT_TRUE(batch.mesh_positions_int16().empty());
+  }
+  EXPECT_EQ(received.values(), track.values);
+  v1::RenderResponse response;
+  ASSERT_TRUE(render(settings, intervals, response).ok());
+  EXPECT_FALSE(response.header().has_mesh());
+  EXPECT_EQ(response.frames().mesh_positions_size(), 0);
+  EXPECT_TRUE(response.frames().mesh_positions_int16().empty());
+}
+
+TEST_F(MeshTest, SubscriberGetsTheTopologyAndThePositions) {
+  const auto intervals = utterance(20, 9);
+  auto settings = mesh_settings(0);
+  settings.set_session("face");
+  Received subscribed;
+  grpc::ClientContext subscribe_context;
+  set_deadline(subscribe_context);
+  std::unique_ptr<grpc::ClientReader<v1::TrackMessage>> reader;
+  std::thread follower;
+  // The producer opens the session; a live subscriber joins once it exists.
+  grpc::ClientContext producer_context;
+  set_deadline(producer_context);
+  auto stream = stub_->Animate(&producer_context);
+  v1::AnimateRequest request;
+  *request.mutable_settings() = settings;
+  ASSERT_TRUE(stream->Write(request));
+  v1::TrackMessage message;
+  ASSERT_TRUE(stream->Read(&message));
+  Received produced;
+  take(produced, message);
+  v1::SubscribeRequest subscribe;
+  subscribe.set_session("face");
+  reader = stub_->Subscribe(&subscribe_context, subscribe);
+  follower = std::thread([&] {
+    v1::TrackMessage m;
+    while (reader->Read(&m)) take(subscribed, m);
+  });
+  std::thread producer_reader([&] {
+    v1::TrackMessage m;
+    while (stream->Read(&m)) take(produced, m);
+  });
+  for (std::size_t i = 0; i < intervals.size(); i += 4) {
+    v1::AnimateRequest chunk;
+    for (std::size_t j = i; j < std::min(intervals.size(), i + 4); ++j) {
+      *chunk.mutable_phonemes()->add_phonemes() = to_proto(intervals[j]);
+    }
+    ASSERT_TRUE(stream->Write(chunk));
+  }
+  v1::AnimateRequest end;
+  end.mutable_end();
+  ASSERT_TRUE(stream->Write(end));
+  stream->WritesDone();
+  producer_reader.join();
+  ASSERT_TRUE(stream->Finish().ok());
+  follower.join();
+  subscribed.status = reader->Finish();
+  ASSERT_TRUE(subscribed.status.ok()) << subscribed.status.error_message();
+  ASSERT_EQ(subscribed.headers.size(), 1u);
+  expect_topology(subscribed.headers[0], 0);
+  EXPECT_EQ(subscribed.headers[0].SerializeAsString(), produced.headers.at(0).SerializeAsString());
+  EXPECT_EQ(subscribed.frames(), produced.frames());
+  EXPECT_TRUE(subscribed.positions() == produced.positions());
+  EXPECT_FALSE(subscribed.positions().empty());
+  EXPECT_TRUE(subscribed.summary.has_value());
+}
+
+TEST_F(MeshTest, BadMeshSettingsAreRejectedNamingTheField) {
+  const auto intervals = utterance(3);
+  auto settings = mesh_settings(3);
+  const Received received = animate(settings, intervals);
+  EXPECT_EQ(received.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(received.status.error_message(), HasSubstr("settings.outputs.mesh.subdivision"));
+  v1::RenderResponse response;
+  const grpc::Status status = render(settings, intervals, response);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(), HasSubstr("settings.outputs.mesh.subdivision"));
+  settings = mesh_settings(1, static_cast<v1::MeshEncoding>(9));
+  const grpc::Status encoding = render(settings, intervals, response);
+  EXPECT_EQ(encoding.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(encoding.error_message(), HasSubstr("settings.outputs.mesh.encoding"));
+}
+
+}  // namespace
+}  // namespace lipsync::server

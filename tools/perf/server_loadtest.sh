@@ -1,0 +1,150 @@
+#!/usr/bin/env bash
+# Server load test: lipsyncd against a bare gRPC server sending the same messages
+# (tests/bench/grpc_baseline_server), both on 127.0.0.1, driven by `lipsync loadtest`.
+#
+#   tools/perf/server_loadtest.sh [BUILD_DIR]      (default build-perf; Release, benchmarks on)
+#
+# Environment (all bounded): SESSIONS="100 200 500 1000 2000" real-time sessions per step,
+# DURATION=10 seconds per step, REPEAT=3 rounds, SUBSCRIBED="500 1000" sessions for the runs with
+# one subscriber per session (lipsyncd only; the baseline has no Subscribe), FAST_PRODUCERS=50
+# producers for the fast-mode throughput runs, CONNECTIONS=8 HTTP/2 connections.
+# Each round runs every step against lipsyncd and the baseline back to back (alternating which goes
+# first), so that ratios compare runs made under the same machine load. Prints one table row per
+# run and a summary of medians; raw JSON reports go to $OUT_DIR (default a temporary folder).
+set -euo pipefail
+
+BUILD=${1:-build-perf}
+SESSIONS=${SESSIONS:-"100 200 500 1000 2000"}
+SUBSCRIBED=${SUBSCRIBED:-"500 1000"}
+DURATION=${DURATION:-10}
+REPEAT=${REPEAT:-3}
+FAST_PRODUCERS=${FAST_PRODUCERS:-50}
+CONNECTIONS=${CONNECTIONS:-8}
+OUT_DIR=${OUT_DIR:-$(mktemp -d /tmp/server_loadtest.XXXXXX)}
+mkdir -p "$OUT_DIR"
+
+LIPSYNCD=$BUILD/server/lipsyncd
+LIPSYNC=$BUILD/clients/cli/lipsync
+BASELINE=$BUILD/tests/bench/grpc_baseline_server
+for binary in "$LIPSYNCD" "$LIPSYNC" "$BASELINE"; do
+  [[ -x $binary ]] || { echo "missing $binary: build lipsyncd lipsync grpc_baseline_server in $BUILD" >&2; exit 2; }
+done
+
+PIDS=()
+cleanup() { for pid in "${PIDS[@]}"; do kill "$pid" 2>/dev/null || true; done; wait 2>/dev/null || true; }
+trap cleanup EXIT INT TERM
+
+# start NAME COMMAND...: starts a server on 127.0.0.1:0, sets ADDR_<NAME> and PID_<NAME>.
+start() {
+  local name=$1; shift
+  local log=$OUT_DIR/$name.out
+  "$@" >"$log" 2>"$OUT_DIR/$name.err" &
+  local pid=$!
+  PIDS+=("$pid")
+  for _ in $(seq 100); do
+    if grep -q "listening on" "$log"; then break; fi
+    sleep 0.1
+  done
+  local addr
+  addr=$(grep -o "listening on [^ ]*" "$log" | head -1 | cut -d' ' -f3)
+  [[ -n $addr ]] || { echo "$name did not start" >&2; cat "$OUT_DIR/$name.err" >&2; exit 1; }
+  printf -v "ADDR_$name" %s "$addr"
+  printf -v "PID_$name" %s "$pid"
+}
+
+start lipsyncd "$LIPSYNCD" --listen 127.0.0.1:0 --log-level warn
+start baseline "$BASELINE" --listen 127.0.0.1:0
+echo "lipsyncd $ADDR_lipsyncd (pid $PID_lipsyncd), baseline $ADDR_baseline (pid $PID_baseline), $(nproc) cores"
+echo "results in $OUT_DIR"
+
+cpu_ticks() { awk '{print $14 + $15}' "/proc/$1/stat"; }
+TICK=$(getconf CLK_TCK)
+
+# one NAME TAG ARGS...: one loadtest run against server NAME; writes $OUT_DIR/TAG.json with the
+# server's and the client's CPU (cores busy on average) added.
+one() {
+  local name=$1 tag=$2; shift 2
+  local addr_var=ADDR_$name pid_var=PID_$name
+  local extra=()
+  [[ $name == baseline ]] && extra=(--no-verify)
+  local before after start_ns end_ns client_cpu
+  before=$(cpu_ticks "${!pid_var}")
+  start_ns=$(date +%s%N)
+  local TIMEFORMAT='%U %S'
+  { time "$LIPSYNC" loadtest --server "${!addr_var}" --connections "$CONNECTIONS" --json "${extra[@]}" "$@" \
+      >"$OUT_DIR/$tag.raw" 2>"$OUT_DIR/$tag.stderr" || true; } 2>"$OUT_DIR/$tag.time"
+  end_ns=$(date +%s%N)
+  after=$(cpu_ticks "${!pid_var}")
+  python3 - "$OUT_DIR/$tag" "$name" "$before" "$after" "$start_ns" "$end_ns" "$TICK" "$(uptime | sed 's/.*load average: //')" <<'PY'
+import json, sys
+base, name, before, after, t0, t1, tick, load = sys.argv[1:]
+wall = (int(t1) - int(t0)) / 1e9
+try:
+    report = json.load(open(base + ".raw"))
+except Exception as error:
+    report = {"failed": str(error)}
+user, system = (float(x) for x in open(base + ".time").read().split()[-2:])
+report.update(target=name, wall_s=wall, server_cpu=(int(after) - int(before)) / int(tick) / wall,
+              client_cpu=(user + system) / wall, load=load)
+json.dump(report, open(base + ".json", "w"), indent=1)
+PY
+}
+
+for round in $(seq "$REPEAT"); do
+  if (( round % 2 )); then order=(lipsyncd baseline); else order=(baseline lipsyncd); fi
+  for n in $SESSIONS; do
+    for name in "${order[@]}"; do
+      one "$name" "r$round-realtime-$n-$name" --realtime --producers "$n" --duration "$DURATION"
+    done
+  done
+  for n in $SUBSCRIBED; do
+    one lipsyncd "r$round-subscribed-$n-lipsyncd" --realtime --producers "$n" --subscribers-per-session 1 \
+      --duration "$DURATION"
+  done
+  for name in "${order[@]}"; do
+    one "$name" "r$round-fast-$FAST_PRODUCERS-$name" --fast --producers "$FAST_PRODUCERS" --duration "$DURATION"
+  done
+done
+
+python3 - "$OUT_DIR" <<'PY'
+import glob, json, os, statistics, sys
+out = sys.argv[1]
+runs = []
+for path in sorted(glob.glob(os.path.join(out, "r*-*.json"))):
+    tag = os.path.basename(path)[:-5]
+    rnd, mode, n, name = tag.split("-")
+    runs.append(dict(json.load(open(path)), round=int(rnd[1:]), mode=mode, n=int(n), name=name))
+print()
+print("| round | mode | sessions | server | p50 ms | p95 ms | p99 ms | max ms | errors | frames/s | server CPU | client CPU | load avg |")
+print("|---:|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---|")
+key = lambda r: (r["mode"], r["n"], r["name"], r["round"])
+for r in sorted(runs, key=key):
+    if "failed" in r:
+        print(f"| {r['round']} | {r['mode']} | {r['n']} | {r['name']} | failed: {r['failed']} |")
+        continue
+    lat = r["latency_ms"]["producers"]
+    errors = sum(r["errors"].values())
+    print(f"| {r['round']} | {r['mode']} | {r['n']} | {r['name']} | {lat['p50']:.2f} | {lat['p95']:.2f} | "
+          f"{lat['p99']:.2f} | {lat['max']:.1f} | {errors} | {r['frames']['per_second']:.0f} | "
+          f"{r['server_cpu']:.2f} | {r['client_cpu']:.2f} | {r['load']} |")
+print()
+print("Medians over rounds:")
+print("| mode | sessions | server | p50 ms | p99 ms | errors (sum) | frames/s | server CPU | ratio lipsyncd/baseline (frames/s, same round) |")
+print("|---|---:|---|---:|---:|---:|---:|---:|---:|")
+groups = {}
+for r in runs:
+    if "failed" not in r:
+        groups.setdefault((r["mode"], r["n"], r["name"]), []).append(r)
+for (mode, n, name), rs in sorted(groups.items()):
+    med = lambda f: statistics.median(f(r) for r in rs)
+    ratio = ""
+    if name == "lipsyncd" and (mode, n, "baseline") in groups:
+        base = {r["round"]: r["frames"]["per_second"] for r in groups[(mode, n, "baseline")]}
+        ratios = [r["frames"]["per_second"] / base[r["round"]] for r in rs if base.get(r["round"])]
+        if ratios:
+            ratio = f"{statistics.median(ratios):.3f} (" + ", ".join(f"{x:.3f}" for x in ratios) + ")"
+    print(f"| {mode} | {n} | {name} | {med(lambda r: r['latency_ms']['producers']['p50']):.2f} | "
+          f"{med(lambda r: r['latency_ms']['producers']['p99']):.2f} | "
+          f"{sum(sum(r['errors'].values()) for r in rs)} | {med(lambda r: r['frames']['per_second']):.0f} | "
+          f"{med(lambda r: r['server_cpu']):.2f} | {ratio} |")
+PY
