@@ -22,72 +22,31 @@
 
 #include "lipsync/model.hpp"
 #include "lipsync/phone_set.hpp"
+#include "../support/child_process.hpp"
 
 namespace lipsync {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::make_temp_dir;
+using testing::read_text;
+using testing::run_program;
+using testing::RunResult;
+using testing::write_text;
 using ::testing::HasSubstr;
 using ::testing::StartsWith;
 
 const fs::path kFixtures = fs::path(LIPSYNC_TEST_DATA_DIR) / "cli";
 
-struct RunResult {
-  int status = -1;
-  std::string out;
-  std::string err;
-};
-
-std::string read_text(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-void write_text(const fs::path& path, std::string_view text) {
-  std::ofstream(path, std::ios::binary) << text;
-}
-
-fs::path make_temp_dir(const std::string& prefix) {
-  std::string pattern = (fs::temp_directory_path() / (prefix + "XXXXXX")).string();
-  if (::mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
-  return pattern;
-}
-
 /// Runs lipsync with `args` in `cwd`; stdin from `stdin_file` (or /dev/null);
 /// stdout and stderr go through files in `capture`.
 RunResult run_lipsync(const std::vector<std::string>& args, const fs::path& cwd, const fs::path& capture,
                       const std::optional<fs::path>& stdin_file) {
-  const fs::path out_path = capture / "stdout";
-  const fs::path err_path = capture / "stderr";
-  const std::string binary = LIPSYNC_CLI_BINARY;
-  std::vector<std::string> argv_text = {binary};
-  argv_text.insert(argv_text.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (std::string& arg : argv_text) argv.push_back(arg.data());
-  argv.push_back(nullptr);
-
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    const std::string in_path = stdin_file ? stdin_file->string() : "/dev/null";
-    const int in = ::open(in_path.c_str(), O_RDONLY);
-    const int out = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int err = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (in < 0 || out < 0 || err < 0 || ::chdir(cwd.c_str()) != 0) ::_exit(126);
-    ::dup2(in, STDIN_FILENO);
-    ::dup2(out, STDOUT_FILENO);
-    ::dup2(err, STDERR_FILENO);
-    ::execv(binary.c_str(), argv.data());
-    ::_exit(127);
-  }
-  RunResult result;
-  int status = 0;
-  if (pid < 0 || ::waitpid(pid, &status, 0) != pid) return result;
-  result.status = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  result.out = read_text(out_path);
-  result.err = read_text(err_path);
-  return result;
+  std::vector<std::string> argv = {LIPSYNC_CLI_BINARY};
+  argv.insert(argv.end(), args.begin(), args.end());
+  testing::RunOptions options;
+  options.stdin_file = stdin_file;
+  return run_program(std::move(argv), cwd, capture, options);
 }
 
 std::vector<std::string> directory_listing(const fs::path& directory) {

@@ -21,60 +21,20 @@
 #include <string>
 #include <vector>
 
+#include "../support/child_process.hpp"
+
 namespace lipsync {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::make_temp_dir;
+using testing::read_text;
+using testing::run_program;
+using testing::RunOptions;
+using testing::RunResult;
 using ::testing::HasSubstr;
 
 const fs::path kFixtures = fs::path(LIPSYNC_TEST_DATA_DIR) / "cli";
-
-std::string read_text(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-fs::path make_temp_dir(const std::string& prefix) {
-  std::string pattern = (fs::temp_directory_path() / (prefix + "XXXXXX")).string();
-  if (::mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
-  return pattern;
-}
-
-struct RunResult {
-  int status = -1;
-  std::string out, err;
-};
-
-// Runs `argv` (argv[0] a path) in `cwd` with stdout/stderr captured; `path_env` replaces PATH.
-RunResult run_program(std::vector<std::string> argv_text, const fs::path& cwd, const fs::path& capture,
-                      const std::optional<std::string>& path_env = std::nullopt) {
-  const fs::path out_path = capture / "stdout", err_path = capture / "stderr";
-  std::vector<char*> argv;
-  for (std::string& arg : argv_text) argv.push_back(arg.data());
-  argv.push_back(nullptr);
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    const int in = ::open("/dev/null", O_RDONLY);
-    const int out = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int err = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (in < 0 || out < 0 || err < 0 || ::chdir(cwd.c_str()) != 0) ::_exit(126);
-    ::dup2(in, STDIN_FILENO);
-    ::dup2(out, STDOUT_FILENO);
-    ::dup2(err, STDERR_FILENO);
-    if (path_env) ::setenv("PATH", path_env->c_str(), 1);
-    ::execv(argv_text[0].c_str(), argv.data());
-    ::_exit(127);
-  }
-  RunResult result;
-  int status = 0;
-  if (pid < 0 || ::waitpid(pid, &status, 0) != pid) return result;
-  result.status = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  result.out = read_text(out_path);
-  result.err = read_text(err_path);
-  return result;
-}
 
 std::optional<std::string> find_program(const std::string& name) {
   for (const char* dir : {"/usr/bin", "/usr/local/bin", "/bin"}) {
@@ -112,7 +72,9 @@ class FaceCliTest : public ::testing::Test {
   }
   RunResult run(std::vector<std::string> args, const std::optional<std::string>& path_env = std::nullopt) {
     args.insert(args.begin(), LIPSYNC_CLI_BINARY);
-    return run_program(args, dir_, capture_, path_env);
+    RunOptions options;
+    options.path_env = path_env;
+    return run_program(std::move(args), dir_, capture_, options);
   }
   std::vector<std::string> listing() const {
     std::vector<std::string> names;

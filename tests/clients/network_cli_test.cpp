@@ -20,27 +20,18 @@
 #include <thread>
 #include <vector>
 
+#include "../support/child_process.hpp"
+
 namespace lipsync {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::make_temp_dir;
+using testing::read_text;
 using ::testing::HasSubstr;
 using ::testing::IsEmpty;
 
 const fs::path kFixtures = fs::path(LIPSYNC_TEST_DATA_DIR) / "cli";
-
-std::string read_text(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-fs::path make_temp_dir(const std::string& prefix) {
-  std::string pattern = (fs::temp_directory_path() / (prefix + "XXXXXX")).string();
-  if (::mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
-  return pattern;
-}
 
 /// A child process with stdout and stderr going to files.
 class Process {

@@ -1,0 +1,83 @@
+// Helpers for tests that run the project's real binaries: temporary
+// directories, whole-file reads and writes, and a child process with its
+// standard streams redirected to files (no shell in between).
+#pragma once
+
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace lipsync::testing {
+
+inline std::string read_text(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+inline void write_text(const std::filesystem::path& path, std::string_view text) {
+  std::ofstream(path, std::ios::binary) << text;
+}
+
+/// A fresh directory under the system temporary directory, named `prefix` + random.
+inline std::filesystem::path make_temp_dir(const std::string& prefix) {
+  std::string pattern = (std::filesystem::temp_directory_path() / (prefix + "XXXXXX")).string();
+  if (::mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed for " + pattern);
+  return pattern;
+}
+
+struct RunResult {
+  int status = -1;  ///< exit code, 128 + signal when killed, -1 when it could not be started
+  std::string out;
+  std::string err;
+};
+
+struct RunOptions {
+  std::optional<std::filesystem::path> stdin_file;  ///< default /dev/null
+  std::optional<std::string> path_env;              ///< replaces PATH in the child
+};
+
+/// Runs `argv` (argv[0] a path to the program) in `cwd` and waits for it;
+/// stdout and stderr go through files in `capture`.
+inline RunResult run_program(std::vector<std::string> argv_text, const std::filesystem::path& cwd,
+                             const std::filesystem::path& capture, const RunOptions& options = {}) {
+  const std::filesystem::path out_path = capture / "stdout";
+  const std::filesystem::path err_path = capture / "stderr";
+  std::vector<char*> argv;
+  for (std::string& arg : argv_text) argv.push_back(arg.data());
+  argv.push_back(nullptr);
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const std::string in_path = options.stdin_file ? options.stdin_file->string() : "/dev/null";
+    const int in = ::open(in_path.c_str(), O_RDONLY);
+    const int out = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int err = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (in < 0 || out < 0 || err < 0 || ::chdir(cwd.c_str()) != 0) ::_exit(126);
+    ::dup2(in, STDIN_FILENO);
+    ::dup2(out, STDOUT_FILENO);
+    ::dup2(err, STDERR_FILENO);
+    if (options.path_env) ::setenv("PATH", options.path_env->c_str(), 1);
+    ::execv(argv_text[0].c_str(), argv.data());
+    ::_exit(127);
+  }
+  RunResult result;
+  int status = 0;
+  if (pid < 0 || ::waitpid(pid, &status, 0) != pid) return result;
+  result.status = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  result.out = read_text(out_path);
+  result.err = read_text(err_path);
+  return result;
+}
+
+}  // namespace lipsync::testing
