@@ -49,8 +49,8 @@ constexpr std::string_view kDemoUtterance = R"({
 constexpr OptionSpec kOptions[] = {
     {"output", 'o', "FILE", "where to write the track; - for stdout",
      "lipsync-demo.json, .csv or .arkit.csv by --format"},
-    {"format", 0, "FORMAT", "track format: json, csv or arkit-csv (Unreal Live Link Face CSV)", "json"},
-    {"fps", 0, "N", "frames per second of the uniform grid, 1 to 240", "30"},
+    kTrackFormatOption,
+    kFpsOption,
 };
 
 constexpr std::string_view kUsage = "lipsync demo [options]";

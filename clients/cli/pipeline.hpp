@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "arguments.hpp"
 #include "lipsync/formats.hpp"
 #include "lipsync/model.hpp"
 #include "lipsync/phone_set.hpp"
@@ -22,6 +23,18 @@
 #include "lipsync/utterance.hpp"
 
 namespace lipsync::cli {
+
+// Options shared by the commands that read phoneme files or write tracks.
+inline constexpr OptionSpec kTrackOutputOption = {"output", 'o', "FILE", "write the track to FILE (all or nothing, via a temporary file); - for stdout",
+    "stdout"};
+inline constexpr OptionSpec kTrackFormatOption = {"format", 0, "FORMAT", "track format: json, csv or arkit-csv (Unreal Live Link Face CSV)", "json"};
+inline constexpr OptionSpec kFpsOption = {"fps", 0, "N", "frames per second of the uniform grid, 1 to 240", "30"};
+inline constexpr OptionSpec kPhoneSetOption = {"phone-set", 0, "NAME", "phone set of the labels (see 'lipsync phone-sets'), or auto to detect it",
+    "the set the file declares, else auto"};
+inline constexpr OptionSpec kInputFormatOption = {"input-format", 0, "FORMAT", "json, textgrid, timit, lab, pho or flite",
+    "detected from the content, then the file extension"};
+inline constexpr OptionSpec kTierOption = {"tier", 0, "NAME", "TextGrid tier that holds the phonemes", "phones"};
+inline constexpr OptionSpec kSampleRateOption = {"sample-rate", 0, "HZ", "sample rate of the sample numbers in a TIMIT .PHN file, > 0", "16000"};
 
 /// The built-in model, or `path` read and validated (errors name the file).
 class ModelSource {

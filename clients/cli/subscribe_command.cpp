@@ -17,9 +17,8 @@ namespace {
 
 constexpr OptionSpec kOptions[] = {
     kServerOption,
-    {"output", 'o', "FILE", "write the track to FILE (all or nothing, via a temporary file); - for stdout",
-     "stdout"},
-    {"format", 0, "FORMAT", "track format: json, csv or arkit-csv (Unreal Live Link Face CSV)", "json"},
+    kTrackOutputOption,
+    kTrackFormatOption,
     {"from-beginning", 0, "", "replay the frames the server still holds, then follow (the default)", ""},
     {"from-now", 0, "", "only frames produced after joining", ""},
     {"wait", 0, "S", "if the session does not exist yet, keep asking for up to S seconds, 0 to 3600", "0"},
