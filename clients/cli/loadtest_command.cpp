@@ -21,6 +21,14 @@
 // utterance starts after --duration, and whatever still runs 30 s later is
 // cancelled (and counted as CANCELLED). Only loopback servers are accepted.
 //
+// --mesh-share F asks for the physics face (settings.outputs.mesh) on a share
+// F of the producers, spread evenly over them (producer p has it when
+// round((p+1)·F) > round(p·F)), with --mesh-subdivision and --mesh-encoding.
+// Their frames are checked as the others' are, and each frame must also carry
+// the positions of the header's vertex count (V × 3 floats, or V × 3 int16).
+// The report gives frames and latency for mesh and non-mesh producers (and
+// their subscribers) separately, since a mesh stream costs the server a solver.
+//
 // --no-verify is for servers that send frames of the right shape but not the
 // engine's (tests/bench/grpc_baseline_server): frames are counted, not
 // checked, and a frame's latency is its arrival time minus the send time of
@@ -29,12 +37,14 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/post.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <iostream>
@@ -70,6 +80,10 @@ constexpr OptionSpec kOptions[] = {
     {"connections", 0, "N", "HTTP/2 connections the streams are spread over, 1 to 64", "4"},
     {"json", 0, "", "print the report as JSON", ""},
     {"no-verify", 0, "", "count frames without checking them against the offline render (baseline servers)", ""},
+    {"mesh-share", 0, "F",
+     "fraction of the producers (spread evenly) that ask for the mesh output (physics face), 0 to 1", "0"},
+    {"mesh-subdivision", 0, "N", "subdivision level of their mesh: 0, 1 or 2 (771, 2379, 8775 vertices)", "1"},
+    {"mesh-encoding", 0, "ENC", "encoding of their vertex positions: float32 or int16", "float32"},
 };
 
 constexpr std::string_view kUsage = "lipsync loadtest [options]";
@@ -77,7 +91,8 @@ constexpr std::string_view kDescription =
     "Load test of a lipsyncd on this machine: N producers stream synthetic utterances\n"
     "back to back for --duration seconds (with M subscribers per session), then a report:\n"
     "frames/s, latency from the moment a frame could be computed to its arrival\n"
-    "(p50/p95/p99/max), errors by status code, and whether every frame arrived.\n"
+    "(p50/p95/p99/max), errors by status code, and whether every frame arrived;\n"
+    "with --mesh-share, frames and latency apart for producers with and without the mesh.\n"
     "Exit status 0 when there were no errors and every frame arrived, 1 otherwise.";
 
 constexpr std::size_t kUtterancePool = 64;
@@ -124,6 +139,9 @@ Utterance make_utterance(std::uint64_t seed, std::size_t phonemes, const Articul
 struct StreamTally {
   std::uint64_t frames = 0;
   std::uint64_t unexpected = 0;  ///< frames not in the offline render (wrong index or time)
+  std::uint64_t without_positions = 0;  ///< mesh stream: frames without the header's V × 3 positions
+  std::size_t mesh_coordinates = 0;     ///< from the header: V × 3 (0: no mesh in the header)
+  bool mesh_int16 = false;              ///< from the header: positions come as int16
   std::vector<std::int32_t> latencies_us;
 };
 
@@ -143,16 +161,32 @@ struct Run {
   grpc::Status producer_status;
   int pending = 0;  // calls not yet done
   bool producer_done = false;
+  bool mesh = false;  // asked for the mesh output
 };
 
 std::int64_t since_epoch_us(Clock::time_point time) {
   return std::chrono::duration_cast<std::chrono::microseconds>(time.time_since_epoch()).count();
 }
 
+/// Whether every frame of `batch` carries the header's V × 3 coordinates in the header's encoding.
+bool carries_positions(const client::v1::FrameBatch& batch, const StreamTally& tally) {
+  const auto expected = static_cast<std::size_t>(batch.t_us_size()) * tally.mesh_coordinates;
+  if (tally.mesh_coordinates == 0) return false;
+  if (tally.mesh_int16) return batch.mesh_positions_int16().size() == expected * 2 && batch.mesh_positions().empty();
+  return static_cast<std::size_t>(batch.mesh_positions_size()) == expected && batch.mesh_positions_int16().empty();
+}
+
 void count_frames(const client::v1::TrackMessage& message, const Run& run, StreamTally& tally, bool verify) {
+  if (message.has_header() && message.header().has_mesh()) {
+    tally.mesh_coordinates = std::size_t{message.header().mesh().vertex_count()} * 3;
+    tally.mesh_int16 = message.header().mesh().encoding() == client::v1::MESH_ENCODING_INT16;
+  }
   if (!message.has_frames()) return;
   const std::int64_t arrival_us = since_epoch_us(Clock::now());
   const auto& batch = message.frames();
+  if (verify && run.mesh && !carries_positions(batch, tally)) {
+    tally.without_positions += static_cast<std::uint64_t>(batch.t_us_size());
+  }
   if (!verify) {
     const std::int64_t sent = run.last_sent_us.load(std::memory_order_acquire);
     const auto latency = static_cast<std::int32_t>(std::clamp<std::int64_t>(arrival_us - sent, 0, INT32_MAX));
@@ -173,7 +207,9 @@ void count_frames(const client::v1::TrackMessage& message, const Run& run, Strea
   }
 }
 
+/// What the producers of one kind (with or without the mesh) and their subscribers got.
 struct Totals {
+  int producers = 0;
   std::uint64_t utterances_started = 0;
   std::uint64_t utterances_complete = 0;
   std::uint64_t producer_frames = 0;
@@ -182,10 +218,46 @@ struct Totals {
   std::uint64_t subscriptions_complete = 0;
   std::uint64_t missing_frames = 0;
   std::uint64_t unexpected_frames = 0;
-  std::map<std::string, std::uint64_t> errors;
+  std::uint64_t frames_without_positions = 0;  ///< mesh producers only
   std::vector<std::int32_t> producer_latencies_us;
   std::vector<std::int32_t> subscriber_latencies_us;
+
+  void add(Totals&& other) {
+    producers += other.producers;
+    utterances_started += other.utterances_started;
+    utterances_complete += other.utterances_complete;
+    producer_frames += other.producer_frames;
+    subscriber_frames += other.subscriber_frames;
+    subscriptions += other.subscriptions;
+    subscriptions_complete += other.subscriptions_complete;
+    missing_frames += other.missing_frames;
+    unexpected_frames += other.unexpected_frames;
+    frames_without_positions += other.frames_without_positions;
+    producer_latencies_us.insert(producer_latencies_us.end(), other.producer_latencies_us.begin(),
+                                 other.producer_latencies_us.end());
+    subscriber_latencies_us.insert(subscriber_latencies_us.end(), other.subscriber_latencies_us.begin(),
+                                   other.subscriber_latencies_us.end());
+  }
 };
+
+/// Totals of the producers without the mesh ([0]) and with it ([1]), and the errors of all.
+struct Results {
+  std::array<Totals, 2> by_mesh;
+  std::map<std::string, std::uint64_t> errors;
+};
+
+struct MeshRequest {
+  double share = 0.0;        ///< fraction of the producers
+  std::uint32_t subdivision = 1;
+  client::v1::MeshEncoding encoding = client::v1::MESH_ENCODING_FLOAT32;
+};
+
+/// Whether producer `p` asks for the mesh: round((p+1)·share) > round(p·share),
+/// so round(N·share) of N producers do, spread evenly.
+bool producer_has_mesh(int p, double share) {
+  const auto mesh_before = [share](int n) { return std::floor(static_cast<double>(n) * share + 0.5); };
+  return mesh_before(p + 1) > mesh_before(p);
+}
 
 struct LoadTestConfig {
   int producers = 10;
@@ -195,6 +267,7 @@ struct LoadTestConfig {
   std::size_t phonemes = 30;
   std::uint64_t seed = 1;
   bool verify = true;
+  MeshRequest mesh;
 };
 
 class LoadTest {
@@ -203,7 +276,7 @@ class LoadTest {
            const std::vector<Utterance>& pool)
       : config_(config), clients_(clients), pool_(pool), work_(asio::make_work_guard(io_)), stop_timer_(io_) {}
 
-  Totals run() {
+  Results run() {
     start_ = Clock::now();
     end_ = start_ + config_.duration;
     const auto stagger = std::min<Clock::duration>(std::chrono::seconds(1), config_.duration / 10);
@@ -211,6 +284,8 @@ class LoadTest {
       producers_.push_back(std::make_unique<Producer>(io_));
       Producer& producer = *producers_.back();
       producer.index = p;
+      producer.mesh = producer_has_mesh(p, config_.mesh.share);
+      ++totals_.by_mesh[producer.mesh].producers;
       producer.timer.expires_at(start_ + stagger * p / config_.producers);
       producer.timer.async_wait([this, &producer](const boost::system::error_code& error) {
         if (!error) start_utterance(producer);
@@ -229,7 +304,6 @@ class LoadTest {
       }
     });
     io_.run();
-    totals_.producer_latencies_us.shrink_to_fit();
     return std::move(totals_);
   }
 
@@ -239,6 +313,7 @@ class LoadTest {
   struct Producer {
     explicit Producer(asio::io_context& io) : timer(io) {}
     int index = 0;
+    bool mesh = false;
     std::uint64_t runs = 0;
     asio::steady_timer timer;
     std::unique_ptr<Run> run;
@@ -260,11 +335,18 @@ class LoadTest {
     run->sent_us = std::make_unique<std::atomic<std::int64_t>[]>(slots);
     for (std::size_t i = 0; i < slots; ++i) run->sent_us[i].store(0);
     run->pending = 1;
-    ++totals_.utterances_started;
+    run->mesh = producer.mesh;
+    ++totals_.by_mesh[producer.mesh].utterances_started;
 
     client::v1::AnimationSettings settings;
     settings.set_phone_set("arpabet");
     settings.mutable_outputs()->set_channels(true);
+    if (producer.mesh) {
+      client::v1::MeshOutput& mesh = *settings.mutable_outputs()->mutable_mesh();
+      mesh.set_enabled(true);
+      mesh.set_subdivision(config_.mesh.subdivision);
+      mesh.set_encoding(config_.mesh.encoding);
+    }
     const std::string session = config_.subscribers > 0 ? "loadtest-" + std::to_string(::getpid()) + "-" +
                                                               std::to_string(producer.index) + "-" +
                                                               std::to_string(producer.runs)
@@ -304,7 +386,7 @@ class LoadTest {
       StreamTally* tally = run.subscriber_tallies.back().get();
       const std::size_t slot = run.subscriber_status.size() - 1;
       ++run.pending;
-      ++totals_.subscriptions;
+      ++totals_.by_mesh[run.mesh].subscriptions;
       Run* raw = &run;
       run.subscribers.push_back(connection.start_subscribe(
           session, client::v1::SubscribeRequest::START_FROM_BEGINNING,
@@ -352,8 +434,10 @@ class LoadTest {
     producer.timer.cancel();
     const Utterance& utterance = *run.utterance;
     const auto expected = utterance.frame_t_us.size();
+    Totals& totals = totals_.by_mesh[run.mesh];
     const auto tally = [&](const StreamTally& stream, const grpc::Status& status, std::vector<std::int32_t>& sink) {
-      totals_.unexpected_frames += stream.unexpected;
+      totals.unexpected_frames += stream.unexpected;
+      totals.frames_without_positions += stream.without_positions;
       sink.insert(sink.end(), stream.latencies_us.begin(), stream.latencies_us.end());
       if (!status.ok()) {
         ++totals_.errors[std::string(client::status_code_name(status.error_code()))];
@@ -361,15 +445,15 @@ class LoadTest {
       }
       if (!config_.verify) return true;
       const std::uint64_t good = stream.frames - stream.unexpected;
-      if (good < expected) totals_.missing_frames += expected - good;
-      return good == expected && stream.unexpected == 0;
+      if (good < expected) totals.missing_frames += expected - good;
+      return good == expected && stream.unexpected == 0 && stream.without_positions == 0;
     };
-    totals_.producer_frames += run.producer_tally.frames;
-    if (tally(run.producer_tally, run.producer_status, totals_.producer_latencies_us)) ++totals_.utterances_complete;
+    totals.producer_frames += run.producer_tally.frames;
+    if (tally(run.producer_tally, run.producer_status, totals.producer_latencies_us)) ++totals.utterances_complete;
     for (std::size_t s = 0; s < run.subscribers.size(); ++s) {
-      totals_.subscriber_frames += run.subscriber_tallies[s]->frames;
-      if (tally(*run.subscriber_tallies[s], run.subscriber_status[s], totals_.subscriber_latencies_us)) {
-        ++totals_.subscriptions_complete;
+      totals.subscriber_frames += run.subscriber_tallies[s]->frames;
+      if (tally(*run.subscriber_tallies[s], run.subscriber_status[s], totals.subscriber_latencies_us)) {
+        ++totals.subscriptions_complete;
       }
     }
     // Destroying the calls here is safe: each has posted its last act. After an
@@ -402,7 +486,7 @@ class LoadTest {
   Clock::time_point finished_at_;
   int active_ = 0;
   bool stopping_ = false;
-  Totals totals_;
+  Results totals_;
 };
 
 struct Percentiles {
@@ -463,6 +547,25 @@ int run_loadtest(std::span<const std::string_view> args) {
   config.seed = static_cast<std::uint64_t>(parse_int_option("seed", arguments.value("seed").value_or("1"), 0, INT32_MAX));
   config.verify = !arguments.flag("no-verify");
   const int connections = parse_int_option("connections", arguments.value("connections").value_or("4"), 1, 64);
+  config.mesh.share = parse_double_option("mesh-share", arguments.value("mesh-share").value_or("0"));
+  if (config.mesh.share < 0.0 || config.mesh.share > 1.0) {
+    throw UsageError("--mesh-share: '" + *arguments.value("mesh-share") +
+                     "' is out of range (a fraction of the producers, 0 to 1)");
+  }
+  config.mesh.subdivision = static_cast<std::uint32_t>(
+      parse_int_option("mesh-subdivision", arguments.value("mesh-subdivision").value_or("1"), 0, 2));
+  const std::string encoding = arguments.value("mesh-encoding").value_or("float32");
+  if (encoding == "float32") {
+    config.mesh.encoding = client::v1::MESH_ENCODING_FLOAT32;
+  } else if (encoding == "int16") {
+    config.mesh.encoding = client::v1::MESH_ENCODING_INT16;
+  } else {
+    throw UsageError("--mesh-encoding: unknown encoding '" + encoding + "' (choose float32 or int16)");
+  }
+  const bool mesh_options = arguments.value("mesh-subdivision") || arguments.value("mesh-encoding");
+  if (mesh_options && config.mesh.share == 0.0) {
+    throw UsageError("--mesh-subdivision and --mesh-encoding need --mesh-share above 0");
+  }
 
   const ArticulationModel& model = ArticulationModel::builtin();
   const std::optional<PhoneSet> arpabet = PhoneSet::builtin("arpabet", model);
@@ -482,17 +585,50 @@ int run_loadtest(std::span<const std::string_view> args) {
   }
 
   LoadTest test(config, clients, pool);
-  Totals totals = test.run();
+  Results results = test.run();
   const double seconds = test.elapsed().count();
+  std::array<Percentiles, 2> producer_latency_by_mesh;
+  std::array<Percentiles, 2> subscriber_latency_by_mesh;
+  for (std::size_t m = 0; m < 2; ++m) {
+    producer_latency_by_mesh[m] = percentiles(results.by_mesh[m].producer_latencies_us);
+    subscriber_latency_by_mesh[m] = percentiles(results.by_mesh[m].subscriber_latencies_us);
+  }
+  const std::array<Totals, 2> groups = {results.by_mesh[0], results.by_mesh[1]};
+  Totals totals;
+  totals.add(std::move(results.by_mesh[0]));
+  totals.add(std::move(results.by_mesh[1]));
   const Percentiles producer_latency = percentiles(totals.producer_latencies_us);
   const Percentiles subscriber_latency = percentiles(totals.subscriber_latencies_us);
   std::uint64_t error_count = 0;
-  for (const auto& [code, count] : totals.errors) error_count += count;
-  const bool every_frame = totals.missing_frames == 0 && totals.unexpected_frames == 0 && error_count == 0 &&
+  for (const auto& [code, count] : results.errors) error_count += count;
+  const bool every_frame = totals.missing_frames == 0 && totals.unexpected_frames == 0 &&
+                           totals.frames_without_positions == 0 && error_count == 0 &&
                            totals.utterances_complete == totals.utterances_started &&
                            totals.subscriptions_complete == totals.subscriptions;
+  const std::string encoding_name = config.mesh.encoding == client::v1::MESH_ENCODING_INT16 ? "int16" : "float32";
+  const auto frames_per_second = [seconds](const Totals& group) {
+    return static_cast<double>(group.producer_frames + group.subscriber_frames) / seconds;
+  };
 
   if (arguments.flag("json")) {
+    const auto group_json = [&](std::size_t m) {
+      const Totals& group = groups[m];
+      nlohmann::json frames = {{"producers", group.producer_frames},
+                               {"subscribers", group.subscriber_frames},
+                               {"per_second", frames_per_second(group)},
+                               {"missing", group.missing_frames},
+                               {"unexpected", group.unexpected_frames}};
+      if (m == 1) frames["without_positions"] = group.frames_without_positions;
+      return nlohmann::json{
+          {"producers", group.producers},
+          {"utterances", {{"started", group.utterances_started}, {"complete", group.utterances_complete}}},
+          {"subscriptions", {{"started", group.subscriptions}, {"complete", group.subscriptions_complete}}},
+          {"frames", frames},
+          {"latency_ms",
+           {{"producers", to_json(producer_latency_by_mesh[m])},
+            {"subscribers", to_json(subscriber_latency_by_mesh[m])}}},
+      };
+    };
     nlohmann::json report = {
         {"server", address},
         {"mode", config.realtime ? "realtime" : "fast"},
@@ -502,16 +638,20 @@ int run_loadtest(std::span<const std::string_view> args) {
         {"elapsed_s", seconds},
         {"phonemes_per_utterance", config.phonemes},
         {"seed", config.seed},
+        {"mesh",
+         {{"share", config.mesh.share}, {"subdivision", config.mesh.subdivision}, {"encoding", encoding_name}}},
         {"utterances", {{"started", totals.utterances_started}, {"complete", totals.utterances_complete}}},
         {"subscriptions", {{"started", totals.subscriptions}, {"complete", totals.subscriptions_complete}}},
         {"frames",
          {{"producers", totals.producer_frames},
           {"subscribers", totals.subscriber_frames},
-          {"per_second", static_cast<double>(totals.producer_frames + totals.subscriber_frames) / seconds},
+          {"per_second", frames_per_second(totals)},
           {"missing", totals.missing_frames},
-          {"unexpected", totals.unexpected_frames}}},
+          {"unexpected", totals.unexpected_frames},
+          {"without_positions", totals.frames_without_positions}}},
         {"latency_ms", {{"producers", to_json(producer_latency)}, {"subscribers", to_json(subscriber_latency)}}},
-        {"errors", totals.errors},
+        {"by_output", {{"mesh", group_json(1)}, {"no_mesh", group_json(0)}}},
+        {"errors", results.errors},
         {"verified", config.verify},
         {"every_frame_arrived", every_frame},
     };
@@ -522,23 +662,49 @@ int run_loadtest(std::span<const std::string_view> args) {
                   config.producers, config.realtime ? "real time" : "fast", config.subscribers, seconds,
                   static_cast<unsigned long long>(config.seed));
     std::cout << line;
+    if (groups[1].producers > 0) {
+      std::snprintf(line, sizeof line, "mesh: %d of %d producers (share %.2f), subdivision %u, %s\n",
+                    groups[1].producers, config.producers, config.mesh.share, config.mesh.subdivision,
+                    encoding_name.c_str());
+      std::cout << line;
+    }
     std::cout << "utterances: " << totals.utterances_started << " started, " << totals.utterances_complete
               << " complete; subscriptions: " << totals.subscriptions << " started, "
               << totals.subscriptions_complete << " complete\n";
     std::snprintf(line, sizeof line, "frames: %llu to producers, %llu to subscribers, %.0f/s; %llu missing, %llu unexpected\n",
                   static_cast<unsigned long long>(totals.producer_frames),
-                  static_cast<unsigned long long>(totals.subscriber_frames),
-                  static_cast<double>(totals.producer_frames + totals.subscriber_frames) / seconds,
+                  static_cast<unsigned long long>(totals.subscriber_frames), frames_per_second(totals),
                   static_cast<unsigned long long>(totals.missing_frames),
                   static_cast<unsigned long long>(totals.unexpected_frames));
     std::cout << line;
-    std::cout << "latency, computable to arrival (producers): " << to_text(producer_latency) << '\n';
-    if (config.subscribers > 0) {
-      std::cout << "latency, computable to arrival (subscribers): " << to_text(subscriber_latency) << '\n';
+    if (groups[1].producers == 0) {
+      std::cout << "latency, computable to arrival (producers): " << to_text(producer_latency) << '\n';
+      if (config.subscribers > 0) {
+        std::cout << "latency, computable to arrival (subscribers): " << to_text(subscriber_latency) << '\n';
+      }
+    } else {
+      for (const std::size_t m : {std::size_t{0}, std::size_t{1}}) {
+        const Totals& group = groups[m];
+        const char* name = m == 1 ? "mesh" : "no mesh";
+        std::snprintf(line, sizeof line, "%s: %d producers, %llu utterances complete, frames %llu to producers, %llu to subscribers, %.0f/s",
+                      name, group.producers, static_cast<unsigned long long>(group.utterances_complete),
+                      static_cast<unsigned long long>(group.producer_frames),
+                      static_cast<unsigned long long>(group.subscriber_frames), frames_per_second(group));
+        std::cout << line;
+        if (m == 1) std::cout << "; " << group.frames_without_positions << " without positions";
+        std::cout << '\n';
+        if (group.producers == 0) continue;
+        std::cout << "  latency, computable to arrival (" << name << " producers): "
+                  << to_text(producer_latency_by_mesh[m]) << '\n';
+        if (config.subscribers > 0) {
+          std::cout << "  latency, computable to arrival (" << name << " subscribers): "
+                    << to_text(subscriber_latency_by_mesh[m]) << '\n';
+        }
+      }
     }
     std::cout << "errors:";
-    if (totals.errors.empty()) std::cout << " none";
-    for (const auto& [code, count] : totals.errors) std::cout << ' ' << code << ' ' << count;
+    if (results.errors.empty()) std::cout << " none";
+    for (const auto& [code, count] : results.errors) std::cout << ' ' << code << ' ' << count;
     std::cout << '\n';
     if (!config.verify) {
       std::cout << (every_frame ? "result: no errors (frames not checked: --no-verify)\n" : "result: FAILED (errors)\n");

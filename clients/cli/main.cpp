@@ -28,13 +28,14 @@ struct Command {
 constexpr Command kCommands[] = {
     {"render", "render a timed phoneme file to an animation track", run_render},
     {"demo", "render the built-in demo utterance to lipsync-demo.json", run_demo},
-    {"model", "model dump: print the articulation model JSON", run_model},
+    {"model", "model dump: print the built-in model (or --model FILE) as JSON", run_model},
     {"phone-sets", "list the built-in phone sets", run_phone_sets},
 #ifdef LIPSYNC_WITH_NETWORK
     {"stream", "stream a phoneme file to lipsyncd and write the frames it sends", run_stream},
     {"subscribe", "follow a lipsyncd session and write its frames", run_subscribe},
     {"play", "play a lipsyncd session in the terminal in real time", run_play},
     {"loadtest", "load-test a lipsyncd on this machine", run_loadtest},
+    {"server-models", "list a running lipsyncd's models, or describe one (NAME)", run_server_models},
 #endif
 };
 
@@ -48,12 +49,19 @@ constexpr std::string_view kOverview =
 constexpr std::string_view kFooter =
     "\n"
     "Run 'lipsync COMMAND --help' for the options of a command, 'lipsync --version'\n"
-    "for the version. Exit status: 0 success, 1 bad input or file, 2 bad command line.\n";
+    "for the version. Exit status: 0 success, 1 bad input or file, 2 bad command line.\n"
+#ifdef LIPSYNC_WITH_NETWORK
+    "'model dump' prints a model file on this machine; 'server-models' asks a running\n"
+    "lipsyncd (--server HOST:PORT) which models it serves, for 'stream --server-model'.\n"
+#endif
+    ;
+
+constexpr std::size_t kNameWidth = 15;
 
 void print_overview(std::ostream& out) {
   out << kOverview;
   for (const Command& command : kCommands) {
-    out << "  " << command.name << std::string(12 - command.name.size(), ' ') << command.summary << '\n';
+    out << "  " << command.name << std::string(kNameWidth - command.name.size(), ' ') << command.summary << '\n';
   }
   out << kFooter;
 }

@@ -3,7 +3,6 @@
 #include <chrono>
 
 #include "cli_error.hpp"
-#include "lipsync/error.hpp"
 
 namespace lipsync::cli {
 
@@ -24,22 +23,6 @@ bool is_loopback_address(std::string_view address) {
   if (host == "localhost") return true;
   if (!host.starts_with("127.")) return false;
   return host.find_first_not_of("0123456789.") == std::string_view::npos;
-}
-
-Track track_for_writing(const client::ReceivedTrack& received, const ArticulationModel& model,
-                        const std::string& source) {
-  const auto& channels = received.header.channels();
-  if (channels.empty()) throw InputError(source, 0, "the track carries no channel values (only ARKit weights)");
-  bool same = static_cast<std::size_t>(channels.size()) == model.channel_count();
-  for (std::size_t c = 0; same && c < model.channel_count(); ++c) {
-    same = channels[static_cast<int>(c)] == model.channels()[c].name;
-  }
-  if (!same) {
-    throw InputError(source, 0,
-                     "the server's model '" + received.header.model() + "' has other channels than '" +
-                         model.name() + "', so its frames cannot be written in this format");
-  }
-  return received.track;
 }
 
 std::int64_t unix_now_us() {

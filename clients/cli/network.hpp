@@ -1,6 +1,6 @@
-// What the network commands (stream, subscribe, play, loadtest) share: the
-// --server option, turning received tracks into core Tracks for the writers,
-// and the settings sent to lipsyncd.
+// What the network commands (stream, subscribe, play, loadtest, server-models)
+// share: the --server option, the loopback check and the clocks. Received
+// tracks are written by received_track_writer.hpp.
 #pragma once
 
 #include <string>
@@ -8,7 +8,6 @@
 
 #include "arguments.hpp"
 #include "lipsync/client/animation_client.hpp"
-#include "lipsync/model.hpp"
 
 namespace lipsync::cli {
 
@@ -22,12 +21,6 @@ std::string server_address(const Arguments& arguments);
 
 /// Whether `address` names this machine (127.x.y.z, localhost, [::1], unix:).
 bool is_loopback_address(std::string_view address);
-
-/// The received frames as a Track for the writers of `model`. Throws
-/// InputError naming `source` when the track carries no channel values or
-/// its channels are not the model's.
-Track track_for_writing(const client::ReceivedTrack& received, const ArticulationModel& model,
-                        const std::string& source);
 
 /// Microseconds on the wall clock (the "unix" media clock) and on the steady clock.
 std::int64_t unix_now_us();

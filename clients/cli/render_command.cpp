@@ -294,10 +294,11 @@ int run_render(std::span<const std::string_view> args) {
                                 ? face::FaceRig::from_json(face::FaceRig::builtin_json(), "rig.json", model)
                                 : face::FaceRig::builtin();
   // The face is driven by the uniform grid only (as with --fixed-rate), rendered at the solver's
-  // substep rate so that every substep sees the engine's own values; poses are kept at --fps.
+  // step rate (one step per frame from 30 fps up, ⌈30 / fps⌉ below) so that every step sees the
+  // engine's own values; poses are kept at --fps.
   TrackRequest face_request = request;
   face_request.render.fixed_rate = true;
-  face_request.render.fps = request.render.fps * ((60 + request.render.fps - 1) / request.render.fps);
+  face_request.render.fps = request.render.fps * ((30 + request.render.fps - 1) / request.render.fps);
   const Track face_track = render_utterance(utterance, model, phone_set, face_request);
   const face::FaceAnimation animation = face::simulate_face_animation(mesh, rig, face_track, request.render.fps);
   if (mesh_path) {

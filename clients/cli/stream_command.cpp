@@ -3,7 +3,9 @@
 //
 // The file goes through the same reading and phone-set steps as `lipsync
 // render`, and the frames go through the same writers, so with the default
-// settings the output equals `lipsync render INPUT` byte for byte.
+// settings the output equals `lipsync render INPUT` byte for byte. The frames
+// are written with the names the server's TrackHeader gives (its model, channels
+// and ARKit weights), so --server-model can pick any model the server loaded.
 //
 // --realtime sends each chunk when the start time of its last phoneme arrives
 // on a steady clock started at the first send (and the end marker at the end
@@ -23,6 +25,7 @@
 #include "lipsync/error.hpp"
 #include "network.hpp"
 #include "pipeline.hpp"
+#include "received_track_writer.hpp"
 
 namespace lipsync::cli {
 namespace {
@@ -34,6 +37,9 @@ constexpr OptionSpec kOptions[] = {
     {"realtime", 0, "", "send each phoneme when its start time arrives (the default)", ""},
     {"fast", 0, "", "send all phonemes as fast as possible", ""},
     {"chunk", 0, "N", "phonemes per message, 1 to 10000", "1"},
+    {"server-model", 0, "NAME",
+     "the server's model to animate with (see 'lipsync server-models'); the output is named after its channels",
+     "the server's default model"},
     {"session", 0, "NAME", "publish the frames under this session name for subscribers", "private"},
     {"playout-delay", 0, "MS",
      "media clock: utterance time 0 plays this long after the stream starts, 0 to 600000", "1000"},
@@ -50,8 +56,9 @@ constexpr OptionSpec kOptions[] = {
 constexpr std::string_view kUsage = "lipsync stream INPUT [options]";
 constexpr std::string_view kDescription =
     "Streams a timed phoneme file (INPUT, or - for standard input) to lipsyncd over one\n"
-    "Animate stream and writes the frames it sends back. With the default settings the\n"
-    "track equals 'lipsync render INPUT' byte for byte.";
+    "Animate stream and writes the frames it sends back, named after the server's model\n"
+    "(its channels and ARKit weights). With the default settings the track equals\n"
+    "'lipsync render INPUT' byte for byte.";
 
 }  // namespace
 
@@ -90,6 +97,11 @@ int run_stream(std::span<const std::string_view> args) {
     settings.set_lookahead(static_cast<std::uint32_t>(parse_int_option("lookahead", *lookahead, 0, 7)));
   }
   settings.mutable_outputs()->set_channels(true);
+  settings.mutable_outputs()->set_arkit(format != TrackFormat::csv);  // the server's retargeting for its model
+  if (const auto model_name = arguments.value("server-model")) {
+    if (model_name->empty()) throw UsageError("--server-model: the name must not be empty (see 'lipsync server-models')");
+    settings.set_model(*model_name);
+  }
   if (const auto session = arguments.value("session")) {
     if (session->empty()) throw UsageError("--session: the name must not be empty");
     settings.set_session(*session);
@@ -97,6 +109,8 @@ int run_stream(std::span<const std::string_view> args) {
   const std::optional<std::string> phone_set_name = arguments.value("phone-set");
   if (phone_set_name && phone_set_name->empty()) throw UsageError("--phone-set: the name must not be empty");
 
+  // The phone set is chosen (or detected) against the built-in model's inventory
+  // and sent by name; the server resolves it against its own model.
   const ArticulationModel& model = ArticulationModel::builtin();
   const std::string content = read_file(input);
   const std::string source = input == "-" ? std::string(kStdinName) : input;
@@ -134,7 +148,7 @@ int run_stream(std::span<const std::string_view> args) {
   if (!status.ok()) throw client::CallError("Animate on " + address, status.error_code(), status.error_message());
 
   std::lock_guard lock(received_mutex);
-  write_output(track_for_writing(received, model, "lipsyncd at " + address), model, format, output);
+  write_received_track(received, format, output, "lipsyncd at " + address);
   return 0;
 }
 

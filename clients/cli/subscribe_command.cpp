@@ -1,6 +1,7 @@
 // `lipsync subscribe SESSION`: follows the frames of a session that another
 // client is streaming to lipsyncd, and writes them once the producer has
-// finished (all or nothing: a session that fails leaves no file).
+// finished (all or nothing: a session that fails leaves no file), named as the
+// producer's TrackHeader names them (the server's model, channels and ARKit).
 #include <chrono>
 #include <iostream>
 #include <thread>
@@ -11,6 +12,7 @@
 #include "files.hpp"
 #include "network.hpp"
 #include "pipeline.hpp"
+#include "received_track_writer.hpp"
 
 namespace lipsync::cli {
 namespace {
@@ -28,7 +30,8 @@ constexpr OptionSpec kOptions[] = {
 constexpr std::string_view kUsage = "lipsync subscribe SESSION [options]";
 constexpr std::string_view kDescription =
     "Follows the frames of SESSION (published by 'lipsync stream --session SESSION' or any\n"
-    "Animate stream with a session name) until its producer finishes, then writes them.";
+    "Animate stream with a session name) until its producer finishes, then writes them\n"
+    "with the channel and ARKit names of the server's model that the session uses.";
 
 }  // namespace
 
@@ -61,8 +64,7 @@ int run_subscribe(std::span<const std::string_view> args) {
   for (;;) {
     try {
       const client::ReceivedTrack received = connection.subscribe(session, start);
-      const ArticulationModel& model = ArticulationModel::builtin();
-      write_output(track_for_writing(received, model, "session '" + session + "'"), model, format, output);
+      write_received_track(received, format, output, "session '" + session + "'");
       return 0;
     } catch (const client::CallError& error) {
       if (error.code() != grpc::StatusCode::NOT_FOUND || std::chrono::steady_clock::now() >= give_up) throw;

@@ -153,13 +153,17 @@ double fade_out_shape(double u, double length_s, double slope_per_s) {
   return v * v * std::max(0.0, (1.0 + 2.0 * u) + u * length_s * slope);
 }
 
-CoarticulationEvaluator::CoarticulationEvaluator(const ArticulationModel& model)
+CoarticulationTables::CoarticulationTables(const ArticulationModel& model)
     : model_(model),
       channels_(model.channel_count()),
       padded_channels_((model.channel_count() + kLanes - 1) / kLanes * kLanes) {
   // Group each phoneme's channels by dominance shape (θ−, θ+, c, t_off): the
   // default model gives most phonemes one or two shapes for 16 channels, and
   // exp() is then taken once per shape instead of once per channel.
+  const std::size_t phonemes = model.phonemes().size();
+  shape_begin_.reserve(phonemes + 1);
+  channel_shape_.reserve(phonemes * padded_channels_);
+  target_.reserve(phonemes * padded_channels_);
   shape_begin_.push_back(0);
   for (const PhonemeSpec& phoneme : model.phonemes()) {
     const std::size_t first_shape = shapes_.size();
@@ -187,19 +191,29 @@ CoarticulationEvaluator::CoarticulationEvaluator(const ArticulationModel& model)
     shape_begin_.push_back(static_cast<std::uint32_t>(shapes_.size()));
     max_shapes_ = std::max(max_shapes_, shapes_.size() - first_shape);
   }
+}
+
+CoarticulationEvaluator::CoarticulationEvaluator(const ArticulationModel& model)
+    : CoarticulationEvaluator(std::make_shared<const CoarticulationTables>(model)) {}
+
+CoarticulationEvaluator::CoarticulationEvaluator(std::shared_ptr<const CoarticulationTables> tables)
+    : tables_(std::move(tables)) {
   const std::size_t window = 2 * kWindowRadius + 1;
-  log_shape_.resize(window * max_shapes_);
-  shape_weight_.resize(window * max_shapes_);
-  numerator_.resize(padded_channels_);
-  denominator_.resize(padded_channels_);
-  low_.resize(padded_channels_);
-  high_.resize(padded_channels_);
+  log_shape_.resize(window * tables_->max_shapes_);
+  shape_weight_.resize(window * tables_->max_shapes_);
+  numerator_.resize(tables_->padded_channels_);
+  denominator_.resize(tables_->padded_channels_);
+  low_.resize(tables_->padded_channels_);
+  high_.resize(tables_->padded_channels_);
 }
 
 void CoarticulationEvaluator::evaluate(std::span<const Segment> window, std::size_t current,
                                        std::int64_t t_us, std::span<float> out) {
   assert(current < window.size());
-  const std::size_t channels = channels_;
+  const CoarticulationTables& tables = *tables_;
+  const std::size_t channels = tables.channels_;
+  const std::size_t max_shapes = tables.max_shapes_;
+  const auto& shape_begin = tables.shape_begin_;
   const std::size_t first = current >= kWindowRadius ? current - kWindowRadius : 0;
   const std::size_t last = std::min(window.size() - 1, current + kWindowRadius);
   const Segment& here = window[current];
@@ -209,15 +223,15 @@ void CoarticulationEvaluator::evaluate(std::span<const Segment> window, std::siz
   // Pass 1: log D / α for every segment of the window and every shape of its
   // phoneme (Eq. 2, or Eq. 4's Hermite fade for the 7th segment on each side).
   double max_log = kNegativeInfinity;
-  const std::size_t slots = (last - first + 1) * max_shapes_;
+  const std::size_t slots = (last - first + 1) * max_shapes;
   std::fill_n(log_shape_.data(), slots, kNegativeInfinity);  // phonemes with fewer shapes leave some unused
   for (std::size_t i = first; i <= last; ++i) {
     const Segment& segment = window[i];
     const auto phoneme = static_cast<std::size_t>(segment.phoneme);
     const std::ptrdiff_t distance = static_cast<std::ptrdiff_t>(i) - static_cast<std::ptrdiff_t>(current);
-    double* log_shape = log_shape_.data() + (i - first) * max_shapes_;
-    for (std::uint32_t k = shape_begin_[phoneme]; k < shape_begin_[phoneme + 1]; ++k) {
-      const DominanceParams& params = shapes_[k];
+    double* log_shape = log_shape_.data() + (i - first) * max_shapes;
+    for (std::uint32_t k = shape_begin[phoneme]; k < shape_begin[phoneme + 1]; ++k) {
+      const DominanceParams& params = tables.shapes_[k];
       double value = 0.0;
       if (distance == kWindowRadius) {
         // t lies in s₋₇ of this segment: fade in across the current segment,
@@ -233,7 +247,7 @@ void CoarticulationEvaluator::evaluate(std::span<const Segment> window, std::siz
       } else {
         value = log_dominance(params, 0.0, tau_s(segment, params, t_us));
       }
-      log_shape[k - shape_begin_[phoneme]] = value;
+      log_shape[k - shape_begin[phoneme]] = value;
       max_log = std::max(max_log, value);
     }
   }
@@ -241,7 +255,7 @@ void CoarticulationEvaluator::evaluate(std::span<const Segment> window, std::siz
   // Pass 2: Eq. 5 with weights α · exp(log D/α − max): the largest shape
   // weight is 1, so nothing overflows and, for all but pathological inputs,
   // every channel's denominator stays far from underflow.
-  const std::size_t n = padded_channels_;
+  const std::size_t n = tables.padded_channels_;
   std::fill_n(numerator_.data(), n, 0.0);
   std::fill_n(denominator_.data(), n, 0.0);
   std::fill_n(low_.data(), n, std::numeric_limits<double>::infinity());
@@ -250,18 +264,18 @@ void CoarticulationEvaluator::evaluate(std::span<const Segment> window, std::siz
   exp_non_positive(std::span<const double>(log_shape_.data(), slots), std::span<double>(shape_weight_.data(), slots));
   for (std::size_t i = first; i <= last; ++i) {
     const auto phoneme = static_cast<std::size_t>(window[i].phoneme);
-    const std::size_t shape_count = shape_begin_[phoneme + 1] - shape_begin_[phoneme];
-    const double* shape_weight = shape_weight_.data() + (i - first) * max_shapes_;
+    const std::size_t shape_count = shape_begin[phoneme + 1] - shape_begin[phoneme];
+    const double* shape_weight = shape_weight_.data() + (i - first) * max_shapes;
     bool carries_weight = false;
     for (std::size_t k = 0; k < shape_count; ++k) {
       if (shape_weight[k] == 0.0) continue;
-      const std::size_t row = (shape_begin_[phoneme] + k) * n;
-      accumulate(n, shape_weight[k], alpha_.data() + row, alpha_target_.data() + row, numerator_.data(),
+      const std::size_t row = (shape_begin[phoneme] + k) * n;
+      accumulate(n, shape_weight[k], tables.alpha_.data() + row, tables.alpha_target_.data() + row, numerator_.data(),
                  denominator_.data());
       carries_weight = true;
     }
     // A segment far away in time adds nothing, and its targets do not bound the result.
-    if (carries_weight) widen_range(n, target_.data() + phoneme * n, low_.data(), high_.data());
+    if (carries_weight) widen_range(n, tables.target_.data() + phoneme * n, low_.data(), high_.data());
   }
   for (std::size_t c = 0; c < channels; ++c) {
     if (denominator_[c] < kUnderflowGuard) evaluate_channel_in_log_space(window, first, last, c);
@@ -277,12 +291,14 @@ void CoarticulationEvaluator::evaluate_channel_in_log_space(std::span<const Segm
   // The slow, always-safe path: this channel's weights scaled by their own
   // largest, as logarithms. Taken only when the shared scaling underflowed
   // (shapes of one phoneme that differ by hundreds of orders of magnitude).
+  const CoarticulationTables& tables = *tables_;
+  const std::size_t padded = tables.padded_channels_;
   double max_log = kNegativeInfinity;
   const auto log_weight = [&](std::size_t i) {
     const auto phoneme = static_cast<std::size_t>(window[i].phoneme);
-    const std::size_t shape = channel_shape_[phoneme * padded_channels_ + channel];
-    const double alpha = alpha_[(shape_begin_[phoneme] + shape) * padded_channels_ + channel];
-    return std::log(alpha) + log_shape_[(i - first) * max_shapes_ + shape];
+    const std::size_t shape = tables.channel_shape_[phoneme * padded + channel];
+    const double alpha = tables.alpha_[(tables.shape_begin_[phoneme] + shape) * padded + channel];
+    return std::log(alpha) + log_shape_[(i - first) * tables.max_shapes_ + shape];
   };
   for (std::size_t i = first; i <= last; ++i) max_log = std::max(max_log, log_weight(i));
   double numerator = 0.0;
@@ -292,7 +308,7 @@ void CoarticulationEvaluator::evaluate_channel_in_log_space(std::span<const Segm
   for (std::size_t i = first; i <= last; ++i) {
     const double weight = std::exp(log_weight(i) - max_log);
     if (weight == 0.0) continue;
-    const double target = target_[static_cast<std::size_t>(window[i].phoneme) * padded_channels_ + channel];
+    const double target = tables.target_[static_cast<std::size_t>(window[i].phoneme) * padded + channel];
     numerator += weight * target;
     denominator += weight;
     low = std::min(low, target);

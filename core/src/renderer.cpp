@@ -46,6 +46,12 @@ void append_frame(Track& out, const ScheduledFrame& frame, CoarticulationEvaluat
 
 Track render_track(const ArticulationModel& model, const std::vector<Segment>& segments,
                    const RenderOptions& options) {
+  return render_track(std::make_shared<const CoarticulationTables>(model), segments, options);
+}
+
+Track render_track(std::shared_ptr<const CoarticulationTables> tables, const std::vector<Segment>& segments,
+                   const RenderOptions& options) {
+  const ArticulationModel& model = tables->model();
   FrameScheduler scheduler(model, schedule_options(options));
   std::vector<ScheduledFrame> frames;
   for (std::size_t i = 0; i < segments.size(); ++i) scheduler.add_segment(segments[i], i, frames);
@@ -57,7 +63,7 @@ Track render_track(const ArticulationModel& model, const std::vector<Segment>& s
   track.t_us.reserve(frames.size());
   track.kinds.reserve(frames.size());
   track.values.reserve(frames.size() * track.channel_count);
-  CoarticulationEvaluator evaluator(model);
+  CoarticulationEvaluator evaluator(std::move(tables));
   const std::span<const Segment> all(segments);
   for (const ScheduledFrame& frame : frames) {
     const auto [first, last] = window_range(frame.segment, segments.size(), options.lookahead);
@@ -67,7 +73,13 @@ Track render_track(const ArticulationModel& model, const std::vector<Segment>& s
 }
 
 StreamingRenderer::StreamingRenderer(const ArticulationModel& model, const RenderOptions& options)
-    : model_(model), options_(options), scheduler_(model, schedule_options(options)), evaluator_(model) {
+    : StreamingRenderer(std::make_shared<const CoarticulationTables>(model), options) {}
+
+StreamingRenderer::StreamingRenderer(std::shared_ptr<const CoarticulationTables> tables,
+                                     const RenderOptions& options)
+    : options_(options),
+      scheduler_(tables->model(), schedule_options(options)),
+      evaluator_(std::move(tables)) {
   scratch_window_.reserve(2 * kWindowRadius + 1);
 }
 

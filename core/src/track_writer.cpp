@@ -1,5 +1,11 @@
 // Track writers (schemas and examples: docs/output-formats.md).
 //
+// One writer per format, over a NamedTrackView: the names (model, channels,
+// ARKit shapes) and the ARKit weights are data, so a track whose model only a
+// server has is written exactly like one of a local model. The model-based
+// write_track is a thin wrapper that fills the view with the model's names and
+// its retargeting of every frame.
+//
 // Each writer streams the track into a local text buffer that is handed to the
 // std::ostream in chunks of about 64 KiB, so a long track costs no per-value
 // stream calls and no per-frame allocation.
@@ -12,10 +18,11 @@
 //
 // The Live Link Face CSV has its own blendshape order (JawRight before JawLeft,
 // MouthRight before MouthLeft) and PascalCase names. Its columns are bound to
-// the model's ARKit output by name (PascalCase → Apple camelCase lookup in
-// kArkitNames), never by position, so a change of either order cannot shift a
-// column. Its Timecode is HH:MM:SS:FF.sss: the frame number within the second
-// at the track's rate, with the fraction for key frames between grid points.
+// the view's ARKit weights by name (PascalCase → Apple camelCase lookup in
+// arkit_names), never by position, so a change of either order cannot shift a
+// column; a shape the view does not name is written as 0. Its Timecode is
+// HH:MM:SS:FF.sss: the frame number within the second at the track's rate,
+// with the fraction for key frames between grid points.
 #include "lipsync/track_writer.hpp"
 
 #include <algorithm>
@@ -24,6 +31,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "lipsync/time.hpp"
 
@@ -110,28 +118,34 @@ class TextBuffer {
   std::string text_;
 };
 
-void write_json(const Track& track, const ArticulationModel& model, std::ostream& out) {
+/// The ARKit weights of frame `frame` of `view`, in arkit_names order.
+std::span<const float> frame_arkit(const NamedTrackView& view, std::size_t frame) {
+  const std::size_t count = view.arkit_names.size();
+  return view.arkit.subspan(frame * count, count);
+}
+
+void write_json(const NamedTrackView& view, std::ostream& out) {
+  const Track& track = view.track;
   TextBuffer buffer(out);
   buffer.put("{\"format\":\"lipsync-track\",\"version\":1,\"model\":");
-  buffer.put_json_string(model.name());
+  buffer.put_json_string(view.model);
   buffer.put(",\"fps\":");
   buffer.put_integer(track.fps);
   buffer.put(",\n\"channels\":[");
-  for (std::size_t c = 0; c < model.channel_count(); ++c) {
+  for (std::size_t c = 0; c < view.channel_names.size(); ++c) {
     if (c > 0) buffer.put(',');
-    buffer.put_json_string(model.channels()[c].name);
+    buffer.put_json_string(view.channel_names[c]);
   }
   buffer.put("],\n\"arkit_names\":[");
-  for (std::size_t j = 0; j < kArkitNames.size(); ++j) {
+  for (std::size_t j = 0; j < view.arkit_names.size(); ++j) {
     if (j > 0) buffer.put(',');
-    buffer.put_json_string(kArkitNames[j]);
+    buffer.put_json_string(view.arkit_names[j]);
   }
   buffer.put("],\n\"frames\":[");
 
-  std::array<float, kArkitNames.size()> arkit{};
   for (std::size_t f = 0; f < track.frame_count(); ++f) {
     const auto values = track.frame_values(f);
-    model.retarget_to_arkit(values, arkit);
+    const auto arkit = frame_arkit(view, f);
     buffer.put(f == 0 ? "\n{\"t\":" : ",\n{\"t\":");
     buffer.put(format_seconds(track.t_us[f]));
     buffer.put(",\"t_us\":");
@@ -155,12 +169,13 @@ void write_json(const Track& track, const ArticulationModel& model, std::ostream
   buffer.flush();
 }
 
-void write_csv(const Track& track, const ArticulationModel& model, std::ostream& out) {
+void write_csv(const NamedTrackView& view, std::ostream& out) {
+  const Track& track = view.track;
   TextBuffer buffer(out);
   buffer.put("t,t_us,kind");
-  for (const ChannelSpec& channel : model.channels()) {
+  for (const std::string_view name : view.channel_names) {
     buffer.put(',');
-    buffer.put_csv_field(channel.name);
+    buffer.put_csv_field(name);
   }
   buffer.put('\n');
   for (std::size_t f = 0; f < track.frame_count(); ++f) {
@@ -204,21 +219,19 @@ constexpr std::array<std::string_view, 9> kLiveLinkFaceRotations = {
 
 constexpr std::size_t kLiveLinkFaceCount = kLiveLinkFaceShapes.size() + kLiveLinkFaceRotations.size();
 
-/// For each Live Link Face column, the index of the same shape in kArkitNames,
-/// found by name: "JawOpen" → "jawOpen".
-const std::array<std::size_t, 52>& live_link_face_to_arkit() {
-  static const std::array<std::size_t, 52> table = [] {
-    std::array<std::size_t, 52> indices{};
-    for (std::size_t i = 0; i < kLiveLinkFaceShapes.size(); ++i) {
-      std::string apple(kLiveLinkFaceShapes[i]);
-      apple[0] = static_cast<char>(apple[0] - 'A' + 'a');
-      const auto it = std::find(kArkitNames.begin(), kArkitNames.end(), apple);
-      if (it == kArkitNames.end()) throw std::logic_error("Live Link Face shape without ARKit name: " + apple);
-      indices[i] = static_cast<std::size_t>(it - kArkitNames.begin());
-    }
-    return indices;
-  }();
-  return table;
+/// For each Live Link Face column, the index of the same shape in `arkit_names`,
+/// found by name ("JawOpen" → "jawOpen"); nullopt when it is not there.
+std::array<std::optional<std::size_t>, kLiveLinkFaceShapes.size()> live_link_face_columns(
+    std::span<const std::string_view> arkit_names) {
+  std::array<std::optional<std::size_t>, kLiveLinkFaceShapes.size()> indices{};
+  std::string apple;
+  for (std::size_t i = 0; i < kLiveLinkFaceShapes.size(); ++i) {
+    apple = kLiveLinkFaceShapes[i];
+    apple[0] = static_cast<char>(apple[0] - 'A' + 'a');
+    const auto it = std::find(arkit_names.begin(), arkit_names.end(), apple);
+    if (it != arkit_names.end()) indices[i] = static_cast<std::size_t>(it - arkit_names.begin());
+  }
+  return indices;
 }
 
 void put_two_digits(TextBuffer& buffer, std::int64_t value) {
@@ -250,9 +263,11 @@ void put_timecode(TextBuffer& buffer, std::int64_t t_us, int fps) {
   buffer.put_integer(fraction);
 }
 
-void write_arkit_csv(const Track& track, const ArticulationModel& model, std::ostream& out) {
+void write_arkit_csv(const NamedTrackView& view, std::ostream& out) {
+  const Track& track = view.track;
   if (track.fps < 1) throw std::invalid_argument("arkit-csv needs a track frame rate of at least 1 fps");
-  const auto& to_arkit = live_link_face_to_arkit();
+  if (view.arkit_names.empty()) throw std::invalid_argument("arkit-csv needs the track's ARKit weights");
+  const auto columns = live_link_face_columns(view.arkit_names);
   TextBuffer buffer(out);
   buffer.put("Timecode,BlendShapeCount");
   for (std::string_view name : kLiveLinkFaceShapes) {
@@ -265,21 +280,30 @@ void write_arkit_csv(const Track& track, const ArticulationModel& model, std::os
   }
   buffer.put('\n');
 
-  std::array<float, kArkitNames.size()> arkit{};
   for (std::size_t f = 0; f < track.frame_count(); ++f) {
-    model.retarget_to_arkit(track.frame_values(f), arkit);
+    const auto arkit = frame_arkit(view, f);
     put_timecode(buffer, track.t_us[f], track.fps);
     buffer.put(',');
     buffer.put_integer(static_cast<std::int64_t>(kLiveLinkFaceCount));
-    for (const std::size_t index : to_arkit) {
+    for (const std::optional<std::size_t>& index : columns) {
       buffer.put(',');
-      buffer.put_float(arkit[index], "nan");
+      buffer.put_float(index ? arkit[*index] : 0.0F, "nan");
     }
     for (std::size_t r = 0; r < kLiveLinkFaceRotations.size(); ++r) buffer.put(",0");
     buffer.put('\n');
     buffer.end_record();
   }
   buffer.flush();
+}
+
+/// Throws std::invalid_argument unless the track's times, kinds and values agree.
+void check_track_arrays(const Track& track) {
+  if (track.kinds.size() != track.frame_count() ||
+      track.values.size() != track.frame_count() * track.channel_count) {
+    throw std::invalid_argument("track arrays disagree: " + std::to_string(track.frame_count()) +
+                                " times, " + std::to_string(track.kinds.size()) + " kinds, " +
+                                std::to_string(track.values.size()) + " values");
+  }
 }
 
 }  // namespace
@@ -300,6 +324,25 @@ std::optional<TrackFormat> track_format_from_string(std::string_view name) {
   return std::nullopt;
 }
 
+void write_track(const NamedTrackView& view, TrackFormat format, std::ostream& out) {
+  const Track& track = view.track;
+  if (view.channel_names.size() != track.channel_count) {
+    throw std::invalid_argument("track has " + std::to_string(track.channel_count) + " channels but " +
+                                std::to_string(view.channel_names.size()) + " channel names");
+  }
+  check_track_arrays(track);
+  if (view.arkit.size() != track.frame_count() * view.arkit_names.size()) {
+    throw std::invalid_argument("track has " + std::to_string(track.frame_count()) + " frames of " +
+                                std::to_string(view.arkit_names.size()) + " ARKit weights but " +
+                                std::to_string(view.arkit.size()) + " weights were given");
+  }
+  switch (format) {
+    case TrackFormat::json: write_json(view, out); return;
+    case TrackFormat::csv: write_csv(view, out); return;
+    case TrackFormat::arkit_csv: write_arkit_csv(view, out); return;
+  }
+}
+
 void write_track(const Track& track, const ArticulationModel& model, TrackFormat format,
                  std::ostream& out) {
   if (track.channel_count != model.channel_count()) {
@@ -307,17 +350,27 @@ void write_track(const Track& track, const ArticulationModel& model, TrackFormat
                                 " channels but model '" + model.name() + "' has " +
                                 std::to_string(model.channel_count()));
   }
-  if (track.kinds.size() != track.frame_count() ||
-      track.values.size() != track.frame_count() * track.channel_count) {
-    throw std::invalid_argument("track arrays disagree: " + std::to_string(track.frame_count()) +
-                                " times, " + std::to_string(track.kinds.size()) + " kinds, " +
-                                std::to_string(track.values.size()) + " values");
+  check_track_arrays(track);  // before retargeting reads every frame
+  std::vector<std::string_view> channel_names;
+  channel_names.reserve(model.channel_count());
+  for (const ChannelSpec& channel : model.channels()) channel_names.emplace_back(channel.name);
+  // The csv has no ARKit columns, so it is written without the weights.
+  std::vector<float> arkit;
+  std::span<const std::string_view> arkit_names;
+  if (format != TrackFormat::csv) {
+    arkit_names = kArkitNames;
+    arkit.resize(track.frame_count() * kArkitNames.size());
+    for (std::size_t f = 0; f < track.frame_count(); ++f) {
+      model.retarget_to_arkit(track.frame_values(f),
+                              std::span<float>(arkit).subspan(f * kArkitNames.size(), kArkitNames.size()));
+    }
   }
-  switch (format) {
-    case TrackFormat::json: write_json(track, model, out); return;
-    case TrackFormat::csv: write_csv(track, model, out); return;
-    case TrackFormat::arkit_csv: write_arkit_csv(track, model, out); return;
-  }
+  write_track(NamedTrackView{.model = model.name(),
+                             .channel_names = channel_names,
+                             .arkit_names = arkit_names,
+                             .track = track,
+                             .arkit = arkit},
+              format, out);
 }
 
 }  // namespace lipsync

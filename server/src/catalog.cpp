@@ -34,6 +34,7 @@ ModelCatalog::ModelCatalog(const std::vector<ModelFile>& files) {
   builtin->model = &ArticulationModel::builtin();
   builtin->name = builtin->model->name();
   builtin->phone_sets = phone_sets_for(*builtin->model);
+  builtin->tables = std::make_shared<const CoarticulationTables>(*builtin->model);
   builtin->is_default = true;
   entries_.push_back(std::move(builtin));
   for (const ModelFile& file : files) {
@@ -47,6 +48,7 @@ ModelCatalog::ModelCatalog(const std::vector<ModelFile>& files) {
     entry->model = entry->owned.get();
     entry->name = file.name;
     entry->phone_sets = phone_sets_for(*entry->model);
+    entry->tables = std::make_shared<const CoarticulationTables>(*entry->model);
     entries_.push_back(std::move(entry));
   }
 }

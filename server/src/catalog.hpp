@@ -1,6 +1,6 @@
 // The models this server animates with: the built-in one (the default) and any
 // loaded with `--model NAME=FILE`, each with the built-in phone sets that
-// resolve against its phoneme inventory. Built once at start-up, read-only
+// resolve against its phoneme inventory and the evaluator's tables. Built once at start-up, read-only
 // afterwards, so every call can share it without locking.
 #pragma once
 
@@ -9,6 +9,7 @@
 #include <string_view>
 #include <vector>
 
+#include "lipsync/coarticulation.hpp"
 #include "lipsync/model.hpp"
 #include "lipsync/phone_set.hpp"
 #include "lipsync/server/config.hpp"
@@ -19,6 +20,8 @@ struct ModelEntry {
   std::string name;
   const ArticulationModel* model = nullptr;
   std::unique_ptr<ArticulationModel> owned;
+  /// The evaluator's tables for `model`, built once and shared by every stream.
+  std::shared_ptr<const CoarticulationTables> tables;
   std::vector<PhoneSet> phone_sets;
   bool is_default = false;
 

@@ -90,6 +90,23 @@ const std::vector<Option>& options() {
        "frames a subscriber may have waiting before it is cut off (RESOURCE_EXHAUSTED)",
        [](ServerConfig& c, const Setting& s) { c.subscriber_queue_frames = parse_count(s, 1); },
        [](const ServerConfig& c) { return std::to_string(c.subscriber_queue_frames); }},
+      {"--face-threads", "N", "threads that run the physics face for mesh streams, 0 to 256 (0: one per core)",
+       [](ServerConfig& c, const Setting& s) { c.face_threads = static_cast<std::size_t>(parse_integer(s, 0, 256)); },
+       [](const ServerConfig& c) { return std::to_string(c.face_threads); }},
+      {"--face-priority", "PRIORITY",
+       "scheduling of the face threads: idle (only CPU time nothing else wants), low (nice 10) or normal",
+       [](ServerConfig& c, const Setting& s) {
+         static const std::vector<std::string> priorities = {"idle", "low", "normal"};
+         if (std::find(priorities.begin(), priorities.end(), s.value) == priorities.end()) {
+           throw ConfigError(s.name + ": unknown priority '" + s.value + "' (idle, low or normal)");
+         }
+         c.face_priority = s.value;
+       },
+       [](const ServerConfig& c) { return c.face_priority; }},
+      {"--stalled-subscriber-ms", "MS",
+       "a subscriber cut off for falling behind that has stopped reading is cancelled after this long",
+       [](ServerConfig& c, const Setting& s) { c.stalled_subscriber_ms = parse_integer(s, 1, 3'600'000); },
+       [](const ServerConfig& c) { return std::to_string(c.stalled_subscriber_ms); }},
       {"--session-retention-ms", "MS", "how long a finished session stays joinable",
        [](ServerConfig& c, const Setting& s) { c.session_retention_ms = parse_integer(s, 0, 86'400'000); },
        [](const ServerConfig& c) { return std::to_string(c.session_retention_ms); }},

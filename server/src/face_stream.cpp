@@ -6,8 +6,6 @@
 namespace lipsync::server {
 namespace {
 
-constexpr std::size_t kMeshBatchBytes = std::size_t{1} << 20;
-
 v1::MeshPart to_proto(face::FacePart part) {
   switch (part) {
     case face::FacePart::skin: return v1::MESH_PART_SKIN;
@@ -90,22 +88,39 @@ const face::FaceRig& FaceLibrary::rig(const ArticulationModel& model) {
   return *rig;
 }
 
-FaceStream::FaceStream(const FaceTopology& topology, const face::FaceRig& rig, v1::MeshEncoding encoding)
-    : topology_(topology), solver_(topology.mesh, rig), encoding_(encoding) {}
-
-v1::MeshTopology FaceStream::header_topology() const {
-  v1::MeshTopology wire = topology_.wire;
-  wire.set_encoding(encoding_);
-  if (encoding_ == v1::MESH_ENCODING_INT16) {
-    wire.set_quantisation_scale_m(topology_.scale_m);
-    for (const float offset : topology_.offset_m) wire.add_quantisation_offset_m(offset);
+FaceLibrary::PooledSolver FaceLibrary::solver(const FaceTopology& topology, const face::FaceRig& rig) {
+  SolverReturn give_back{this, &topology, &rig};
+  {
+    std::lock_guard lock(pool_mutex_);
+    auto& pooled = pool_[{&topology, &rig}];
+    if (!pooled.empty()) {
+      PooledSolver solver(pooled.back().release(), give_back);
+      pooled.pop_back();
+      return solver;
+    }
   }
-  return wire;
+  return PooledSolver(new face::FaceSolver(topology.mesh, rig), give_back);
 }
 
-std::size_t FaceStream::frames_per_batch(std::size_t max_frames) const {
-  const std::size_t bytes = topology_.mesh.vertex_count() * 3 * (encoding_ == v1::MESH_ENCODING_INT16 ? 2 : 4);
-  return std::clamp<std::size_t>(kMeshBatchBytes / std::max<std::size_t>(bytes, 1), 1, max_frames);
+void FaceLibrary::SolverReturn::operator()(face::FaceSolver* solver) const {
+  std::unique_ptr<face::FaceSolver> owned(solver);
+  owned->reset();
+  std::lock_guard lock(library->pool_mutex_);
+  auto& pooled = library->pool_[{topology, rig}];
+  if (pooled.size() < kPooledSolvers) pooled.push_back(std::move(owned));
+}
+
+FaceStream::FaceStream(const FaceTopology& topology, FaceLibrary::PooledSolver solver, v1::MeshEncoding encoding)
+    : topology_(topology), solver_(std::move(solver)), encoding_(encoding) {}
+
+v1::MeshTopology header_topology(const FaceTopology& topology, v1::MeshEncoding encoding) {
+  v1::MeshTopology wire = topology.wire;
+  wire.set_encoding(encoding);
+  if (encoding == v1::MESH_ENCODING_INT16) {
+    wire.set_quantisation_scale_m(topology.scale_m);
+    for (const float offset : topology.offset_m) wire.add_quantisation_offset_m(offset);
+  }
+  return wire;
 }
 
 void FaceStream::encode(const Track& track, std::size_t begin, std::size_t end, v1::FrameBatch& batch) {
@@ -120,9 +135,9 @@ void FaceStream::encode(const Track& track, std::size_t begin, std::size_t end, 
   }
   for (std::size_t frame = begin; frame < end; ++frame) {
     const std::int64_t t_us = track.t_us[frame];
-    solver_.step(track.frame_values(frame), static_cast<double>(t_us - previous_t_us_) * 1e-6);
+    solver_->step(track.frame_values(frame), static_cast<double>(t_us - previous_t_us_) * 1e-6);
     previous_t_us_ = t_us;
-    for (const face::Vec3& p : solver_.positions()) {
+    for (const face::Vec3& p : solver_->positions()) {
       const std::array<double, 3> xyz{p.x, p.y, p.z};
       for (int axis = 0; axis < 3; ++axis) {
         if (int16) {

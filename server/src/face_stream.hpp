@@ -3,13 +3,15 @@
 //
 // FaceLibrary holds what every stream shares: the FaceMesh and its wire
 // topology per subdivision level (built on first use, once, under a
-// std::once_flag per level) and the FaceRig validated per model. A FaceStream
+// std::once_flag per level), the FaceRig validated per model, and a pool of
+// solvers at rest, so that a stream (one utterance) does not pay for binding
+// and factoring a new one. A FaceStream
 // is one stream's FaceSolver (its own state: the face moves with that stream
 // only); it steps once per released frame with dt = t_i − t_{i−1} (t_{−1} = 0:
-// key frames make the steps uneven; FaceSolver rounds each to a whole number
-// ≥ 1 of 1/60 s substeps) and appends the positions as float32 or int16
-// (MeshTopology documents the quantisation). Streams that do not ask for the
-// mesh never touch any of this.
+// key frames make the steps uneven; FaceSolver simulates each dt exactly, in
+// substeps of at most its 1/30 s step) and appends the positions as float32 or
+// int16 (MeshTopology documents the quantisation). It runs on the face threads
+// (face_workers.hpp). Streams that do not ask for the mesh never touch any of this.
 #pragma once
 
 #include <array>
@@ -18,6 +20,8 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <utility>
+#include <vector>
 
 #include "lipsync/face/face_mesh.hpp"
 #include "lipsync/face/face_rig.hpp"
@@ -44,36 +48,57 @@ void quantisation_for(const face::FaceMesh& mesh, float& scale_m, std::array<flo
 std::int16_t quantise(double x_m, float offset_m, float scale_m);
 
 class FaceLibrary {
+  struct SolverReturn;
+
  public:
   static constexpr int kMaxSubdivision = 2;
+  /// Solvers at rest kept per (level, rig) for the next stream.
+  static constexpr std::size_t kPooledSolvers = 16;
+
+  /// A solver at rest on its way back to the pool when released.
+  using PooledSolver = std::unique_ptr<face::FaceSolver, SolverReturn>;
 
   /// The topology at `level` (0..kMaxSubdivision), built on first use. Thread-safe.
   const FaceTopology& topology(int level);
   /// The built-in rig validated against `model`, on first use. Thread-safe.
   /// Throws InputError if the model's channels cannot drive the face.
   const face::FaceRig& rig(const ArticulationModel& model);
+  /// A solver for `topology` driven by `rig`, at rest: one a finished stream gave
+  /// back (reset, so it computes exactly what a new one would), else a new one
+  /// (binding and factoring: tens of milliseconds at level 1). Thread-safe. The
+  /// library must outlive it.
+  PooledSolver solver(const FaceTopology& topology, const face::FaceRig& rig);
 
  private:
+  struct SolverReturn {
+    FaceLibrary* library = nullptr;
+    const FaceTopology* topology = nullptr;
+    const face::FaceRig* rig = nullptr;
+    void operator()(face::FaceSolver* solver) const;
+  };
+  using PoolKey = std::pair<const FaceTopology*, const face::FaceRig*>;
+
   std::array<std::once_flag, kMaxSubdivision + 1> built_;
   std::array<std::unique_ptr<FaceTopology>, kMaxSubdivision + 1> topologies_;
   std::mutex rigs_mutex_;
   std::map<const ArticulationModel*, std::unique_ptr<face::FaceRig>> rigs_;
+  std::mutex pool_mutex_;
+  std::map<PoolKey, std::vector<std::unique_ptr<face::FaceSolver>>> pool_;
 };
+
+/// The header's topology for a stream with `encoding` (the shared one plus encoding and quantisation).
+v1::MeshTopology header_topology(const FaceTopology& topology, v1::MeshEncoding encoding);
 
 class FaceStream {
  public:
-  FaceStream(const FaceTopology& topology, const face::FaceRig& rig, v1::MeshEncoding encoding);
+  FaceStream(const FaceTopology& topology, FaceLibrary::PooledSolver solver, v1::MeshEncoding encoding);
 
-  /// The header's topology for this stream (the shared one plus encoding and quantisation).
-  v1::MeshTopology header_topology() const;
-  /// Frames per FrameBatch so that a batch carries about 1 MiB of positions (1..max_frames).
-  std::size_t frames_per_batch(std::size_t max_frames) const;
   /// Steps the face through frames [begin, end) of `track` and appends their positions to `batch`.
   void encode(const Track& track, std::size_t begin, std::size_t end, v1::FrameBatch& batch);
 
  private:
   const FaceTopology& topology_;
-  face::FaceSolver solver_;
+  FaceLibrary::PooledSolver solver_;
   const v1::MeshEncoding encoding_;
   std::int64_t previous_t_us_ = 0;
 };

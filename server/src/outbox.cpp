@@ -6,6 +6,7 @@ Outbox::Outbox(OutboxTarget& target, std::size_t max_frames, std::string overflo
     : target_(target), max_frames_(max_frames), overflow_message_(std::move(overflow_message)) {}
 
 bool Outbox::push(Message message, std::size_t counted_frames) {
+  bool stalled = false;
   {
     std::lock_guard lock(mutex_);
     if (finish_status_) return false;
@@ -13,11 +14,13 @@ bool Outbox::push(Message message, std::size_t counted_frames) {
       queue_.clear();
       queued_frames_ = 0;
       finish_status_ = grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED, overflow_message_);
+      stalled = writing_;
     } else {
       queue_.emplace_back(std::move(message), counted_frames);
       queued_frames_ += counted_frames;
     }
   }
+  if (stalled) target_.on_stalled();
   pump();
   std::lock_guard lock(mutex_);
   return !finish_status_ || finish_status_->ok();
@@ -61,6 +64,11 @@ void Outbox::on_write_done(bool ok) {
 std::optional<grpc::Status> Outbox::final_status() const {
   std::lock_guard lock(mutex_);
   return finish_status_;
+}
+
+std::size_t Outbox::queued_frames() const {
+  std::lock_guard lock(mutex_);
+  return queued_frames_;
 }
 
 void Outbox::pump() {

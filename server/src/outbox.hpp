@@ -7,7 +7,9 @@
 // each write's completion (on_write_done) starts the next. StartWrite and Finish
 // are called outside the lock. A bounded outbox (max_frames > 0) that would hold
 // more counted frames ends the stream with RESOURCE_EXHAUSTED instead of
-// growing: the pusher never waits on a slow reader.
+// growing: the pusher never waits on a slow reader. If a write is still in
+// flight at that moment, the target hears of it (on_stalled) so that it can
+// cancel a reader that never reads again.
 #pragma once
 
 #include <cstddef>
@@ -30,6 +32,10 @@ class OutboxTarget {
  public:
   virtual void start_write(const v1::TrackMessage* message) = 0;
   virtual void finish(const grpc::Status& status) = 0;
+  /// The bound overflowed while a write was in flight: Finish waits for that
+  /// write, which never completes if the reader has stopped reading. Called
+  /// once, outside the lock, on the pushing thread.
+  virtual void on_stalled() {}
 
  protected:
   ~OutboxTarget() = default;
@@ -53,6 +59,8 @@ class Outbox {
 
   /// The status the stream is finishing with, once decided.
   std::optional<grpc::Status> final_status() const;
+  /// Counted frames queued and not yet handed to gRPC (the one in flight excluded).
+  std::size_t queued_frames() const;
 
  private:
   void pump();

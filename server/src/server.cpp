@@ -4,6 +4,7 @@
 
 #include <mutex>
 #include <stdexcept>
+#include <thread>
 
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
@@ -52,8 +53,17 @@ std::string Server::address() const {
 
 void Server::shutdown(std::chrono::milliseconds drain) {
   std::call_once(impl_->shutdown_once, [&] {
+    // The drain is ours, not gRPC's: Shutdown(deadline) also waits for the
+    // connections of clients that have finished their calls (until the
+    // deadline) once a stream has run on them. So: refuse new calls, wait for
+    // the running ones, then shut gRPC down at once (cancelling what is left).
+    impl_->service.begin_drain();
     if (auto* health = impl_->server->GetHealthCheckService()) health->Shutdown();
-    impl_->server->Shutdown(std::chrono::system_clock::now() + drain);
+    const auto deadline = std::chrono::steady_clock::now() + drain;
+    while (impl_->service.calls_in_progress() > 0 && std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    impl_->server->Shutdown(std::chrono::system_clock::now());
     impl_->server->Wait();
   });
 }

@@ -11,13 +11,18 @@
 //
 // Reactions never block: the engine costs about a microsecond per frame, so
 // frames are computed in OnReadDone, and writes go through an Outbox (one write
-// in flight, Finish only when none is).
+// in flight, Finish only when none is). A producer that reads its frames slower
+// than it sends phonemes is held back: while thousands of its frames wait, its
+// stream reads no more phonemes, and HTTP/2 flow control stops the client.
 //
-// The mesh output (face_stream.hpp) is the exception to "cheap": a stream that
-// asks for it owns a FaceSolver, built when its settings arrive, and steps it
-// once per released frame inside the same reaction (about 1.4 ms per 1/60 s
-// substep at subdivision 1, two substeps per frame at 30 fps), so a chunk that
-// releases many frames holds its reaction that long (docs/server.md). Streams that do not ask for it never create or touch a solver.
+// The mesh output (face_stream.hpp) is the exception to "cheap": a FaceSolver
+// costs about a millisecond per frame and tens of ms to build (streams take
+// built ones from a pool when they can). A stream that asks
+// for it gets a FaceLane (face_workers.hpp): its solver is built, its frames
+// are encoded and everything it sends after its header (frames, summary,
+// Finish) leaves from low-priority face threads, in order; the reactions only
+// queue the released frames. A Render with the mesh runs there whole. Streams
+// that do not ask for the mesh never create or touch a solver or a lane.
 #include "service.hpp"
 
 #include <array>
@@ -25,7 +30,9 @@
 #include <cmath>
 #include <mutex>
 #include <optional>
+#include <thread>
 
+#include <grpcpp/alarm.h>
 #include <spdlog/spdlog.h>
 
 #include "lipsync/error.hpp"
@@ -36,6 +43,12 @@ namespace lipsync::server {
 namespace {
 
 constexpr std::size_t kMaxFramesPerBatch = 512;
+// Backpressure on a producer that reads its frames slower than it sends
+// phonemes: with more than kReadPauseFrames frames waiting for it (queued for
+// writing, or for its face), the stream stops reading phonemes, so HTTP/2 flow
+// control holds the client back; it reads again once at most kReadResumeFrames wait.
+constexpr std::size_t kReadPauseFrames = 4096;
+constexpr std::size_t kReadResumeFrames = 1024;
 constexpr const char* kStreamSource = "phoneme stream";
 
 using Clock = std::chrono::steady_clock;
@@ -55,6 +68,10 @@ struct Plan {
 
 grpc::Status invalid(const std::string& message) {
   return {grpc::StatusCode::INVALID_ARGUMENT, message};
+}
+
+bool wants_mesh(const v1::AnimationSettings& settings) {
+  return settings.outputs().has_mesh() && settings.outputs().mesh().enabled();
 }
 
 grpc::Status resolve_settings(const v1::AnimationSettings& settings, const ModelCatalog& catalog,
@@ -89,7 +106,7 @@ grpc::Status resolve_settings(const v1::AnimationSettings& settings, const Model
   const bool any = settings.outputs().channels() || settings.outputs().arkit();
   plan.channels = !any || settings.outputs().channels();
   plan.arkit = !any || settings.outputs().arkit();
-  if (settings.outputs().has_mesh() && settings.outputs().mesh().enabled()) {
+  if (wants_mesh(settings)) {
     const v1::MeshOutput& mesh = settings.outputs().mesh();
     plan.mesh = true;
     if (mesh.has_subdivision()) {
@@ -133,18 +150,28 @@ v1::FrameKind to_proto(FrameKind kind) {
   return v1::FRAME_KIND_UNSPECIFIED;
 }
 
-/// The stream's face when the plan asks for the mesh (nullptr otherwise), its
-/// topology put in the plan's header. INVALID_ARGUMENT if the model cannot drive it.
-grpc::Status start_face(Plan& plan, FaceLibrary& faces, std::unique_ptr<FaceStream>& stream) {
-  if (!plan.mesh) return grpc::Status::OK;
+/// What a stream's face needs (its solver is built later, off the reaction:
+/// see FaceWorkers), with the topology put in the plan's header.
+struct FaceSetup {
+  const FaceTopology* topology = nullptr;
   const face::FaceRig* rig = nullptr;
+  std::size_t frames_per_batch = kMaxFramesPerBatch;
+};
+
+/// The face of a plan that asks for the mesh (nothing otherwise). INVALID_ARGUMENT
+/// if the model cannot drive it.
+grpc::Status prepare_face(Plan& plan, FaceLibrary& faces, FaceSetup& setup) {
+  if (!plan.mesh) return grpc::Status::OK;
   try {
-    rig = &faces.rig(*plan.model->model);
+    setup.rig = &faces.rig(*plan.model->model);
   } catch (const InputError& error) {
     return invalid("settings.outputs.mesh: model '" + plan.model->name + "' cannot drive the face: " + error.what());
   }
-  stream = std::make_unique<FaceStream>(faces.topology(plan.mesh_subdivision), *rig, plan.mesh_encoding);
-  *plan.header.mutable_mesh() = stream->header_topology();
+  setup.topology = &faces.topology(plan.mesh_subdivision);
+  // One frame per message: a frame of positions is 5–115 kB already, and a
+  // batch would hold each frame back until the solver has done the ones after it.
+  setup.frames_per_batch = 1;
+  *plan.header.mutable_mesh() = header_topology(*setup.topology, plan.mesh_encoding);
   return grpc::Status::OK;
 }
 
@@ -159,17 +186,19 @@ void encode_frames(const Plan& plan, const Track& track, std::size_t begin, std:
   batch.mutable_kinds()->Reserve(static_cast<int>(count));
   if (plan.channels) batch.mutable_values()->Reserve(static_cast<int>(count * channels));
   if (plan.arkit) batch.mutable_arkit()->Reserve(static_cast<int>(count * kArkitNames.size()));
-  std::array<float, kArkitNames.size()> arkit{};
-  for (std::size_t frame = begin; frame < end; ++frame) {
-    batch.add_t_us(track.t_us[frame]);
-    batch.add_kinds(to_proto(track.kinds[frame]));
-    const auto values = track.frame_values(frame);
-    if (plan.channels) {
-      for (const float value : values) batch.add_values(value);
-    }
-    if (plan.arkit) {
-      plan.model->model->retarget_to_arkit(values, arkit);
-      for (const float weight : arkit) batch.add_arkit(weight);
+  batch.mutable_t_us()->Add(track.t_us.begin() + static_cast<std::ptrdiff_t>(begin),
+                            track.t_us.begin() + static_cast<std::ptrdiff_t>(end));
+  for (std::size_t frame = begin; frame < end; ++frame) batch.add_kinds(to_proto(track.kinds[frame]));
+  if (plan.channels) {
+    // Frames are contiguous in the track: one copy for the whole batch.
+    const float* first = track.values.data() + begin * channels;
+    batch.mutable_values()->Add(first, first + count * channels);
+  }
+  if (plan.arkit) {
+    std::array<float, kArkitNames.size()> arkit{};
+    for (std::size_t frame = begin; frame < end; ++frame) {
+      plan.model->model->retarget_to_arkit(track.frame_values(frame), arkit);
+      batch.mutable_arkit()->Add(arkit.begin(), arkit.end());
     }
   }
   if (face_stream) face_stream->encode(track, begin, end, batch);
@@ -227,7 +256,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   void OnReadDone(bool ok) override {
     if (!ok) {
       if (phase_ == Phase::ended) {
-        outbox_.close(grpc::Status::OK);
+        in_order([this] { outbox_.close(grpc::Status::OK); });
       } else {
         fail(invalid("the client closed the stream before `end` (after " + std::to_string(phonemes_) +
                      " phonemes)"),
@@ -245,12 +274,25 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
       fail(status, "producer failed: " + status.error_message());
       return;
     }
+    std::lock_guard lock(flow_mutex_);
+    if (frames_waiting() > kReadPauseFrames) {
+      read_paused_ = true;  // a write is in flight or a face job queued: its completion resumes
+      return;
+    }
     StartRead(&request_);
   }
 
-  void OnWriteDone(bool ok) override { outbox_.on_write_done(ok); }
+  void OnWriteDone(bool ok) override {
+    outbox_.on_write_done(ok);
+    std::lock_guard lock(flow_mutex_);
+    if (read_paused_ && frames_waiting() <= kReadResumeFrames) {
+      read_paused_ = false;
+      StartRead(&request_);
+    }
+  }
 
   void OnCancel() override {
+    stopped_ = true;
     outbox_.abort(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
     fail_session("producer disconnected: the stream was cancelled");
   }
@@ -265,7 +307,12 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     } else {
       spdlog::warn("Animate refused peer={} status={}", context_->peer(), status_name(status));
     }
-    delete this;
+    stopped_ = true;
+    if (lane_) {
+      lane_->retire([this] { delete this; });  // a face job may still be running
+    } else {
+      delete this;
+    }
   }
 
   void start_write(const v1::TrackMessage* message) override { StartWrite(message); }
@@ -298,7 +345,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
 
   grpc::Status start(const v1::AnimationSettings& settings) {
     if (auto status = resolve_settings(settings, service_.catalog(), true, plan_); !status.ok()) return status;
-    if (auto status = start_face(plan_, service_.faces(), face_); !status.ok()) return status;
+    if (auto status = prepare_face(plan_, service_.faces(), face_setup_); !status.ok()) return status;
     auto header = std::make_shared<v1::TrackMessage>();
     *header->mutable_header() = plan_.header;
     if (!settings.session().empty()) {
@@ -312,10 +359,21 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     }
     const ArticulationModel& model = *plan_.model->model;
     builder_.emplace(model, *plan_.phone_set, kStreamSource, plan_.segment);
-    renderer_.emplace(model, plan_.render);
+    renderer_.emplace(plan_.model->tables, plan_.render);
     track_.channel_count = model.channel_count();
     track_.fps = plan_.render.fps;
     outbox_.push(header);
+    if (plan_.mesh) {
+      // From here on everything that leaves this stream goes through the lane, in order.
+      lane_.emplace(service_.face_workers());
+      lane_->post([this, encoding = plan_.mesh_encoding] {
+        if (!stopped_) {
+          face_ = std::make_unique<FaceStream>(*face_setup_.topology,
+                                               service_.faces().solver(*face_setup_.topology, *face_setup_.rig),
+                                               encoding);
+        }
+      });
+    }
     phase_ = Phase::streaming;
     return grpc::Status::OK;
   }
@@ -343,31 +401,67 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   grpc::Status end() {
     renderer_->finish(track_);
     send_frames();
-    auto summary = std::make_shared<v1::TrackMessage>();
-    summary->mutable_summary()->set_frames(frames_sent_);
-    summary->mutable_summary()->set_phonemes(phonemes_);
-    summary->mutable_summary()->set_duration_us(builder_->end_us());
-    if (auto session = current_session()) session->finish(summary);
-    outbox_.push(summary);
+    in_order([this, phonemes = phonemes_, duration_us = builder_->end_us()] {
+      auto summary = std::make_shared<v1::TrackMessage>();
+      summary->mutable_summary()->set_frames(frames_sent_);
+      summary->mutable_summary()->set_phonemes(phonemes);
+      summary->mutable_summary()->set_duration_us(duration_us);
+      if (auto session = current_session()) session->finish(summary);
+      outbox_.push(summary);
+    });
     phase_ = Phase::ended;
     return grpc::Status::OK;
   }
 
+  /// Sends the frames the renderer released since the last call.
   void send_frames() {
-    const std::size_t per_batch = face_ ? face_->frames_per_batch(kMaxFramesPerBatch) : kMaxFramesPerBatch;
-    for (std::size_t begin = 0; begin < track_.frame_count(); begin += per_batch) {
-      const std::size_t end = std::min(track_.frame_count(), begin + per_batch);
+    if (track_.frame_count() == 0) return;
+    if (!lane_) {
+      publish(track_);
+      track_.clear();
+      return;
+    }
+    auto released = std::make_shared<Track>();
+    released->channel_count = track_.channel_count;
+    released->fps = track_.fps;
+    std::swap(*released, track_);
+    frames_in_lane_ += released->frame_count();
+    lane_->post([this, released] {
+      // Counted out before they reach the outbox, so the write completion that
+      // follows sees them only there (and can resume reading).
+      frames_in_lane_ -= released->frame_count();
+      if (!stopped_) publish(*released);
+    });
+  }
+
+  std::size_t frames_waiting() const { return outbox_.queued_frames() + frames_in_lane_.load(); }
+
+  void publish(const Track& track) {
+    const std::size_t per_batch = face_setup_.frames_per_batch;
+    for (std::size_t begin = 0; begin < track.frame_count(); begin += per_batch) {
+      const std::size_t end = std::min(track.frame_count(), begin + per_batch);
       auto message = std::make_shared<v1::TrackMessage>();
-      encode_frames(plan_, track_, begin, end, frames_sent_, *message->mutable_frames(), face_.get());
+      encode_frames(plan_, track, begin, end, frames_sent_, *message->mutable_frames(), face_.get());
       frames_sent_ += end - begin;
       // The session first: once the producer has seen a batch, subscribers can see it too.
       if (auto session = current_session()) session->publish(message, end - begin);
-      outbox_.push(message);
+      outbox_.push(message, end - begin);
     }
-    track_.clear();
+  }
+
+  /// Runs `step` now, or, for a mesh stream, after the face work queued before it.
+  void in_order(std::function<void()> step) {
+    if (!lane_) {
+      step();
+      return;
+    }
+    lane_->post([this, step = std::move(step)] {
+      if (!stopped_) step();
+    });
   }
 
   void fail(const grpc::Status& status, const std::string& reason) {
+    stopped_ = true;
     outbox_.close(status);
     fail_session(reason);
   }
@@ -391,11 +485,18 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   Plan plan_;
   std::optional<SegmentBuilder> builder_;
   std::optional<StreamingRenderer> renderer_;
-  std::unique_ptr<FaceStream> face_;  // only when the mesh is asked for
+  // Only when the mesh is asked for: the face is built and stepped on the lane.
+  FaceSetup face_setup_;
+  std::optional<FaceLane> lane_;
+  std::unique_ptr<FaceStream> face_;
+  std::atomic<bool> stopped_ = false;  // failed, cancelled or done: queued face work is skipped
   std::vector<Segment> segments_;
   Track track_;
   std::size_t phonemes_ = 0;
-  std::uint64_t frames_sent_ = 0;
+  std::atomic<std::uint64_t> frames_sent_ = 0;
+  std::atomic<std::size_t> frames_in_lane_ = 0;
+  std::mutex flow_mutex_;    // orders the read-pause decision against write completions
+  bool read_paused_ = false;
   std::mutex session_mutex_;
   std::shared_ptr<Session> session_;
   std::string session_name_;
@@ -440,6 +541,7 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
   void OnCancel() override { outbox_->abort(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled")); }
 
   void OnDone() override {
+    stall_guard_->release();
     if (session_) session_->detach(outbox_.get());
     const auto status = outbox_->final_status().value_or(grpc::Status::OK);
     if (admitted_) {
@@ -458,7 +560,38 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
   }
   void finish(const grpc::Status& status) override { Finish(status); }
 
+  // Cut off with a write in flight: that write only completes when the client
+  // reads, and Finish must wait for it. Give the client the grace period to
+  // read on (it then gets RESOURCE_EXHAUSTED), else cancel the call.
+  void on_stalled() override {
+    const auto deadline = std::chrono::system_clock::now() +
+                          std::chrono::milliseconds(service_.config().stalled_subscriber_ms);
+    stall_alarm_.Set(deadline, [guard = stall_guard_](bool fired) {
+      if (fired) guard->cancel();
+    });
+  }
+
  private:
+  /// Lets the alarm cancel the call only while the reactor still exists.
+  class StallGuard {
+   public:
+    explicit StallGuard(grpc::CallbackServerContext* context) : context_(context) {}
+    void cancel() {
+      std::lock_guard lock(mutex_);
+      if (!context_) return;
+      spdlog::warn("Subscribe cancelled peer={}: it stopped reading after it was cut off", context_->peer());
+      context_->TryCancel();
+    }
+    void release() {
+      std::lock_guard lock(mutex_);
+      context_ = nullptr;
+    }
+
+   private:
+    std::mutex mutex_;
+    grpc::CallbackServerContext* context_;
+  };
+
   LipSyncService& service_;
   grpc::CallbackServerContext* context_;
   const std::string session_name_;
@@ -467,6 +600,8 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
   std::shared_ptr<Session> session_;
   bool admitted_ = false;
   std::uint64_t frames_sent_ = 0;
+  std::shared_ptr<StallGuard> stall_guard_ = std::make_shared<StallGuard>(context_);
+  grpc::Alarm stall_alarm_;
 };
 
 grpc::Status render(LipSyncService& service, const v1::RenderRequest& request, v1::RenderResponse& response) {
@@ -493,9 +628,14 @@ grpc::Status render(LipSyncService& service, const v1::RenderRequest& request, v
       return too_long(index, builder.end_us(), config.max_utterance_ms);
     }
   }
+  FaceSetup face_setup;
+  if (auto status = prepare_face(plan, service.faces(), face_setup); !status.ok()) return status;
   std::unique_ptr<FaceStream> face_stream;
-  if (auto status = start_face(plan, service.faces(), face_stream); !status.ok()) return status;
-  const Track track = render_track(model, segments, plan.render);
+  if (plan.mesh) {
+    face_stream = std::make_unique<FaceStream>(
+        *face_setup.topology, service.faces().solver(*face_setup.topology, *face_setup.rig), plan.mesh_encoding);
+  }
+  const Track track = render_track(plan.model->tables, segments, plan.render);
   *response.mutable_header() = plan.header;
   encode_frames(plan, track, 0, track.frame_count(), 0, *response.mutable_frames(), face_stream.get());
   response.mutable_summary()->set_frames(track.frame_count());
@@ -522,7 +662,7 @@ void describe(const ModelEntry& entry, v1::ModelInfo& info) {
 }
 
 template <class Function>
-grpc::ServerUnaryReactor* unary(grpc::CallbackServerContext* context, const char* method, Function&& function) {
+grpc::Status run_unary(grpc::CallbackServerContext* context, const char* method, Function&& function) {
   grpc::Status status;
   try {
     status = function();
@@ -530,22 +670,51 @@ grpc::ServerUnaryReactor* unary(grpc::CallbackServerContext* context, const char
     status = grpc::Status(grpc::StatusCode::INTERNAL, error.what());
   }
   if (!status.ok()) spdlog::info("{} peer={} status={}", method, context->peer(), status_name(status));
+  return status;
+}
+
+template <class Function>
+grpc::ServerUnaryReactor* unary(grpc::CallbackServerContext* context, const char* method, Function&& function) {
   auto* reactor = context->DefaultReactor();
-  reactor->Finish(status);
+  reactor->Finish(run_unary(context, method, std::forward<Function>(function)));
   return reactor;
 }
+
 
 }  // namespace
 
 LipSyncService::LipSyncService(const ServerConfig& config, const ModelCatalog& catalog)
     : config_(config),
       catalog_(catalog),
-      sessions_(config.max_sessions, config.replay_frames, std::chrono::milliseconds(config.session_retention_ms)) {}
+      sessions_(config.max_sessions, config.replay_frames, std::chrono::milliseconds(config.session_retention_ms)),
+      face_workers_(config.face_threads > 0 ? config.face_threads : std::max(1u, std::thread::hardware_concurrency()),
+                    config.face_priority == "idle"  ? FaceWorkers::Priority::idle
+                    : config.face_priority == "low" ? FaceWorkers::Priority::low
+                                                    : FaceWorkers::Priority::normal) {}
+
+grpc::Status unavailable_while_draining() {
+  return {grpc::StatusCode::UNAVAILABLE, "the server is shutting down"};
+}
+
+grpc::Status LipSyncService::admit_render() {
+  ++calls_in_progress_;
+  if (draining_) {
+    --calls_in_progress_;
+    return unavailable_while_draining();
+  }
+  return grpc::Status::OK;
+}
 
 grpc::Status LipSyncService::admit_stream() {
+  ++calls_in_progress_;
+  if (draining_) {
+    --calls_in_progress_;
+    return unavailable_while_draining();
+  }
   std::size_t open = active_streams_.load();
   do {
     if (open >= config_.max_streams) {
+      --calls_in_progress_;
       return {grpc::StatusCode::RESOURCE_EXHAUSTED,
               "the server already has " + std::to_string(open) + " open streams (--max-streams=" +
                   std::to_string(config_.max_streams) + ")"};
@@ -566,7 +735,21 @@ grpc::ServerWriteReactor<v1::TrackMessage>* LipSyncService::Subscribe(grpc::Call
 
 grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* context,
                                                  const v1::RenderRequest* request, v1::RenderResponse* response) {
-  return unary(context, "Render", [&] { return render(*this, *request, *response); });
+  if (grpc::Status admission = admit_render(); !admission.ok()) {
+    return unary(context, "Render", [&] { return admission; });
+  }
+  if (!wants_mesh(request->settings())) {
+    auto* reactor = unary(context, "Render", [&] { return render(*this, *request, *response); });
+    release_render();
+    return reactor;
+  }
+  // Seconds of solver work for a long utterance: off the reaction (face_workers.hpp).
+  auto* reactor = context->DefaultReactor();
+  face_workers_.post([this, context, request, response, reactor] {
+    reactor->Finish(run_unary(context, "Render", [&] { return render(*this, *request, *response); }));
+    release_render();
+  });
+  return reactor;
 }
 
 grpc::ServerUnaryReactor* LipSyncService::ListModels(grpc::CallbackServerContext* context,

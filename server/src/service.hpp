@@ -8,6 +8,7 @@
 
 #include "catalog.hpp"
 #include "face_stream.hpp"
+#include "face_workers.hpp"
 #include "lipsync/server/config.hpp"
 #include "session.hpp"
 
@@ -41,10 +42,22 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   const ModelCatalog& catalog() const { return catalog_; }
   /// Meshes and rigs shared by the streams that ask for the mesh output (built lazily).
   FaceLibrary& faces() { return faces_; }
+  /// The low-priority threads the face runs on.
+  FaceWorkers& face_workers() { return face_workers_; }
 
-  /// Counts a new stream in, or says which limit it is over.
+  /// Counts a new stream in, or says which limit it is over (or that the server is draining).
   grpc::Status admit_stream();
-  void release_stream() { --active_streams_; }
+  void release_stream() {
+    --active_streams_;
+    --calls_in_progress_;
+  }
+  /// Render calls: counted for the drain only (they are not streams).
+  grpc::Status admit_render();
+  void release_render() { --calls_in_progress_; }
+  /// From now on new calls are refused with UNAVAILABLE.
+  void begin_drain() { draining_ = true; }
+  /// Animate, Subscribe and Render calls running.
+  std::size_t calls_in_progress() const { return calls_in_progress_.load(); }
 
  private:
   const ServerConfig& config_;
@@ -52,6 +65,11 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   SessionRegistry sessions_;
   FaceLibrary faces_;
   std::atomic<std::size_t> active_streams_{0};
+  std::atomic<std::size_t> calls_in_progress_{0};
+  std::atomic<bool> draining_{false};
+  // Last, so that it is destroyed first: its destructor runs the jobs still
+  // queued, which use the members above.
+  FaceWorkers face_workers_;
 };
 #pragma GCC diagnostic pop
 

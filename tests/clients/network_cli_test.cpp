@@ -1,8 +1,14 @@
 // End-to-end tests of the network commands: the real lipsyncd (started once
 // for the suite on 127.0.0.1:0, its port read from its "listening on" line)
-// and the real `lipsync` binary, run in a fresh directory per test.
+// and the real `lipsync` binary, run in a fresh directory per test. Besides
+// the built-in model the server loads "renamed": the built-in model with every
+// channel called alt_<name>, so its frames equal the built-in model's and only
+// the names tell which model's layout a client wrote.
+#include <arpa/inet.h>
 #include <fcntl.h>
+#include <netinet/in.h>
 #include <signal.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -32,6 +38,65 @@ using ::testing::HasSubstr;
 using ::testing::IsEmpty;
 
 const fs::path kFixtures = fs::path(LIPSYNC_TEST_DATA_DIR) / "cli";
+constexpr std::string_view kRenamedPrefix = "alt_";
+
+/// The built-in model with every channel called alt_<name> (and the model "renamed").
+std::string renamed_model_json() {
+  auto model = nlohmann::json::parse(read_text(fs::path(LIPSYNC_SOURCE_DIR) / "data/models/default.json"));
+  const auto rename_keys = [](nlohmann::json& object) {
+    nlohmann::json renamed = nlohmann::json::object();
+    for (auto& [key, value] : object.items()) renamed[std::string(kRenamedPrefix) + key] = value;
+    object = renamed;
+  };
+  model["name"] = "renamed";
+  for (auto& channel : model["channels"]) channel["name"] = std::string(kRenamedPrefix) + channel["name"].get<std::string>();
+  for (auto& [name, phoneme] : model["phonemes"].items()) {
+    for (const char* field : {"targets", "channel_dominance"}) {
+      if (phoneme.contains(field)) rename_keys(phoneme[field]);
+    }
+  }
+  for (auto& [name, shape] : model["arkit"].items()) rename_keys(shape["weights"]);
+  return model.dump(2);
+}
+
+/// `text`, a track of the built-in model as `render` writes it, as the renamed model's
+/// track reads: json names the model "renamed" and its channels alt_*, csv its columns.
+std::string as_renamed(std::string text, const std::string& format) {
+  const auto rename_list = [&](std::size_t from, std::size_t to, char quote_or_comma) {
+    std::string renamed = text.substr(0, from);
+    for (std::size_t i = from; i < to; ++i) {
+      renamed += text[i];
+      if (text[i] == quote_or_comma && (quote_or_comma != '"' || text[i - 1] == '[' || text[i - 1] == ',')) {
+        renamed += kRenamedPrefix;
+      }
+    }
+    return renamed + text.substr(to);
+  };
+  if (format == "csv") {
+    // "t,t_us,kind,a,b" → "t,t_us,kind,alt_a,alt_b"
+    const std::size_t start = std::string("t,t_us,kind").size();
+    return rename_list(start, text.find('\n'), ',');
+  }
+  const std::string model = "\"model\":\"default\"";
+  text.replace(text.find(model), model.size(), "\"model\":\"renamed\"");
+  const std::size_t channels = text.find("\"channels\":[") + std::string("\"channels\":[").size() - 1;
+  return rename_list(channels + 1, text.find(']', channels), '"');
+}
+
+/// A loopback port that nothing listens on (bound, read, closed).
+int unused_port() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t size = sizeof address;
+  if (fd < 0 || ::bind(fd, reinterpret_cast<sockaddr*>(&address), size) != 0 ||
+      ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &size) != 0) {
+    throw std::runtime_error("cannot find an unused port");
+  }
+  ::close(fd);
+  return ntohs(address.sin_port);
+}
 
 /// A child process with stdout and stderr going to files.
 class Process {
@@ -87,9 +152,13 @@ class NetworkCliTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     server_dir_ = new fs::path(make_temp_dir("lipsyncd-test-"));
+    testing::write_text(*server_dir_ / "renamed.json", renamed_model_json());
     server_ = new Process(LIPSYNCD_BINARY,
                           {"--listen", "127.0.0.1:0", "--max-sessions", "5000", "--session-retention-ms", "5000",
-                           "--log-level", "warn"},
+                           "--model", "renamed=" + (*server_dir_ / "renamed.json").string(), "--log-level", "warn",
+                           // Face threads that compete normally: with ctest -j2 an idle-priority
+                           // face could wait for the other test to finish.
+                           "--face-priority", "normal"},
                           *server_dir_, *server_dir_ / "stdout", *server_dir_ / "stderr");
     const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(20);
     const std::string prefix = "lipsyncd listening on ";
@@ -227,7 +296,7 @@ TEST_F(NetworkCliTest, network_failures_exit_1_and_usage_errors_exit_2) {
 }
 
 TEST_F(NetworkCliTest, every_network_command_has_help_with_the_server_option) {
-  for (const std::string command : {"stream", "subscribe", "play", "loadtest"}) {
+  for (const std::string command : {"stream", "subscribe", "play", "loadtest", "server-models"}) {
     const RunResult result = run({command, "--help"});
     EXPECT_EQ(result.status, 0) << command;
     EXPECT_THAT(result.out, ::testing::StartsWith("Usage: lipsync " + command)) << command;
@@ -253,6 +322,156 @@ TEST_F(NetworkCliTest, loadtest_fast_mode_reports_throughput) {
   ASSERT_EQ(report.status, 0) << report.out << report.err;
   EXPECT_THAT(report.out, HasSubstr("result: every frame arrived"));
   std::cout << report.out;
+}
+
+// --- the server's models ------------------------------------------------------------
+
+TEST_F(NetworkCliTest, server_models_lists_every_model_the_server_loaded_for_a_reader) {
+  const RunResult listed = run({"server-models", "--server", server()});
+  ASSERT_EQ(listed.status, 0) << listed.err;
+  EXPECT_THAT(listed.out, HasSubstr("model default (default)\n"));
+  EXPECT_THAT(listed.out, HasSubstr("\nmodel renamed\n"));
+  EXPECT_THAT(listed.out, HasSubstr("jaw_rotation"));
+  EXPECT_THAT(listed.out, HasSubstr("alt_jaw_rotation"));
+  EXPECT_THAT(listed.out, ::testing::ContainsRegex("\n    jaw_rotation +jaw +[-0-9.e]+ +[-0-9.e]+ +[-0-9.e]+  "));
+  EXPECT_THAT(listed.out, HasSubstr("ARKit blendshapes: 52"));
+  EXPECT_THAT(listed.out, HasSubstr("phone sets: arpabet"));
+  EXPECT_THAT(listed.out, ::testing::ContainsRegex("phonemes \\([0-9]+\\): aa "));
+}
+
+TEST_F(NetworkCliTest, server_models_json_describes_each_model_for_scripts) {
+  const RunResult listed = run({"server-models", "--server", server(), "--json"});
+  ASSERT_EQ(listed.status, 0) << listed.err;
+  const auto list = nlohmann::json::parse(listed.out);
+  ASSERT_EQ(list["models"].size(), 2u);
+  EXPECT_EQ(list["models"][0]["name"], "default");
+  EXPECT_TRUE(list["models"][0]["default"].get<bool>());
+  EXPECT_FALSE(list["models"][1]["default"].get<bool>());
+
+  const RunResult one = run({"server-models", "renamed", "--server", server(), "--json"});
+  ASSERT_EQ(one.status, 0) << one.err;
+  const auto model = nlohmann::json::parse(one.out);
+  EXPECT_EQ(model, list["models"][1]);
+  EXPECT_EQ(model["name"], "renamed");
+  ASSERT_EQ(model["channels"].size(), 16u);
+  const auto& jaw = model["channels"][13];
+  EXPECT_EQ(jaw["name"], "alt_jaw_rotation");
+  EXPECT_EQ(jaw["kind"], "jaw");
+  EXPECT_LT(jaw["min"].get<double>(), jaw["max"].get<double>());
+  EXPECT_TRUE(jaw.contains("rest"));
+  EXPECT_FALSE(jaw["description"].get<std::string>().empty());
+  EXPECT_EQ(model["arkit_names"].size(), 52u);
+  EXPECT_THAT(model["phone_sets"], ::testing::Contains("arpabet"));
+  EXPECT_THAT(model["phonemes"], ::testing::Contains("sil"));
+}
+
+TEST_F(NetworkCliTest, server_models_of_an_unknown_name_exits_1_with_the_servers_not_found) {
+  const RunResult result = run({"server-models", "no-such-model", "--server", server()});
+  EXPECT_EQ(result.status, 1);
+  EXPECT_THAT(result.err, HasSubstr("NOT_FOUND: no model named 'no-such-model'"));
+  EXPECT_THAT(result.out, IsEmpty());
+}
+
+TEST_F(NetworkCliTest, server_models_without_a_server_exits_1_saying_it_cannot_be_reached) {
+  const std::string nowhere = "127.0.0.1:" + std::to_string(unused_port());
+  const RunResult result = run({"server-models", "--server", nowhere, "--timeout", "1"});
+  EXPECT_EQ(result.status, 1);
+  EXPECT_THAT(result.err, HasSubstr("connecting to lipsyncd at " + nowhere + " failed: UNAVAILABLE"));
+  EXPECT_THAT(result.err, HasSubstr("is lipsyncd running there?"));
+}
+
+TEST_F(NetworkCliTest, server_models_usage_errors_exit_2_naming_the_mistake) {
+  const RunResult two = run({"server-models", "a", "b", "--server", server()});
+  EXPECT_EQ(two.status, 2);
+  EXPECT_THAT(two.err, HasSubstr("at most one model NAME"));
+  const RunResult timeout = run({"server-models", "--timeout", "0", "--server", server()});
+  EXPECT_EQ(timeout.status, 2);
+  EXPECT_THAT(timeout.err, HasSubstr("--timeout"));
+  const RunResult help = run({"--help"});
+  EXPECT_THAT(help.out, HasSubstr("\n  server-models "));
+  EXPECT_THAT(help.out, HasSubstr("'model dump' prints a model file on this machine"));
+}
+
+// --- frames named after the server's model ------------------------------------------------
+
+TEST_F(NetworkCliTest, stream_writes_the_channel_names_of_the_servers_model) {
+  for (const std::string format : {"json", "csv", "arkit-csv"}) {
+    const RunResult rendered = run({"render", fixture("hello.json"), "--format", format, "-o", "render.out"});
+    ASSERT_EQ(rendered.status, 0) << rendered.err;
+    const RunResult streamed = run({"stream", fixture("hello.json"), "--fast", "--server-model", "renamed",
+                                    "--server", server(), "--format", format, "-o", "stream.out"});
+    ASSERT_EQ(streamed.status, 0) << streamed.err;
+    // arkit-csv has no channel columns: the ARKit weights are the server's, equal to the built-in ones.
+    const std::string expected = format == "arkit-csv" ? output("render.out") : as_renamed(output("render.out"), format);
+    EXPECT_EQ(output("stream.out"), expected) << format;
+  }
+}
+
+TEST_F(NetworkCliTest, subscribe_writes_the_channel_names_of_the_sessions_model) {
+  ASSERT_EQ(run({"render", fixture("hello.json"), "-o", "render.json"}).status, 0);
+  auto producer = start({"stream", fixture("hello.json"), "--server-model", "renamed", "--session", "renamed-session",
+                         "--format", "csv", "--server", server(), "-o", "stream.csv"},
+                        "producer");
+  const RunResult subscribed =
+      run({"subscribe", "renamed-session", "--wait", "5", "--server", server(), "-o", "subscribe.json"});
+  ASSERT_EQ(producer->wait(), 0) << read_text(capture_ / "producer.err");
+  ASSERT_EQ(subscribed.status, 0) << subscribed.err;
+  // The producer asked for channels only (csv): the subscriber writes no ARKit weights
+  // rather than the built-in model's retargeting of channels it does not have.
+  const auto json = nlohmann::json::parse(output("subscribe.json"));
+  const auto expected = nlohmann::json::parse(as_renamed(output("render.json"), "json"));
+  EXPECT_EQ(json["model"], "renamed");
+  EXPECT_EQ(json["channels"], expected["channels"]);
+  EXPECT_THAT(json["arkit_names"], IsEmpty());
+  ASSERT_EQ(json["frames"].size(), expected["frames"].size());
+  for (std::size_t f = 0; f < json["frames"].size(); ++f) {
+    EXPECT_EQ(json["frames"][f]["values"], expected["frames"][f]["values"]) << "frame " << f;
+  }
+  const RunResult arkit = run({"subscribe", "renamed-session", "--server", server(), "--format", "arkit-csv"});
+  EXPECT_EQ(arkit.status, 1);
+  EXPECT_THAT(arkit.err, HasSubstr("no ARKit weights and its model 'renamed' is not the built-in one"));
+}
+
+TEST_F(NetworkCliTest, stream_with_an_unknown_server_model_exits_1_naming_it) {
+  const RunResult result = run({"stream", fixture("hello.json"), "--fast", "--server-model", "no-such-model",
+                                "--server", server(), "-o", "out.json"});
+  EXPECT_EQ(result.status, 1);
+  EXPECT_THAT(result.err, HasSubstr("INVALID_ARGUMENT: settings.model: unknown model 'no-such-model'"));
+  EXPECT_FALSE(fs::exists(dir_ / "out.json"));
+}
+
+// --- the load test with the mesh output ----------------------------------------------------------
+
+TEST_F(NetworkCliTest, loadtest_with_a_mesh_share_reports_mesh_frames_apart_without_errors) {
+  const RunResult report = run({"loadtest", "--server", server(), "--producers", "4", "--mesh-share", "0.5",
+                                "--mesh-subdivision", "0", "--fast", "--duration", "2", "--json"});
+  ASSERT_EQ(report.status, 0) << report.out << report.err;
+  const auto json = nlohmann::json::parse(report.out);
+  EXPECT_TRUE(json["every_frame_arrived"].get<bool>());
+  EXPECT_THAT(json["errors"], IsEmpty());
+  const auto& mesh = json["by_output"]["mesh"];
+  const auto& no_mesh = json["by_output"]["no_mesh"];
+  EXPECT_EQ(mesh["producers"].get<int>(), 2);
+  EXPECT_EQ(no_mesh["producers"].get<int>(), 2);
+  EXPECT_GT(mesh["frames"]["producers"].get<int>(), 0);
+  EXPECT_GT(no_mesh["frames"]["producers"].get<int>(), 0);
+  EXPECT_EQ(mesh["frames"]["without_positions"].get<int>(), 0);
+  EXPECT_EQ(mesh["utterances"]["complete"], mesh["utterances"]["started"]);
+  EXPECT_GT(mesh["latency_ms"]["producers"]["max"].get<double>(), 0.0);
+  EXPECT_EQ(json["frames"]["producers"].get<int>(),
+            mesh["frames"]["producers"].get<int>() + no_mesh["frames"]["producers"].get<int>());
+}
+
+TEST_F(NetworkCliTest, loadtest_mesh_options_out_of_range_are_usage_errors) {
+  const RunResult share = run({"loadtest", "--server", server(), "--mesh-share", "1.5"});
+  EXPECT_EQ(share.status, 2);
+  EXPECT_THAT(share.err, HasSubstr("--mesh-share: '1.5' is out of range"));
+  const RunResult encoding = run({"loadtest", "--server", server(), "--mesh-share", "1", "--mesh-encoding", "f16"});
+  EXPECT_EQ(encoding.status, 2);
+  EXPECT_THAT(encoding.err, HasSubstr("--mesh-encoding: unknown encoding 'f16'"));
+  const RunResult level = run({"loadtest", "--server", server(), "--mesh-share", "1", "--mesh-subdivision", "3"});
+  EXPECT_EQ(level.status, 2);
+  EXPECT_THAT(level.err, HasSubstr("--mesh-subdivision"));
 }
 
 }  // namespace

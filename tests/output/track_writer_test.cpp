@@ -1,5 +1,7 @@
 // Track writers: every format pinned on hand-built tracks and a tiny model, so
-// that these tests depend on neither the renderer nor the default model.
+// that these tests depend on neither the renderer nor the default model. The
+// writer over names and weights given as data (NamedTrackView) is compared with
+// the model-based one byte for byte, the built-in model included.
 #include "lipsync/track_writer.hpp"
 
 #include <gmock/gmock.h>
@@ -8,8 +10,10 @@
 #include <algorithm>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <sstream>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "lipsync/error.hpp"
@@ -318,6 +322,146 @@ TEST(WriteTrack, rejects_a_track_of_another_model) {
   track.values.resize(2);
   std::ostringstream out;
   EXPECT_THROW(write_track(track, tiny_model(), TrackFormat::json, out), std::invalid_argument);
+}
+
+TEST(WriteTrack, rejects_a_track_whose_arrays_disagree) {
+  Track track = make_track({{0, FrameKind::uniform, {0, 0, 0}}});
+  track.kinds.clear();
+  std::ostringstream out;
+  EXPECT_THROW(write_track(track, tiny_model(), TrackFormat::csv, out), std::invalid_argument);
+}
+
+/// A track of `model` with `frame_count` frames of values in each channel's range,
+/// from a fixed seed, mixing every frame kind.
+Track random_track(const ArticulationModel& model, std::size_t frame_count) {
+  std::mt19937 random(20240611);
+  Track track;
+  track.channel_count = model.channel_count();
+  for (std::size_t f = 0; f < frame_count; ++f) {
+    track.t_us.push_back(static_cast<std::int64_t>(f) * 25'000 + static_cast<std::int64_t>(random() % 1000));
+    track.kinds.push_back(static_cast<FrameKind>(random() % 4));
+    for (const ChannelSpec& channel : model.channels()) {
+      std::uniform_real_distribution<float> value(static_cast<float>(channel.min), static_cast<float>(channel.max));
+      track.values.push_back(value(random));
+    }
+  }
+  return track;
+}
+
+/// The view of `track` that the model-based writer builds: the model's names, its retargeting.
+struct ModelNames {
+  std::vector<std::string_view> channels;
+  std::vector<float> arkit;
+};
+
+ModelNames model_names(const Track& track, const ArticulationModel& model) {
+  ModelNames names;
+  for (const ChannelSpec& channel : model.channels()) names.channels.emplace_back(channel.name);
+  names.arkit.resize(track.frame_count() * kArkitNames.size());
+  for (std::size_t f = 0; f < track.frame_count(); ++f) {
+    model.retarget_to_arkit(track.frame_values(f),
+                            std::span<float>(names.arkit).subspan(f * kArkitNames.size(), kArkitNames.size()));
+  }
+  return names;
+}
+
+std::string write(const NamedTrackView& view, TrackFormat format) {
+  std::ostringstream out;
+  write_track(view, format, out);
+  return out.str();
+}
+
+TEST(NamedTrackWriter, names_and_weights_as_data_write_the_bytes_of_the_model_writer) {
+  for (const ArticulationModel* model : {&ArticulationModel::builtin(), &tiny_model()}) {
+    // Long enough for several 64 KiB flushes in every format.
+    const Track track = random_track(*model, 3000);
+    const ModelNames names = model_names(track, *model);
+    const NamedTrackView view{.model = model->name(),
+                              .channel_names = names.channels,
+                              .arkit_names = kArkitNames,
+                              .track = track,
+                              .arkit = names.arkit};
+    for (auto format : {TrackFormat::json, TrackFormat::csv, TrackFormat::arkit_csv}) {
+      SCOPED_TRACE(model->name() + " " + std::string(to_string(format)));
+      const std::string expected = write(track, format, *model);
+      EXPECT_GT(expected.size(), 64U * 1024U);
+      EXPECT_TRUE(write(view, format) == expected) << "the two writers differ";
+    }
+  }
+}
+
+TEST(NamedTrackWriter, custom_names_appear_in_the_header_and_columns) {
+  const Track track = make_track({
+      {0, FrameKind::uniform, {0.25F, 0.5F, 0.75F}},
+      {40'000, FrameKind::closure_start, {1.0F, 0.0F, -1.0F}},
+  });
+  const std::vector<std::string_view> channels = {"lower,lip", "corner \"L\"", "tongue"};
+  // Two shapes only, in neither Apple's nor Live Link Face's order.
+  const std::vector<std::string_view> arkit_names = {"mouthLeft", "jawOpen"};
+  const std::vector<float> arkit = {0.125F, 0.5F, 0.0F, 1.0F};
+  const NamedTrackView view{
+      .model = "server model", .channel_names = channels, .arkit_names = arkit_names, .track = track, .arkit = arkit};
+
+  const auto doc = nlohmann::json::parse(write(view, TrackFormat::json));
+  EXPECT_EQ(doc["model"], "server model");
+  EXPECT_EQ(doc["channels"], nlohmann::json({"lower,lip", "corner \"L\"", "tongue"}));
+  EXPECT_EQ(doc["arkit_names"], nlohmann::json({"mouthLeft", "jawOpen"}));
+  EXPECT_EQ(doc["frames"][0]["arkit"], nlohmann::json({0.125, 0.5}));
+  EXPECT_EQ(doc["frames"][1]["arkit"], nlohmann::json({0.0, 1.0}));
+  EXPECT_EQ(doc["frames"][1]["values"], nlohmann::json({1.0, 0.0, -1.0}));
+
+  EXPECT_EQ(write(view, TrackFormat::csv),
+            "t,t_us,kind,\"lower,lip\",\"corner \"\"L\"\"\",tongue\n"
+            "0.000000,0,uniform,0.25,0.5,0.75\n"
+            "0.040000,40000,closure_start,1,0,-1\n");
+
+  const std::vector<std::string> lines = split(write(view, TrackFormat::arkit_csv), '\n');
+  ASSERT_EQ(lines.size(), 3U);
+  EXPECT_EQ(lines[0], kLiveLinkFaceHeader);
+  const std::vector<std::string> header = split(lines[0], ',');
+  for (std::size_t f = 0; f < 2; ++f) {
+    const std::vector<std::string> cells = split(lines[1 + f], ',');
+    ASSERT_EQ(cells.size(), header.size());
+    std::map<std::string, std::string> by_name;
+    for (std::size_t i = 2; i < header.size(); ++i) by_name[header[i]] = cells[i];
+    EXPECT_EQ(std::stof(by_name["MouthLeft"]), arkit[2 * f]) << "frame " << f;
+    EXPECT_EQ(std::stof(by_name["JawOpen"]), arkit[2 * f + 1]) << "frame " << f;
+    for (const auto& [name, value] : by_name) {
+      if (name != "MouthLeft" && name != "JawOpen") {
+        EXPECT_EQ(value, "0") << name << ", frame " << f;
+      }
+    }
+  }
+}
+
+TEST(NamedTrackWriter, without_arkit_weights_json_has_empty_arrays_and_arkit_csv_refuses) {
+  const Track track = make_track({{0, FrameKind::uniform, {0.25F, 0.5F, 0.75F}}});
+  const std::vector<std::string_view> channels = {"a", "b", "c"};
+  const NamedTrackView view{.model = "m", .channel_names = channels, .track = track};
+  const auto doc = nlohmann::json::parse(write(view, TrackFormat::json));
+  EXPECT_TRUE(doc["arkit_names"].empty());
+  EXPECT_TRUE(doc["frames"][0]["arkit"].empty());
+  std::ostringstream out;
+  EXPECT_THROW(write_track(view, TrackFormat::arkit_csv, out), std::invalid_argument);
+}
+
+TEST(NamedTrackWriter, rejects_names_or_weights_that_do_not_fit_the_track) {
+  const Track track = make_track({{0, FrameKind::uniform, {0.25F, 0.5F, 0.75F}}});
+  const std::vector<std::string_view> two_channels = {"a", "b"};
+  const std::vector<std::string_view> three_channels = {"a", "b", "c"};
+  const std::vector<std::string_view> arkit_names = {"jawOpen"};
+  const std::vector<float> two_weights = {0.5F, 0.5F};
+  std::ostringstream out;
+  EXPECT_THROW(
+      write_track(NamedTrackView{.model = "m", .channel_names = two_channels, .track = track}, TrackFormat::csv, out),
+      std::invalid_argument);
+  EXPECT_THROW(write_track(NamedTrackView{.model = "m",
+                                          .channel_names = three_channels,
+                                          .arkit_names = arkit_names,
+                                          .track = track,
+                                          .arkit = two_weights},
+                           TrackFormat::json, out),
+               std::invalid_argument);
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -115,12 +116,24 @@ void take(Received& received, const v1::TrackMessage& message) {
 
 void set_deadline(grpc::ClientContext& context) { context.set_deadline(std::chrono::system_clock::now() + 60s); }
 
+template <class Condition>
+bool eventually_true(Condition condition) {
+  const auto deadline = std::chrono::steady_clock::now() + 30s;
+  while (!condition()) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(2ms);
+  }
+  return true;
+}
+
 class MeshTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    ServerConfig config;
+  void SetUp() override { start({}); }
+  void start(ServerConfig config) {
+    if (server_) server_->shutdown(0ms);
     config.listen = "127.0.0.1:0";
     config.log_level = "warn";
+    config.face_priority = "normal";  // with ctest -j2, an idle-priority face would wait for the other test
     server_ = std::make_unique<Server>(config);
     grpc::ChannelArguments args;
     args.SetMaxReceiveMessageSize(-1);
@@ -221,6 +234,23 @@ TEST_F(MeshTest, AnimateFloat32EqualsTheOfflineSolverBitForBit) {
     moved = std::max(moved, std::abs(expected_float[i] - rest[static_cast<int>(i % (vertices * 3))]));
   }
   EXPECT_GT(moved, 0.002f);
+}
+
+TEST_F(MeshTest, AStreamAfterAnotherStartsFromRestLikeANewSolver) {
+  // Streams hand their solver back to the server's pool at the end; the next
+  // stream's face must not remember the last utterance.
+  const auto first = utterance(25, 31);
+  const auto second = utterance(25, 32);
+  const Track track = reference_track(second);
+  const std::vector<double> expected = reference_positions(track, 0);
+  const std::vector<float> expected_float(expected.begin(), expected.end());
+  for (int round = 0; round < 3; ++round) {
+    const Received warm_up = animate(mesh_settings(0), first);
+    ASSERT_TRUE(warm_up.status.ok()) << warm_up.status.error_message();
+    const Received received = animate(mesh_settings(0), second);
+    ASSERT_TRUE(received.status.ok()) << received.status.error_message();
+    EXPECT_TRUE(received.positions() == expected_float) << "round " << round;
+  }
 }
 
 TEST_F(MeshTest, Int16IsWithinHalfAQuantisationStep) {
@@ -351,6 +381,57 @@ TEST_F(MeshTest, SubscriberGetsTheTopologyAndThePositions) {
   EXPECT_TRUE(subscribed.positions() == produced.positions());
   EXPECT_FALSE(subscribed.positions().empty());
   EXPECT_TRUE(subscribed.summary.has_value());
+}
+
+TEST_F(MeshTest, FaceWorkRunsOffTheReactionsSoChannelStreamsAreNotHeldUp) {
+  // Two mesh streams each send a whole utterance in one chunk: about a second of
+  // solver work each, queued on the one face thread. Were it done inside the
+  // reactions, it would occupy gRPC's callback threads and the channel-only
+  // stream started after them would wait for it.
+  ServerConfig config;
+  config.face_threads = 1;
+  start(config);
+  const auto long_utterance = utterance(40, 21);
+  const auto short_utterance = utterance(10, 22);
+  std::atomic<int> finished_order{0};
+  constexpr int kMeshStreams = 6;
+  std::vector<int> mesh_finished(kMeshStreams, -1);
+  std::vector<grpc::Status> mesh_status(kMeshStreams);
+  std::vector<std::thread> mesh_streams;
+  std::atomic<int> headers{0};
+  for (int i = 0; i < kMeshStreams; ++i) {
+    mesh_streams.emplace_back([&, i] {
+      grpc::ClientContext context;
+      set_deadline(context);
+      auto stream = stub_->Animate(&context);
+      v1::AnimateRequest request;
+      *request.mutable_settings() = mesh_settings(1);
+      stream->Write(request);
+      v1::AnimateRequest phonemes;
+      for (const auto& interval : long_utterance) *phonemes.mutable_phonemes()->add_phonemes() = to_proto(interval);
+      stream->Write(phonemes);
+      v1::AnimateRequest end;
+      end.mutable_end();
+      stream->Write(end);
+      stream->WritesDone();
+      v1::TrackMessage message;
+      if (stream->Read(&message) && message.has_header()) ++headers;
+      while (stream->Read(&message)) {
+      }
+      mesh_status[static_cast<std::size_t>(i)] = stream->Finish();
+      mesh_finished[static_cast<std::size_t>(i)] = finished_order++;
+    });
+  }
+  ASSERT_TRUE(eventually_true([&] { return headers.load() == kMeshStreams; }));
+  const Received channels_only = animate(v1::AnimationSettings{}, short_utterance);
+  const int channel_finished = finished_order++;
+  for (auto& thread : mesh_streams) thread.join();
+  ASSERT_TRUE(channels_only.status.ok()) << channels_only.status.error_message();
+  EXPECT_EQ(channels_only.frames(), reference_track(short_utterance).frame_count());
+  for (std::size_t i = 0; i < kMeshStreams; ++i) {
+    ASSERT_TRUE(mesh_status[i].ok()) << mesh_status[i].error_message();
+    EXPECT_GT(mesh_finished[i], channel_finished) << "mesh stream " << i << " finished before the channel stream";
+  }
 }
 
 TEST_F(MeshTest, BadMeshSettingsAreRejectedNamingTheField) {

@@ -5,6 +5,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
@@ -27,32 +28,17 @@
 #include "lipsync/server/server.hpp"
 #include "lipsync/synthetic.hpp"
 #include "lipsync/v1/lipsync.grpc.pb.h"
+#include "../support/server_harness.hpp"
 
 namespace lipsync::server {
 namespace {
 
+using namespace harness;
 using ::testing::HasSubstr;
 using namespace std::chrono_literals;
-
-constexpr auto kCallTimeout = 20s;
+using ServerTest = LiveServerTest;
 
 // --- the expected frames, from the core engine directly --------------------
-
-struct Frames {
-  std::vector<std::int64_t> t_us;
-  std::vector<int> kinds;
-  std::vector<float> values;
-  std::vector<float> arkit;
-  std::uint64_t first_frame = 0;
-
-  void append(const v1::FrameBatch& batch) {
-    if (t_us.empty()) first_frame = batch.first_frame();
-    t_us.insert(t_us.end(), batch.t_us().begin(), batch.t_us().end());
-    kinds.insert(kinds.end(), batch.kinds().begin(), batch.kinds().end());
-    values.insert(values.end(), batch.values().begin(), batch.values().end());
-    arkit.insert(arkit.end(), batch.arkit().begin(), batch.arkit().end());
-  }
-};
 
 void expect_same(const Frames& actual, const Frames& expected) {
   ASSERT_EQ(actual.t_us.size(), expected.t_us.size());
@@ -78,222 +64,8 @@ Frames reference_frames(const std::vector<LabeledInterval>& intervals, int fps =
   return frames;
 }
 
-std::vector<LabeledInterval> utterance(std::size_t phonemes, std::uint64_t seed = 1) {
-  return synthesize_utterance({.phonemes = phonemes, .seed = seed});
-}
-
-v1::Phoneme to_proto(const LabeledInterval& interval) {
-  v1::Phoneme phoneme;
-  phoneme.set_label(interval.label);
-  phoneme.set_start_us(interval.start_us);
-  phoneme.set_end_us(interval.end_us);
-  return phoneme;
-}
-
 v1::Phoneme phoneme(const std::string& label, std::int64_t start_us, std::int64_t end_us) {
   return to_proto({label, start_us, end_us, 0});
-}
-
-// --- requests -----------------------------------------------------------------
-
-v1::AnimateRequest settings_request(v1::AnimationSettings settings = {}) {
-  v1::AnimateRequest request;
-  *request.mutable_settings() = std::move(settings);
-  return request;
-}
-
-v1::AnimateRequest chunk_request(const std::vector<v1::Phoneme>& phonemes) {
-  v1::AnimateRequest request;
-  for (const auto& p : phonemes) *request.mutable_phonemes()->add_phonemes() = p;
-  return request;
-}
-
-v1::AnimateRequest end_request() {
-  v1::AnimateRequest request;
-  request.mutable_end();
-  return request;
-}
-
-std::vector<v1::AnimateRequest> chunked(const std::vector<LabeledInterval>& intervals, std::size_t chunk) {
-  std::vector<v1::AnimateRequest> requests;
-  for (std::size_t i = 0; i < intervals.size(); i += chunk) {
-    std::vector<v1::Phoneme> phonemes;
-    for (std::size_t j = i; j < std::min(intervals.size(), i + chunk); ++j) phonemes.push_back(to_proto(intervals[j]));
-    requests.push_back(chunk_request(phonemes));
-  }
-  return requests;
-}
-
-// --- what a stream delivered ---------------------------------------------------
-
-struct Received {
-  std::optional<v1::TrackHeader> header;
-  Frames frames;
-  std::optional<v1::TrackSummary> summary;
-  std::size_t batches = 0;
-  grpc::Status status;
-};
-
-void take(Received& received, const v1::TrackMessage& message) {
-  if (message.has_header()) received.header = message.header();
-  if (message.has_frames()) {
-    received.frames.append(message.frames());
-    ++received.batches;
-  }
-  if (message.has_summary()) received.summary = message.summary();
-}
-
-template <class Reader>
-void read_all(Reader& reader, Received& received) {
-  v1::TrackMessage message;
-  while (reader.Read(&message)) take(received, message);
-}
-
-void set_deadline(grpc::ClientContext& context) { context.set_deadline(std::chrono::system_clock::now() + kCallTimeout); }
-
-std::shared_ptr<grpc::Channel> connect(const std::string& address, bool bdp_probe = true) {
-  grpc::ChannelArguments args;
-  args.SetMaxReceiveMessageSize(-1);
-  if (!bdp_probe) args.SetInt(GRPC_ARG_HTTP2_BDP_PROBE, 0);
-  return grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
-}
-
-/// One Animate call: writes `requests` (then WritesDone) while another thread reads.
-Received animate(v1::LipSync::Stub& stub, const std::vector<v1::AnimateRequest>& requests) {
-  grpc::ClientContext context;
-  set_deadline(context);
-  auto stream = stub.Animate(&context);
-  Received received;
-  std::thread reader([&] { read_all(*stream, received); });
-  for (const auto& request : requests) {
-    if (!stream->Write(request)) break;
-  }
-  stream->WritesDone();
-  reader.join();
-  received.status = stream->Finish();
-  return received;
-}
-
-std::vector<v1::AnimateRequest> whole(const v1::AnimationSettings& settings,
-                                      const std::vector<LabeledInterval>& intervals, std::size_t chunk) {
-  std::vector<v1::AnimateRequest> requests{settings_request(settings)};
-  for (auto& request : chunked(intervals, chunk)) requests.push_back(std::move(request));
-  requests.push_back(end_request());
-  return requests;
-}
-
-Received subscribe_all(v1::LipSync::Stub& stub, const std::string& session,
-                       v1::SubscribeRequest::Start start = v1::SubscribeRequest::START_FROM_BEGINNING) {
-  grpc::ClientContext context;
-  set_deadline(context);
-  v1::SubscribeRequest request;
-  request.set_session(session);
-  request.set_start(start);
-  auto reader = stub.Subscribe(&context, request);
-  Received received;
-  read_all(*reader, received);
-  received.status = reader->Finish();
-  return received;
-}
-
-template <class Condition>
-bool eventually(Condition condition) {
-  const auto deadline = std::chrono::steady_clock::now() + 10s;
-  while (!condition()) {
-    if (std::chrono::steady_clock::now() > deadline) return false;
-    std::this_thread::sleep_for(2ms);
-  }
-  return true;
-}
-
-// --- the fixture: a real server on 127.0.0.1:0 --------------------------------
-
-class ServerTest : public ::testing::Test {
- protected:
-  void start(ServerConfig config = {}) {
-    config.listen = "127.0.0.1:0";
-    config.log_level = "warn";
-    server_ = std::make_unique<Server>(config);
-    channel_ = connect(server_->address());
-    stub_ = v1::LipSync::NewStub(channel_);
-  }
-  void SetUp() override { start(); }
-  void TearDown() override {
-    if (server_) server_->shutdown(0ms);
-  }
-
-  std::unique_ptr<Server> server_;
-  std::shared_ptr<grpc::Channel> channel_;
-  std::unique_ptr<v1::LipSync::Stub> stub_;
-};
-
-// A producer stream driven step by step from the test.
-class Producer {
- public:
-  Producer(v1::LipSync::Stub& stub, v1::AnimationSettings settings) {
-    set_deadline(context_);
-    stream_ = stub.Animate(&context_);
-    EXPECT_TRUE(stream_->Write(settings_request(std::move(settings))));
-    v1::TrackMessage message;
-    EXPECT_TRUE(stream_->Read(&message));
-    take(received_, message);
-    EXPECT_TRUE(received_.header.has_value());
-  }
-  void write(const v1::AnimateRequest& request) { EXPECT_TRUE(stream_->Write(request)); }
-  /// Reads until at least `frames` frames have arrived.
-  void read_frames(std::size_t frames) {
-    v1::TrackMessage message;
-    while (received_.frames.t_us.size() < frames && stream_->Read(&message)) take(received_, message);
-  }
-  void read_message() {
-    v1::TrackMessage message;
-    if (stream_->Read(&message)) take(received_, message);
-  }
-  Received finish() {
-    stream_->WritesDone();
-    read_all(*stream_, received_);
-    received_.status = stream_->Finish();
-    return received_;
-  }
-  void cancel() { context_.TryCancel(); }
-
- private:
-  grpc::ClientContext context_;
-  std::unique_ptr<grpc::ClientReaderWriter<v1::AnimateRequest, v1::TrackMessage>> stream_;
-  Received received_;
-};
-
-// A subscriber that has seen its header (so it is attached) and reads on demand.
-class Subscriber {
- public:
-  Subscriber(v1::LipSync::Stub& stub, const std::string& session, v1::SubscribeRequest::Start start) {
-    set_deadline(context_);
-    v1::SubscribeRequest request;
-    request.set_session(session);
-    request.set_start(start);
-    reader_ = stub.Subscribe(&context_, request);
-    v1::TrackMessage message;
-    if (reader_->Read(&message)) take(received_, message);
-  }
-  bool attached() const { return received_.header.has_value(); }
-  Received finish() {
-    read_all(*reader_, received_);
-    received_.status = reader_->Finish();
-    return received_;
-  }
-
- private:
-  grpc::ClientContext context_;
-  std::unique_ptr<grpc::ClientReader<v1::TrackMessage>> reader_;
-  Received received_;
-};
-
-v1::AnimationSettings session_settings(const std::string& session) {
-  v1::AnimationSettings settings;
-  settings.set_session(session);
-  settings.mutable_media_clock()->set_clock("unix");
-  settings.mutable_media_clock()->set_utterance_zero_us(1'700'000'000'000'000);
-  return settings;
 }
 
 // --- Animate, Render, render_track ---------------------------------------------
@@ -383,6 +155,7 @@ TEST_F(ServerTest, ASlowSubscriberIsCutOffWhileTheOthersFinish) {
   ServerConfig config;
   config.subscriber_queue_frames = 4000;
   config.replay_frames = 64;
+  config.stalled_subscriber_ms = 600'000;  // it reads on at the end: RESOURCE_EXHAUSTED, not a cancel
   start(config);
   const auto intervals = utterance(1500, 5);
   v1::AnimationSettings settings = session_settings("slow");
@@ -422,6 +195,104 @@ TEST_F(ServerTest, ASlowSubscriberIsCutOffWhileTheOthersFinish) {
   EXPECT_THAT(cut.status.error_message(), HasSubstr("--subscriber-queue-frames=4000"));
   EXPECT_LT(cut.frames.t_us.size(), expected.t_us.size());
   EXPECT_FALSE(cut.summary.has_value());
+}
+
+TEST_F(ServerTest, ASubscriberThatStopsReadingIsCancelledAndItsStreamFreed) {
+  ServerConfig config;
+  config.subscriber_queue_frames = 1000;
+  config.replay_frames = 64;
+  config.stalled_subscriber_ms = 200;
+  start(config);
+  const auto intervals = utterance(600, 6);
+  v1::AnimationSettings settings = session_settings("stalled");
+  settings.set_fps(120);
+
+  Producer producer(*stub_, settings);
+  // Its own connection without BDP probing, so flow control stops the server's
+  // writes to it after about 64 kB; it reads the header and then nothing.
+  auto dead_channel = connect(server_->address(), false);
+  auto dead_stub = v1::LipSync::NewStub(dead_channel);
+  Subscriber dead(*dead_stub, "stalled", v1::SubscribeRequest::START_FROM_NOW);
+  ASSERT_TRUE(dead.attached());
+  ASSERT_EQ(server_->active_streams(), 2u);
+  // Small messages (one phoneme, about 14 frames): the queue fills behind a
+  // write that flow control holds back.
+  for (auto& request : chunked(intervals, 1)) producer.write(request);
+  producer.write(end_request());
+  const Received produced = producer.finish();
+  ASSERT_TRUE(produced.status.ok()) << produced.status.error_message();
+  // Cut off with a write stuck in flight, it is cancelled after the grace period
+  // although its client never reads again: its stream slot is free.
+  EXPECT_TRUE(eventually([&] { return server_->active_streams() == 0; }))
+      << server_->active_streams() << " streams still open";
+  const Received cut = dead.finish();
+  EXPECT_FALSE(cut.status.ok());
+  EXPECT_LT(cut.frames.t_us.size(), produced.frames.t_us.size());
+}
+
+TEST_F(ServerTest, AProducerThatDoesNotReadIsHeldBackAndLosesNothing) {
+  // 20,000 phonemes (about 70,000 frames) sent at once by a producer that reads
+  // no frame: once thousands of frames wait for it, the server stops reading its
+  // phonemes (flow control then holds the client back) instead of rendering and
+  // queueing the whole track. A subscriber of its session shows how far the
+  // server got. Once the producer reads, everything arrives, to both.
+  ServerConfig config;
+  config.subscriber_queue_frames = 200'000;  // the follower must not be cut off while the producer catches up
+  start(config);
+  const auto intervals = utterance(20'000, 12);
+  const Frames expected = reference_frames(intervals);
+  // Without BDP probing the producer's receive window stays at 64 kB.
+  auto channel = connect(server_->address(), false);
+  auto stub = v1::LipSync::NewStub(channel);
+  grpc::ClientContext context;
+  set_deadline(context);
+  auto stream = stub->Animate(&context);
+  ASSERT_TRUE(stream->Write(settings_request(session_settings("held"))));
+  v1::TrackMessage header;
+  ASSERT_TRUE(stream->Read(&header));
+  grpc::ClientContext follow_context;
+  set_deadline(follow_context);
+  v1::SubscribeRequest follow;
+  follow.set_session("held");
+  auto follower = stub_->Subscribe(&follow_context, follow);
+  Received followed;
+  std::atomic<std::size_t> followed_frames{0};
+  std::thread follower_thread([&] {
+    v1::TrackMessage message;
+    while (follower->Read(&message)) {
+      take(followed, message);
+      followed_frames = followed.frames.t_us.size();
+    }
+  });
+  std::thread writer([&] {
+    for (auto& request : chunked(intervals, 20)) {
+      if (!stream->Write(request)) return;
+    }
+    if (stream->Write(end_request())) stream->WritesDone();
+  });
+  // Until the server stops making progress on this producer's phonemes.
+  std::size_t seen = 0;
+  auto progress = std::chrono::steady_clock::now();
+  while (followed_frames < expected.t_us.size() && std::chrono::steady_clock::now() - progress < 500ms) {
+    std::this_thread::sleep_for(10ms);
+    if (followed_frames != seen) {
+      seen = followed_frames;
+      progress = std::chrono::steady_clock::now();
+    }
+  }
+  EXPECT_LT(followed_frames.load(), expected.t_us.size() / 2)
+      << "the server rendered the track although its producer read no frame";
+  Received received;
+  take(received, header);
+  read_all(*stream, received);
+  writer.join();
+  received.status = stream->Finish();
+  ASSERT_TRUE(received.status.ok()) << received.status.error_message();
+  expect_same(received.frames, expected);
+  follower_thread.join();
+  followed.status = follower->Finish();
+  ASSERT_TRUE(followed.status.ok()) << followed.status.error_message();
+  expect_same(followed.frames, expected);
 }
 
 TEST_F(ServerTest, FromNowSkipsWhatFromBeginningReplays) {
@@ -700,52 +571,6 @@ TEST(ServerConfigTest, FlagsOverrideTheFileAndBadValuesNameTheFlag) {
 
 // --- the binary ------------------------------------------------------------------------
 
-struct Child {
-  pid_t pid = -1;
-  FILE* out = nullptr;
-
-  std::string line() {
-    char* buffer = nullptr;
-    std::size_t size = 0;
-    const auto read = getline(&buffer, &size, out);
-    std::string text = read > 0 ? std::string(buffer, static_cast<std::size_t>(read)) : std::string();
-    free(buffer);
-    return text;
-  }
-  int wait() {
-    int status = 0;
-    waitpid(pid, &status, 0);
-    if (out) fclose(out);
-    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  }
-};
-
-Child spawn(std::vector<std::string> args) {
-  int pipe_fds[2];
-  EXPECT_EQ(pipe(pipe_fds), 0);
-  args.insert(args.begin(), LIPSYNCD_PATH);
-  const pid_t pid = fork();
-  if (pid == 0) {
-    dup2(pipe_fds[1], STDOUT_FILENO);
-    close(pipe_fds[0]);
-    close(pipe_fds[1]);
-    std::vector<char*> argv;
-    for (auto& arg : args) argv.push_back(arg.data());
-    argv.push_back(nullptr);
-    execv(argv[0], argv.data());
-    _exit(127);
-  }
-  close(pipe_fds[1]);
-  return {pid, fdopen(pipe_fds[0], "r")};
-}
-
-std::string listening_address(Child& child) {
-  const std::string line = child.line();
-  const std::string prefix = "lipsyncd listening on ";
-  EXPECT_EQ(line.rfind(prefix, 0), 0u) << line;
-  return line.substr(prefix.size(), line.find_last_not_of("\r\n") + 1 - prefix.size());
-}
-
 TEST(LipsyncdBinary, BadFlagsExit2AndABadModelExits1) {
   EXPECT_EQ(spawn({"--max-streams", "-3"}).wait(), 2);
   EXPECT_EQ(spawn({"--no-such-flag"}).wait(), 2);
@@ -773,6 +598,41 @@ TEST(LipsyncdBinary, SigtermLetsAnOpenStreamFinishThenExitsZero) {
     expect_same(received.frames, reference_frames(intervals));
   }
   EXPECT_EQ(child.wait(), 0);
+}
+
+TEST(LipsyncdBinary, SigtermExitsAtOnceWhenNoCallIsRunningThoughClientsStayConnected) {
+  Child child = spawn({"--listen", "127.0.0.1:0", "--drain-deadline-ms", "60000", "--log-level", "warn"});
+  const std::string address = listening_address(child);
+  auto channel = connect(address);
+  auto stub = v1::LipSync::NewStub(channel);
+  const auto intervals = utterance(20, 3);
+  const Received received = animate(*stub, whole({}, intervals, 5));
+  ASSERT_TRUE(received.status.ok()) << received.status.error_message();
+  ASSERT_EQ(kill(child.pid, SIGTERM), 0);
+  // The drain deadline is a minute; with nothing running there is nothing to wait for.
+  EXPECT_EQ(child.wait_for(std::chrono::seconds(20)), std::optional<int>(0));
+}
+
+TEST(ServerDrain, CallsDuringTheDrainAreRefusedWithUnavailable) {
+  ServerConfig config;
+  config.listen = "127.0.0.1:0";
+  config.log_level = "warn";
+  Server server(config);
+  auto stub = v1::LipSync::NewStub(connect(server.address()));
+  Producer running(*stub, {});  // keeps the drain waiting
+  std::thread drain([&] { server.shutdown(std::chrono::milliseconds(60'000)); });
+  ASSERT_TRUE(eventually([&] {
+    const Received refused = animate(*stub, whole({}, utterance(3, 4), 3));
+    return refused.status.error_code() == grpc::StatusCode::UNAVAILABLE;
+  }));
+  const Received refused = animate(*stub, whole({}, utterance(3, 4), 3));
+  EXPECT_THAT(refused.status.error_message(), HasSubstr("shutting down"));
+  const auto intervals = utterance(10, 5);
+  for (auto& request : chunked(intervals, 5)) running.write(request);
+  running.write(end_request());
+  const Received finished = running.finish();  // the running stream still completes
+  EXPECT_TRUE(finished.status.ok()) << finished.status.error_message();
+  drain.join();
 }
 
 TEST(LipsyncdBinary, StreamsStillOpenAtTheDrainDeadlineAreCancelled) {

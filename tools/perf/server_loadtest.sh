@@ -7,7 +7,10 @@
 # Environment (all bounded): SESSIONS="100 200 500 1000 2000" real-time sessions per step,
 # DURATION=10 seconds per step, REPEAT=3 rounds, SUBSCRIBED="500 1000" sessions for the runs with
 # one subscriber per session (lipsyncd only; the baseline has no Subscribe), FAST_PRODUCERS=50
-# producers for the fast-mode throughput runs, CONNECTIONS=8 HTTP/2 connections.
+# producers for the fast-mode throughput runs, CONNECTIONS=8 HTTP/2 connections, SERVER_CPUS and
+# CLIENT_CPUS (taskset CPU lists, e.g. 0 and 1: the servers on one core, the load generator on the
+# other; unset: no pinning), MESH_SESSIONS="500" real-time sessions of which a share MESH_SHARE=0.01
+# ask for the physics face (level MESH_LEVEL=1; lipsyncd only).
 # Each round runs every step against lipsyncd and the baseline back to back (alternating which goes
 # first), so that ratios compare runs made under the same machine load. Prints one table row per
 # run and a summary of medians; raw JSON reports go to $OUT_DIR (default a temporary folder).
@@ -19,9 +22,16 @@ SUBSCRIBED=${SUBSCRIBED:-"500 1000"}
 DURATION=${DURATION:-10}
 REPEAT=${REPEAT:-3}
 FAST_PRODUCERS=${FAST_PRODUCERS:-50}
+MESH_SESSIONS=${MESH_SESSIONS:-"500"}
+MESH_SHARE=${MESH_SHARE:-0.01}
+MESH_LEVEL=${MESH_LEVEL:-1}
 CONNECTIONS=${CONNECTIONS:-8}
 OUT_DIR=${OUT_DIR:-$(mktemp -d /tmp/server_loadtest.XXXXXX)}
 mkdir -p "$OUT_DIR"
+SERVER_PIN=()
+CLIENT_PIN=()
+[[ -n ${SERVER_CPUS:-} ]] && SERVER_PIN=(taskset -c "$SERVER_CPUS")
+[[ -n ${CLIENT_CPUS:-} ]] && CLIENT_PIN=(taskset -c "$CLIENT_CPUS")
 
 LIPSYNCD=$BUILD/server/lipsyncd
 LIPSYNC=$BUILD/clients/cli/lipsync
@@ -52,9 +62,10 @@ start() {
   printf -v "PID_$name" %s "$pid"
 }
 
-start lipsyncd "$LIPSYNCD" --listen 127.0.0.1:0 --log-level warn
-start baseline "$BASELINE" --listen 127.0.0.1:0
-echo "lipsyncd $ADDR_lipsyncd (pid $PID_lipsyncd), baseline $ADDR_baseline (pid $PID_baseline), $(nproc) cores"
+start lipsyncd "${SERVER_PIN[@]}" "$LIPSYNCD" --listen 127.0.0.1:0 --log-level warn
+start baseline "${SERVER_PIN[@]}" "$BASELINE" --listen 127.0.0.1:0
+echo "lipsyncd $ADDR_lipsyncd (pid $PID_lipsyncd), baseline $ADDR_baseline (pid $PID_baseline), $(nproc) cores," \
+  "servers on CPUs ${SERVER_CPUS:-any}, load generator on CPUs ${CLIENT_CPUS:-any}"
 echo "results in $OUT_DIR"
 
 cpu_ticks() { awk '{print $14 + $15}' "/proc/$1/stat"; }
@@ -71,7 +82,7 @@ one() {
   before=$(cpu_ticks "${!pid_var}")
   start_ns=$(date +%s%N)
   local TIMEFORMAT='%U %S'
-  { time "$LIPSYNC" loadtest --server "${!addr_var}" --connections "$CONNECTIONS" --json "${extra[@]}" "$@" \
+  { time "${CLIENT_PIN[@]}" "$LIPSYNC" loadtest --server "${!addr_var}" --connections "$CONNECTIONS" --json "${extra[@]}" "$@" \
       >"$OUT_DIR/$tag.raw" 2>"$OUT_DIR/$tag.stderr" || true; } 2>"$OUT_DIR/$tag.time"
   end_ns=$(date +%s%N)
   after=$(cpu_ticks "${!pid_var}")
@@ -100,6 +111,10 @@ for round in $(seq "$REPEAT"); do
   for n in $SUBSCRIBED; do
     one lipsyncd "r$round-subscribed-$n-lipsyncd" --realtime --producers "$n" --subscribers-per-session 1 \
       --duration "$DURATION"
+  done
+  for n in $MESH_SESSIONS; do
+    one lipsyncd "r$round-mesh-$n-lipsyncd" --realtime --producers "$n" --mesh-share "$MESH_SHARE" \
+      --mesh-subdivision "$MESH_LEVEL" --duration "$DURATION"
   done
   for name in "${order[@]}"; do
     one "$name" "r$round-fast-$FAST_PRODUCERS-$name" --fast --producers "$FAST_PRODUCERS" --duration "$DURATION"
@@ -147,4 +162,16 @@ for (mode, n, name), rs in sorted(groups.items()):
           f"{med(lambda r: r['latency_ms']['producers']['p99']):.2f} | "
           f"{sum(sum(r['errors'].values()) for r in rs)} | {med(lambda r: r['frames']['per_second']):.0f} | "
           f"{med(lambda r: r['server_cpu']):.2f} | {ratio} |")
+mesh_runs = [r for r in runs if "by_output" in r and r["by_output"].get("mesh", {}).get("producers")]
+if mesh_runs:
+    print()
+    print("With the face on for a share of the sessions (producers' latency, computable -> arrival):")
+    print("| round | sessions | with face | no-face p50 ms | no-face p99 ms | face p50 ms | face p99 ms | face frames/s | errors | server CPU |")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for r in sorted(mesh_runs, key=key):
+        plain, face = r["by_output"]["no_mesh"], r["by_output"]["mesh"]
+        print(f"| {r['round']} | {r['n']} | {face['producers']} | {plain['latency_ms']['producers']['p50']:.2f} | "
+              f"{plain['latency_ms']['producers']['p99']:.2f} | {face['latency_ms']['producers']['p50']:.2f} | "
+              f"{face['latency_ms']['producers']['p99']:.2f} | {face['frames']['per_second']:.0f} | "
+              f"{sum(r['errors'].values())} | {r['server_cpu']:.2f} |")
 PY

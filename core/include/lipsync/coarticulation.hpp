@@ -22,6 +22,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -35,23 +36,20 @@ inline constexpr int kWindowRadius = 7;
 /// A channel whose scaled denominator falls below this is recomputed in log space.
 inline constexpr double kUnderflowGuard = 1e-200;
 
-/// Evaluates Eq. 4–5 for one time instant. Holds scratch space sized for the
-/// model, so evaluation allocates nothing; one instance per thread.
-class CoarticulationEvaluator {
+/// A model's dominance parameters regrouped for evaluation: each phoneme's
+/// channels grouped by dominance shape (θ−, θ+, c, t_off; channels that share
+/// one share its exponential), and per shape the rows of α and α·T, padded to
+/// whole vector blocks. Building them costs about as much as a hundred frames;
+/// they never change, so one instance per model serves every evaluator on
+/// every thread (the server builds it once per loaded model).
+class CoarticulationTables {
  public:
-  explicit CoarticulationEvaluator(const ArticulationModel& model);
+  explicit CoarticulationTables(const ArticulationModel& model);
 
-  /// Channel values at `t_us`. `window` holds consecutive segments, and
-  /// `current` indexes the one that contains t (t may equal the end of the last
-  /// segment). Segments further than kWindowRadius from `current` are ignored;
-  /// a window shorter on one side (utterance edge, or lookahead) simply has
-  /// fewer contributors. Writes channel_count() values to `out`.
-  void evaluate(std::span<const Segment> window, std::size_t current, std::int64_t t_us,
-                std::span<float> out);
+  const ArticulationModel& model() const { return model_; }
 
  private:
-  void evaluate_channel_in_log_space(std::span<const Segment> window, std::size_t first, std::size_t last,
-                                     std::size_t channel);
+  friend class CoarticulationEvaluator;
 
   const ArticulationModel& model_;
   std::size_t channels_;
@@ -67,8 +65,32 @@ class CoarticulationEvaluator {
   // Shape × padded channel tables: α and α·T of the channels of that shape, 0 elsewhere.
   std::vector<double> alpha_;
   std::vector<double> alpha_target_;
+};
+
+/// Evaluates Eq. 4–5 for one time instant. Holds scratch space sized for the
+/// model, so evaluation allocates nothing; one instance per thread.
+class CoarticulationEvaluator {
+ public:
+  /// Builds the model's tables for this evaluator alone.
+  explicit CoarticulationEvaluator(const ArticulationModel& model);
+  /// Shares tables built once (their model must outlive them).
+  explicit CoarticulationEvaluator(std::shared_ptr<const CoarticulationTables> tables);
+
+  /// Channel values at `t_us`. `window` holds consecutive segments, and
+  /// `current` indexes the one that contains t (t may equal the end of the last
+  /// segment). Segments further than kWindowRadius from `current` are ignored;
+  /// a window shorter on one side (utterance edge, or lookahead) simply has
+  /// fewer contributors. Writes channel_count() values to `out`.
+  void evaluate(std::span<const Segment> window, std::size_t current, std::int64_t t_us,
+                std::span<float> out);
+
+ private:
+  void evaluate_channel_in_log_space(std::span<const Segment> window, std::size_t first, std::size_t last,
+                                     std::size_t channel);
+
+  std::shared_ptr<const CoarticulationTables> tables_;
   // Scratch, sized once.
-  std::vector<double> log_shape_;  // window × max_shapes_: log(D/α)
+  std::vector<double> log_shape_;  // window × max shapes: log(D/α)
   std::vector<double> shape_weight_;
   std::vector<double> numerator_;
   std::vector<double> denominator_;

@@ -12,6 +12,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <memory>
 #include <vector>
 
 #include "lipsync/coarticulation.hpp"
@@ -32,11 +33,17 @@ struct RenderOptions {
 /// Renders a whole utterance. Throws std::invalid_argument for bad options.
 Track render_track(const ArticulationModel& model, const std::vector<Segment>& segments,
                    const RenderOptions& options = {});
+/// The same with the model's evaluator tables built once beforehand (a server
+/// rendering many utterances with one model).
+Track render_track(std::shared_ptr<const CoarticulationTables> tables, const std::vector<Segment>& segments,
+                   const RenderOptions& options = {});
 
 class StreamingRenderer {
  public:
   /// Throws std::invalid_argument for bad options.
   StreamingRenderer(const ArticulationModel& model, const RenderOptions& options = {});
+  /// The same with the model's evaluator tables built once beforehand.
+  StreamingRenderer(std::shared_ptr<const CoarticulationTables> tables, const RenderOptions& options = {});
 
   /// Adds the next segment (contiguous with the previous one) and appends every
   /// frame that became computable to `out` (which must have this model's
@@ -53,7 +60,6 @@ class StreamingRenderer {
  private:
   void emit_ready(Track& out, bool finishing);
 
-  const ArticulationModel& model_;
   RenderOptions options_;
   FrameScheduler scheduler_;
   CoarticulationEvaluator evaluator_;

@@ -80,7 +80,7 @@ FaceAnimation simulate_face_animation(const FaceMesh& mesh, const FaceRig& rig, 
   if (fps < 1 || fps > 240) throw std::invalid_argument("simulate_face_animation: fps must be 1 to 240");
   if (track.channel_count != rig.channel_count())
     throw std::invalid_argument("simulate_face_animation: the track's channels are not the rig's model's");
-  const int substeps = (60 + fps - 1) / fps;
+  const int substeps = (30 + fps - 1) / fps;  // the solver's step: 1/fps, or 1/30 s at most
   params.time_step_s = 1.0 / (static_cast<double>(fps) * substeps);
   FaceSolver solver(mesh, rig, params);
   FaceAnimation animation;
@@ -90,9 +90,9 @@ FaceAnimation simulate_face_animation(const FaceMesh& mesh, const FaceRig& rig, 
     return static_cast<std::int64_t>(std::llround(static_cast<double>(k) * 1e6 / fps));
   };
   std::vector<float> channels(track.channel_count, 0.0F);
-  // Start at rest, settled on the first frame's values (a track starts in its rest pose).
+  // Start at rest, settled for 0.5 s on the first frame's values (a track starts in its rest pose).
   sample_track(track, frame_time(0), channels);
-  for (int s = 0; s < 30; ++s) solver.step(channels, params.time_step_s);
+  solver.step(channels, 0.5);
   for (std::int64_t k = 0; k == 0 || frame_time(k - 1) < end_us; ++k) {
     if (k > 0) {
       for (int s = 1; s <= substeps; ++s) {

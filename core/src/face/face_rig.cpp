@@ -128,6 +128,7 @@ FaceRig FaceRig::from_json(std::string_view json_text, std::string_view source, 
       spec.origin_depth_m = in.number(json, "origin_depth_m", where, 0.0, 0.05, 0.0);
     } else {
       spec.closure_m = in.number(json, "closure_m", where, 0.0, 0.05);
+      spec.closure_saturation = in.number(json, "closure_saturation", where, 0.01, 1.0, 1.0);
       const auto& dir = in.field(json, "closure_direction", where);
       if (!dir.is_array() || dir.size() != 3 || !dir[0].is_number() || !dir[1].is_number() || !dir[2].is_number())
         in.fail(where, "field 'closure_direction' must be [x, y, z]");

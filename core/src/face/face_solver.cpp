@@ -1,19 +1,27 @@
 // The local–global face solver; the model and its equations are in face_solver.hpp and
 // docs/face.md. Layout: positions are n × 3 row-major doubles, every per-node array in the
 // Cholesky factor's fill-reducing order (mesh order only in positions()). Each iteration forms the
-// residual of the global system in double precision (diagonal part plus the spring projections,
-// A is never stored) and solves for the correction with a single-precision copy of the factor
-// (float values, 16-bit row indices, x/y/z in one SSE vector): iterative refinement, so the
-// float rounding slows convergence by a negligible amount and does not move the fixed point, and
-// the factor's memory traffic, which bounded the solve, is halved (docs/face.md, "The solver").
+// residual of the global system A_s x = b for the substep length s in double precision (diagonal
+// part plus the spring projections, A is never stored) and solves for the correction with a
+// single-precision supernodal copy of the factor of A_h (float values, one 16-bit row index per
+// supernode row, x/y/z in one SSE vector): iterative refinement, so neither the float rounding nor
+// s ≠ h moves the fixed point; they change how far one iteration gets, and for s < h the
+// correction is relaxed by the optimal Richardson weight for the mismatch (docs/face.md,
+// "The solver").
 #include "lipsync/face/face_solver.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstring>
 #include <set>
 #include <stdexcept>
 #include <utility>
 #include <vector>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
@@ -93,7 +101,9 @@ struct Binding {
 struct MuscleBindings {
   std::size_t channel;
   bool on_jaw;
-  std::vector<Binding> bindings;
+  std::vector<Binding> bindings;          // displaced by c · displacement
+  std::vector<Binding> closure_bindings;  // a sphincter's closure: by min(c, saturation) · displacement
+  double closure_saturation = 1.0;
 };
 
 // Closest point of a polyline: distance and arc-length parameter t ∈ [0, 1] (0 at the first point).
@@ -120,37 +130,153 @@ std::pair<double, double> closest_on_polyline(const std::vector<V3>& line, V3 p)
 typedef float Float4 __attribute__((vector_size(16)));  // NOLINT(modernize-use-using)
 
 // Sparse lower Cholesky factor of the (already permuted) system matrix, A = L Lᵀ, in single
-// precision: compressed columns of the strictly lower part with 16-bit row indices where the size
-// allows (6 bytes per entry: level 1's factor, 94k entries, then nearly fits a 512 KiB L2 cache;
-// the double factor with 32-bit indices took 1.1 MB and the solve was bound by memory traffic).
-// It solves for corrections only (iterative refinement: the residual is computed in double), so
-// its rounding changes how fast an iteration converges, not where it converges to.
-struct CholeskyFactor {
-  std::vector<int> column_start;
+// precision, by supernodes: runs of consecutive columns whose structure below the run is the same
+// (fundamental supernodes; at level 1, 82 % of the 94k entries are in runs of 4 columns or more).
+// A supernode of w columns starting at column c0 stores its strictly lower w × w diagonal block
+// and the dense block of its m rows below, both row-major, with one row index per row (16-bit
+// where n ≤ 65536) instead of one per entry. The forward solve then takes a dot product of each
+// row with the supernode's w unknowns (in L1) and updates one z per row; the backward solve
+// accumulates four columns at a time from the same rows. Compared with one scatter
+// per entry, this halves the instructions per entry and the index traffic; the float values keep
+// the factor (level 1: 0.4 MB) within one core's 512 KiB L2 cache. It solves for corrections
+// only (iterative refinement: the residual is computed in double), so its rounding changes how
+// fast an iteration converges, not where it converges to.
+struct SupernodalFactor {
+  struct Supernode {
+    int first_column, width;
+    int row_begin, row_end;  // rows below the supernode: row_index[row_begin, row_end)
+    int diagonal_offset;     // w(w−1)/2 values: row c's entries left of the diagonal, c = 1 … w−1
+    int block_offset;        // (row_end − row_begin) × w values, row-major
+  };
+  std::vector<Supernode> supernodes;
   std::vector<std::uint16_t> row16;  // used when n ≤ 65536
   std::vector<std::uint32_t> row32;  // otherwise
   std::vector<float> value;
   std::vector<float> inverse_diagonal;
 
+  // From L in compressed columns, diagonal first, rows ascending (Eigen's SimplicialLLT).
+  void build(std::size_t n, const int* outer, const int* inner, const double* l) {
+    const bool small = n <= 65536;
+    inverse_diagonal.resize(n);
+    for (std::size_t j = 0; j < n; ++j) inverse_diagonal[j] = static_cast<float>(1.0 / l[outer[j]]);
+    // Column j + 1 continues j's supernode when struct(j) = {j + 1} ∪ struct(j + 1).
+    auto continues = [&](std::size_t j) {
+      const int b0 = outer[j] + 1, e0 = outer[j + 1], b1 = outer[j + 1] + 1, e1 = outer[j + 2];
+      if (e0 - b0 != e1 - b1 + 1 || inner[b0] != static_cast<int>(j + 1)) return false;
+      return std::equal(inner + b0 + 1, inner + e0, inner + b1);
+    };
+    for (std::size_t c0 = 0; c0 < n;) {
+      std::size_t w = 1;
+      while (c0 + w < n && continues(c0 + w - 1)) ++w;
+      Supernode s{};
+      s.first_column = static_cast<int>(c0);
+      s.width = static_cast<int>(w);
+      s.diagonal_offset = static_cast<int>(value.size());
+      for (std::size_t c2 = 1; c2 < w; ++c2)
+        for (std::size_t c = 0; c < c2; ++c) value.push_back(static_cast<float>(l[outer[c0 + c] + (c2 - c)]));
+      // Rows below: those of the last column, after its diagonal.
+      const int last = outer[c0 + w - 1];
+      s.row_begin = static_cast<int>(small ? row16.size() : row32.size());
+      s.block_offset = static_cast<int>(value.size());
+      for (int p = last + 1; p < outer[c0 + w]; ++p) {
+        if (small)
+          row16.push_back(static_cast<std::uint16_t>(inner[p]));
+        else
+          row32.push_back(static_cast<std::uint32_t>(inner[p]));
+        const int k = p - (last + 1);  // position among the rows below
+        for (std::size_t c = 0; c < w; ++c)
+          value.push_back(static_cast<float>(l[outer[c0 + c] + static_cast<int>(w - c) + k]));
+      }
+      s.row_end = static_cast<int>(small ? row16.size() : row32.size());
+      supernodes.push_back(s);
+      c0 += w;
+    }
+  }
+
+  // Four consecutive values (unaligned) and one of them in all lanes (shufps).
+  static Float4 load4(const float* p) {
+    Float4 v;
+    std::memcpy(&v, p, sizeof v);
+    return v;
+  }
+  template <int lane>
+  static Float4 splat(Float4 v) {
+    return Float4{v[lane], v[lane], v[lane], v[lane]};
+  }
+
+  // Σ o[c] · zs[c], c < w.
+  static Float4 dot(const float* o, const Float4* zs, int w) {
+    Float4 a = {0, 0, 0, 0}, b = {0, 0, 0, 0};
+    int c = 0;
+    for (; c + 4 <= w; c += 4) {
+      const Float4 v = load4(o + c);
+      a += splat<0>(v) * zs[c];
+      b += splat<1>(v) * zs[c + 1];
+      a += splat<2>(v) * zs[c + 2];
+      b += splat<3>(v) * zs[c + 3];
+    }
+    for (; c < w; ++c) a += o[c] * zs[c];
+    return a + b;
+  }
+
   template <typename Index>
   void solve(const Index* row, Float4* z) const {
-    const int n = static_cast<int>(inverse_diagonal.size());
-    const int* start = column_start.data();
-    const float* l = value.data();
-    for (int j = 0; j < n; ++j) {  // L y = b, by columns: scatter
-      const Float4 zj = z[j] * inverse_diagonal[static_cast<std::size_t>(j)];
-      z[j] = zj;
-      for (int p = start[j]; p < start[j + 1]; ++p) z[row[p]] -= l[p] * zj;
-    }
-    for (int j = n - 1; j >= 0; --j) {  // Lᵀ x = y, by columns: gather with two partial sums
-      Float4 a = {0, 0, 0, 0}, b = {0, 0, 0, 0};
-      int p = start[j];
-      for (; p + 2 <= start[j + 1]; p += 2) {
-        a += l[p] * z[row[p]];
-        b += l[p + 1] * z[row[p + 1]];
+    const float* inv = inverse_diagonal.data();
+    for (const Supernode& s : supernodes) {  // L y = b
+      Float4* zs = z + s.first_column;
+      const int w = s.width;
+      const float* d = value.data() + s.diagonal_offset;
+      for (int c = 0; c < w; d += c, ++c) zs[c] = (zs[c] - dot(d, zs, c)) * inv[s.first_column + c];
+      const float* o = value.data() + s.block_offset;
+      if (w == 1) {  // a single column: a plain scatter
+        const Float4 z0 = zs[0];
+        for (int k = s.row_begin; k < s.row_end; ++k) z[row[k]] -= *o++ * z0;
+        continue;
       }
-      if (p < start[j + 1]) a += l[p] * z[row[p]];
-      z[j] = (z[j] - (a + b)) * inverse_diagonal[static_cast<std::size_t>(j)];
+      for (int k = s.row_begin; k < s.row_end; ++k, o += w) z[row[k]] -= dot(o, zs, w);
+    }
+    for (auto it = supernodes.rbegin(); it != supernodes.rend(); ++it) {  // Lᵀ x = y
+      const Supernode& s = *it;
+      Float4* zs = z + s.first_column;
+      const int w = s.width;
+      const float* block = value.data() + s.block_offset;
+      int c = 0;
+      for (; c + 4 <= w; c += 4) {
+        Float4 a0 = {0, 0, 0, 0}, a1 = a0, a2 = a0, a3 = a0;
+        const float* o = block + c;
+        for (int k = s.row_begin; k < s.row_end; ++k, o += w) {
+          const Float4 zr = z[row[k]], v = load4(o);
+          a0 += splat<0>(v) * zr;
+          a1 += splat<1>(v) * zr;
+          a2 += splat<2>(v) * zr;
+          a3 += splat<3>(v) * zr;
+        }
+        zs[c] -= a0;
+        zs[c + 1] -= a1;
+        zs[c + 2] -= a2;
+        zs[c + 3] -= a3;
+      }
+      if (c < w) {  // the last one to three columns
+        Float4 a0 = {0, 0, 0, 0}, a1 = a0, a2 = a0;
+        const float* o = block + c;
+        const int rest = w - c;
+        for (int k = s.row_begin; k < s.row_end; ++k, o += w) {
+          const Float4 zr = z[row[k]];
+          a0 += o[0] * zr;
+          if (rest > 1) a1 += o[1] * zr;
+          if (rest > 2) a2 += o[2] * zr;
+        }
+        zs[c] -= a0;
+        if (rest > 1) zs[c + 1] -= a1;
+        if (rest > 2) zs[c + 2] -= a2;
+      }
+      // The diagonal block, by rows from the last: finish unknown c, then remove it from those left of it.
+      for (c = w - 1; c >= 0; --c) {
+        const Float4 zc = zs[c] * inv[s.first_column + c];
+        zs[c] = zc;
+        const float* d = value.data() + s.diagonal_offset + c * (c - 1) / 2;
+        for (int c2 = 0; c2 < c; ++c2) zs[c2] -= d[c2] * zc;
+      }
     }
   }
   void solve_in_place(Float4* z) const {
@@ -177,7 +303,7 @@ struct FaceSolver::Impl {
   std::vector<MuscleBindings> muscles;
   std::vector<std::uint8_t> teeth_contact, skull_contact;
   std::vector<double> sink_limit_m;
-  CholeskyFactor factor;
+  SupernodalFactor factor;
   // Every per-node array above and the state below are in the factor's fill-reducing order:
   // mesh node i is internal node internal_index[i]. Springs, bindings and the lip pairs below hold
   // internal indices; only write_output() maps back to mesh order.
@@ -186,7 +312,10 @@ struct FaceSolver::Impl {
 
   // State and per-step scratch (allocated once).
   std::vector<double> x, x_previous_step, velocity, y, target, inertia_and_attachment, residual;
-  std::vector<double> diagonal_n_per_m;  // M/h² + W per node
+  std::vector<double> diagonal_n_per_m;  // M/s² + W per node for the substep length diagonal_step_s
+  double diagonal_step_s = 0;
+  float relaxation = 1;            // ω for substeps of diagonal_step_s
+  double lowest_frequency_sq = 0;  // ω₀², rad²/s²: the smallest eigenvalue of (K + W) v = ω² M v
   std::vector<Float4> correction;
   std::vector<Vec3> output;
   XRotation jaw;
@@ -211,8 +340,7 @@ struct FaceSolver::Impl {
     y = x_previous_step = target = inertia_and_attachment = residual = x;
     correction.assign(n, Float4{0, 0, 0, 0});
     diagonal_n_per_m.resize(n);
-    for (std::size_t i = 0; i < n; ++i)
-      diagonal_n_per_m[i] = mass_kg[i] / (params.time_step_s * params.time_step_s) + attachment_n_per_m[i];
+    lowest_frequency_sq = estimate_lowest_frequency_sq();
     output.resize(mesh.vertex_count());
     reset();
   }
@@ -291,6 +419,7 @@ struct FaceSolver::Impl {
     const V3 centre = mesh.mouth_centre_m;
     std::vector<std::vector<std::pair<double, V3>>> per_muscle(rig.muscles().size(),
                                                                 std::vector<std::pair<double, V3>>(n, {0.0, V3{}}));
+    std::vector<std::vector<V3>> closure(rig.muscles().size(), std::vector<V3>(n, V3{}));
     for (std::size_t m = 0; m < rig.muscles().size(); ++m) {
       const MuscleSpec& spec = rig.muscles()[m];
       const bool on_jaw = spec.bone == Bone::jaw;
@@ -317,8 +446,8 @@ struct FaceSolver::Impl {
             const double ramp = smoothstep(spec.mobile_from, 1.0, t);
             d = (spec.max_shortening_m * ramp) * pull + (spec.bulge_m * 4.0 * t * (1.0 - t)) * rest_normal[i];
           } else {
-            d = spec.closure_m * V3(spec.closure_direction) + V3{spec.purse * (centre.x - rest[i].x), 0.0, 0.0} +
-                V3{0.0, 0.0, spec.protrusion_m};
+            d = V3{spec.purse * (centre.x - rest[i].x), 0.0, spec.protrusion_m};
+            closure[m][i] = spec.closure_m * V3(spec.closure_direction);
           }
           per_muscle[m][i] = {w, d};
         }
@@ -332,13 +461,15 @@ struct FaceSolver::Impl {
     std::vector<double> bone_share_sum(n, 0.0), jaw_bound(n, 0.0);
     for (std::size_t m = 0; m < per_muscle.size(); ++m) {
       const MuscleSpec& spec = rig.muscles()[m];
-      MuscleBindings mb{spec.channel, spec.bone == Bone::jaw, {}};
+      MuscleBindings mb{spec.channel, spec.bone == Bone::jaw, {}, {}, spec.closure_saturation};
       for (std::size_t i = 0; i < n; ++i) {
         if (per_muscle[m][i].first <= 0) continue;
         const double beta = params.binding_stiffness_n_per_m3 * node_area_m2[i] * per_muscle[m][i].first / total[i];
         bone_share_sum[i] += beta;
         if (mb.on_jaw) jaw_bound[i] += beta;
         mb.bindings.push_back({static_cast<std::uint32_t>(i), beta * per_muscle[m][i].second});
+        if (spec.kind == MuscleKind::sphincter)
+          mb.closure_bindings.push_back({static_cast<std::uint32_t>(i), beta * closure[m][i]});
       }
       muscles.push_back(std::move(mb));
     }
@@ -394,21 +525,7 @@ struct FaceSolver::Impl {
     const int* outer = l.outerIndexPtr();
     const int* inner = l.innerIndexPtr();
     const double* value = l.valuePtr();
-    const bool small = n <= 65536;
-    factor.inverse_diagonal.resize(n);
-    factor.column_start.assign(1, 0);
-    for (std::size_t j = 0; j < n; ++j) {
-      const auto begin = static_cast<std::size_t>(outer[j]), end = static_cast<std::size_t>(outer[j + 1]);
-      factor.inverse_diagonal[j] = static_cast<float>(1.0 / value[begin]);
-      for (std::size_t p = begin + 1; p < end; ++p) {
-        if (small)
-          factor.row16.push_back(static_cast<std::uint16_t>(inner[p]));
-        else
-          factor.row32.push_back(static_cast<std::uint32_t>(inner[p]));
-        factor.value.push_back(static_cast<float>(value[p]));
-      }
-      factor.column_start.push_back(static_cast<int>(factor.value.size()));
-    }
+    factor.build(n, outer, inner, value);
     const auto& indices = llt.permutationP().indices();
     internal_index.assign(indices.data(), indices.data() + indices.size());
   }
@@ -436,8 +553,10 @@ struct FaceSolver::Impl {
       hot_springs.push_back({s.i, s.j, s.stiffness_times_length_n});
     }
 
-    for (MuscleBindings& mb : muscles)
+    for (MuscleBindings& mb : muscles) {
       for (Binding& b : mb.bindings) b.node = internal_index[b.node];
+      for (Binding& b : mb.closure_bindings) b.node = internal_index[b.node];
+    }
     auto mapped = [&](const std::vector<std::uint32_t>& ids) {
       std::vector<std::uint32_t> out;
       for (const auto id : ids) out.push_back(internal_index[id]);
@@ -447,6 +566,37 @@ struct FaceSolver::Impl {
     lower_lip_line = mapped(mesh.lower_lip_line);
     upper_inner_ring = mapped(mesh.upper_inner_ring);
     lower_inner_ring = mapped(mesh.lower_inner_ring);
+  }
+
+  // ω₀² from the largest eigenvalue μ of A_h⁻¹ M (= 1/(ω₀² + 1/h²)): power iteration in the
+  // M inner product, in which A_h⁻¹ M is self-adjoint, so the Rayleigh quotient rises toward μ.
+  // Three start vectors (uniform, and the rest x and y coordinates: the smooth shapes the lowest
+  // mode resembles) in the three lanes of one solve. An underestimate of μ only makes the
+  // relaxation less cautious: ω = 2/(1 + λ_estimated) stays convergent while the true
+  // λ(s) < 1 + λ_estimated. 40 iterations agree with 400 to six digits (482 rad/s at every level).
+  double estimate_lowest_frequency_sq() {
+    std::vector<Float4> v(n), w(n);
+    for (std::size_t i = 0; i < n; ++i)
+      v[i] = Float4{1.0F, static_cast<float>(rest[i].x), static_cast<float>(rest[i].y), 0.0F};
+    double mu = 0;
+    for (int iteration = 0; iteration < 40; ++iteration) {
+      for (std::size_t i = 0; i < n; ++i) w[i] = static_cast<float>(mass_kg[i]) * v[i];
+      factor.solve_in_place(w.data());
+      std::array<double, 3> vmw{}, vmv{}, wmw{};
+      for (std::size_t i = 0; i < n; ++i)
+        for (std::size_t c = 0; c < 3; ++c) {
+          vmw[c] += mass_kg[i] * static_cast<double>(v[i][c]) * static_cast<double>(w[i][c]);
+          vmv[c] += mass_kg[i] * static_cast<double>(v[i][c]) * static_cast<double>(v[i][c]);
+          wmw[c] += mass_kg[i] * static_cast<double>(w[i][c]) * static_cast<double>(w[i][c]);
+        }
+      for (std::size_t c = 0; c < 3; ++c) {
+        if (vmv[c] > 0) mu = std::max(mu, vmw[c] / vmv[c]);
+        const auto scale = static_cast<float>(wmw[c] > 0 ? 1.0 / std::sqrt(wmw[c]) : 0.0);
+        for (std::size_t i = 0; i < n; ++i) v[i][c] = w[i][c] * scale;
+      }
+    }
+    const double inv_h2 = 1.0 / (params.time_step_s * params.time_step_s);
+    return mu > 0 ? std::max(1.0 / mu - inv_h2, 0.0) : 0.0;
   }
 
   void reset() {
@@ -484,29 +634,44 @@ struct FaceSolver::Impl {
     for (const MuscleBindings& mb : muscles) {
       const double c = channel(values, mb.channel, 0.0, 1.0);
       if (c == 0.0) continue;
-      for (const Binding& b : mb.bindings) {
-        const V3 d = mb.on_jaw ? jaw.apply_vector(c * b.displacement_m) : c * b.displacement_m;
-        target[3 * b.node] += d.x;
-        target[3 * b.node + 1] += d.y;
-        target[3 * b.node + 2] += d.z;
-      }
+      const auto displace = [&](const std::vector<Binding>& bindings, double scale) {
+        for (const Binding& b : bindings) {
+          const V3 d = mb.on_jaw ? jaw.apply_vector(scale * b.displacement_m) : scale * b.displacement_m;
+          target[3 * b.node] += d.x;
+          target[3 * b.node + 1] += d.y;
+          target[3 * b.node + 2] += d.z;
+        }
+      };
+      displace(mb.bindings, c);
+      displace(mb.closure_bindings, std::min(c, mb.closure_saturation));
     }
   }
 
-  void substep() {
-    const double h = params.time_step_s;
-    const double inv_h2 = 1.0 / (h * h);
-    const double decay = std::exp(-h / params.damping_time_s);
-    for (std::size_t k = 0; k < 3 * n; ++k) y[k] = x[k] + h * decay * velocity[k];
+  // One implicit-Euler step of length `s` ≤ h, the factor's step. The residual uses the exact
+  // mass term M/s², the factor A_h's: for s < h the preconditioned system A_h⁻¹ A_s has
+  // eigenvalues in [1, λ(s)], λ(s) = (ω₀² + 1/s²)/(ω₀² + 1/h²) at the face's lowest natural
+  // frequency ω₀ (stiffer modes are closer to 1), so the correction is relaxed by
+  // ω = 2/(1 + λ(s)), the optimal Richardson weight on that interval (ω = 1 for s = h).
+  void substep(double s) {
+    const double inv_s2 = 1.0 / (s * s);
+    if (s != diagonal_step_s) {
+      for (std::size_t i = 0; i < n; ++i) diagonal_n_per_m[i] = mass_kg[i] * inv_s2 + attachment_n_per_m[i];
+      const double inv_h2 = 1.0 / (params.time_step_s * params.time_step_s);
+      const double lambda = (lowest_frequency_sq + inv_s2) / (lowest_frequency_sq + inv_h2);
+      relaxation = static_cast<float>(2.0 / (1.0 + std::max(lambda, 1.0)));
+      diagonal_step_s = s;
+    }
+    const double decay = std::exp(-s / params.damping_time_s);
+    for (std::size_t k = 0; k < 3 * n; ++k) y[k] = x[k] + s * decay * velocity[k];
     x_previous_step = x;
     x = y;
     for (std::size_t i = 0; i < n; ++i) {
-      const double m = mass_kg[i] * inv_h2, w = attachment_n_per_m[i];
+      const double m = mass_kg[i] * inv_s2, w = attachment_n_per_m[i];
       for (std::size_t c = 0; c < 3; ++c) inertia_and_attachment[3 * i + c] = m * y[3 * i + c] + w * target[3 * i + c];
     }
-    // Each iteration solves A x' = M y/h² + W target + Σ k Sᵀ p for the correction x' − x, from the
-    // residual r = (M y/h² + W target + Σ k Sᵀ p) − A x in double precision: the diagonal part
-    // (M/h² + W) x, and per spring k Sᵀ (p − S x) = (k L/|d| − k) d with d = x_i − x_j.
+    // Each iteration solves A x' = M y/s² + W target + Σ k Sᵀ p for the correction x' − x, from the
+    // residual r = (M y/s² + W target + Σ k Sᵀ p) − A x in double precision: the diagonal part
+    // (M/s² + W) x, and per spring k Sᵀ (p − S x) = (k L/|d| − k) d with d = x_i − x_j.
     for (int iteration = 0; iteration < params.iterations; ++iteration) {
       for (std::size_t k = 0; k < 3 * n; ++k) residual[k] = inertia_and_attachment[k] - diagonal_n_per_m[k / 3] * x[k];
       add_spring_residuals(0, edge_spring_count, params.skin_stiffness_n_per_m);
@@ -516,30 +681,51 @@ struct FaceSolver::Impl {
                                static_cast<float>(residual[3 * i + 2]), 0.0F};
       factor.solve_in_place(correction.data());
       for (std::size_t i = 0; i < n; ++i) {
-        x[3 * i] += static_cast<double>(correction[i][0]);
-        x[3 * i + 1] += static_cast<double>(correction[i][1]);
-        x[3 * i + 2] += static_cast<double>(correction[i][2]);
+        const Float4 d = relaxation * correction[i];
+        x[3 * i] += static_cast<double>(d[0]);
+        x[3 * i + 1] += static_cast<double>(d[1]);
+        x[3 * i + 2] += static_cast<double>(d[2]);
       }
     }
     resolve_contacts();
-    const double inv_h = 1.0 / h;
-    for (std::size_t k = 0; k < 3 * n; ++k) velocity[k] = (x[k] - x_previous_step[k]) * inv_h;
+    const double inv_s = 1.0 / s;
+    for (std::size_t k = 0; k < 3 * n; ++k) velocity[k] = (x[k] - x_previous_step[k]) * inv_s;
   }
 
+  // Springs two at a time: their square roots and divisions share one SSE2 instruction each
+  // (correctly rounded, so the results are the scalar loop's, bit for bit).
   void add_spring_residuals(std::size_t begin, std::size_t end, double stiffness_n_per_m) {
     double* r = residual.data();
     const double* p = x.data();
-    for (std::size_t k = begin; k < end; ++k) {
-      const HotSpring s = hot_springs[k];
-      const double dx = p[3 * s.i] - p[3 * s.j], dy = p[3 * s.i + 1] - p[3 * s.j + 1], dz = p[3 * s.i + 2] - p[3 * s.j + 2];
-      const double length = std::sqrt(dx * dx + dy * dy + dz * dz);
-      const double scale = (length > 1e-12 ? s.stiffness_times_length_n / length : 0.0) - stiffness_n_per_m;
+    const auto add = [&](const HotSpring& s, double dx, double dy, double dz, double scale) {
       r[3 * s.i] += scale * dx;
       r[3 * s.i + 1] += scale * dy;
       r[3 * s.i + 2] += scale * dz;
       r[3 * s.j] -= scale * dx;
       r[3 * s.j + 1] -= scale * dy;
       r[3 * s.j + 2] -= scale * dz;
+    };
+    std::size_t k = begin;
+#if defined(__SSE2__)
+    const __m128d tiny = _mm_set1_pd(1e-12), stiffness = _mm_set1_pd(stiffness_n_per_m);
+    for (; k + 2 <= end; k += 2) {
+      const HotSpring a = hot_springs[k], b = hot_springs[k + 1];
+      const double ax = p[3 * a.i] - p[3 * a.j], ay = p[3 * a.i + 1] - p[3 * a.j + 1], az = p[3 * a.i + 2] - p[3 * a.j + 2];
+      const double bx = p[3 * b.i] - p[3 * b.j], by = p[3 * b.i + 1] - p[3 * b.j + 1], bz = p[3 * b.i + 2] - p[3 * b.j + 2];
+      const __m128d length = _mm_sqrt_pd(_mm_set_pd(bx * bx + by * by + bz * bz, ax * ax + ay * ay + az * az));
+      const __m128d ratio = _mm_and_pd(_mm_cmpgt_pd(length, tiny),
+                                       _mm_div_pd(_mm_set_pd(b.stiffness_times_length_n, a.stiffness_times_length_n), length));
+      alignas(16) double scale[2];
+      _mm_store_pd(scale, _mm_sub_pd(ratio, stiffness));
+      add(a, ax, ay, az, scale[0]);
+      add(b, bx, by, bz, scale[1]);
+    }
+#endif
+    for (; k < end; ++k) {
+      const HotSpring s = hot_springs[k];
+      const double dx = p[3 * s.i] - p[3 * s.j], dy = p[3 * s.i + 1] - p[3 * s.j + 1], dz = p[3 * s.i + 2] - p[3 * s.j + 2];
+      const double length = std::sqrt(dx * dx + dy * dy + dz * dz);
+      add(s, dx, dy, dz, (length > 1e-12 ? s.stiffness_times_length_n / length : 0.0) - stiffness_n_per_m);
     }
   }
 
@@ -630,10 +816,16 @@ FaceSolver::FaceSolver(FaceSolver&&) noexcept = default;
 FaceSolver& FaceSolver::operator=(FaceSolver&&) noexcept = default;
 
 void FaceSolver::step(std::span<const float> channel_values, double dt_s) {
-  const double steps = std::round(dt_s / impl_->params.time_step_s);
-  const int substeps = std::isfinite(steps) ? std::clamp(static_cast<int>(steps), 1, 1000) : 1;
   impl_->compute_targets(channel_values);
-  for (int s = 0; s < substeps; ++s) impl_->substep();
+  if (std::isfinite(dt_s) && dt_s > 0) {
+    // Equal substeps of at most 1.01 h (a 30 frames/s grid in whole microseconds has intervals
+    // of 33,334 µs: still one substep), at most 1000, so the simulated time is exactly dt.
+    const double h = impl_->params.time_step_s;
+    const double count = std::ceil(dt_s / (1.01 * h));
+    const int substeps = std::clamp(static_cast<int>(std::min(count, 1000.0)), 1, 1000);
+    const double s = dt_s / substeps;
+    for (int k = 0; k < substeps; ++k) impl_->substep(s);
+  }
   impl_->write_output();
 }
 

@@ -4,7 +4,7 @@
 // simulate_face_animation() samples the track's channel values (linear interpolation between its
 // frames, held before the first and after the last) at every solver substep, steps the solver,
 // and records the pose at each frame of a uniform grid of `fps`. The substep is 1/(fps · s) with
-// s = ceil(60 / fps), so the solver never steps longer than 1/60 s.
+// s = ceil(30 / fps): one solver step per frame at 30 frames/s and above, never longer than 1/30 s.
 //
 // write_face_glb() stores the mesh once (rest positions, UVs, per-part colours, triangles) and the
 // motion as morph targets: one target per *key frame* (a frame that linear interpolation between

@@ -8,7 +8,10 @@
 // muscle's contraction c ∈ [0, 1] moves its bound skin toward the origin by c · max_shortening_m
 // (full at the insertion, fading to zero toward the origin) and bulges it outward; a sphincter part
 // of the orbicularis oris moves its lip toward the mouth's midline (closure), toward the centre
-// (pursing) and forward (protrusion). Each muscle rides on a bone: the skull, or the jaw.
+// (pursing) and forward (protrusion). The closure saturates: contraction beyond
+// `closure_saturation` purses and protrudes the lip further but closes it no more, so that a
+// strongly rounded vowel (/uw/, c ≈ 0.85) keeps an opening while a bilabial closure (c ≈ 0.4,
+// with the mentalis) seals. Each muscle rides on a bone: the skull, or the jaw.
 #pragma once
 
 #include <cstddef>
@@ -42,7 +45,8 @@ struct MuscleSpec {
   double bulge_m = 0.0;           ///< outward bulge of the belly at c = 1
   double origin_depth_m = 0.0;    ///< the origin lies on the bone this far behind (−z) its landmark
   // Sphincter parts.
-  double closure_m = 0.0;          ///< motion along closure_direction at c = 1
+  double closure_m = 0.0;          ///< motion along closure_direction per unit contraction …
+  double closure_saturation = 1.0;  ///< … up to this contraction: closure = closure_m · min(c, this)
   Vec3 closure_direction{};        ///< unit vector (toward the lip midline)
   double purse = 0.0;              ///< fraction of the horizontal offset to the mouth centre removed at c = 1
   double protrusion_m = 0.0;       ///< forward (+z) motion at c = 1

@@ -7,12 +7,17 @@
 // skull and the jaw (anchor), plus the displacement of the muscle points it is bound to. Muscles,
 // jaw and tongue only move targets, so the system matrix
 //     A = M / h² + Σ_springs k (e_i − e_j)(e_i − e_j)ᵀ + diag(κ)
-// is constant: it is factored once (sparse Cholesky) at construction. A step of length h does
-//     y = x + h · v · exp(−h / damping_time)                 (inertia, damped)
-//     repeat `iterations` times:  p = projections(x);  x = A⁻¹ (M y / h² + Σ k Sᵀ p + κ ∘ target)
+// is constant: it is factored once (sparse Cholesky) at construction, for the step h. A substep
+// of length s ≤ h does
+//     y = x + s · v · exp(−s / damping_time)                 (inertia, damped)
+//     repeat `iterations` times:  p = projections(x);  x = A_s⁻¹ (M y / s² + Σ k Sᵀ p + κ ∘ target)
 // and then keeps the skin out of the teeth and skull and the lips from passing through each other.
-// Fixed iteration count, fixed order, double-precision state (the factor is applied in single
-// precision to double-precision residuals): bit-reproducible on one platform.
+// step(channels, dt) simulates exactly dt, in equal substeps of at most h (1/30 s by default: one
+// per 30 frames/s frame; the face is close to quasi-static). A substep shorter than h (a key frame
+// a few milliseconds after a grid frame) is solved with the factor of A_h as a preconditioner and
+// the exact mass term in the residual, the correction relaxed for the mismatch (docs/face.md,
+// "Stepping"). Fixed iteration count, fixed order, double-precision state (the factor is applied
+// in single precision to double-precision residuals): bit-reproducible on one platform.
 // Units: metres, kilograms, seconds. No allocation in step().
 #pragma once
 
@@ -26,7 +31,9 @@
 namespace lipsync::face {
 
 struct FaceSolverParams {
-  double time_step_s = 1.0 / 60.0;  ///< the step the matrix is factored for; step() substeps by it
+  /// The longest substep, and the step the matrix is factored for: step() divides its dt into
+  /// ⌈dt / time_step_s⌉ equal substeps (one per 30 frames/s frame by default).
+  double time_step_s = 1.0 / 30.0;
   int iterations = 5;               ///< local–global iterations per step
   /// Skin membrane: stiffness of one edge spring (a triangle spring network's membrane stiffness
   /// does not depend on its edge length, so this holds at every subdivision level).
@@ -55,9 +62,10 @@ class FaceSolver {
   FaceSolver(FaceSolver&&) noexcept;
   FaceSolver& operator=(FaceSolver&&) noexcept;
 
-  /// Advances by `dt_s` (rounded to a whole number ≥ 1 of time steps) with the channels held at
-  /// `channel_values` (one per model channel, clamped to the channel ranges the rig expects:
-  /// muscles 0..1, jaw 0..1, tongue raise −1..1, protrusion 0..1).
+  /// Advances by exactly `dt_s` (⌈dt / 1.01 h⌉ equal substeps, at most 1000) with the channels held
+  /// at `channel_values` (one per model channel, clamped to the channel ranges the rig expects:
+  /// muscles 0..1, jaw 0..1, tongue raise −1..1, protrusion 0..1). A `dt_s` ≤ 0 or not finite
+  /// takes the channels (teeth and tongue follow) and moves no soft node.
   void step(std::span<const float> channel_values, double dt_s);
   /// Back to the rest pose, at rest.
   void reset();

@@ -41,7 +41,17 @@ struct ServerConfig {
   // Sessions and fan-out.
   std::size_t replay_frames = 1'800;            ///< frames a session keeps for late joiners (1 min at 30 fps)
   std::size_t subscriber_queue_frames = 2'000;  ///< frames a subscriber may have waiting
+  /// A subscriber cut off for falling behind whose last write still has not left
+  /// (it stopped reading, so its RESOURCE_EXHAUSTED cannot be sent) is cancelled
+  /// after this long, freeing its stream.
+  std::int64_t stalled_subscriber_ms = 5'000;
   std::int64_t session_retention_ms = 10'000;   ///< how long a finished session stays joinable
+
+  // The physics face (mesh output).
+  std::size_t face_threads = 0;  ///< threads that run face solvers; 0: one per core
+  /// Their scheduling: "idle" (SCHED_IDLE: only CPU time no other thread wants, so channel
+  /// streams never wait for a face), "low" (nice 10) or "normal".
+  std::string face_priority = "idle";
 
   std::string log_level = "info";  ///< trace, debug, info, warn, error, off
   std::vector<ModelFile> models;   ///< extra models beside the built-in one

@@ -27,8 +27,9 @@ class Server {
   /// "host:port" with the bound port.
   std::string address() const;
 
-  /// Stops accepting calls, lets running calls finish for up to `drain`, then
-  /// cancels the rest and waits until every call has ended. Idempotent.
+  /// Refuses new calls (UNAVAILABLE), lets running calls finish for up to
+  /// `drain`, then cancels the rest and waits until every call has ended.
+  /// Returns as soon as no call is running. Idempotent.
   void shutdown(std::chrono::milliseconds drain);
 
   /// Animate and Subscribe streams currently open.
