@@ -161,4 +161,11 @@ std::string format_help(std::string_view usage, std::string_view description,
   return help;
 }
 
+bool print_help_if_asked(const Arguments& arguments, std::string_view usage, std::string_view description,
+                         std::span<const OptionSpec> options, std::ostream& out) {
+  if (!arguments.help()) return false;
+  out << format_help(usage, description, options);
+  return true;
+}
+
 }  // namespace lipsync::cli

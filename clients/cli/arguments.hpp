@@ -9,6 +9,7 @@
 
 #include <map>
 #include <optional>
+#include <ostream>
 #include <span>
 #include <string>
 #include <string_view>
@@ -56,5 +57,10 @@ std::string wrap_text(std::string_view text, std::size_t indent, std::size_t lin
 /// The --help text: usage line, description, then one line per option.
 std::string format_help(std::string_view usage, std::string_view description,
                         std::span<const OptionSpec> options);
+
+/// If `arguments` asked for --help, writes the command's help (format_help) to
+/// `out` and returns true: the command then exits 0 without doing anything else.
+bool print_help_if_asked(const Arguments& arguments, std::string_view usage, std::string_view description,
+                         std::span<const OptionSpec> options, std::ostream& out);
 
 }  // namespace lipsync::cli

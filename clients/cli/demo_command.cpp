@@ -71,10 +71,7 @@ std::string default_output(TrackFormat format) {
 
 int run_demo(std::span<const std::string_view> args) {
   const Arguments arguments = Arguments::parse(args, kOptions, "demo");
-  if (arguments.help()) {
-    std::cout << format_help(kUsage, kDescription, kOptions);
-    return 0;
-  }
+  if (print_help_if_asked(arguments, kUsage, kDescription, kOptions, std::cout)) return 0;
   if (!arguments.positional().empty()) {
     throw UsageError("demo takes no arguments, got '" + arguments.positional().front() + "'");
   }

@@ -523,10 +523,7 @@ std::string to_text(const Percentiles& p) {
 
 int run_loadtest(std::span<const std::string_view> args) {
   const Arguments arguments = Arguments::parse(args, kOptions, "loadtest");
-  if (arguments.help()) {
-    std::cout << format_help(kUsage, kDescription, kOptions);
-    return 0;
-  }
+  if (print_help_if_asked(arguments, kUsage, kDescription, kOptions, std::cout)) return 0;
   if (!arguments.positional().empty()) {
     throw UsageError("loadtest takes no arguments, got '" + arguments.positional().front() + "'");
   }

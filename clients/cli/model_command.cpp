@@ -38,10 +38,7 @@ int run_model(std::span<const std::string_view> args) {
     throw UsageError("unknown 'lipsync model' subcommand '" + std::string(args.front()) + "' (available: dump)");
   }
   const Arguments arguments = Arguments::parse(args.subspan(1), kDumpOptions, "model dump");
-  if (arguments.help()) {
-    std::cout << format_help(kModelUsage, kModelDescription, kDumpOptions);
-    return 0;
-  }
+  if (print_help_if_asked(arguments, kModelUsage, kModelDescription, kDumpOptions, std::cout)) return 0;
   if (!arguments.positional().empty()) {
     throw UsageError("model dump takes no arguments, got '" + arguments.positional().front() + "'");
   }
@@ -54,10 +51,7 @@ int run_model(std::span<const std::string_view> args) {
 
 int run_phone_sets(std::span<const std::string_view> args) {
   const Arguments arguments = Arguments::parse(args, {}, "phone-sets");
-  if (arguments.help()) {
-    std::cout << format_help(kPhoneSetsUsage, kPhoneSetsDescription, {});
-    return 0;
-  }
+  if (print_help_if_asked(arguments, kPhoneSetsUsage, kPhoneSetsDescription, {}, std::cout)) return 0;
   if (!arguments.positional().empty()) {
     throw UsageError("phone-sets takes no arguments, got '" + arguments.positional().front() + "'");
   }

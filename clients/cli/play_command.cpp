@@ -123,10 +123,7 @@ std::string milliseconds(std::optional<std::int64_t> us) {
 
 int run_play(std::span<const std::string_view> args) {
   const Arguments arguments = Arguments::parse(args, kOptions, "play");
-  if (arguments.help()) {
-    std::cout << format_help(kUsage, kDescription, kOptions);
-    return 0;
-  }
+  if (print_help_if_asked(arguments, kUsage, kDescription, kOptions, std::cout)) return 0;
   if (arguments.positional().size() != 1 || arguments.positional().front().empty()) {
     throw UsageError("play needs exactly one SESSION name (see 'lipsync play --help')");
   }

@@ -193,10 +193,7 @@ constexpr std::string_view kDescription =
 
 int run_render(std::span<const std::string_view> args) {
   const Arguments arguments = Arguments::parse(args, kOptions, "render");
-  if (arguments.help()) {
-    std::cout << format_help(kUsage, kDescription, kOptions);
-    return 0;
-  }
+  if (print_help_if_asked(arguments, kUsage, kDescription, kOptions, std::cout)) return 0;
   if (arguments.positional().empty()) {
     throw UsageError("render needs an INPUT file (or - for standard input) (see 'lipsync render --help')");
   }

@@ -94,10 +94,7 @@ nlohmann::ordered_json to_json(const client::v1::ModelInfo& info) {
 
 int run_server_models(std::span<const std::string_view> args) {
   const Arguments arguments = Arguments::parse(args, kOptions, "server-models");
-  if (arguments.help()) {
-    std::cout << format_help(kUsage, kDescription, kOptions);
-    return 0;
-  }
+  if (print_help_if_asked(arguments, kUsage, kDescription, kOptions, std::cout)) return 0;
   if (arguments.positional().size() > 1) {
     throw UsageError("server-models takes at most one model NAME, got '" + arguments.positional()[1] +
                      "' too (see 'lipsync server-models --help')");

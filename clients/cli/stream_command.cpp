@@ -64,10 +64,7 @@ constexpr std::string_view kDescription =
 
 int run_stream(std::span<const std::string_view> args) {
   const Arguments arguments = Arguments::parse(args, kOptions, "stream");
-  if (arguments.help()) {
-    std::cout << format_help(kUsage, kDescription, kOptions);
-    return 0;
-  }
+  if (print_help_if_asked(arguments, kUsage, kDescription, kOptions, std::cout)) return 0;
   if (arguments.positional().size() != 1) {
     throw UsageError("stream needs exactly one INPUT file (or - for standard input) (see 'lipsync stream --help')");
   }

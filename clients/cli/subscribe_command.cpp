@@ -37,10 +37,7 @@ constexpr std::string_view kDescription =
 
 int run_subscribe(std::span<const std::string_view> args) {
   const Arguments arguments = Arguments::parse(args, kOptions, "subscribe");
-  if (arguments.help()) {
-    std::cout << format_help(kUsage, kDescription, kOptions);
-    return 0;
-  }
+  if (print_help_if_asked(arguments, kUsage, kDescription, kOptions, std::cout)) return 0;
   if (arguments.positional().size() != 1 || arguments.positional().front().empty()) {
     throw UsageError("subscribe needs exactly one SESSION name (see 'lipsync subscribe --help')");
   }

@@ -26,11 +26,14 @@
 #include "lipsync/server/server.hpp"
 #include "lipsync/synthetic.hpp"
 #include "lipsync/v1/lipsync.grpc.pb.h"
+#include "../support/server_harness.hpp"
 
 namespace lipsync::server {
 namespace {
 
 using ::testing::HasSubstr;
+using harness::eventually;
+using harness::to_proto;
 using namespace std::chrono_literals;
 
 std::vector<LabeledInterval> utterance(std::size_t phonemes, std::uint64_t seed = 3) {
@@ -64,14 +67,6 @@ v1::AnimationSettings mesh_settings(int level, v1::MeshEncoding encoding = v1::M
   mesh.set_subdivision(static_cast<std::uint32_t>(level));
   mesh.set_encoding(encoding);
   return settings;
-}
-
-v1::Phoneme to_proto(const LabeledInterval& interval) {
-  v1::Phoneme phoneme;
-  phoneme.set_label(interval.label);
-  phoneme.set_start_us(interval.start_us);
-  phoneme.set_end_us(interval.end_us);
-  return phoneme;
 }
 
 struct Received {
@@ -115,16 +110,6 @@ void take(Received& received, const v1::TrackMessage& message) {
 }
 
 void set_deadline(grpc::ClientContext& context) { context.set_deadline(std::chrono::system_clock::now() + 60s); }
-
-template <class Condition>
-bool eventually_true(Condition condition) {
-  const auto deadline = std::chrono::steady_clock::now() + 30s;
-  while (!condition()) {
-    if (std::chrono::steady_clock::now() > deadline) return false;
-    std::this_thread::sleep_for(2ms);
-  }
-  return true;
-}
 
 class MeshTest : public ::testing::Test {
  protected:
@@ -422,7 +407,7 @@ TEST_F(MeshTest, FaceWorkRunsOffTheReactionsSoChannelStreamsAreNotHeldUp) {
       mesh_finished[static_cast<std::size_t>(i)] = finished_order++;
     });
   }
-  ASSERT_TRUE(eventually_true([&] { return headers.load() == kMeshStreams; }));
+  ASSERT_TRUE(eventually([&] { return headers.load() == kMeshStreams; }));
   const Received channels_only = animate(v1::AnimationSettings{}, short_utterance);
   const int channel_finished = finished_order++;
   for (auto& thread : mesh_streams) thread.join();

@@ -173,11 +173,51 @@ class HandlerGuard {
   std::string error_;
 };
 
+/// How a call ends, for the threads that wait on it: OnDone hands the final
+/// status to the call's DoneHandler, then records it and wakes the waiters. It
+/// is recorded last: a waiter may destroy the reactor as soon as it sees it.
+class CallCompletion {
+ public:
+  explicit CallCompletion(DoneHandler on_done) : on_done_(std::move(on_done)) {}
+
+  void complete(const grpc::Status& status) {
+    const DoneHandler on_done = std::move(on_done_);
+    if (on_done) on_done(status);
+    std::lock_guard lock(mutex_);
+    status_ = status;
+    done_ = true;
+    changed_.notify_all();
+  }
+
+  /// The final status, or nothing if the call has not ended within `timeout` (none: wait forever).
+  std::optional<grpc::Status> wait_for(std::optional<std::chrono::milliseconds> timeout) {
+    std::unique_lock lock(mutex_);
+    if (timeout) {
+      if (!changed_.wait_for(lock, *timeout, [&] { return done_; })) return std::nullopt;
+    } else {
+      changed_.wait(lock, [&] { return done_; });
+    }
+    return status_;
+  }
+
+  bool done() const {
+    std::lock_guard lock(mutex_);
+    return done_;
+  }
+
+ private:
+  DoneHandler on_done_;
+  mutable std::mutex mutex_;
+  std::condition_variable changed_;
+  bool done_ = false;
+  grpc::Status status_;
+};
+
 class AnimateReactor : public grpc::ClientBidiReactor<v1::AnimateRequest, v1::TrackMessage> {
  public:
   AnimateReactor(v1::LipSync::Stub& stub, const v1::AnimationSettings& settings, MessageHandler handler,
                  DoneHandler on_done, std::chrono::milliseconds timeout)
-      : guard_(std::move(handler)), on_done_(std::move(on_done)) {
+      : guard_(std::move(handler)), completion_(std::move(on_done)) {
     context_.set_deadline(deadline_after(timeout));
     stub.async()->Animate(&context_, this);
     AddHold();
@@ -215,16 +255,8 @@ class AnimateReactor : public grpc::ClientBidiReactor<v1::AnimateRequest, v1::Tr
     act(action);
   }
 
-  grpc::Status wait() {
-    std::unique_lock lock(mutex_);
-    done_changed_.wait(lock, [&] { return done_; });
-    return status_;
-  }
-
-  bool done() const {
-    std::lock_guard lock(mutex_);
-    return done_;
-  }
+  grpc::Status wait() { return *completion_.wait_for(std::nullopt); }
+  bool done() const { return completion_.done(); }
 
   void OnReadDone(bool ok) override {
     if (ok && guard_.deliver(incoming_, context_)) {
@@ -251,16 +283,8 @@ class AnimateReactor : public grpc::ClientBidiReactor<v1::AnimateRequest, v1::Tr
     act(action);
   }
 
-  // done_ is set last: a waiter may destroy this reactor as soon as it sees it.
-  void OnDone(const grpc::Status& status) override {
-    const grpc::Status final_status = guard_.adjust(status);
-    const DoneHandler on_done = std::move(on_done_);
-    if (on_done) on_done(final_status);
-    std::lock_guard lock(mutex_);
-    status_ = final_status;
-    done_ = true;
-    done_changed_.notify_all();
-  }
+  // Last: a waiter may destroy this reactor as soon as the call is complete.
+  void OnDone(const grpc::Status& status) override { completion_.complete(guard_.adjust(status)); }
 
  private:
   enum class Action { none, write, close_and_release, release };
@@ -312,26 +336,23 @@ class AnimateReactor : public grpc::ClientBidiReactor<v1::AnimateRequest, v1::Tr
 
   grpc::ClientContext context_;
   HandlerGuard guard_;
-  DoneHandler on_done_;
+  CallCompletion completion_;
   v1::TrackMessage incoming_;
   v1::AnimateRequest current_;  // the request being written
 
-  mutable std::mutex mutex_;
-  std::condition_variable done_changed_;
+  std::mutex mutex_;  // the write queue
   std::deque<v1::AnimateRequest> queue_;
   bool writing_ = false;
   bool hold_held_ = false;
   bool end_queued_ = false;
   bool aborted_ = false;
-  bool done_ = false;
-  grpc::Status status_;
 };
 
 class SubscribeReactor : public grpc::ClientReadReactor<v1::TrackMessage> {
  public:
   SubscribeReactor(v1::LipSync::Stub& stub, const v1::SubscribeRequest& request, MessageHandler handler,
                    DoneHandler on_done, std::chrono::milliseconds timeout)
-      : guard_(std::move(handler)), on_done_(std::move(on_done)), request_(request) {
+      : guard_(std::move(handler)), completion_(std::move(on_done)), request_(request) {
     context_.set_deadline(deadline_after(timeout));
     stub.async()->Subscribe(&context_, &request_, this);
     StartRead(&incoming_);
@@ -341,45 +362,23 @@ class SubscribeReactor : public grpc::ClientReadReactor<v1::TrackMessage> {
   void cancel() { context_.TryCancel(); }
 
   std::optional<grpc::Status> wait_for(std::optional<std::chrono::milliseconds> timeout) {
-    std::unique_lock lock(mutex_);
-    if (timeout) {
-      if (!done_changed_.wait_for(lock, *timeout, [&] { return done_; })) return std::nullopt;
-    } else {
-      done_changed_.wait(lock, [&] { return done_; });
-    }
-    return status_;
+    return completion_.wait_for(timeout);
   }
-
-  bool done() const {
-    std::lock_guard lock(mutex_);
-    return done_;
-  }
+  bool done() const { return completion_.done(); }
 
   void OnReadDone(bool ok) override {
     if (ok && guard_.deliver(incoming_, context_)) StartRead(&incoming_);
   }
 
-  // done_ is set last: a waiter may destroy this reactor as soon as it sees it.
-  void OnDone(const grpc::Status& status) override {
-    const grpc::Status final_status = guard_.adjust(status);
-    const DoneHandler on_done = std::move(on_done_);
-    if (on_done) on_done(final_status);
-    std::lock_guard lock(mutex_);
-    status_ = final_status;
-    done_ = true;
-    done_changed_.notify_all();
-  }
+  // Last: a waiter may destroy this reactor as soon as the call is complete.
+  void OnDone(const grpc::Status& status) override { completion_.complete(guard_.adjust(status)); }
 
  private:
   grpc::ClientContext context_;
   HandlerGuard guard_;
-  DoneHandler on_done_;
+  CallCompletion completion_;
   v1::SubscribeRequest request_;
   v1::TrackMessage incoming_;
-  mutable std::mutex mutex_;
-  std::condition_variable done_changed_;
-  bool done_ = false;
-  grpc::Status status_;
 };
 
 }  // namespace detail
