@@ -114,7 +114,7 @@ const std::vector<Option>& options() {
        [](ServerConfig& c, const Setting& s) {
          static const std::vector<std::string> levels = {"trace", "debug", "info", "warn", "error", "off"};
          if (std::find(levels.begin(), levels.end(), s.value) == levels.end()) {
-           throw ConfigError(s.name + ": unknown level '" + s.value + "'");
+           throw ConfigError(s.name + ": unknown level '" + s.value + "' (trace, debug, info, warn, error or off)");
          }
          c.log_level = s.value;
        },

@@ -5,11 +5,8 @@
 // channel called alt_<name>, so its frames equal the built-in model's and only
 // the names tell which model's layout a client wrote.
 #include <arpa/inet.h>
-#include <fcntl.h>
 #include <netinet/in.h>
-#include <signal.h>
 #include <sys/socket.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <gmock/gmock.h>
@@ -98,68 +95,21 @@ int unused_port() {
   return ntohs(address.sin_port);
 }
 
-/// A child process with stdout and stderr going to files.
-class Process {
- public:
-  Process(const std::string& binary, const std::vector<std::string>& args, const fs::path& cwd,
-          const fs::path& out_path, const fs::path& err_path) {
-    std::vector<std::string> argv_text = {binary};
-    argv_text.insert(argv_text.end(), args.begin(), args.end());
-    std::vector<char*> argv;
-    for (std::string& arg : argv_text) argv.push_back(arg.data());
-    argv.push_back(nullptr);
-    pid_ = ::fork();
-    if (pid_ == 0) {
-      const int in = ::open("/dev/null", O_RDONLY);
-      const int out = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-      const int err = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-      if (in < 0 || out < 0 || err < 0 || ::chdir(cwd.c_str()) != 0) ::_exit(126);
-      ::dup2(in, STDIN_FILENO);
-      ::dup2(out, STDOUT_FILENO);
-      ::dup2(err, STDERR_FILENO);
-      ::execv(binary.c_str(), argv.data());
-      ::_exit(127);
-    }
-  }
-  Process(const Process&) = delete;
-  Process& operator=(const Process&) = delete;
-  ~Process() {
-    if (pid_ > 0 && !waited_) {
-      ::kill(pid_, SIGKILL);
-      wait();
-    }
-  }
-  int wait() {
-    int status = 0;
-    if (pid_ <= 0 || ::waitpid(pid_, &status, 0) != pid_) return -1;
-    waited_ = true;
-    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  }
-  void terminate() { ::kill(pid_, SIGTERM); }
-
- private:
-  pid_t pid_ = -1;
-  bool waited_ = false;
-};
-
-struct RunResult {
-  int status = -1;
-  std::string out;
-  std::string err;
-};
+using testing::ChildProcess;
+using testing::RunResult;
 
 class NetworkCliTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     server_dir_ = new fs::path(make_temp_dir("lipsyncd-test-"));
     testing::write_text(*server_dir_ / "renamed.json", renamed_model_json());
-    server_ = new Process(LIPSYNCD_BINARY,
-                          {"--listen", "127.0.0.1:0", "--max-sessions", "5000", "--session-retention-ms", "5000",
-                           "--model", "renamed=" + (*server_dir_ / "renamed.json").string(), "--log-level", "warn",
-                           // Face threads that compete normally: with ctest -j2 an idle-priority
-                           // face could wait for the other test to finish.
-                           "--face-priority", "normal"},
-                          *server_dir_, *server_dir_ / "stdout", *server_dir_ / "stderr");
+    server_ = new ChildProcess(
+        {LIPSYNCD_BINARY, "--listen", "127.0.0.1:0", "--max-sessions", "5000", "--session-retention-ms", "5000",
+         "--model", "renamed=" + (*server_dir_ / "renamed.json").string(), "--log-level", "warn",
+         // Face threads that compete normally: with ctest -j2 an idle-priority
+         // face could wait for the other test to finish.
+         "--face-priority", "normal"},
+        *server_dir_, *server_dir_ / "stdout", *server_dir_ / "stderr");
     const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(20);
     const std::string prefix = "lipsyncd listening on ";
     while (std::chrono::steady_clock::now() < give_up) {
@@ -190,9 +140,10 @@ class NetworkCliTest : public ::testing::Test {
     fs::remove_all(capture_);
   }
 
-  std::unique_ptr<Process> start(const std::vector<std::string>& args, const std::string& name) {
-    return std::make_unique<Process>(LIPSYNC_CLI_BINARY, args, dir_, capture_ / (name + ".out"),
-                                     capture_ / (name + ".err"));
+  std::unique_ptr<ChildProcess> start(std::vector<std::string> args, const std::string& name) {
+    args.insert(args.begin(), LIPSYNC_CLI_BINARY);
+    return std::make_unique<ChildProcess>(std::move(args), dir_, capture_ / (name + ".out"),
+                                          capture_ / (name + ".err"));
   }
   RunResult run(const std::vector<std::string>& args, const std::string& name = "run") {
     RunResult result;
@@ -206,14 +157,14 @@ class NetworkCliTest : public ::testing::Test {
   static std::string fixture(std::string_view name) { return (kFixtures / name).string(); }
   static const std::string& server() { return *address_; }
 
-  static Process* server_;
+  static ChildProcess* server_;
   static fs::path* server_dir_;
   static std::string* address_;
   fs::path dir_;
   fs::path capture_;
 };
 
-Process* NetworkCliTest::server_ = nullptr;
+ChildProcess* NetworkCliTest::server_ = nullptr;
 fs::path* NetworkCliTest::server_dir_ = nullptr;
 std::string* NetworkCliTest::address_ = nullptr;
 

@@ -1,9 +1,11 @@
 // Helpers for tests that run the project's real binaries: temporary
-// directories, whole-file reads and writes, and a child process with its
-// standard streams redirected to files (no shell in between).
+// directories, whole-file reads and writes, and child processes with their
+// standard streams redirected to files (no shell in between): one run to
+// completion, or one left running (a server) while the test talks to it.
 #pragma once
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -48,33 +50,64 @@ struct RunOptions {
   std::optional<std::string> path_env;              ///< replaces PATH in the child
 };
 
+/// A running child: `argv` (argv[0] a path to the program) started in `cwd`
+/// with stdin from a file (default /dev/null) and stdout and stderr written to
+/// `out_path` and `err_path`. Killed (SIGKILL) if still running when destroyed.
+class ChildProcess {
+ public:
+  ChildProcess(std::vector<std::string> argv_text, const std::filesystem::path& cwd,
+               const std::filesystem::path& out_path, const std::filesystem::path& err_path,
+               const RunOptions& options = {}) {
+    std::vector<char*> argv;
+    for (std::string& arg : argv_text) argv.push_back(arg.data());
+    argv.push_back(nullptr);
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      const std::string in_path = options.stdin_file ? options.stdin_file->string() : "/dev/null";
+      const int in = ::open(in_path.c_str(), O_RDONLY);
+      const int out = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      const int err = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      if (in < 0 || out < 0 || err < 0 || ::chdir(cwd.c_str()) != 0) ::_exit(126);
+      ::dup2(in, STDIN_FILENO);
+      ::dup2(out, STDOUT_FILENO);
+      ::dup2(err, STDERR_FILENO);
+      if (options.path_env) ::setenv("PATH", options.path_env->c_str(), 1);
+      ::execv(argv_text[0].c_str(), argv.data());
+      ::_exit(127);
+    }
+  }
+  ChildProcess(const ChildProcess&) = delete;
+  ChildProcess& operator=(const ChildProcess&) = delete;
+  ~ChildProcess() {
+    if (pid_ > 0 && !waited_) {
+      ::kill(pid_, SIGKILL);
+      wait();
+    }
+  }
+
+  /// The exit code, 128 + signal when killed, -1 when it could not be started.
+  int wait() {
+    int status = 0;
+    if (pid_ <= 0 || ::waitpid(pid_, &status, 0) != pid_) return -1;
+    waited_ = true;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  }
+  void terminate() { ::kill(pid_, SIGTERM); }
+
+ private:
+  pid_t pid_ = -1;
+  bool waited_ = false;
+};
+
 /// Runs `argv` (argv[0] a path to the program) in `cwd` and waits for it;
 /// stdout and stderr go through files in `capture`.
 inline RunResult run_program(std::vector<std::string> argv_text, const std::filesystem::path& cwd,
                              const std::filesystem::path& capture, const RunOptions& options = {}) {
   const std::filesystem::path out_path = capture / "stdout";
   const std::filesystem::path err_path = capture / "stderr";
-  std::vector<char*> argv;
-  for (std::string& arg : argv_text) argv.push_back(arg.data());
-  argv.push_back(nullptr);
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    const std::string in_path = options.stdin_file ? options.stdin_file->string() : "/dev/null";
-    const int in = ::open(in_path.c_str(), O_RDONLY);
-    const int out = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int err = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (in < 0 || out < 0 || err < 0 || ::chdir(cwd.c_str()) != 0) ::_exit(126);
-    ::dup2(in, STDIN_FILENO);
-    ::dup2(out, STDOUT_FILENO);
-    ::dup2(err, STDERR_FILENO);
-    if (options.path_env) ::setenv("PATH", options.path_env->c_str(), 1);
-    ::execv(argv_text[0].c_str(), argv.data());
-    ::_exit(127);
-  }
   RunResult result;
-  int status = 0;
-  if (pid < 0 || ::waitpid(pid, &status, 0) != pid) return result;
-  result.status = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  result.status = ChildProcess(std::move(argv_text), cwd, out_path, err_path, options).wait();
+  if (result.status < 0) return result;
   result.out = read_text(out_path);
   result.err = read_text(err_path);
   return result;
