@@ -455,6 +455,8 @@ TEST_F(ServerTest, LimitsEndCallsWithResourceExhaustedNamingTheLimit) {
   const auto long_one = animate(*stub_, whole({}, {{"AA", 0, 2'000'000, 0}}, 1));
   EXPECT_EQ(long_one.status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
   EXPECT_THAT(long_one.status.error_message(), HasSubstr("--max-utterance-ms=1000"));
+  // The client may see a status before the server has released the stream.
+  ASSERT_TRUE(eventually([&] { return server_->active_streams() == 0; }));
 
   Producer producer(*stub_, session_settings("limited"));
   Subscriber subscriber(*stub_, "limited", v1::SubscribeRequest::START_FROM_NOW);
