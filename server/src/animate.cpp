@@ -119,7 +119,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     }
     stopped_ = true;
     if (lane_) {
-      lane_->retire([this] { delete this; });  // a face job may still be running
+      lane_->retire([this] { delete this; });  // after the face jobs still queued
     } else {
       delete this;
     }
