@@ -216,20 +216,11 @@ int run_render(std::span<const std::string_view> args) {
     parse_options.timit_sample_rate_hz = parse_int_option("sample-rate", *rate, 1, 100'000'000);
   }
 
+  const RenderPlan plan = parse_render_plan(arguments);
   TrackRequest request;
-  if (const auto fps = arguments.value("fps")) request.render.fps = parse_int_option("fps", *fps, 1, 240);
-  if (const auto lookahead = arguments.value("lookahead")) {
-    request.render.lookahead = parse_int_option("lookahead", *lookahead, 0, 7);
-  }
-  request.render.fixed_rate = arguments.flag("fixed-rate");
+  request.render = plan.render;
+  request.segments = plan.segments;
   request.incremental = arguments.flag("incremental");
-  if (const auto text = arguments.value("closure-fraction")) {
-    const double fraction = parse_double_option("closure-fraction", *text);
-    if (!(fraction > 0.0 && fraction < 1.0)) {
-      throw UsageError("--closure-fraction: '" + *text + "' is out of range (strictly between 0 and 1)");
-    }
-    request.segments.closure_fraction = fraction;
-  }
   const std::optional<std::string> phone_set_name = arguments.value("phone-set");
   if (phone_set_name && phone_set_name->empty()) throw UsageError("--phone-set: the name must not be empty");
 
@@ -240,8 +231,7 @@ int run_render(std::span<const std::string_view> args) {
   const std::optional<std::string> video_path = arguments.value("video");
   const std::optional<std::string> audio_path = arguments.value("audio");
   const std::optional<std::string> still_path = arguments.value("still");
-  int subdivision = 1;
-  if (const auto text = arguments.value("mesh-subdivision")) subdivision = parse_int_option("mesh-subdivision", *text, 0, 2);
+  const int subdivision = plan.mesh_subdivision;
   double still_at_s = 0.0;
   if (const auto text = arguments.value("still-at")) {
     still_at_s = parse_double_option("still-at", *text);
