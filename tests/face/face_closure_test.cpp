@@ -10,7 +10,7 @@
 #include <map>
 
 #include "../support/closure_frames.hpp"
-#include "lip_measures.hpp"
+#include "../support/lip_measures.hpp"
 #include "lipsync/face/face_mesh.hpp"
 #include "lipsync/face/face_rig.hpp"
 #include "lipsync/face/face_solver.hpp"

@@ -2,7 +2,9 @@
 // per-frame positions equal to FaceSolver run offline on render_track's frames
 // (bit for bit as float32, within half a quantisation step as int16), Render =
 // Animate, subscribers get the producer's mesh, channel-only streams carry no
-// mesh bytes, bad mesh settings rejected naming the field.
+// mesh bytes, bad mesh settings rejected naming the field; and, measured on the
+// streamed mesh and ARKit weights of real TTS timings, sealed lips at every
+// bilabial key frame and the lower lip at the upper teeth at every labiodental one.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -10,6 +12,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <fstream>
+#include <sstream>
 #include <string>
 #include <thread>
 
@@ -18,6 +22,7 @@
 #include "lipsync/face/face_mesh.hpp"
 #include "lipsync/face/face_rig.hpp"
 #include "lipsync/face/face_solver.hpp"
+#include "lipsync/formats.hpp"
 #include "lipsync/model.hpp"
 #include "lipsync/phone_set.hpp"
 #include "lipsync/renderer.hpp"
@@ -26,6 +31,7 @@
 #include "lipsync/server/server.hpp"
 #include "lipsync/synthetic.hpp"
 #include "lipsync/v1/lipsync.grpc.pb.h"
+#include "../support/lip_measures.hpp"
 #include "../support/server_harness.hpp"
 
 namespace lipsync::server {
@@ -433,6 +439,63 @@ TEST_F(MeshTest, BadMeshSettingsAreRejectedNamingTheField) {
   const grpc::Status encoding = render(settings, intervals, response);
   EXPECT_EQ(encoding.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(encoding.error_message(), HasSubstr("settings.outputs.mesh.encoding"));
+}
+
+// What a client sees: it sent the phonemes, it receives frames with kinds, ARKit weights and
+// vertex positions. At each closure key frame it finds the phoneme being closed (the one that
+// starts at a closure_start frame, the one that ends at a closure_end frame) and measures the mouth.
+TEST_F(MeshTest, StreamedMeshAndArkitAreClosedAtEveryClosureKeyFrameOfRealSpeech) {
+  const face::FaceMesh mesh = face::build_face_mesh(face::FaceAsset::builtin(), 1);
+  const std::size_t jaw_open = 17, mouth_close = 18;
+  ASSERT_EQ(kArkitNames[jaw_open], "jawOpen");
+  ASSERT_EQ(kArkitNames[mouth_close], "mouthClose");
+  std::size_t bilabial = 0, labiodental = 0;
+  for (const char* name : {"festival_2.lab", "flite_3.psdur"}) {
+    std::ifstream file(std::string(LIPSYNC_TEST_DATA_DIR) + "/closures/" + name);
+    std::stringstream text;
+    text << file.rdbuf();
+    const auto intervals = parse_utterance(text.str(), detect_input_format(name, text.str()), name).intervals;
+    v1::AnimationSettings settings = mesh_settings(1);
+    settings.set_phone_set("radio");
+    settings.mutable_outputs()->set_arkit(true);
+    const Received received = animate(settings, intervals);
+    ASSERT_TRUE(received.status.ok()) << received.status.error_message();
+    const std::vector<float> positions = received.positions();
+    const std::size_t vertices = mesh.vertex_count();
+    std::vector<face::Vec3> pose(vertices);
+    std::size_t frame = 0;
+    for (const auto& batch : received.batches) {
+      for (int k = 0; k < batch.t_us_size(); ++k, ++frame) {
+        const auto kind = batch.kinds(k);
+        if (kind != v1::FRAME_KIND_CLOSURE_START && kind != v1::FRAME_KIND_CLOSURE_END) continue;
+        const std::int64_t t_us = batch.t_us(k);
+        // The phoneme being closed: the one containing t (closure start) or t − 1 µs (closure end).
+        const std::int64_t probe = kind == v1::FRAME_KIND_CLOSURE_START ? t_us : t_us - 1;
+        std::string label;
+        for (const auto& interval : intervals) {
+          if (interval.start_us <= probe && probe < interval.end_us) label = interval.label;
+        }
+        for (std::size_t v = 0; v < vertices; ++v) {
+          const float* p = positions.data() + (frame * vertices + v) * 3;
+          pose[v] = {p[0], p[1], p[2]};
+        }
+        const float* arkit = batch.arkit().data() + static_cast<std::ptrdiff_t>(k) * 52;
+        const std::string where = std::string(name) + " /" + label + "/ at " + std::to_string(t_us) + " µs";
+        if (label == "p" || label == "b" || label == "m") {
+          ++bilabial;
+          EXPECT_LE(face::lip_gap_m(mesh, pose), 0.0005) << where;
+          EXPECT_GE(arkit[mouth_close], arkit[jaw_open] - 0.02F) << where;
+        } else if (label == "f" || label == "v") {
+          ++labiodental;
+          EXPECT_LE(face::lower_lip_to_upper_teeth_m(mesh, pose), 0.001) << where;
+        } else {
+          ADD_FAILURE() << where << ": a closure key frame on a phoneme that is not /p b m f v/";
+        }
+      }
+    }
+  }
+  EXPECT_GE(bilabial, 10U);
+  EXPECT_GE(labiodental, 4U);
 }
 
 }  // namespace

@@ -1,7 +1,8 @@
 #!/bin/sh
 # Regenerates the face stills in docs/images/ (docs/face.md, "Export, preview and stills") with
 # `lipsync render --still` at subdivision level 1: each phoneme between 0.4 s pauses, the frame
-# taken in its middle (/p/: after /aa/, in the middle of its closure). Needs ffmpeg on PATH.
+# taken in its middle; the closures after an open /aa/ (/p/ in the middle of its closure, /f/, and
+# /m/ held for a second), where the lips must close against the open vowel's jaw. Needs ffmpeg.
 #   tools/face/make_stills.sh [path/to/lipsync] [output directory]
 set -eu
 
@@ -26,4 +27,5 @@ still rest 0.60 '0.40 100 pau' '1.20 100 pau'
 still p-closure 0.72 '0.40 100 pau' '0.55 100 aa' '1.00 100 p' '1.40 100 pau'
 still aa 0.60 '0.40 100 pau' '0.80 100 aa' '1.20 100 pau'
 still uw 0.60 '0.40 100 pau' '0.80 100 uw' '1.20 100 pau'
-still f 0.60 '0.40 100 pau' '0.80 100 f' '1.20 100 pau'
+still f 0.68 '0.40 100 pau' '0.55 100 aa' '0.80 100 f' '1.20 100 pau'
+still m-held 1.05 '0.40 100 pau' '0.55 100 aa' '1.55 100 m' '1.95 100 pau'

@@ -1,11 +1,14 @@
 // What a viewer measures on the simulated mouth, in metres: the gap between the lips across the
 // middle of the mouth, the opening seen from the front, the lower lip's distance to the upper
-// teeth, and how far the lips cross. Shared by the face tests.
+// teeth, and how far the lips cross. Shared by the face tests and the server's mesh tests: each
+// takes the mesh and one pose (all vertex positions in mesh order, as FaceSolver::positions() or a
+// decoded mesh stream gives them).
 #pragma once
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "lipsync/face/face_mesh.hpp"
@@ -27,9 +30,7 @@ inline constexpr double kSealHalfWidthM = 0.010;
 
 // Largest distance from an upper-lip-line node within kSealHalfWidthM of the mouth's middle to the
 // lower lip line (as a polyline through both corners): 0 when the lips are sealed there.
-inline double lip_gap_m(const FaceSolver& solver) {
-  const FaceMesh& mesh = solver.mesh();
-  const auto x = solver.positions();
+inline double lip_gap_m(const FaceMesh& mesh, std::span<const Vec3> x) {
   std::vector<std::uint32_t> lower{mesh.mouth_corners[0]};
   lower.insert(lower.end(), mesh.lower_lip_line.begin(), mesh.lower_lip_line.end());
   lower.push_back(mesh.mouth_corners[1]);
@@ -47,9 +48,7 @@ inline double lip_gap_m(const FaceSolver& solver) {
 // The mouth's opening seen from the front at the midline: the lowest upper-lip node minus the
 // highest lower-lip node among skin and inner-lip nodes within 3 mm of the midline (at rest) and
 // 20 mm of the mouth centre's height. Negative when the lips overlap (pressed or one in front).
-inline double frontal_opening_m(const FaceSolver& solver) {
-  const FaceMesh& mesh = solver.mesh();
-  const auto x = solver.positions();
+inline double frontal_opening_m(const FaceMesh& mesh, std::span<const Vec3> x) {
   double upper = 1e9, lower = -1e9;
   for (std::uint32_t i = 0; i < mesh.soft_node_count; ++i) {
     const Vec3 r = mesh.rest_positions_m[i];
@@ -76,9 +75,7 @@ inline double distance_to_upper_teeth_m(const FaceMesh& mesh, Vec3 p) {
   return std::hypot(dy, std::abs(radius - 1.0) * local_axis);
 }
 
-inline double lower_lip_to_upper_teeth_m(const FaceSolver& solver) {
-  const auto x = solver.positions();
-  const FaceMesh& mesh = solver.mesh();
+inline double lower_lip_to_upper_teeth_m(const FaceMesh& mesh, std::span<const Vec3> x) {
   double nearest = 1e9;
   for (std::uint32_t i = 0; i < mesh.soft_node_count; ++i) {
     if (mesh.jaw_weights[i] < 0.99 || mesh.ring_depth[i] > 2.0) continue;
@@ -90,9 +87,7 @@ inline double lower_lip_to_upper_teeth_m(const FaceSolver& solver) {
 
 /// How far the lips cross: the largest amount by which an upper lip-line or inner-ring node lies
 /// below its facing lower node (0 when none does).
-inline double lip_crossing_m(const FaceSolver& solver) {
-  const FaceMesh& mesh = solver.mesh();
-  const auto x = solver.positions();
+inline double lip_crossing_m(const FaceMesh& mesh, std::span<const Vec3> x) {
   double crossing = 0;
   for (std::size_t k = 0; k < mesh.upper_lip_line.size(); ++k)
     crossing = std::max(crossing, x[mesh.lower_lip_line[k]].y - x[mesh.upper_lip_line[k]].y);
@@ -100,5 +95,10 @@ inline double lip_crossing_m(const FaceSolver& solver) {
     crossing = std::max(crossing, x[mesh.lower_inner_ring[k]].y - x[mesh.upper_inner_ring[k]].y);
   return crossing;
 }
+
+inline double lip_gap_m(const FaceSolver& s) { return lip_gap_m(s.mesh(), s.positions()); }
+inline double frontal_opening_m(const FaceSolver& s) { return frontal_opening_m(s.mesh(), s.positions()); }
+inline double lower_lip_to_upper_teeth_m(const FaceSolver& s) { return lower_lip_to_upper_teeth_m(s.mesh(), s.positions()); }
+inline double lip_crossing_m(const FaceSolver& s) { return lip_crossing_m(s.mesh(), s.positions()); }
 
 }  // namespace lipsync::face
