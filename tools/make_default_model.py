@@ -353,7 +353,9 @@ def targets_of(name):
 # (the lips open faster than they close), and is negligible 2 · reach away, so the neighbouring vowels
 # still open.
 CLOSURE_ALPHA = 100.0
-CLOSURE_REACH_MS = {"lips": 30.0, "jaw": 35.0}
+# One reach for lips and jaw: the channels then share one dominance shape, so the evaluator takes one
+# exponential for them (an evaluator cost per shape, docs/performance.md).
+CLOSURE_REACH_MS = 30.0
 RELEASE_SHARE = 0.7
 
 
@@ -409,8 +411,7 @@ def dominance_of(name):
         # Bilabials close the lips: closure dominance (see closure_dominance) on the lip-seal channels and
         # the jaw, so that the lips are closed at both key frames of the hold, and low dominance on the
         # tongue.
-        closure_dominance(put, LIP_SEAL, CLOSURE_REACH_MS["lips"])
-        closure_dominance(put, JAW, CLOSURE_REACH_MS["jaw"])
+        closure_dominance(put, LIP_SEAL + JAW, CLOSURE_REACH_MS)
         put(SMILE + SPREAD + UPPER_LIP_RAISE + CORNER_DOWN + LOWER_LIP_DOWN, alpha=1.0)
         put(TONGUE, alpha=0.1)
     elif place == "bilabial" and cls == "release":
@@ -423,8 +424,7 @@ def dominance_of(name):
         # /f v/: the lower lip must touch the upper teeth, handled like a bilabial closure (paper 3.2):
         # closure dominance on the lower lip and the jaw; the raised upper lip (bared teeth) is strong
         # but shaped by Eq. 2 alone.
-        closure_dominance(put, ["orbicularis_oris_lower", "mentalis"], CLOSURE_REACH_MS["lips"])
-        closure_dominance(put, JAW, CLOSURE_REACH_MS["jaw"])
+        closure_dominance(put, ["orbicularis_oris_lower", "mentalis"] + JAW, CLOSURE_REACH_MS)
         put(UPPER_LIP_RAISE, alpha=6.0)
         theta(UPPER_LIP_RAISE, 35.0)
         put(["orbicularis_oris_upper"], alpha=1.0)
