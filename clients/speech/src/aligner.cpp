@@ -21,6 +21,11 @@ namespace {
 
 constexpr int kRateHz = 16000;
 constexpr std::int64_t kFrameUs = 10'000;  // PocketSphinx's frame step (-frate 100)
+// Frame k analyses the window [k·10 ms, k·10 ms + 25.6 ms] (-wlen 0.025625), centred at
+// k·10 + 12.8 ms. A segment that starts at frame k starts midway between the centres of
+// frames k-1 and k: at k·10 ms + 7.8 ms. (Without this shift the boundaries come out
+// about 9 ms early on synthetic speech with known boundaries, tests/bench/alignment_accuracy.)
+constexpr std::int64_t kBoundaryOffsetUs = 7'800;
 // The grammar's pause between words (PocketSphinx's silence phone).
 constexpr const char* kPauseWord = "pause_";
 // Audio whose loudest 20 ms stays below this level holds no speech to align.
@@ -64,16 +69,39 @@ Decoder make_decoder(const AlignmentOptions& options, const std::string& source,
   return decoder;
 }
 
-double loudest_window_dbfs(const PcmAudio& audio) {
-  const std::size_t window = static_cast<std::size_t>(audio.sample_rate_hz / 50);  // 20 ms
-  double loudest = 0;
+// Level of each 20 ms window of `audio`, dBFS (-200 for digital silence).
+std::vector<double> window_levels_dbfs(const PcmAudio& audio) {
+  const std::size_t window = static_cast<std::size_t>(audio.sample_rate_hz / 50);
+  std::vector<double> levels;
   for (std::size_t start = 0; start < audio.samples.size(); start += window) {
     const std::size_t end = std::min(audio.samples.size(), start + window);
     double energy = 0;
     for (std::size_t i = start; i < end; ++i) energy += double(audio.samples[i]) * audio.samples[i];
-    loudest = std::max(loudest, energy / double(end - start));
+    energy /= double(end - start);
+    levels.push_back(energy > 0 ? 10 * std::log10(energy / (32768.0 * 32768.0)) : -200.0);
   }
-  return loudest > 0 ? 10 * std::log10(loudest / (32768.0 * 32768.0)) : -200.0;
+  return levels;
+}
+
+// Share of the loud windows (within kLoudDb of the loudest) that the alignment labels as
+// pause. A transcript that fits the audio leaves almost no speech in its pauses (stop
+// closures are quiet); one that does not fit squeezes its words into a corner and calls
+// the rest of the speech a pause.
+constexpr double kLoudDb = 20.0;
+constexpr double kMostSpeechInPauses = 0.3;
+
+double loud_share_in_pauses(const std::vector<double>& levels, double loudest, const std::vector<LabeledInterval>& phones) {
+  int loud = 0, loud_in_pause = 0;
+  for (std::size_t w = 0; w < levels.size(); ++w) {
+    if (levels[w] < loudest - kLoudDb) continue;
+    ++loud;
+    const std::int64_t centre_us = static_cast<std::int64_t>(w) * 20'000 + 10'000;
+    const auto it = std::find_if(phones.begin(), phones.end(), [&](const LabeledInterval& phone) {
+      return phone.start_us <= centre_us && centre_us < phone.end_us;
+    });
+    if (it != phones.end() && it->label.empty()) ++loud_in_pause;
+  }
+  return loud == 0 ? 0.0 : double(loud_in_pause) / loud;
 }
 
 // Phone label of a recognised "word": "aa_3" → ("AA", 3); a phone from the
@@ -91,6 +119,8 @@ std::pair<std::string, int> phone_of(std::string_view word) {
   for (char& c : phone) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
   return {phone, index};
 }
+
+std::string count_words(std::size_t n) { return std::to_string(n) + (n == 1 ? " word" : " words"); }
 
 std::string lower(std::string text) {
   for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -177,7 +207,8 @@ Alignment align_speech(const PcmAudio& input, std::string_view source_view, cons
                                     " Hz is too low for speech recognition (16000 Hz wanted, 8000 Hz at least)");
   }
   if (duration_s < 0.1) throw InputError(source, 0, "the audio is too short to align (under 0.1 s)");
-  const double loudest = loudest_window_dbfs(input);
+  const std::vector<double> levels = window_levels_dbfs(input);
+  const double loudest = *std::max_element(levels.begin(), levels.end());
   if (loudest < kSilenceDbfs) {
     char text[160];
     std::snprintf(text, sizeof text, "no speech found: the audio is silent (its loudest 20 ms is at %.0f dBFS)", loudest);
@@ -214,8 +245,8 @@ Alignment align_speech(const PcmAudio& input, std::string_view source_view, cons
   std::int32_t score = 0;
   if (ps_get_hyp(decoder.get(), &score) == nullptr) {
     throw InputError(source, 0, options.transcript
-                                    ? "the transcript does not match the audio (no alignment of its " +
-                                          std::to_string(words.size()) + " words fits)"
+                                    ? "the transcript does not match the audio (no alignment of its " + count_words(words.size()) +
+                                          " fits)"
                                     : "no phones were recognised in the audio");
   }
 
@@ -225,8 +256,8 @@ Alignment align_speech(const PcmAudio& input, std::string_view source_view, cons
   for (ps_seg_t* seg = ps_seg_iter(decoder.get()); seg != nullptr; seg = ps_seg_next(seg)) {
     int first_frame = 0, last_frame = 0;
     ps_seg_frames(seg, &first_frame, &last_frame);
-    const std::int64_t start = std::min(end_us, first_frame * kFrameUs);
-    const std::int64_t end = std::min(end_us, (last_frame + 1) * kFrameUs);
+    const std::int64_t start = first_frame == 0 ? 0 : std::min(end_us, first_frame * kFrameUs + kBoundaryOffsetUs);
+    const std::int64_t end = std::min(end_us, (last_frame + 1) * kFrameUs + kBoundaryOffsetUs);
     if (end <= start) continue;
     const std::string_view word = ps_seg_word(seg);
     if (word == "(NULL)") continue;  // an empty grammar arc, no audio
@@ -248,6 +279,14 @@ Alignment align_speech(const PcmAudio& input, std::string_view source_view, cons
     phones.insert(phones.begin(), {"", 0, phones.empty() ? end_us : phones.front().start_us, 0});
   }
   if (phones.back().end_us < end_us) phones.push_back({"", phones.back().end_us, end_us, int(phones.size()) + 1});
+  if (options.transcript) {
+    const double share = loud_share_in_pauses(levels, loudest, phones);
+    if (share > kMostSpeechInPauses) {
+      throw InputError(source, 0, "the transcript does not match the audio (its " + count_words(words.size()) +
+                                      " fit only by leaving " + std::to_string(std::lround(100 * share)) +
+                                      " % of the speech unaligned)");
+    }
+  }
   return result;
 }
 
