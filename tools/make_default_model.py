@@ -228,8 +228,12 @@ def vowel_targets(name):
 # Jaw opening by place of articulation: the tighter and further forward the
 # constriction, the closer the jaw (Keating et al. 1994; Lindblom 1983).
 JAW_BY_PLACE = {
-    "bilabial": 0.02,      # the lips can only meet with the jaw (nearly) closed
-    "labiodental": 0.06,   # lower lip against the upper teeth
+    # Bilabials and labiodentals: the jaw rises but does not close: the lips seal over an incisor
+    # opening of a few millimetres (about 4 mm at 0.12 = 2.4 degrees; Keating et al. 1994 measure
+    # 2-6 mm for /b/ between open vowels), and the lower lip reaches the upper teeth from there.
+    # Both are explicit targets with closure dominance (see CLOSURE_ALPHA below).
+    "bilabial": 0.12,
+    "labiodental": 0.08,
     "dental": 0.14,        # a gap for the tongue tip between the teeth
     "alveolar": 0.12,
     "postalveolar": 0.1,
@@ -238,6 +242,11 @@ JAW_BY_PLACE = {
     "labial-velar": 0.12,
     "glottal": 0.25,       # no oral constriction: a neutral open mouth
 }
+
+
+# The lower lip of a closure (bilabial or labiodental): the lower sphincter and the mentalis push it up
+# against the upper lip or the upper teeth. Bilabials and labiodentals lie 0.03 either side of this.
+LOWER_LIP_CLOSURE = {"orbicularis_oris_lower": 0.52, "mentalis": 0.58}
 
 
 def consonant_targets(name):
@@ -257,9 +266,12 @@ def consonant_targets(name):
 
     if place == "bilabial" and cls == "closure":
         # Bilabials close the lips: the sphincter presses them together and the mentalis lifts the lower lip.
+        # The lower lip's targets (lower sphincter, mentalis) are within 0.05 of the labiodentals', so that
+        # where a bilabial and a labiodental closure meet ("of my", "come for") the shared key frame is
+        # within 5 % of both.
         t["orbicularis_oris_upper"] = 0.35
-        t["orbicularis_oris_lower"] = 0.45
-        t["mentalis"] = 0.6
+        t["orbicularis_oris_lower"] = LOWER_LIP_CLOSURE["orbicularis_oris_lower"] - 0.03
+        t["mentalis"] = LOWER_LIP_CLOSURE["mentalis"] + 0.03
     elif place == "bilabial" and cls == "release":
         # A /p b/ release: the lips just part, the jaw starts to drop.
         t["orbicularis_oris_upper"] = 0.2
@@ -269,8 +281,8 @@ def consonant_targets(name):
     elif place == "labiodental":
         # /f v/ tuck the lower lip under the upper teeth (orbicularis oris lower + mentalis)
         # and lift the upper lip a little to bare the upper teeth (levator labii superioris).
-        t["orbicularis_oris_lower"] = 0.6
-        t["mentalis"] = 0.55
+        t["orbicularis_oris_lower"] = LOWER_LIP_CLOSURE["orbicularis_oris_lower"] + 0.03
+        t["mentalis"] = LOWER_LIP_CLOSURE["mentalis"] - 0.03
         t["orbicularis_oris_upper"] = 0.05
         set_group(t, UPPER_LIP_RAISE, 0.3)
     elif place == "dental":
@@ -332,6 +344,26 @@ def targets_of(name):
 # ---------------------------------------------------------------------------
 
 
+# Closure dominance (paper Section 3.2: "by assigning a high magnitude to the dominance function of
+# the closure phoneme, the lips come sufficiently close to their targets"). The engine gives a closure's
+# dominance its peak over the whole hold (Eq. 3' in docs/coarticulation.md), so at both key frames the
+# closure weighs α. With α = 100 against the α ≤ 5 of any other phoneme, the closing channels are within
+# 5 % of their targets there whatever the neighbours. Outside the hold the dominance falls as a Gaussian
+# (c = 2): it equals a vowel's (α = 1) at `reach` before the hold and at `reach` · RELEASE_SHARE after it
+# (the lips open faster than they close), and is negligible 2 · reach away, so the neighbouring vowels
+# still open.
+CLOSURE_ALPHA = 100.0
+CLOSURE_REACH_MS = {"lips": 30.0, "jaw": 35.0}
+RELEASE_SHARE = 0.7
+
+
+def closure_dominance(put, channels, reach_ms):
+    reach_s = reach_ms / 1000.0
+    put(channels, alpha=CLOSURE_ALPHA, c=2.0,
+        theta_plus_per_s=math.log(CLOSURE_ALPHA) / reach_s ** 2,
+        theta_minus_per_s=math.log(CLOSURE_ALPHA) / (RELEASE_SHARE * reach_s) ** 2)
+
+
 def dominance_of(name):
     """Returns {channel: {alpha, theta_minus_per_s, theta_plus_per_s, c, t_off_ms}}."""
     dom = {ch: dict(DEFAULTS) for ch in CHANNEL_NAMES}
@@ -374,12 +406,11 @@ def dominance_of(name):
     theta(CHANNEL_NAMES, 22.0)
     put(CHANNEL_NAMES, alpha=0.5)
     if place == "bilabial" and cls == "closure":
-        # Bilabials close the lips: high dominance (α 8) and a fast rate on the lip-seal channels so the
-        # lips reach closure even in a 20 ms hold, a closing jaw, and low dominance on the tongue.
-        put(LIP_SEAL, alpha=8.0)
-        theta(LIP_SEAL, 40.0)
-        put(JAW, alpha=5.0)
-        theta(JAW, 30.0)
+        # Bilabials close the lips: closure dominance (see closure_dominance) on the lip-seal channels and
+        # the jaw, so that the lips are closed at both key frames of the hold, and low dominance on the
+        # tongue.
+        closure_dominance(put, LIP_SEAL, CLOSURE_REACH_MS["lips"])
+        closure_dominance(put, JAW, CLOSURE_REACH_MS["jaw"])
         put(SMILE + SPREAD + UPPER_LIP_RAISE + CORNER_DOWN + LOWER_LIP_DOWN, alpha=1.0)
         put(TONGUE, alpha=0.1)
     elif place == "bilabial" and cls == "release":
@@ -389,11 +420,13 @@ def dominance_of(name):
         put(JAW, alpha=1.5)
         put(TONGUE, alpha=0.1)
     elif place == "labiodental":
-        # /f v/: the lower lip must touch the upper teeth, handled like a bilabial closure (paper 3.2).
-        put(["orbicularis_oris_lower", "mentalis"] + UPPER_LIP_RAISE, alpha=6.0)
-        theta(["orbicularis_oris_lower", "mentalis"] + UPPER_LIP_RAISE, 35.0)
-        put(JAW, alpha=4.0)
-        theta(JAW, 30.0)
+        # /f v/: the lower lip must touch the upper teeth, handled like a bilabial closure (paper 3.2):
+        # closure dominance on the lower lip and the jaw; the raised upper lip (bared teeth) is strong
+        # but shaped by Eq. 2 alone.
+        closure_dominance(put, ["orbicularis_oris_lower", "mentalis"], CLOSURE_REACH_MS["lips"])
+        closure_dominance(put, JAW, CLOSURE_REACH_MS["jaw"])
+        put(UPPER_LIP_RAISE, alpha=6.0)
+        theta(UPPER_LIP_RAISE, 35.0)
         put(["orbicularis_oris_upper"], alpha=1.0)
         put(TONGUE, alpha=0.1)
     elif place == "dental":
@@ -527,11 +560,11 @@ NOTES = {
     "ay": "diphthong a -> I: open jaw moving towards spread",
     "aw": "diphthong a -> U: open jaw moving towards rounding",
     "oy": "diphthong O -> I: rounded lips moving towards spread",
-    "pcl": "bilabial stop hold: lips pressed together, jaw closed, dominant on the lips",
-    "bcl": "bilabial stop hold: lips pressed together, jaw closed, dominant on the lips",
+    "pcl": "bilabial stop hold: lips pressed together over a slightly open jaw, closure dominance on lips and jaw",
+    "bcl": "bilabial stop hold: lips pressed together over a slightly open jaw, closure dominance on lips and jaw",
     "m": "bilabial nasal: lips closed like the stop closure (no release needed)",
-    "f": "labiodental: lower lip tucked under the upper teeth, upper teeth bared",
-    "v": "labiodental: lower lip tucked under the upper teeth, upper teeth bared",
+    "f": "labiodental: lower lip tucked under the upper teeth, upper teeth bared; closure dominance on lower lip and jaw",
+    "v": "labiodental: lower lip tucked under the upper teeth, upper teeth bared; closure dominance on lower lip and jaw",
     "p": "release of /p/: lips just parting; the engine peaks it at the start of the segment",
     "b": "release of /b/: lips just parting; the engine peaks it at the start of the segment",
     "t": "alveolar stop: tongue tip on the ridge, lips free",

@@ -93,17 +93,35 @@ std::optional<std::string> Arguments::value(std::string_view name) const {
   return it->second;
 }
 
-int parse_int_option(std::string_view option, std::string_view text, int min, int max) {
-  long long number = 0;
+namespace {
+
+/// The whole number `text` spells (nullopt if it does not fit in 64 bits);
+/// UsageError naming `--option` if it spells none.
+std::optional<std::int64_t> whole_number(std::string_view option, std::string_view text) {
+  std::int64_t number = 0;
   const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), number);
   if (text.empty() || error == std::errc::invalid_argument || end != text.data() + text.size()) {
     throw UsageError("--" + std::string(option) + ": " + in_quotes(text) + " is not a whole number");
   }
-  if (error == std::errc::result_out_of_range || number < min || number > max) {
+  if (error == std::errc::result_out_of_range) return std::nullopt;
+  return number;
+}
+
+}  // namespace
+
+int parse_int_option(std::string_view option, std::string_view text, int min, int max) {
+  const std::optional<std::int64_t> number = whole_number(option, text);
+  if (!number || *number < min || *number > max) {
     throw UsageError("--" + std::string(option) + ": " + in_quotes(text) + " is out of range (" +
                      std::to_string(min) + " to " + std::to_string(max) + ")");
   }
-  return static_cast<int>(number);
+  return static_cast<int>(*number);
+}
+
+std::int64_t parse_whole_option(std::string_view option, std::string_view text) {
+  const std::optional<std::int64_t> number = whole_number(option, text);
+  if (!number) throw UsageError("--" + std::string(option) + ": " + in_quotes(text) + " is out of range");
+  return *number;
 }
 
 double parse_double_option(std::string_view option, std::string_view text) {

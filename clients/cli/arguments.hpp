@@ -7,6 +7,7 @@
 // Numbers are parsed strictly: the whole text must be the number.
 #pragma once
 
+#include <cstdint>
 #include <map>
 #include <optional>
 #include <ostream>
@@ -46,6 +47,10 @@ class Arguments {
 
 /// Whole number in [min, max]; UsageError naming `--option` and the text otherwise.
 int parse_int_option(std::string_view option, std::string_view text, int min, int max);
+
+/// Whole number that fits in 64 bits (its range is checked by the caller);
+/// UsageError naming `--option` and the text otherwise.
+std::int64_t parse_whole_option(std::string_view option, std::string_view text);
 
 /// Finite decimal number; UsageError naming `--option` and the text otherwise.
 double parse_double_option(std::string_view option, std::string_view text);

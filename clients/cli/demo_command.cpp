@@ -77,7 +77,7 @@ int run_demo(std::span<const std::string_view> args) {
   }
   const TrackFormat format = parse_track_format_option(arguments.value("format").value_or("json"));
   TrackRequest request;
-  if (const auto fps = arguments.value("fps")) request.render.fps = parse_int_option("fps", *fps, 1, 240);
+  request.render = parse_render_plan(arguments).render;
   const std::string output = arguments.value("output").value_or(default_output(format));
 
   const ArticulationModel& model = ArticulationModel::builtin();

@@ -61,6 +61,7 @@
 #include "lipsync/segment.hpp"
 #include "lipsync/synthetic.hpp"
 #include "network.hpp"
+#include "pipeline.hpp"
 
 namespace lipsync::cli {
 namespace {
@@ -549,8 +550,7 @@ int run_loadtest(std::span<const std::string_view> args) {
     throw UsageError("--mesh-share: '" + *arguments.value("mesh-share") +
                      "' is out of range (a fraction of the producers, 0 to 1)");
   }
-  config.mesh.subdivision = static_cast<std::uint32_t>(
-      parse_int_option("mesh-subdivision", arguments.value("mesh-subdivision").value_or("1"), 0, 2));
+  config.mesh.subdivision = static_cast<std::uint32_t>(parse_render_plan(arguments).mesh_subdivision);
   const std::string encoding = arguments.value("mesh-encoding").value_or("float32");
   if (encoding == "float32") {
     config.mesh.encoding = client::v1::MESH_ENCODING_FLOAT32;

@@ -40,6 +40,28 @@ InputFormat parse_input_format_option(std::string_view text) {
                    "' (choose json, textgrid, timit, lab, pho or flite)");
 }
 
+RenderPlan parse_render_plan(const Arguments& arguments) {
+  static constexpr SettingNames kOptionNames = {.fps = "--fps",
+                                                .lookahead = "--lookahead",
+                                                .closure_fraction = "--closure-fraction",
+                                                .mesh_subdivision = "--mesh-subdivision"};
+  RenderSettings settings;
+  if (const auto text = arguments.value("fps")) settings.fps = parse_whole_option("fps", *text);
+  if (const auto text = arguments.value("lookahead")) settings.lookahead = parse_whole_option("lookahead", *text);
+  settings.fixed_rate = arguments.flag("fixed-rate");
+  if (const auto text = arguments.value("closure-fraction")) {
+    settings.closure_fraction = parse_double_option("closure-fraction", *text);
+  }
+  if (const auto text = arguments.value("mesh-subdivision")) {
+    settings.mesh_subdivision = parse_whole_option("mesh-subdivision", *text);
+  }
+  try {
+    return resolve_render_plan(settings, kOptionNames);
+  } catch (const SettingError& error) {
+    throw UsageError(error.what());
+  }
+}
+
 std::string phone_set_choices() {
   std::string names;
   for (const std::string& name : PhoneSet::builtin_names()) names += name + ", ";

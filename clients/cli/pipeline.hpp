@@ -16,6 +16,7 @@
 #include "lipsync/formats.hpp"
 #include "lipsync/model.hpp"
 #include "lipsync/phone_set.hpp"
+#include "lipsync/render_plan.hpp"
 #include "lipsync/renderer.hpp"
 #include "lipsync/segment.hpp"
 #include "lipsync/track.hpp"
@@ -66,6 +67,12 @@ std::string phone_set_choices();
 const PhoneSet& choose_phone_set(const std::optional<std::string>& requested,
                                  const LabeledUtterance& utterance, const ArticulationModel& model,
                                  std::vector<PhoneSet>& candidates);
+
+/// The render settings a command was given (--fps, --lookahead, --fixed-rate,
+/// --closure-fraction, --mesh-subdivision: those in its table; the others keep
+/// their defaults), resolved and range-checked by the core's render plan.
+/// UsageError naming the option and the value otherwise.
+RenderPlan parse_render_plan(const Arguments& arguments);
 
 struct TrackRequest {
   SegmentOptions segments;

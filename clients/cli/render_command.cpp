@@ -200,19 +200,10 @@ OutputRequest parse_output_request(const Arguments& arguments) {
   out.output_given = arguments.value("output").has_value();
   out.format = parse_track_format_option(arguments.value("format").value_or("json"));
   TrackRequest& request = out.track;
-  if (const auto fps = arguments.value("fps")) request.render.fps = parse_int_option("fps", *fps, 1, 240);
-  if (const auto lookahead = arguments.value("lookahead")) {
-    request.render.lookahead = parse_int_option("lookahead", *lookahead, 0, 7);
-  }
-  request.render.fixed_rate = arguments.flag("fixed-rate");
+  const RenderPlan plan = parse_render_plan(arguments);
+  request.render = plan.render;
+  request.segments = plan.segments;
   request.incremental = arguments.flag("incremental");
-  if (const auto text = arguments.value("closure-fraction")) {
-    const double fraction = parse_double_option("closure-fraction", *text);
-    if (!(fraction > 0.0 && fraction < 1.0)) {
-      throw UsageError("--closure-fraction: '" + *text + "' is out of range (strictly between 0 and 1)");
-    }
-    request.segments.closure_fraction = fraction;
-  }
   out.phone_set_name = arguments.value("phone-set");
   if (out.phone_set_name && out.phone_set_name->empty()) throw UsageError("--phone-set: the name must not be empty");
   out.model_path = arguments.value("model");
@@ -220,7 +211,7 @@ OutputRequest parse_output_request(const Arguments& arguments) {
   out.video_path = arguments.value("video");
   out.audio_path = arguments.value("audio");
   out.still_path = arguments.value("still");
-  if (const auto text = arguments.value("mesh-subdivision")) out.subdivision = parse_int_option("mesh-subdivision", *text, 0, 2);
+  out.subdivision = plan.mesh_subdivision;
   if (const auto text = arguments.value("still-at")) {
     out.still_at_s = parse_double_option("still-at", *text);
     if (!(out.still_at_s >= 0.0 && std::isfinite(out.still_at_s))) throw UsageError("--still-at: '" + *text + "' must be >= 0");

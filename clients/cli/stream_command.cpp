@@ -81,11 +81,10 @@ int run_stream(std::span<const std::string_view> args) {
   std::optional<InputFormat> input_format;
   if (const auto text = arguments.value("input-format")) input_format = parse_input_format_option(*text);
   const ParseOptions parse_options = parse_options_from(arguments);
+  const RenderPlan plan = parse_render_plan(arguments);
   client::v1::AnimationSettings settings;
-  settings.set_fps(static_cast<std::uint32_t>(parse_int_option("fps", arguments.value("fps").value_or("30"), 1, 240)));
-  if (const auto lookahead = arguments.value("lookahead")) {
-    settings.set_lookahead(static_cast<std::uint32_t>(parse_int_option("lookahead", *lookahead, 0, 7)));
-  }
+  settings.set_fps(static_cast<std::uint32_t>(plan.render.fps));
+  if (arguments.value("lookahead")) settings.set_lookahead(static_cast<std::uint32_t>(plan.render.lookahead));
   settings.mutable_outputs()->set_channels(true);
   settings.mutable_outputs()->set_arkit(format != TrackFormat::csv);  // the server's retargeting for its model
   if (const auto model_name = arguments.value("server-model")) {

@@ -15,12 +15,24 @@ constexpr double kNegativeInfinity = -std::numeric_limits<double>::infinity();
 
 /// τ of Eq. 3 in seconds: distance from t to the dominance peak (positive
 /// before the peak). Release phonemes peak at the start of their interval
-/// (Section 3.2). The segment centre and t are combined in integer µs first.
+/// (Section 3.2). A closure's peak is its whole hold (Eq. 3′ in
+/// docs/coarticulation.md): τ is the distance from t to [t_start, t_end]
+/// shifted by t_off, 0 inside, so the closure's dominance is α all through the
+/// hold, at both of its key frames, whatever its length. The segment's times
+/// and t are combined in integer µs first.
 inline double tau_s(const Segment& segment, const DominanceParams& params, std::int64_t t_us) {
-  if (segment.phoneme_class == PhonemeClass::release) {
-    return static_cast<double>(segment.start_us - t_us) * 1e-6;
+  switch (segment.phoneme_class) {
+    case PhonemeClass::release:
+      return static_cast<double>(segment.start_us - t_us) * 1e-6;
+    case PhonemeClass::closure: {
+      const double before_start = static_cast<double>(segment.start_us - t_us) * 1e-6 - params.t_off_s;
+      if (before_start > 0.0) return before_start;
+      const double before_end = static_cast<double>(segment.end_us - t_us) * 1e-6 - params.t_off_s;
+      return before_end < 0.0 ? before_end : 0.0;
+    }
+    default:
+      return static_cast<double>(segment.start_us + segment.end_us - 2 * t_us) * 0.5e-6 - params.t_off_s;
   }
-  return static_cast<double>(segment.start_us + segment.end_us - 2 * t_us) * 0.5e-6 - params.t_off_s;
 }
 
 inline double power(double base, double exponent) {
@@ -38,8 +50,11 @@ inline double log_dominance(const DominanceParams& params, double log_alpha, dou
 
 /// d(log D)/dt at a segment border. At the peak itself the paper takes the
 /// descending side for a left border (`descending_at_peak`) and the ascending
-/// side for a right border.
-inline double log_dominance_slope(const DominanceParams& params, double tau, bool descending_at_peak) {
+/// side for a right border. On a closure's plateau (τ = 0 over its hold) the
+/// dominance is flat.
+inline double log_dominance_slope(const Segment& segment, const DominanceParams& params, double tau,
+                                  bool descending_at_peak) {
+  if (tau == 0.0 && segment.phoneme_class == PhonemeClass::closure) return 0.0;
   // log D = log α − θ |τ|^c with dτ/dt = −1, so d/dt = θ c |τ|^(c−1) sign(τ).
   const bool rising = tau > 0.0 || (tau == 0.0 && !descending_at_peak);
   const double theta = rising ? params.theta_plus_per_s : params.theta_minus_per_s;
@@ -238,12 +253,12 @@ void CoarticulationEvaluator::evaluate(std::span<const Segment> window, std::siz
         // from 0 at its start to D at its end (= start of s₋₆).
         const double tau_border = tau_s(segment, params, here.end_us);
         value = log_dominance(params, 0.0, tau_border) +
-                std::log(fade_in_shape(u, here_length_s, log_dominance_slope(params, tau_border, true)));
+                std::log(fade_in_shape(u, here_length_s, log_dominance_slope(segment, params, tau_border, true)));
       } else if (distance == -kWindowRadius) {
         // t lies in s₊₇: fade out from D at the current segment's start (= end of s₊₆).
         const double tau_border = tau_s(segment, params, here.start_us);
         value = log_dominance(params, 0.0, tau_border) +
-                std::log(fade_out_shape(u, here_length_s, log_dominance_slope(params, tau_border, false)));
+                std::log(fade_out_shape(u, here_length_s, log_dominance_slope(segment, params, tau_border, false)));
       } else {
         value = log_dominance(params, 0.0, tau_s(segment, params, t_us));
       }

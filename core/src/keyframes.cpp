@@ -3,15 +3,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <stdexcept>
 
 namespace lipsync {
 
 FrameScheduler::FrameScheduler(const ArticulationModel& model, ScheduleOptions options)
     : model_(model), options_(options) {
-  if (options_.fps < 1 || options_.fps > 240) {
-    throw std::invalid_argument("frame rate must be 1 to 240 fps, got " + std::to_string(options_.fps));
-  }
+  checked_fps(options_.fps, "fps");
 }
 
 std::int64_t FrameScheduler::grid_time(std::int64_t i) const {

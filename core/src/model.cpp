@@ -31,6 +31,11 @@ const std::array<std::string_view, 52> kArkitNames = {
     "cheekSquintRight",   "noseSneerLeft",      "noseSneerRight",      "tongueOut",
 };
 
+namespace {
+constexpr std::size_t kArkitJawOpen = 17;
+constexpr std::size_t kArkitMouthClose = 18;
+}  // namespace
+
 std::string_view to_string(PhonemeClass phoneme_class) {
   switch (phoneme_class) {
     case PhonemeClass::vowel: return "vowel";
@@ -338,6 +343,9 @@ void ArticulationModel::retarget_to_arkit(std::span<const float> channel_values,
     for (std::size_t c = 0; c < channels; ++c) sum += row[c] * channel_values[c];
     arkit_out[shape] = static_cast<float>(std::clamp(sum, 0.0, 1.0));
   }
+  // ARKit's mouthClose closes the lips *against the jaw's opening*: beyond jawOpen it would push
+  // them through each other, so it is capped there (docs/output-formats.md, "Closures in ARKit").
+  arkit_out[kArkitMouthClose] = std::min(arkit_out[kArkitMouthClose], arkit_out[kArkitJawOpen]);
 }
 
 }  // namespace lipsync

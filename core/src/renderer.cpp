@@ -9,14 +9,11 @@
 namespace lipsync {
 namespace {
 
-void check_options(const RenderOptions& options) {
-  if (options.lookahead < 0 || options.lookahead > kWindowRadius) {
-    throw std::invalid_argument("lookahead must be 0 to 7 segments, got " + std::to_string(options.lookahead));
-  }
-}
+static_assert(kLookaheadSetting.max == kWindowRadius && kLookaheadSetting.default_value == kWindowRadius,
+              "the exact lookahead is the whole coarticulation window");
 
 ScheduleOptions schedule_options(const RenderOptions& options) {
-  check_options(options);
+  checked_lookahead(options.lookahead, "lookahead");
   return {options.fps, options.fixed_rate};
 }
 

@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <stdexcept>
 
 #include "lipsync/error.hpp"
 #include "lipsync/phone_set.hpp"
@@ -22,10 +21,7 @@ std::string seconds(std::int64_t time_us) { return format_seconds(time_us) + " s
 SegmentBuilder::SegmentBuilder(const ArticulationModel& model, const PhoneSet& phone_set,
                                std::string source, SegmentOptions options)
     : model_(model), phone_set_(phone_set), source_(std::move(source)), options_(options) {
-  if (!(options_.closure_fraction > 0.0 && options_.closure_fraction < 1.0)) {
-    throw std::invalid_argument("closure fraction must lie strictly between 0 and 1, got " +
-                                std::to_string(options_.closure_fraction));
-  }
+  checked_closure_fraction(options_.closure_fraction, "closure_fraction");
 }
 
 void SegmentBuilder::push(const LabeledInterval& interval, std::vector<Segment>& out) {

@@ -27,6 +27,7 @@
 #include "lipsync/face/face_rig.hpp"
 #include "lipsync/face/face_solver.hpp"
 #include "lipsync/model.hpp"
+#include "lipsync/setting_ranges.hpp"
 #include "lipsync/track.hpp"
 #include "lipsync/v1/lipsync.pb.h"
 
@@ -51,7 +52,7 @@ class FaceLibrary {
   struct SolverReturn;
 
  public:
-  static constexpr int kMaxSubdivision = 2;
+  static constexpr int kMaxSubdivision = static_cast<int>(kMeshSubdivisionSetting.max);
   /// Solvers at rest kept per (level, rig) for the next stream.
   static constexpr std::size_t kPooledSolvers = 16;
 

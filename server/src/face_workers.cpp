@@ -1,3 +1,6 @@
+// The face's thread pool and lanes (face_workers.hpp). The priority is set by
+// one job per thread, posted first: each waits until all of them have started,
+// so every thread runs exactly one, and none runs face work before its own.
 #include "face_workers.hpp"
 
 #include <pthread.h>
@@ -6,95 +9,41 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
+#include <boost/asio/post.hpp>
+
 namespace lipsync::server {
+namespace {
 
-FaceWorkers::FaceWorkers(std::size_t threads, Priority priority) {
-  for (std::size_t i = 0; i < threads; ++i) threads_.emplace_back([this, priority] { run(priority); });
-}
-
-FaceWorkers::~FaceWorkers() {
-  {
-    std::lock_guard lock(mutex_);
-    stopping_ = true;
-  }
-  wake_.notify_all();
-  for (std::thread& thread : threads_) thread.join();
-}
-
-void FaceWorkers::post(std::function<void()> job) {
-  {
-    std::lock_guard lock(mutex_);
-    jobs_.push_back(std::move(job));
-  }
-  wake_.notify_one();
-}
-
-void FaceWorkers::run(Priority priority) {
-  // Both are per thread on Linux (PRIO_PROCESS with a thread id sets that
-  // thread's nice). A failure leaves the thread at normal priority, which is
-  // still correct, only less kind to the channel streams.
-  if (priority == Priority::idle) {
+/// Lowers the calling thread's scheduling priority. Both calls are per thread
+/// on Linux (PRIO_PROCESS with a thread id sets that thread's nice). A failure
+/// leaves the thread at normal priority, which is still correct, only less
+/// kind to the channel streams.
+void lower_this_thread(FaceWorkers::Priority priority) {
+  if (priority == FaceWorkers::Priority::idle) {
     const sched_param param{};
     pthread_setschedparam(pthread_self(), SCHED_IDLE, &param);
-  } else if (priority == Priority::low) {
+  } else if (priority == FaceWorkers::Priority::low) {
     setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), 10);
   }
-  for (;;) {
-    std::function<void()> job;
-    {
-      std::unique_lock lock(mutex_);
-      wake_.wait(lock, [&] { return stopping_ || !jobs_.empty(); });
-      if (jobs_.empty()) return;  // stopping, and nothing left
-      job = std::move(jobs_.front());
-      jobs_.pop_front();
-    }
-    job();
-  }
 }
 
-void FaceLane::post(std::function<void()> job) {
-  bool schedule = false;
-  {
-    std::lock_guard lock(mutex_);
-    jobs_.push_back(std::move(job));
-    schedule = !scheduled_;
-    scheduled_ = true;
+}  // namespace
+
+FaceWorkers::FaceWorkers(std::size_t threads, Priority priority)
+    : prioritised_(static_cast<std::ptrdiff_t>(threads)), pool_(threads) {
+  for (std::size_t i = 0; i < threads; ++i) {
+    boost::asio::post(pool_, [this, priority] {
+      lower_this_thread(priority);
+      prioritised_.arrive_and_wait();
+    });
   }
-  if (schedule) workers_.post([this] { run_next(); });
+  prioritised_.wait();
 }
 
-void FaceLane::retire(std::function<void()> last) {
-  {
-    std::lock_guard lock(mutex_);
-    if (scheduled_) {
-      last_ = std::move(last);
-      return;
-    }
-  }
-  last();
-}
+FaceWorkers::~FaceWorkers() { pool_.join(); }
 
-void FaceLane::run_next() {
-  std::function<void()> job;
-  {
-    std::lock_guard lock(mutex_);
-    job = std::move(jobs_.front());
-    jobs_.pop_front();
-  }
-  job();
-  std::function<void()> last;
-  {
-    std::lock_guard lock(mutex_);
-    if (!jobs_.empty()) {
-      // One job per turn: the lane goes to the back of the pool's queue, so
-      // lanes share the threads fairly.
-      workers_.post([this] { run_next(); });
-      return;
-    }
-    scheduled_ = false;
-    last = std::move(last_);
-  }
-  if (last) last();  // may destroy the lane: nothing of `this` is touched after it
-}
+void FaceWorkers::post(std::function<void()> job) { boost::asio::post(pool_, std::move(job)); }
+
+void FaceLane::post(std::function<void()> job) { boost::asio::post(strand_, std::move(job)); }
 
 }  // namespace lipsync::server

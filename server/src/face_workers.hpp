@@ -1,5 +1,5 @@
-// Where the physics face runs: a small pool of low-priority threads, off gRPC's
-// callback threads.
+// Where the physics face runs: a Boost.Asio thread_pool of low-priority
+// threads, off gRPC's callback threads.
 //
 // A mesh stream costs milliseconds per frame (FaceSolver steps) and about
 // 0.1 s to set up (the factorisation), which a reaction must not spend: gRPC
@@ -8,21 +8,22 @@
 // run at a lower scheduling priority (by default SCHED_IDLE: only on CPU time
 // no other thread wants), so when the machine is short of CPU the channel-only
 // streams keep their latency and the face streams slow down, not the other way
-// round.
+// round. Each pool thread lowers its own priority first thing, before it runs
+// any job.
 //
-// A FaceLane runs one stream's jobs in the order they were posted, one at a
-// time (frames must leave in order); different lanes share the threads, one
-// job at a time each, round robin. `retire` runs a last function once the
-// lane is idle: the reactor deletes itself through it, so no job outlives it.
+// A FaceLane is one stream's strand on the pool: its jobs run in the order
+// they were posted, one at a time (frames must leave in order); different
+// lanes run in parallel on the pool's threads. `retire` queues a last job
+// behind the others: the reactor deletes itself through it, so no job
+// outlives it.
 #pragma once
 
-#include <condition_variable>
 #include <cstddef>
-#include <deque>
 #include <functional>
-#include <mutex>
-#include <thread>
-#include <vector>
+#include <latch>
+
+#include <boost/asio/strand.hpp>
+#include <boost/asio/thread_pool.hpp>
 
 namespace lipsync::server {
 
@@ -32,45 +33,36 @@ class FaceWorkers {
   /// the rest of the server. Lowering a thread's priority needs no privilege.
   enum class Priority { idle, low, normal };
 
-  /// `threads` ≥ 1 threads at `priority`.
+  /// `threads` ≥ 1 threads at `priority` (set on every thread before this returns).
   FaceWorkers(std::size_t threads, Priority priority);
   /// Runs what is still queued, then joins.
   ~FaceWorkers();
   FaceWorkers(const FaceWorkers&) = delete;
   FaceWorkers& operator=(const FaceWorkers&) = delete;
 
+  /// Runs `job` on one of the threads.
   void post(std::function<void()> job);
+  boost::asio::thread_pool::executor_type executor() { return pool_.get_executor(); }
 
  private:
-  void run(Priority priority);
-
-  std::mutex mutex_;
-  std::condition_variable wake_;
-  std::deque<std::function<void()>> jobs_;
-  bool stopping_ = false;
-  std::vector<std::thread> threads_;
+  std::latch prioritised_;  // before pool_: outlives the threads' first jobs
+  boost::asio::thread_pool pool_;
 };
 
 class FaceLane {
  public:
-  explicit FaceLane(FaceWorkers& workers) : workers_(workers) {}
+  explicit FaceLane(FaceWorkers& workers) : strand_(boost::asio::make_strand(workers.executor())) {}
   FaceLane(const FaceLane&) = delete;
   FaceLane& operator=(const FaceLane&) = delete;
 
   /// Queues `job` behind the lane's earlier jobs.
   void post(std::function<void()> job);
-  /// Runs `last` once every queued job has run (at once, on this thread, if the
-  /// lane is idle). `last` may destroy the lane.
-  void retire(std::function<void()> last);
+  /// Runs `last` on a face thread once every job queued before it has run.
+  /// `last` may destroy the lane.
+  void retire(std::function<void()> last) { post(std::move(last)); }
 
  private:
-  void run_next();
-
-  FaceWorkers& workers_;
-  std::mutex mutex_;
-  std::deque<std::function<void()>> jobs_;
-  bool scheduled_ = false;  // a run_next is posted or running
-  std::function<void()> last_;
+  boost::asio::strand<boost::asio::thread_pool::executor_type> strand_;
 };
 
 }  // namespace lipsync::server

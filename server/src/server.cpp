@@ -57,10 +57,10 @@ void Server::shutdown(std::chrono::milliseconds drain) {
     // connections of clients that have finished their calls (until the
     // deadline) once a stream has run on them. So: refuse new calls, wait for
     // the running ones, then shut gRPC down at once (cancelling what is left).
-    impl_->service.begin_drain();
+    impl_->service.admission().begin_drain();
     if (auto* health = impl_->server->GetHealthCheckService()) health->Shutdown();
     const auto deadline = std::chrono::steady_clock::now() + drain;
-    while (impl_->service.calls_in_progress() > 0 && std::chrono::steady_clock::now() < deadline) {
+    while (impl_->service.admission().calls_in_progress() > 0 && std::chrono::steady_clock::now() < deadline) {
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
     }
     impl_->server->Shutdown(std::chrono::system_clock::now());
@@ -68,7 +68,7 @@ void Server::shutdown(std::chrono::milliseconds drain) {
   });
 }
 
-std::size_t Server::active_streams() const { return impl_->service.active_streams(); }
+std::size_t Server::active_streams() const { return impl_->service.admission().active_streams(); }
 
 std::size_t Server::session_count() const { return impl_->service.sessions().size(); }
 

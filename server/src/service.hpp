@@ -1,11 +1,11 @@
 // The LipSync service on gRPC's callback API. Each streaming call is a reactor
-// object owned by gRPC until OnDone; the service holds what calls share: the
-// model catalog, the session registry, the limits and the open-stream count.
+// object owned by gRPC until OnDone, defined next to its method in its own file
+// (animate.cpp, subscribe.cpp; Render in render.cpp, ListModels and GetModel in
+// models.cpp). The service holds what calls share: the model catalog, the
+// session registry, the configuration, admission control and the face.
 #pragma once
 
-#include <atomic>
-#include <cstddef>
-
+#include "admission.hpp"
 #include "catalog.hpp"
 #include "face_stream.hpp"
 #include "face_workers.hpp"
@@ -36,37 +36,22 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   grpc::ServerUnaryReactor* GetModel(grpc::CallbackServerContext* context, const v1::GetModelRequest* request,
                                      v1::ModelInfo* response) override;
 
-  std::size_t active_streams() const { return active_streams_.load(); }
   SessionRegistry& sessions() { return sessions_; }
   const ServerConfig& config() const { return config_; }
   const ModelCatalog& catalog() const { return catalog_; }
+  /// Which calls the server takes on (--max-streams, the drain).
+  Admission& admission() { return admission_; }
   /// Meshes and rigs shared by the streams that ask for the mesh output (built lazily).
   FaceLibrary& faces() { return faces_; }
   /// The low-priority threads the face runs on.
   FaceWorkers& face_workers() { return face_workers_; }
 
-  /// Counts a new stream in, or says which limit it is over (or that the server is draining).
-  grpc::Status admit_stream();
-  void release_stream() {
-    --active_streams_;
-    --calls_in_progress_;
-  }
-  /// Render calls: counted for the drain only (they are not streams).
-  grpc::Status admit_render();
-  void release_render() { --calls_in_progress_; }
-  /// From now on new calls are refused with UNAVAILABLE.
-  void begin_drain() { draining_ = true; }
-  /// Animate, Subscribe and Render calls running.
-  std::size_t calls_in_progress() const { return calls_in_progress_.load(); }
-
  private:
   const ServerConfig& config_;
   const ModelCatalog& catalog_;
   SessionRegistry sessions_;
+  Admission admission_;
   FaceLibrary faces_;
-  std::atomic<std::size_t> active_streams_{0};
-  std::atomic<std::size_t> calls_in_progress_{0};
-  std::atomic<bool> draining_{false};
   // Last, so that it is destroyed first: its destructor runs the jobs still
   // queued, which use the members above.
   FaceWorkers face_workers_;

@@ -3,6 +3,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <fstream>
 #include <sstream>
 
@@ -127,6 +129,26 @@ TEST(ArticulationModel, DumpedBuiltinJsonLoadsAgain) {
   const ArticulationModel model = ArticulationModel::from_json(ArticulationModel::builtin_json(), "dump");
   EXPECT_EQ(model.phonemes().size(), ArticulationModel::builtin().phonemes().size());
   EXPECT_EQ(model.arkit_matrix(), ArticulationModel::builtin().arkit_matrix());
+}
+
+TEST(ArticulationModel, ArkitMouthCloseNeverExceedsJawOpen) {
+  // mouthClose closes the lips against the jaw's opening; beyond jawOpen it would push them
+  // through each other in an ARKit rig.
+  const ArticulationModel& model = ArticulationModel::builtin();
+  const auto index = [](std::string_view name) {
+    return static_cast<std::size_t>(std::find(kArkitNames.begin(), kArkitNames.end(), name) - kArkitNames.begin());
+  };
+  std::vector<float> shapes(kArkitNames.size());
+  for (const PhonemeSpec& phoneme : model.phonemes()) {
+    const std::vector<float> channels(phoneme.targets.begin(), phoneme.targets.end());
+    model.retarget_to_arkit(channels, shapes);
+    EXPECT_LE(shapes[index("mouthClose")], shapes[index("jawOpen")]) << phoneme.name;
+  }
+  // A bilabial closure is sealed: mouthClose reaches jawOpen.
+  const auto& m = model.phoneme(*model.find_phoneme("m"));
+  model.retarget_to_arkit(std::vector<float>(m.targets.begin(), m.targets.end()), shapes);
+  EXPECT_GT(shapes[index("jawOpen")], 0.05F);
+  EXPECT_EQ(shapes[index("mouthClose")], shapes[index("jawOpen")]);
 }
 
 }  // namespace

@@ -1,14 +1,16 @@
 // The whole pipeline on real TTS output (Festival and flite, committed under
 // tests/data/formats/ by regenerate.sh there): parse, map through the phone
 // set, split stops, render with the built-in model, and check what a viewer
-// would check: the mouth is nearly shut at both key frames of every /p b m/
-// closure, and open on open vowels.
+// would check: the closing channels reach the closure's targets (within 5 %) at
+// both key frames of every /p b m/ closure, and the mouth opens on open vowels.
+// (tests/core/closure_real_speech_test.cpp does the same over a larger corpus.)
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <fstream>
 #include <sstream>
 
+#include "../support/closure_frames.hpp"
 #include "lipsync/formats.hpp"
 #include "lipsync/phone_set.hpp"
 #include "lipsync/renderer.hpp"
@@ -51,18 +53,14 @@ void expect_closures_are_shut(const Rendered& rendered, const std::string& name,
   const std::size_t jaw = channel("jaw_rotation");
   const Track& track = rendered.track;
   std::size_t bilabial_closures = 0;
-  float widest_at_closure = 0.0F;
   for (const Segment& segment : rendered.segments) {
     const std::string& phoneme = model.phoneme(segment.phoneme).name;
-    if (phoneme != "pcl" && phoneme != "bcl" && phoneme != "m") continue;
+    if (!testing::is_bilabial_closure(phoneme)) continue;
     ++bilabial_closures;
     for (std::int64_t key_time : {segment.start_us, segment.end_us}) {
       const auto it = std::find(track.t_us.begin(), track.t_us.end(), key_time);
       ASSERT_NE(it, track.t_us.end()) << name << ": no key frame at " << key_time << " µs (" << phoneme << ")";
-      const auto frame = static_cast<std::size_t>(it - track.t_us.begin());
-      EXPECT_NE(track.kinds[frame], FrameKind::uniform) << name << " at " << key_time;
-      EXPECT_LT(track.frame_values(frame)[jaw], 0.2F) << name << ": mouth open at " << key_time << " µs (" << phoneme << ")";
-      widest_at_closure = std::max(widest_at_closure, track.frame_values(frame)[jaw]);
+      EXPECT_NE(track.kinds[static_cast<std::size_t>(it - track.t_us.begin())], FrameKind::uniform) << name << " at " << key_time;
     }
     for (std::size_t f = 0; f < track.frame_count(); ++f) {
       if (track.t_us[f] > segment.start_us && track.t_us[f] < segment.end_us) {
@@ -71,10 +69,13 @@ void expect_closures_are_shut(const Rendered& rendered, const std::string& name,
     }
   }
   EXPECT_GT(bilabial_closures, 0U) << name;
+  for (const auto& closure : testing::closure_frames(model, rendered.segments, track)) {
+    EXPECT_LE(testing::closure_error(model, rendered.segments, track, closure), testing::kClosureTolerance)
+        << name << ": /" << closure.phoneme << "/ not closed at " << track.t_us[closure.frame] << " µs";
+  }
   float widest = 0.0F;
   for (std::size_t f = 0; f < track.frame_count(); ++f) widest = std::max(widest, track.frame_values(f)[jaw]);
   EXPECT_GT(widest, open_at_least) << name << ": the vowels never open the mouth";
-  EXPECT_GT(widest, 1.5F * widest_at_closure) << name << ": closures are not more closed than the vowels";
 }
 
 TEST(RealSpeech, FestivalMamaMadeABubbleShutsTheLipsAtEveryBilabial) {

@@ -270,12 +270,16 @@ TEST(LiveLinkFaceCsv, values_are_routed_by_name) {
 
 TEST(LiveLinkFaceCsv, every_arkit_shape_lands_in_its_own_column) {
   // One model per shape would be slow to write; instead drive all 52 shapes with
-  // distinct weights of one channel and compare by name.
+  // distinct weights of one channel and compare by name. mouthClose gets a weight below jawOpen's:
+  // the retargeting caps it at jawOpen (model.hpp).
+  const auto weight = [](std::size_t j) {
+    return kArkitNames[j] == "mouthClose" ? 0.1F : static_cast<float>(j + 1) / 64.0F;
+  };
   std::string arkit;
   for (std::size_t j = 0; j < kArkitNames.size(); ++j) {
     if (j > 0) arkit += ",";
     arkit += "\"" + std::string(kArkitNames[j]) + "\": {\"weights\": {\"jaw_rotation\": " +
-             std::to_string(static_cast<double>(j + 1) / 64.0) + "}}";
+             std::to_string(static_cast<double>(weight(j))) + "}}";
   }
   std::string json(kTinyModel);
   const auto begin = json.find("\"arkit\"");
@@ -291,8 +295,7 @@ TEST(LiveLinkFaceCsv, every_arkit_shape_lands_in_its_own_column) {
     pascal[0] = static_cast<char>(pascal[0] - 'a' + 'A');
     const auto column = std::find(header.begin(), header.end(), pascal);
     ASSERT_NE(column, header.end()) << pascal;
-    const float expected = static_cast<float>(j + 1) / 64.0F;
-    EXPECT_EQ(std::stof(cells[static_cast<std::size_t>(column - header.begin())]), expected) << pascal;
+    EXPECT_EQ(std::stof(cells[static_cast<std::size_t>(column - header.begin())]), weight(j)) << pascal;
   }
 }
 

@@ -16,12 +16,13 @@
 #include <vector>
 
 #include "lipsync/segment.hpp"
+#include "lipsync/setting_ranges.hpp"
 #include "lipsync/track.hpp"
 
 namespace lipsync {
 
 struct ScheduleOptions {
-  int fps = 30;             ///< 1 to 240
+  int fps = static_cast<int>(kFpsSetting.default_value);  ///< kFpsSetting: 1 to 240
   bool fixed_rate = false;  ///< uniform grid only, no key frames
 };
 
@@ -33,7 +34,7 @@ struct ScheduledFrame {
 
 class FrameScheduler {
  public:
-  /// Throws std::invalid_argument if fps is outside 1..240.
+  /// Throws SettingError (a std::invalid_argument) if fps is outside kFpsSetting.
   FrameScheduler(const ArticulationModel& model, ScheduleOptions options);
 
   /// Appends the frames whose time lies in `segment` (index `index`, the segments

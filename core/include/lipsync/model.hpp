@@ -6,7 +6,7 @@
 // Cohen–Massaro dominance function (Eq. 2 and 3 of Albrecht, Haber & Seidel
 // 2002): magnitude α, rates θ− / θ+, exponent c and peak offset t_off.
 // The model also carries a linear retargeting from channels to the 52 ARKit
-// blendshapes. It is data (a JSON file, docs/model.md), validated once on load;
+// blendshapes (with mouthClose capped at jawOpen). It is data (a JSON file, docs/model.md), validated once on load;
 // after that every lookup is by integer index.
 #pragma once
 
@@ -80,7 +80,8 @@ class ArticulationModel {
   int silence_phoneme() const { return silence_phoneme_; }
 
   /// ARKit weights (52, in kArkitNames order) for one frame of channel values:
-  /// w_j = clamp(Σ_i M[j][i] · v_i, 0, 1).
+  /// w_j = clamp(Σ_i M[j][i] · v_i, 0, 1), then mouthClose = min(mouthClose, jawOpen)
+  /// (ARKit closes the lips against the jaw's opening, never beyond it).
   void retarget_to_arkit(std::span<const float> channel_values, std::span<float> arkit_out) const;
   /// Row-major 52 × channel_count retargeting matrix.
   const std::vector<double>& arkit_matrix() const { return arkit_matrix_; }

@@ -18,19 +18,20 @@
 #include "lipsync/coarticulation.hpp"
 #include "lipsync/keyframes.hpp"
 #include "lipsync/segment.hpp"
+#include "lipsync/setting_ranges.hpp"
 #include "lipsync/track.hpp"
 
 namespace lipsync {
 
 struct RenderOptions {
-  int fps = 30;             ///< 1 to 240
+  int fps = static_cast<int>(kFpsSetting.default_value);  ///< kFpsSetting: 1 to 240
   bool fixed_rate = false;  ///< uniform grid only
   /// Segments after a frame's own that must be known before it is emitted
-  /// (0 to 7). 7 is exact; smaller values emit sooner and approximate.
-  int lookahead = kWindowRadius;
+  /// (kLookaheadSetting: 0 to 7). 7 is exact; smaller values emit sooner and approximate.
+  int lookahead = static_cast<int>(kLookaheadSetting.default_value);
 };
 
-/// Renders a whole utterance. Throws std::invalid_argument for bad options.
+/// Renders a whole utterance. Throws SettingError (a std::invalid_argument) for bad options.
 Track render_track(const ArticulationModel& model, const std::vector<Segment>& segments,
                    const RenderOptions& options = {});
 /// The same with the model's evaluator tables built once beforehand (a server
@@ -40,7 +41,7 @@ Track render_track(std::shared_ptr<const CoarticulationTables> tables, const std
 
 class StreamingRenderer {
  public:
-  /// Throws std::invalid_argument for bad options.
+  /// Throws SettingError (a std::invalid_argument) for bad options.
   StreamingRenderer(const ArticulationModel& model, const RenderOptions& options = {});
   /// The same with the model's evaluator tables built once beforehand.
   StreamingRenderer(std::shared_ptr<const CoarticulationTables> tables, const RenderOptions& options = {});

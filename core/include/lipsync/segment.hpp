@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "lipsync/model.hpp"
+#include "lipsync/setting_ranges.hpp"
 #include "lipsync/utterance.hpp"
 
 namespace lipsync {
@@ -38,7 +39,7 @@ struct SegmentOptions {
   /// Share of a /p b/ segment given to its closure when the input has no separate
   /// closure label. Bilabial stop closures take most of the stop's duration
   /// (about 60 to 70 %); 0.6 is the default. Range (0, 1).
-  double closure_fraction = 0.6;
+  double closure_fraction = kDefaultClosureFraction;
 };
 
 class SegmentBuilder {

@@ -6,13 +6,13 @@
 #include <cmath>
 #include <map>
 #include <numbers>
-#include <stdexcept>
 #include <string>
 #include <unordered_map>
 
 #include <nlohmann/json.hpp>
 
 #include "face/arch.hpp"
+#include "lipsync/setting_ranges.hpp"
 #include "face/embedded_face.hpp"
 #include "lipsync/error.hpp"
 
@@ -162,8 +162,7 @@ Subdivision subdivide(std::span<const std::array<std::uint32_t, 3>> triangles, s
 }
 
 FaceMesh build_face_mesh(const FaceAsset& asset, int subdivision_level, const FaceAnatomy& anatomy) {
-  if (subdivision_level < 0 || subdivision_level > 2)
-    throw std::invalid_argument("face subdivision level must be 0, 1 or 2, not " + std::to_string(subdivision_level));
+  checked_mesh_subdivision(subdivision_level, "subdivision_level");
   FaceMesh mesh;
   mesh.anatomy = anatomy;
   mesh.subdivision_level = subdivision_level;

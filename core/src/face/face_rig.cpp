@@ -138,6 +138,17 @@ FaceRig FaceRig::from_json(std::string_view json_text, std::string_view source, 
       spec.closure_direction = {d.x / length, d.y / length, d.z / length};
       spec.purse = in.number(json, "purse", where, 0.0, 1.0, 0.0);
       spec.protrusion_m = in.number(json, "protrusion_m", where, -0.02, 0.02, 0.0);
+      if (json.contains("jaw_compensation")) {
+        const std::string comp_where = where + " jaw_compensation";
+        const auto& comp = json["jaw_compensation"];
+        if (spec.bone != Bone::jaw) in.fail(where, "field 'jaw_compensation' needs 'bone' = 'jaw'");
+        spec.compensation_channel = in.channel(model, in.text(comp, "driver", comp_where), "muscle", comp_where);
+        spec.compensation_from = in.number(comp, "from", comp_where, 0.0, 1.0);
+        spec.compensation_full = in.number(comp, "full", comp_where, 0.0, 1.0);
+        if (!(spec.compensation_full > spec.compensation_from))
+          in.fail(comp_where, "field 'full' must be greater than field 'from'");
+        spec.compensation_share = in.number(comp, "share", comp_where, 0.0, 1.0);
+      }
     }
     rig.muscles_.push_back(std::move(spec));
   }

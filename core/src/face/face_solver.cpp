@@ -98,12 +98,25 @@ struct Binding {
   V3 displacement_m;  // per unit contraction, in the muscle's bone frame, times the binding share β
 };
 
+struct CompensatedNode {
+  std::uint32_t node;
+  double share;  // the binding share β of the compensating muscle
+};
+
 struct MuscleBindings {
   std::size_t channel;
   bool on_jaw;
   std::vector<Binding> bindings;          // displaced by c · displacement
   std::vector<Binding> closure_bindings;  // a sphincter's closure: by min(c, saturation) · displacement
+  // A sphincter's protrusion: by max(c − saturation, 0) / (1 − saturation) · displacement, so that a
+  // closing lip (c up to the saturation) meets the other without being pushed forward of it.
+  std::vector<Binding> protrusion_bindings;
   double closure_saturation = 1.0;
+  // Lip–jaw compensation (rig.json "jaw_compensation"): each node gives back s · β of the jaw's
+  // displacement of its rest position, s = share · smoothstep(from, full, c_driver).
+  std::size_t compensation_channel = MuscleSpec::kNoChannel;
+  double compensation_from = 0, compensation_full = 1, compensation_share = 0;
+  std::vector<CompensatedNode> compensated;
 };
 
 // Closest point of a polyline: distance and arc-length parameter t ∈ [0, 1] (0 at the first point).
@@ -420,6 +433,7 @@ struct FaceSolver::Impl {
     std::vector<std::vector<std::pair<double, V3>>> per_muscle(rig.muscles().size(),
                                                                 std::vector<std::pair<double, V3>>(n, {0.0, V3{}}));
     std::vector<std::vector<V3>> closure(rig.muscles().size(), std::vector<V3>(n, V3{}));
+    std::vector<std::vector<V3>> protrusion(rig.muscles().size(), std::vector<V3>(n, V3{}));
     for (std::size_t m = 0; m < rig.muscles().size(); ++m) {
       const MuscleSpec& spec = rig.muscles()[m];
       const bool on_jaw = spec.bone == Bone::jaw;
@@ -446,8 +460,9 @@ struct FaceSolver::Impl {
             const double ramp = smoothstep(spec.mobile_from, 1.0, t);
             d = (spec.max_shortening_m * ramp) * pull + (spec.bulge_m * 4.0 * t * (1.0 - t)) * rest_normal[i];
           } else {
-            d = V3{spec.purse * (centre.x - rest[i].x), 0.0, spec.protrusion_m};
+            d = V3{spec.purse * (centre.x - rest[i].x), 0.0, 0.0};
             closure[m][i] = spec.closure_m * V3(spec.closure_direction);
+            protrusion[m][i] = V3{0.0, 0.0, spec.protrusion_m};
           }
           per_muscle[m][i] = {w, d};
         }
@@ -461,20 +476,29 @@ struct FaceSolver::Impl {
     std::vector<double> bone_share_sum(n, 0.0), jaw_bound(n, 0.0);
     for (std::size_t m = 0; m < per_muscle.size(); ++m) {
       const MuscleSpec& spec = rig.muscles()[m];
-      MuscleBindings mb{spec.channel, spec.bone == Bone::jaw, {}, {}, spec.closure_saturation};
+      MuscleBindings mb{spec.channel, spec.bone == Bone::jaw, {}, {}, {}, spec.closure_saturation,
+                        spec.compensation_channel, spec.compensation_from, spec.compensation_full,
+                        spec.compensation_share, {}};
       for (std::size_t i = 0; i < n; ++i) {
         if (per_muscle[m][i].first <= 0) continue;
         const double beta = params.binding_stiffness_n_per_m3 * node_area_m2[i] * per_muscle[m][i].first / total[i];
         bone_share_sum[i] += beta;
         if (mb.on_jaw) jaw_bound[i] += beta;
         mb.bindings.push_back({static_cast<std::uint32_t>(i), beta * per_muscle[m][i].second});
-        if (spec.kind == MuscleKind::sphincter)
+        if (spec.kind == MuscleKind::sphincter) {
           mb.closure_bindings.push_back({static_cast<std::uint32_t>(i), beta * closure[m][i]});
+          mb.protrusion_bindings.push_back({static_cast<std::uint32_t>(i), beta * protrusion[m][i]});
+        }
+        if (mb.compensation_channel != MuscleSpec::kNoChannel)
+          mb.compensated.push_back({static_cast<std::uint32_t>(i), 0.0});
       }
       muscles.push_back(std::move(mb));
     }
     for (std::size_t i = 0; i < n; ++i) jaw_share[i] = (1.0 - bone_share_sum[i]) * jaw_share[i] + jaw_bound[i];
     attachment_n_per_m = std::move(total);
+    // A compensating lip holds its node's whole jaw-carried motion: the share is the node's jaw share.
+    for (MuscleBindings& mb : muscles)
+      for (CompensatedNode& node : mb.compensated) node.share = jaw_share[node.node];
   }
 
   void build_collisions() {
@@ -556,6 +580,8 @@ struct FaceSolver::Impl {
     for (MuscleBindings& mb : muscles) {
       for (Binding& b : mb.bindings) b.node = internal_index[b.node];
       for (Binding& b : mb.closure_bindings) b.node = internal_index[b.node];
+      for (Binding& b : mb.protrusion_bindings) b.node = internal_index[b.node];
+      for (CompensatedNode& c : mb.compensated) c.node = internal_index[c.node];
     }
     auto mapped = [&](const std::vector<std::uint32_t>& ids) {
       std::vector<std::uint32_t> out;
@@ -632,6 +658,19 @@ struct FaceSolver::Impl {
       target[3 * i + 2] = carried.z;
     }
     for (const MuscleBindings& mb : muscles) {
+      if (!mb.compensated.empty()) {
+        // The lip holds s of its jaw-closed position: minus s · β of the jaw's displacement.
+        const double s = mb.compensation_share * smoothstep(mb.compensation_from, mb.compensation_full,
+                                                            channel(values, mb.compensation_channel, 0.0, 1.0));
+        if (s > 0.0) {
+          for (const CompensatedNode& node : mb.compensated) {
+            const V3 drop = jaw.apply(rest[node.node]) - rest[node.node];
+            target[3 * node.node] -= s * node.share * drop.x;
+            target[3 * node.node + 1] -= s * node.share * drop.y;
+            target[3 * node.node + 2] -= s * node.share * drop.z;
+          }
+        }
+      }
       const double c = channel(values, mb.channel, 0.0, 1.0);
       if (c == 0.0) continue;
       const auto displace = [&](const std::vector<Binding>& bindings, double scale) {
@@ -644,6 +683,8 @@ struct FaceSolver::Impl {
       };
       displace(mb.bindings, c);
       displace(mb.closure_bindings, std::min(c, mb.closure_saturation));
+      if (c > mb.closure_saturation && mb.closure_saturation < 1.0)
+        displace(mb.protrusion_bindings, (c - mb.closure_saturation) / (1.0 - mb.closure_saturation));
     }
   }
 
@@ -686,6 +727,9 @@ struct FaceSolver::Impl {
         x[3 * i + 1] += static_cast<double>(d[1]);
         x[3 * i + 2] += static_cast<double>(d[2]);
       }
+      // The lip–lip contact is a constraint of every iteration: its projection is where the
+      // next iteration's springs start from, so the lips deform around the contact.
+      resolve_lip_contact();
     }
     resolve_contacts();
     const double inv_s = 1.0 / s;
@@ -736,20 +780,30 @@ struct FaceSolver::Impl {
     x[3 * i + 2] = p.z;
   }
 
-  void resolve_contacts() {
-    // Lips do not pass through each other: a facing upper/lower pair that has crossed (upper below
-    // lower) is pressed together at its midpoint.
+  // Lip–lip contact: a facing upper/lower pair (lip line and inner ring) may touch but not cross.
+  // Lips pressed together (the upper node at or below the lower one) are wet and stick where they
+  // meet: the pair is projected onto its mass-weighted meeting point. Run after every local–global
+  // iteration, so that the next iteration's springs start from the projection and the lips deform
+  // around the contact, and once more at the end of the step, so that no step ends crossed.
+  void resolve_lip_contact() {
     auto press = [&](const std::vector<std::uint32_t>& upper, const std::vector<std::uint32_t>& lower) {
       for (std::size_t k = 0; k < upper.size() && k < lower.size(); ++k) {
-        const V3 u = node(upper[k]), l = node(lower[k]);
-        if (u.y >= l.y) continue;
-        const V3 mid = 0.5 * (u + l);
-        set_node(upper[k], mid);
-        set_node(lower[k], mid);
+        const std::size_t u = upper[k], l = lower[k];
+        if (x[3 * u + 1] > x[3 * l + 1]) continue;
+        const double upper_share = mass_kg[l] / (mass_kg[u] + mass_kg[l]);
+        for (const std::size_t c : {1U, 2U}) {
+          const double d = x[3 * l + c] - x[3 * u + c];
+          x[3 * u + c] += upper_share * d;
+          x[3 * l + c] -= (1.0 - upper_share) * d;
+        }
       }
     };
     press(upper_lip_line, lower_lip_line);
     press(upper_inner_ring, lower_inner_ring);
+  }
+
+  // Teeth and skull keep the skin outside; the lip contact comes last, so no step ends crossed.
+  void resolve_contacts() {
     const double margin = params.teeth_margin_m;
     for (std::size_t i = 0; i < n; ++i) {
       if (teeth_contact[i]) {
@@ -774,6 +828,7 @@ struct FaceSolver::Impl {
         if (depth < 0) set_node(i, p - depth * normal);
       }
     }
+    resolve_lip_contact();
   }
 
   void write_output() {

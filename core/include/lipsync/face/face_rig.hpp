@@ -11,7 +11,9 @@
 // (pursing) and forward (protrusion). The closure saturates: contraction beyond
 // `closure_saturation` purses and protrudes the lip further but closes it no more, so that a
 // strongly rounded vowel (/uw/, c ≈ 0.85) keeps an opening while a bilabial closure (c ≈ 0.4,
-// with the mentalis) seals. Each muscle rides on a bone: the skull, or the jaw.
+// with the mentalis) seals. The lower part also compensates the jaw: driven by the mentalis, it
+// holds the lower lip up against the jaw's opening, so the lips seal over the few millimetres of
+// incisor opening that real bilabials have. Each muscle rides on a bone: the skull, or the jaw.
 #pragma once
 
 #include <cstddef>
@@ -50,6 +52,16 @@ struct MuscleSpec {
   Vec3 closure_direction{};        ///< unit vector (toward the lip midline)
   double purse = 0.0;              ///< fraction of the horizontal offset to the mouth centre removed at c = 1
   double protrusion_m = 0.0;       ///< forward (+z) motion at c = 1
+  /// Lip–jaw compensation (optional, sphincter parts on the jaw): as the contraction of the
+  /// `compensation_channel` rises from `compensation_from` to `compensation_full` (smoothstep), the
+  /// part's bound lip holds up to `compensation_share` of its jaw-closed position against the jaw's
+  /// opening, so that lips that mean to meet meet over an open jaw (motor equivalence: Abbs &
+  /// Gracco 1984). kNoChannel when absent.
+  static constexpr std::size_t kNoChannel = static_cast<std::size_t>(-1);
+  std::size_t compensation_channel = kNoChannel;
+  double compensation_from = 0.0;
+  double compensation_full = 1.0;
+  double compensation_share = 0.0;
 };
 
 class FaceRig {

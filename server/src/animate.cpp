@@ -1,0 +1,311 @@
+// Animate: one bidirectional stream per utterance. Settings first, then
+// phoneme chunks, then `end`; back come a header, frame batches as the
+// incremental renderer releases them, and a summary. The reactor is local to
+// this file and made by LipSyncService::Animate at its end.
+//
+// Reactions never block: the engine costs about a microsecond per frame, so
+// frames are computed in OnReadDone, and writes go through an Outbox (one write
+// in flight, Finish only when none is). A producer that reads its frames slower
+// than it sends phonemes is held back: while thousands of its frames wait, its
+// stream reads no more phonemes, and HTTP/2 flow control stops the client.
+// With a session name, every message is published to the session first, so
+// subscribers (subscribe.cpp) see what the producer sees.
+//
+// The mesh output (face_stream.hpp) is the exception to "cheap": a FaceSolver
+// costs about a millisecond per frame and tens of ms to build (streams take
+// built ones from a pool when they can). A stream that asks for it gets a
+// FaceLane (face_workers.hpp): its solver is built, its frames are encoded and
+// everything it sends after its header (frames, summary, Finish) leaves from
+// low-priority face threads, in order; the reactions only queue the released
+// frames. Streams that do not ask for the mesh never create or touch a solver
+// or a lane.
+#include <algorithm>
+#include <atomic>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <spdlog/spdlog.h>
+
+#include "call_log.hpp"
+#include "lipsync/renderer.hpp"
+#include "outbox.hpp"
+#include "phoneme_input.hpp"
+#include "plan.hpp"
+#include "service.hpp"
+#include "wire.hpp"
+
+namespace lipsync::server {
+namespace {
+
+// Backpressure on a producer that reads its frames slower than it sends
+// phonemes: with more than kReadPauseFrames frames waiting for it (queued for
+// writing, or for its face), the stream stops reading phonemes, so HTTP/2 flow
+// control holds the client back; it reads again once at most kReadResumeFrames wait.
+constexpr std::size_t kReadPauseFrames = 4096;
+constexpr std::size_t kReadResumeFrames = 1024;
+
+class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, v1::TrackMessage>,
+                             public OutboxTarget {
+ public:
+  AnimateReactor(LipSyncService& service, grpc::CallbackServerContext* context)
+      : service_(service), context_(context), outbox_(*this), started_(Clock::now()) {
+    const grpc::Status admission = service_.admission().admit_stream();
+    if (!admission.ok()) {
+      outbox_.close(admission);
+      return;
+    }
+    admitted_ = true;
+    spdlog::info("Animate start peer={}", context_->peer());
+    StartRead(&request_);
+  }
+
+  void OnReadDone(bool ok) override {
+    if (!ok) {
+      if (phase_ == Phase::ended) {
+        in_order([this] { outbox_.close(grpc::Status::OK); });
+      } else {
+        fail(invalid("the client closed the stream before `end` (after " + std::to_string(phonemes()) +
+                     " phonemes)"),
+             "producer disconnected before the end of the utterance");
+      }
+      return;
+    }
+    grpc::Status status;
+    try {
+      status = handle(request_);
+    } catch (const std::exception& error) {
+      status = grpc::Status(grpc::StatusCode::INTERNAL, error.what());
+    }
+    if (!status.ok()) {
+      fail(status, "producer failed: " + status.error_message());
+      return;
+    }
+    std::lock_guard lock(flow_mutex_);
+    if (frames_waiting() > kReadPauseFrames) {
+      read_paused_ = true;  // a write is in flight or a face job queued: its completion resumes
+      return;
+    }
+    StartRead(&request_);
+  }
+
+  void OnWriteDone(bool ok) override {
+    outbox_.on_write_done(ok);
+    std::lock_guard lock(flow_mutex_);
+    if (read_paused_ && frames_waiting() <= kReadResumeFrames) {
+      read_paused_ = false;
+      StartRead(&request_);
+    }
+  }
+
+  void OnCancel() override {
+    stopped_ = true;
+    outbox_.abort(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
+    fail_session("producer disconnected: the stream was cancelled");
+  }
+
+  void OnDone() override {
+    const auto status = outbox_.final_status().value_or(grpc::Status::OK);
+    if (admitted_) {
+      spdlog::info("Animate end peer={} session='{}' phonemes={} frames={} duration_ms={:.1f} status={}",
+                   context_->peer(), session_name_, phonemes(), frames_sent_, elapsed_ms(started_),
+                   status_name(status));
+      service_.admission().release_stream();
+    } else {
+      spdlog::warn("Animate refused peer={} status={}", context_->peer(), status_name(status));
+    }
+    stopped_ = true;
+    if (lane_) {
+      lane_->retire([this] { delete this; });  // after the face jobs still queued
+    } else {
+      delete this;
+    }
+  }
+
+  void start_write(const v1::TrackMessage* message) override { StartWrite(message); }
+  void finish(const grpc::Status& status) override { Finish(status); }
+
+ private:
+  enum class Phase { awaiting_settings, streaming, ended };
+
+  grpc::Status handle(const v1::AnimateRequest& request) {
+    switch (phase_) {
+      case Phase::awaiting_settings:
+        if (!request.has_settings()) return invalid("first message must be settings");
+        return start(request.settings());
+      case Phase::streaming:
+        if (request.has_phonemes()) return add_phonemes(request.phonemes());
+        if (request.has_end()) return end();
+        if (request.has_settings()) return invalid("settings sent twice: only the first message may be settings");
+        return invalid("empty AnimateRequest after " + std::to_string(phonemes()) + " phonemes");
+      case Phase::ended:
+        if (request.has_phonemes() && request.phonemes().phonemes_size() > 0) {
+          const auto& phoneme = request.phonemes().phonemes(0);
+          return invalid(std::string(kStreamSource) + ":" + std::to_string(phonemes() + 1) + ": phoneme '" +
+                         phoneme.label() + "': received after `end`");
+        }
+        return invalid("message received after `end` (the utterance had " + std::to_string(phonemes()) +
+                       " phonemes)");
+    }
+    return grpc::Status::OK;
+  }
+
+  grpc::Status start(const v1::AnimationSettings& settings) {
+    if (auto status = resolve_settings(settings, service_.catalog(), true, plan_); !status.ok()) return status;
+    if (auto status = prepare_face(plan_, service_.faces(), face_setup_); !status.ok()) return status;
+    auto header = std::make_shared<v1::TrackMessage>();
+    *header->mutable_header() = plan_.header;
+    if (!settings.session().empty()) {
+      std::shared_ptr<Session> session;
+      if (auto status = service_.sessions().open(settings.session(), header, session); !status.ok()) {
+        return status;
+      }
+      std::lock_guard lock(session_mutex_);
+      session_ = std::move(session);
+      session_name_ = settings.session();
+    }
+    input_.emplace(plan_, service_.config());
+    renderer_.emplace(plan_.model->tables, plan_.engine.render);
+    track_.channel_count = plan_.model->model->channel_count();
+    track_.fps = plan_.engine.render.fps;
+    outbox_.push(header);
+    if (plan_.mesh) {
+      // From here on everything that leaves this stream goes through the lane, in order.
+      lane_.emplace(service_.face_workers());
+      lane_->post([this, encoding = plan_.mesh_encoding] {
+        if (!stopped_) {
+          face_ = std::make_unique<FaceStream>(*face_setup_.topology,
+                                               service_.faces().solver(*face_setup_.topology, *face_setup_.rig),
+                                               encoding);
+        }
+      });
+    }
+    phase_ = Phase::streaming;
+    return grpc::Status::OK;
+  }
+
+  grpc::Status add_phonemes(const v1::PhonemeChunk& chunk) {
+    for (const v1::Phoneme& phoneme : chunk.phonemes()) {
+      if (auto status = input_->push(phoneme, segments_); !status.ok()) return status;
+      for (const Segment& segment : segments_) renderer_->push(segment, track_);
+      segments_.clear();
+    }
+    send_frames();
+    return grpc::Status::OK;
+  }
+
+  grpc::Status end() {
+    renderer_->finish(track_);
+    send_frames();
+    in_order([this, phonemes = phonemes(), duration_us = input_->end_us()] {
+      auto summary = std::make_shared<v1::TrackMessage>();
+      encode_summary(frames_sent_, phonemes, duration_us, *summary->mutable_summary());
+      if (auto session = current_session()) session->finish(summary);
+      outbox_.push(summary);
+    });
+    phase_ = Phase::ended;
+    return grpc::Status::OK;
+  }
+
+  /// Sends the frames the renderer released since the last call.
+  void send_frames() {
+    if (track_.frame_count() == 0) return;
+    if (!lane_) {
+      publish(track_);
+      track_.clear();
+      return;
+    }
+    auto released = std::make_shared<Track>();
+    released->channel_count = track_.channel_count;
+    released->fps = track_.fps;
+    std::swap(*released, track_);
+    frames_in_lane_ += released->frame_count();
+    lane_->post([this, released] {
+      // Counted out before they reach the outbox, so the write completion that
+      // follows sees them only there (and can resume reading).
+      frames_in_lane_ -= released->frame_count();
+      if (!stopped_) publish(*released);
+    });
+  }
+
+  /// Phonemes received so far.
+  std::size_t phonemes() const { return input_ ? input_->count() : 0; }
+
+  std::size_t frames_waiting() const { return outbox_.queued_frames() + frames_in_lane_.load(); }
+
+  void publish(const Track& track) {
+    const std::size_t per_batch = face_setup_.frames_per_batch;
+    for (std::size_t begin = 0; begin < track.frame_count(); begin += per_batch) {
+      const std::size_t end = std::min(track.frame_count(), begin + per_batch);
+      auto message = std::make_shared<v1::TrackMessage>();
+      encode_frames(plan_, track, begin, end, frames_sent_, *message->mutable_frames(), face_.get());
+      frames_sent_ += end - begin;
+      // The session first: once the producer has seen a batch, subscribers can see it too.
+      if (auto session = current_session()) session->publish(message, end - begin);
+      outbox_.push(message, end - begin);
+    }
+  }
+
+  /// Runs `step` now, or, for a mesh stream, after the face work queued before it.
+  void in_order(std::function<void()> step) {
+    if (!lane_) {
+      step();
+      return;
+    }
+    lane_->post([this, step = std::move(step)] {
+      if (!stopped_) step();
+    });
+  }
+
+  void fail(const grpc::Status& status, const std::string& reason) {
+    stopped_ = true;
+    outbox_.close(status);
+    fail_session(reason);
+  }
+
+  void fail_session(const std::string& reason) {
+    if (auto session = current_session()) session->fail(reason);
+  }
+
+  std::shared_ptr<Session> current_session() {
+    std::lock_guard lock(session_mutex_);
+    return session_;
+  }
+
+  LipSyncService& service_;
+  grpc::CallbackServerContext* context_;
+  Outbox outbox_;
+  const Clock::time_point started_;
+  bool admitted_ = false;
+  Phase phase_ = Phase::awaiting_settings;
+  v1::AnimateRequest request_;
+  Plan plan_;
+  std::optional<PhonemeInput> input_;
+  std::optional<StreamingRenderer> renderer_;
+  // Only when the mesh is asked for: the face is built and stepped on the lane.
+  FaceSetup face_setup_;
+  std::optional<FaceLane> lane_;
+  std::unique_ptr<FaceStream> face_;
+  std::atomic<bool> stopped_ = false;  // failed, cancelled or done: queued face work is skipped
+  std::vector<Segment> segments_;
+  Track track_;
+  std::atomic<std::uint64_t> frames_sent_ = 0;
+  std::atomic<std::size_t> frames_in_lane_ = 0;
+  std::mutex flow_mutex_;    // orders the read-pause decision against write completions
+  bool read_paused_ = false;
+  std::mutex session_mutex_;
+  std::shared_ptr<Session> session_;
+  std::string session_name_;
+};
+
+}  // namespace
+
+grpc::ServerBidiReactor<v1::AnimateRequest, v1::TrackMessage>* LipSyncService::Animate(
+    grpc::CallbackServerContext* context) {
+  return new AnimateReactor(*this, context);
+}
+
+}  // namespace lipsync::server

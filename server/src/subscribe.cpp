@@ -1,0 +1,129 @@
+// Subscribe: follow a named session's messages (session.hpp) from the
+// beginning (what the session still holds) or from now, through an Outbox
+// with a bounded queue. A subscriber that falls more than
+// --subscriber-queue-frames behind is cut off with RESOURCE_EXHAUSTED; if it
+// has also stopped reading, so that even that status cannot leave, an alarm
+// cancels the call after --stalled-subscriber-ms. The reactor is local to this
+// file and made by LipSyncService::Subscribe at its end.
+#include <chrono>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include <grpcpp/alarm.h>
+#include <spdlog/spdlog.h>
+
+#include "call_log.hpp"
+#include "outbox.hpp"
+#include "service.hpp"
+
+namespace lipsync::server {
+namespace {
+
+class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>, public OutboxTarget {
+ public:
+  SubscribeReactor(LipSyncService& service, grpc::CallbackServerContext* context,
+                   const v1::SubscribeRequest& request)
+      : service_(service),
+        context_(context),
+        session_name_(request.session()),
+        started_(Clock::now()),
+        outbox_(std::make_shared<Outbox>(
+            *this, service.config().subscriber_queue_frames,
+            "subscriber fell behind: more than " + std::to_string(service.config().subscriber_queue_frames) +
+                " frames waiting (--subscriber-queue-frames=" +
+                std::to_string(service.config().subscriber_queue_frames) + ")")) {
+    const grpc::Status admission = service_.admission().admit_stream();
+    if (!admission.ok()) {
+      outbox_->close(admission);
+      return;
+    }
+    admitted_ = true;
+    session_ = service_.sessions().find(session_name_);
+    if (!session_) {
+      outbox_->close({grpc::StatusCode::NOT_FOUND,
+                      "no session named '" + session_name_ + "' (never opened, or ended more than " +
+                          std::to_string(service_.config().session_retention_ms) + " ms ago)"});
+      return;
+    }
+    const bool from_beginning = request.start() != v1::SubscribeRequest::START_FROM_NOW;
+    const grpc::Status attached =
+        session_->attach(outbox_, from_beginning, service_.config().max_subscribers_per_session);
+    if (!attached.ok()) outbox_->close(attached);
+  }
+
+  void OnWriteDone(bool ok) override { outbox_->on_write_done(ok); }
+  void OnCancel() override { outbox_->abort(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled")); }
+
+  void OnDone() override {
+    stall_guard_->release();
+    if (session_) session_->detach(outbox_.get());
+    const auto status = outbox_->final_status().value_or(grpc::Status::OK);
+    if (admitted_) {
+      spdlog::info("Subscribe end peer={} session='{}' frames={} duration_ms={:.1f} status={}", context_->peer(),
+                   session_name_, frames_sent_, elapsed_ms(started_), status_name(status));
+      service_.admission().release_stream();
+    } else {
+      spdlog::warn("Subscribe refused peer={} status={}", context_->peer(), status_name(status));
+    }
+    delete this;
+  }
+
+  void start_write(const v1::TrackMessage* message) override {
+    if (message->has_frames()) frames_sent_ += static_cast<std::uint64_t>(message->frames().t_us_size());
+    StartWrite(message);
+  }
+  void finish(const grpc::Status& status) override { Finish(status); }
+
+  // Cut off with a write in flight: that write only completes when the client
+  // reads, and Finish must wait for it. Give the client the grace period to
+  // read on (it then gets RESOURCE_EXHAUSTED), else cancel the call.
+  void on_stalled() override {
+    const auto deadline = std::chrono::system_clock::now() +
+                          std::chrono::milliseconds(service_.config().stalled_subscriber_ms);
+    stall_alarm_.Set(deadline, [guard = stall_guard_](bool fired) {
+      if (fired) guard->cancel();
+    });
+  }
+
+ private:
+  /// Lets the alarm cancel the call only while the reactor still exists.
+  class StallGuard {
+   public:
+    explicit StallGuard(grpc::CallbackServerContext* context) : context_(context) {}
+    void cancel() {
+      std::lock_guard lock(mutex_);
+      if (!context_) return;
+      spdlog::warn("Subscribe cancelled peer={}: it stopped reading after it was cut off", context_->peer());
+      context_->TryCancel();
+    }
+    void release() {
+      std::lock_guard lock(mutex_);
+      context_ = nullptr;
+    }
+
+   private:
+    std::mutex mutex_;
+    grpc::CallbackServerContext* context_;
+  };
+
+  LipSyncService& service_;
+  grpc::CallbackServerContext* context_;
+  const std::string session_name_;
+  const Clock::time_point started_;
+  std::shared_ptr<Outbox> outbox_;
+  std::shared_ptr<Session> session_;
+  bool admitted_ = false;
+  std::uint64_t frames_sent_ = 0;
+  std::shared_ptr<StallGuard> stall_guard_ = std::make_shared<StallGuard>(context_);
+  grpc::Alarm stall_alarm_;
+};
+
+}  // namespace
+
+grpc::ServerWriteReactor<v1::TrackMessage>* LipSyncService::Subscribe(grpc::CallbackServerContext* context,
+                                                                      const v1::SubscribeRequest* request) {
+  return new SubscribeReactor(*this, context, *request);
+}
+
+}  // namespace lipsync::server

@@ -1,0 +1,98 @@
+// The closure promise on the simulated face, on real TTS timings (tests/data/closures): the track
+// is stepped frame by frame exactly as lipsyncd's mesh stream does (one FaceSolver at subdivision
+// level 1, each frame's channels held for the interval since the previous frame), and at every
+// bilabial key frame the lips are sealed (inner-lip gap ≤ 0.5 mm over the middle 20 mm of the
+// mouth) while at every labiodental key frame the lower lip is within 1 mm of the upper teeth; the
+// open vowels still open (≥ 8 mm), and the lips never cross.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <map>
+
+#include "../support/closure_frames.hpp"
+#include "lip_measures.hpp"
+#include "lipsync/face/face_mesh.hpp"
+#include "lipsync/face/face_rig.hpp"
+#include "lipsync/face/face_solver.hpp"
+#include "lipsync/renderer.hpp"
+
+namespace lipsync::face {
+namespace {
+
+using lipsync::testing::ClosurePlace;
+
+constexpr double kSealedM = 0.0005;
+constexpr double kTouchingTeethM = 0.001;
+constexpr double kOpenVowelM = 0.008;
+
+const ArticulationModel& model() { return ArticulationModel::builtin(); }
+
+const FaceMesh& level1() {
+  static const FaceMesh mesh = build_face_mesh(FaceAsset::builtin(), 1);
+  return mesh;
+}
+
+struct Measured {
+  std::size_t bilabial = 0, labiodental = 0;
+  double worst_gap_m = 0, worst_teeth_m = 0, widest_aa_m = 0, worst_crossing_m = 0;
+};
+
+// Steps `solver` through the track as the server's mesh stream does and measures every closure
+// frame and every /aa/ frame of the utterance.
+void measure(FaceSolver& solver, const lipsync::testing::TimedUtterance& utterance, int fps, Measured& out) {
+  const Track track = render_track(model(), utterance.segments, {.fps = fps});
+  std::map<std::size_t, ClosurePlace> closure_at;  // frame → place (a shared frame: bilabial wins both checks)
+  for (const auto& closure : lipsync::testing::closure_frames(model(), utterance.segments, track)) {
+    closure_at.try_emplace(closure.frame, closure.place);
+    if (closure.place == ClosurePlace::labiodental) closure_at[closure.frame] = ClosurePlace::labiodental;
+  }
+  const int aa = *model().find_phoneme("aa");
+  solver.reset();
+  std::int64_t previous_us = 0;
+  std::size_t segment = 0;
+  for (std::size_t f = 0; f < track.frame_count(); ++f) {
+    solver.step(track.frame_values(f), static_cast<double>(track.t_us[f] - previous_us) * 1e-6);
+    previous_us = track.t_us[f];
+    out.worst_crossing_m = std::max(out.worst_crossing_m, lip_crossing_m(solver));
+    while (segment + 1 < utterance.segments.size() && utterance.segments[segment].end_us <= track.t_us[f]) ++segment;
+    if (utterance.segments[segment].phoneme == aa) {
+      const auto x = solver.positions();
+      out.widest_aa_m = std::max(out.widest_aa_m, distance(x[13], x[14]));
+    }
+    const auto it = closure_at.find(f);
+    if (it == closure_at.end()) continue;
+    const std::string where = utterance.name + " at " + std::to_string(track.t_us[f]) + " µs, " + std::to_string(fps) + " fps";
+    if (it->second == ClosurePlace::bilabial) {
+      ++out.bilabial;
+      const double gap = lip_gap_m(solver);
+      out.worst_gap_m = std::max(out.worst_gap_m, gap);
+      EXPECT_LE(gap, kSealedM) << where << ": lips " << 1000 * gap << " mm apart at a bilabial key frame";
+    } else {
+      ++out.labiodental;
+      const double reach = lower_lip_to_upper_teeth_m(solver);
+      out.worst_teeth_m = std::max(out.worst_teeth_m, reach);
+      EXPECT_LE(reach, kTouchingTeethM) << where << ": lower lip " << 1000 * reach << " mm from the upper teeth";
+    }
+  }
+}
+
+TEST(FaceClosures, EveryBilabialKeyFrameIsSealedAndEveryLabiodentalTouchesTheTeethOnRealSpeech) {
+  const auto corpus = lipsync::testing::load_closure_corpus(LIPSYNC_TEST_DATA_DIR, model());
+  ASSERT_FALSE(corpus.empty());
+  FaceSolver solver(level1(), FaceRig::builtin());
+  for (const int fps : {30, 60}) {
+    Measured measured;
+    for (const auto& utterance : corpus) measure(solver, utterance, fps, measured);
+    std::printf("[ measured ] %d fps: %zu bilabial key frames, widest gap %.3f mm; %zu labiodental, farthest from "
+                "the teeth %.3f mm; widest /aa/ %.1f mm; lips crossed by at most %.3f mm\n",
+                fps, measured.bilabial, 1000 * measured.worst_gap_m, measured.labiodental,
+                1000 * measured.worst_teeth_m, 1000 * measured.widest_aa_m, 1000 * measured.worst_crossing_m);
+    EXPECT_GE(measured.bilabial, 90U);
+    EXPECT_GE(measured.labiodental, 36U);
+    EXPECT_GE(measured.widest_aa_m, kOpenVowelM) << "the open vowels no longer open";
+    EXPECT_LE(measured.worst_crossing_m, 0.0) << "the lips crossed";
+  }
+}
+
+}  // namespace
+}  // namespace lipsync::face
