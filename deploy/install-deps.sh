@@ -15,6 +15,8 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   # TTS front-ends used by the examples and tests (phoneme timings)
   flite festival festvox-kallpc16k
+  # lipsync::speech: `lipsync say` (espeak-ng) and `lipsync align` (PocketSphinx and its en-us model)
+  libespeak-ng-dev espeak-ng-data libpocketsphinx-dev libsphinxbase-dev pocketsphinx-en-us
   # `lipsync render --video/--still` pipes frames to ffmpeg; the CLI tests check with ffprobe
   ffmpeg
   # the Python client (run with /usr/bin/python3)

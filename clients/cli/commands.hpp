@@ -9,6 +9,8 @@
 namespace lipsync::cli {
 
 int run_render(std::span<const std::string_view> args);
+int run_say(std::span<const std::string_view> args);
+int run_align(std::span<const std::string_view> args);
 int run_demo(std::span<const std::string_view> args);
 int run_model(std::span<const std::string_view> args);
 int run_phone_sets(std::span<const std::string_view> args);

@@ -27,6 +27,8 @@ struct Command {
 
 constexpr Command kCommands[] = {
     {"render", "render a timed phoneme file to an animation track", run_render},
+    {"say", "speak a text with espeak-ng and render its phonemes (track, --wav, --video)", run_say},
+    {"align", "align a WAV (with --text) to its phones with PocketSphinx; writes a TextGrid", run_align},
     {"demo", "render the built-in demo utterance to lipsync-demo.json", run_demo},
     {"model", "model dump: print the built-in model (or --model FILE) as JSON", run_model},
     {"phone-sets", "list the built-in phone sets", run_phone_sets},

@@ -17,6 +17,18 @@ ModelSource::ModelSource(const std::optional<std::string>& path) {
   loaded_ = ArticulationModel::from_json(json_text_, *path == "-" ? std::string(kStdinName) : *path);
 }
 
+ParseOptions parse_options_from(const Arguments& arguments) {
+  ParseOptions parse_options;
+  if (const auto tier = arguments.value("tier")) {
+    if (tier->empty()) throw UsageError("--tier: the tier name must not be empty");
+    parse_options.tier = *tier;
+  }
+  if (const auto rate = arguments.value("sample-rate")) {
+    parse_options.timit_sample_rate_hz = parse_int_option("sample-rate", *rate, 1, 100'000'000);
+  }
+  return parse_options;
+}
+
 TrackFormat parse_track_format_option(std::string_view text) {
   if (const auto format = track_format_from_string(text)) return *format;
   throw UsageError("--format: unknown track format '" + std::string(text) + "' (choose json, csv or arkit-csv)");

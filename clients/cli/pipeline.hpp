@@ -50,6 +50,9 @@ class ModelSource {
   std::string json_text_;
 };
 
+/// The reader options --tier and --sample-rate (UsageError for a bad value).
+ParseOptions parse_options_from(const Arguments& arguments);
+
 /// --format and --input-format values; UsageError listing the choices otherwise.
 TrackFormat parse_track_format_option(std::string_view text);
 InputFormat parse_input_format_option(std::string_view text);

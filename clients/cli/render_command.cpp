@@ -31,7 +31,10 @@
 #include "cli_error.hpp"
 #include "commands.hpp"
 #include "files.hpp"
+#include "lipsync/speech/audio.hpp"
 #include "pipeline.hpp"
+#include "render_outputs.hpp"
+#include "speech_input.hpp"
 
 namespace lipsync::cli {
 namespace {
@@ -44,27 +47,24 @@ constexpr OptionSpec kOptions[] = {
     kTrackOutputOption,
     kTrackFormatOption,
     kFpsOption,
-    {"model", 0, "FILE", "articulation model JSON (see 'lipsync model dump')", "the built-in model"},
+    kModelOption,
     kPhoneSetOption,
     kInputFormatOption,
     kTierOption,
     kSampleRateOption,
-    {"closure-fraction", 0, "F",
-     "share of a /p b/ given to its closure when the input has no closure label, in (0, 1)", "0.6"},
-    {"fixed-rate", 0, "", "uniform grid only: no key frames at closures and short phonemes", "off"},
-    {"incremental", 0, "",
-     "feed the phonemes one at a time through the streaming renderer (output identical to offline)", "off"},
-    {"lookahead", 0, "N",
-     "segments after a frame's own that must be known before it is computed, 0 to 7 (7 is exact)", "7"},
-    {"mesh", 0, "FILE",
-     "also simulate the physics face and write it as a glTF binary (.glb: mesh and morph-target animation)",
-     "no mesh"},
-    {"mesh-subdivision", 0, "N", "face mesh subdivision level for --mesh, --video and --still, 0 to 2", "1"},
-    {"video", 0, "FILE", "also render a software preview of the face to FILE (.mp4, H.264; needs ffmpeg)",
-     "no video"},
-    {"audio", 0, "WAV", "audio muxed into --video (AAC)", "none"},
-    {"still", 0, "FILE", "also render one preview frame of the face to FILE (.png; needs ffmpeg)", "no still"},
-    {"still-at", 0, "SECONDS", "time of the --still frame, >= 0 (the nearest --fps frame)", "0"},
+    kClosureFractionOption,
+    kFixedRateOption,
+    kIncrementalOption,
+    kLookaheadOption,
+    kMeshOption,
+    kMeshSubdivisionOption,
+    kVideoOption,
+    {"audio", 0, "WAV", "audio muxed into --video (AAC); a WAV's length extends the track to cover it",
+     "a WAV INPUT, else none"},
+    kStillOption,
+    kStillAtOption,
+    kTextOption,
+    kTextFileOption,
 };
 
 // ffmpeg as a child process: raw RGB24 frames on its stdin, its output a temporary file that
@@ -186,10 +186,125 @@ constexpr std::string_view kDescription =
     "Renders a timed phoneme file (INPUT, or - for standard input) to a coarticulated\n"
     "animation track: one frame per grid step at --fps, plus key frames at the closure\n"
     "and release of /p b m f v/ and in phonemes too short for the grid.\n"
+    "A WAV INPUT is recorded speech: it is aligned to --text / --text-file with\n"
+    "PocketSphinx (phones are recognised without them, less exactly), and it is the\n"
+    "sound of --video. With audio the track covers it to its end.\n"
     "With --mesh, --video or --still it also simulates the physics face on the\n"
     "uniform grid (docs/face.md); the track is then written only if -o is given.";
 
 }  // namespace
+
+OutputRequest parse_output_request(const Arguments& arguments) {
+  OutputRequest out;
+  out.output = arguments.value("output").value_or("-");
+  out.output_given = arguments.value("output").has_value();
+  out.format = parse_track_format_option(arguments.value("format").value_or("json"));
+  TrackRequest& request = out.track;
+  const RenderPlan plan = parse_render_plan(arguments);
+  request.render = plan.render;
+  request.segments = plan.segments;
+  request.incremental = arguments.flag("incremental");
+  out.phone_set_name = arguments.value("phone-set");
+  if (out.phone_set_name && out.phone_set_name->empty()) throw UsageError("--phone-set: the name must not be empty");
+  out.model_path = arguments.value("model");
+  out.mesh_path = arguments.value("mesh");
+  out.video_path = arguments.value("video");
+  out.audio_path = arguments.value("audio");
+  out.still_path = arguments.value("still");
+  out.subdivision = plan.mesh_subdivision;
+  if (const auto text = arguments.value("still-at")) {
+    out.still_at_s = parse_double_option("still-at", *text);
+    if (!(out.still_at_s >= 0.0 && std::isfinite(out.still_at_s))) throw UsageError("--still-at: '" + *text + "' must be >= 0");
+    if (!out.still_path) throw UsageError("--still-at needs --still FILE");
+  }
+  if (out.audio_path && !out.video_path) throw UsageError("--audio needs --video FILE");
+  const bool face_outputs = out.mesh_path || out.video_path || out.still_path;
+  if (!face_outputs && arguments.value("mesh-subdivision"))
+    throw UsageError("--mesh-subdivision needs --mesh, --video or --still");
+  const std::pair<const char*, std::optional<std::string>> face_files[] = {
+      {"mesh", out.mesh_path}, {"video", out.video_path}, {"still", out.still_path}};
+  for (const auto& [option, path] : face_files) {
+    if (path && (path->empty() || *path == "-")) throw UsageError(std::string("--") + option + ": needs a file name");
+    if (path) check_output_directory(option, *path);
+  }
+  if (out.video_path || out.still_path) {
+    out.ffmpeg = find_on_path("ffmpeg");
+    if (out.ffmpeg.empty())
+      throw FileError(std::string(out.video_path ? "--video" : "--still") +
+                      ": ffmpeg was not found on PATH (install it, e.g. 'apt-get install ffmpeg')");
+  }
+  if (out.audio_path && ::access(out.audio_path->c_str(), R_OK) != 0)
+    throw FileError(*out.audio_path + ": --audio: cannot read the file: " + std::strerror(errno));
+  return out;
+}
+
+void render_outputs(const OutputRequest& out, LabeledUtterance utterance) {
+  const TrackRequest& request = out.track;
+  const std::int64_t phonemes_end_us = utterance.intervals.empty() ? 0 : utterance.intervals.back().end_us;
+  if (out.audio_end_us) speech::cover_audio(utterance, *out.audio_end_us, request.render.fps);
+  const ModelSource model_source(out.model_path);
+  const ArticulationModel& model = model_source.model();
+  std::vector<PhoneSet> candidates;
+  const PhoneSet& phone_set = choose_phone_set(out.phone_set_name, utterance, model, candidates);
+  const Track track = render_utterance(utterance, model, phone_set, request);
+  const bool face_outputs = out.mesh_path || out.video_path || out.still_path;
+  if (!face_outputs) {
+    write_output(track, model, out.format, out.output);
+    return;
+  }
+  if (out.output_given) write_output(track, model, out.format, out.output);
+  // The face: simulated once on the uniform grid, then exported and/or rendered.
+  const face::FaceMesh mesh = face::build_face_mesh(face::FaceAsset::builtin(), out.subdivision);
+  const face::FaceRig rig = out.model_path
+                                ? face::FaceRig::from_json(face::FaceRig::builtin_json(), "rig.json", model)
+                                : face::FaceRig::builtin();
+  // The face is driven by the uniform grid only (as with --fixed-rate), rendered at the solver's
+  // step rate (one step per frame from 30 fps up, ⌈30 / fps⌉ below) so that every step sees the
+  // engine's own values; poses are kept at --fps.
+  TrackRequest face_request = request;
+  face_request.render.fixed_rate = true;
+  face_request.render.fps = request.render.fps * ((30 + request.render.fps - 1) / request.render.fps);
+  const Track face_track = render_utterance(utterance, model, phone_set, face_request);
+  const face::FaceAnimation animation = face::simulate_face_animation(mesh, rig, face_track, request.render.fps);
+  if (out.mesh_path) {
+    AtomicOutputFile file(*out.mesh_path);
+    face::write_face_glb(file.stream(), mesh, animation);
+    file.commit();
+  }
+  face::RasterOptions raster;
+  std::vector<std::uint8_t> rgb;
+  if (out.video_path) {
+    std::vector<std::string> extra_inputs, output_args = {"-map", "0:v"};
+    if (out.audio_path) {
+      extra_inputs = {"-i", *out.audio_path};
+      output_args.insert(output_args.end(), {"-map", "1:a", "-c:a", "aac", "-b:a", "128k"});
+    }
+    output_args.insert(output_args.end(), {"-c:v", "libx264", "-preset", "veryfast", "-crf", "20", "-pix_fmt",
+                                           "yuv420p", "-movflags", "+faststart", "-f", "mp4"});
+    FfmpegWriter writer(out.ffmpeg, *out.video_path, raster.width, raster.height, request.render.fps, extra_inputs,
+                        output_args);
+    std::size_t frame_count = animation.frame_count();
+    if (out.audio_end_us && *out.audio_end_us >= phonemes_end_us) {
+      // The frames that start before the audio ends, not the one cover_audio added at or
+      // after its end: the video then ends within a frame of its sound.
+      const auto frames = static_cast<std::size_t>((*out.audio_end_us * request.render.fps + 999'999) / 1'000'000);
+      frame_count = std::min(frame_count, std::max<std::size_t>(1, frames));
+    }
+    for (std::size_t k = 0; k < frame_count; ++k) {
+      face::render_face_rgb(mesh, animation.frame(k), raster, rgb);
+      writer.write(rgb);
+    }
+    writer.commit();
+  }
+  if (out.still_path) {
+    const auto frame = static_cast<std::size_t>(std::llround(out.still_at_s * request.render.fps));
+    face::render_face_rgb(mesh, animation.frame(std::min(frame, animation.frame_count() - 1)), raster, rgb);
+    FfmpegWriter writer(out.ffmpeg, *out.still_path, raster.width, raster.height, request.render.fps, {},
+                        {"-frames:v", "1", "-c:v", "png", "-f", "image2", "-update", "1"});
+    writer.write(rgb);
+    writer.commit();
+  }
+}
 
 int run_render(std::span<const std::string_view> args) {
   const Arguments arguments = Arguments::parse(args, kOptions, "render");
@@ -201,124 +316,32 @@ int run_render(std::span<const std::string_view> args) {
     throw UsageError("render takes one INPUT, got also '" + arguments.positional()[1] + "'");
   }
   const std::string& input = arguments.positional().front();
-
-  const std::string output = arguments.value("output").value_or("-");
-  const TrackFormat format = parse_track_format_option(arguments.value("format").value_or("json"));
   std::optional<InputFormat> input_format;
   if (const auto text = arguments.value("input-format")) input_format = parse_input_format_option(*text);
-
-  ParseOptions parse_options;
-  if (const auto tier = arguments.value("tier")) {
-    if (tier->empty()) throw UsageError("--tier: the tier name must not be empty");
-    parse_options.tier = *tier;
-  }
-  if (const auto rate = arguments.value("sample-rate")) {
-    parse_options.timit_sample_rate_hz = parse_int_option("sample-rate", *rate, 1, 100'000'000);
-  }
-
-  const RenderPlan plan = parse_render_plan(arguments);
-  TrackRequest request;
-  request.render = plan.render;
-  request.segments = plan.segments;
-  request.incremental = arguments.flag("incremental");
-  const std::optional<std::string> phone_set_name = arguments.value("phone-set");
-  if (phone_set_name && phone_set_name->empty()) throw UsageError("--phone-set: the name must not be empty");
-
+  const ParseOptions parse_options = parse_options_from(arguments);
   if (input == "-" && arguments.value("model") == "-") {
     throw UsageError("--model: '-' and INPUT '-' cannot both read standard input");
   }
-  const std::optional<std::string> mesh_path = arguments.value("mesh");
-  const std::optional<std::string> video_path = arguments.value("video");
-  const std::optional<std::string> audio_path = arguments.value("audio");
-  const std::optional<std::string> still_path = arguments.value("still");
-  const int subdivision = plan.mesh_subdivision;
-  double still_at_s = 0.0;
-  if (const auto text = arguments.value("still-at")) {
-    still_at_s = parse_double_option("still-at", *text);
-    if (!(still_at_s >= 0.0 && std::isfinite(still_at_s))) throw UsageError("--still-at: '" + *text + "' must be >= 0");
-    if (!still_path) throw UsageError("--still-at needs --still FILE");
-  }
-  if (audio_path && !video_path) throw UsageError("--audio needs --video FILE");
-  const bool face_outputs = mesh_path || video_path || still_path;
-  if (!face_outputs && arguments.value("mesh-subdivision"))
-    throw UsageError("--mesh-subdivision needs --mesh, --video or --still");
-  const std::pair<const char*, std::optional<std::string>> face_files[] = {
-      {"mesh", mesh_path}, {"video", video_path}, {"still", still_path}};
-  for (const auto& [option, path] : face_files) {
-    if (path && (path->empty() || *path == "-")) throw UsageError(std::string("--") + option + ": needs a file name");
-    if (path) check_output_directory(option, *path);
-  }
-  std::string ffmpeg;
-  if (video_path || still_path) {
-    ffmpeg = find_on_path("ffmpeg");
-    if (ffmpeg.empty())
-      throw FileError(std::string(video_path ? "--video" : "--still") +
-                      ": ffmpeg was not found on PATH (install it, e.g. 'apt-get install ffmpeg')");
-  }
-  if (audio_path && ::access(audio_path->c_str(), R_OK) != 0)
-    throw FileError(*audio_path + ": --audio: cannot read the file: " + std::strerror(errno));
-
-  const ModelSource model_source(arguments.value("model"));
-  const ArticulationModel& model = model_source.model();
+  const std::optional<std::string> transcript = transcript_option(arguments);
+  OutputRequest out = parse_output_request(arguments);
 
   const std::string content = read_file(input);
   const std::string source = input == "-" ? std::string(kStdinName) : input;
-  const InputFormat chosen_format = input_format ? *input_format : detect_input_format(source, content);
-  const LabeledUtterance utterance = parse_utterance(content, chosen_format, source, parse_options);
-
-  std::vector<PhoneSet> candidates;
-  const PhoneSet& phone_set = choose_phone_set(phone_set_name, utterance, model, candidates);
-  const Track track = render_utterance(utterance, model, phone_set, request);
-  if (!face_outputs) {
-    write_output(track, model, format, output);
-    return 0;
+  LabeledUtterance utterance;
+  if (speech::looks_like_wav(content)) {
+    // Recorded speech: aligned (or its phones recognised), and it is the video's sound.
+    if (input_format) throw UsageError("--input-format: INPUT '" + source + "' is a WAV file, not a phoneme file");
+    const speech::Alignment alignment = align_wav(content, source, transcript);
+    utterance = alignment.phones;
+    out.audio_end_us = speech::wav_layout_and_duration_us(content, source).second;
+    if (out.video_path && !out.audio_path && input != "-") out.audio_path = input;
+  } else {
+    if (transcript) throw UsageError("--text and --text-file need a WAV INPUT, and '" + source + "' is not one");
+    const InputFormat chosen_format = input_format ? *input_format : detect_input_format(source, content);
+    utterance = parse_utterance(content, chosen_format, source, parse_options);
+    if (out.audio_path) out.audio_end_us = wav_duration_if_wav(*out.audio_path);
   }
-  if (arguments.value("output")) write_output(track, model, format, output);
-
-  // The face: simulated once on the uniform grid, then exported and/or rendered.
-  const face::FaceMesh mesh = face::build_face_mesh(face::FaceAsset::builtin(), subdivision);
-  const face::FaceRig rig = arguments.value("model")
-                                ? face::FaceRig::from_json(face::FaceRig::builtin_json(), "rig.json", model)
-                                : face::FaceRig::builtin();
-  // The face is driven by the uniform grid only (as with --fixed-rate), rendered at the solver's
-  // step rate (one step per frame from 30 fps up, ⌈30 / fps⌉ below) so that every step sees the
-  // engine's own values; poses are kept at --fps.
-  TrackRequest face_request = request;
-  face_request.render.fixed_rate = true;
-  face_request.render.fps = request.render.fps * ((30 + request.render.fps - 1) / request.render.fps);
-  const Track face_track = render_utterance(utterance, model, phone_set, face_request);
-  const face::FaceAnimation animation = face::simulate_face_animation(mesh, rig, face_track, request.render.fps);
-  if (mesh_path) {
-    AtomicOutputFile file(*mesh_path);
-    face::write_face_glb(file.stream(), mesh, animation);
-    file.commit();
-  }
-  face::RasterOptions raster;
-  std::vector<std::uint8_t> rgb;
-  if (video_path) {
-    std::vector<std::string> extra_inputs, output_args = {"-map", "0:v"};
-    if (audio_path) {
-      extra_inputs = {"-i", *audio_path};
-      output_args.insert(output_args.end(), {"-map", "1:a", "-c:a", "aac", "-b:a", "128k"});
-    }
-    output_args.insert(output_args.end(), {"-c:v", "libx264", "-preset", "veryfast", "-crf", "20", "-pix_fmt",
-                                           "yuv420p", "-movflags", "+faststart", "-f", "mp4"});
-    FfmpegWriter writer(ffmpeg, *video_path, raster.width, raster.height, request.render.fps, extra_inputs,
-                        output_args);
-    for (std::size_t k = 0; k < animation.frame_count(); ++k) {
-      face::render_face_rgb(mesh, animation.frame(k), raster, rgb);
-      writer.write(rgb);
-    }
-    writer.commit();
-  }
-  if (still_path) {
-    const auto frame = static_cast<std::size_t>(std::llround(still_at_s * request.render.fps));
-    face::render_face_rgb(mesh, animation.frame(std::min(frame, animation.frame_count() - 1)), raster, rgb);
-    FfmpegWriter writer(ffmpeg, *still_path, raster.width, raster.height, request.render.fps, {},
-                        {"-frames:v", "1", "-c:v", "png", "-f", "image2", "-update", "1"});
-    writer.write(rgb);
-    writer.commit();
-  }
+  render_outputs(out, utterance);
   return 0;
 }
 

@@ -80,14 +80,7 @@ int run_stream(std::span<const std::string_view> args) {
 
   std::optional<InputFormat> input_format;
   if (const auto text = arguments.value("input-format")) input_format = parse_input_format_option(*text);
-  ParseOptions parse_options;
-  if (const auto tier = arguments.value("tier")) {
-    if (tier->empty()) throw UsageError("--tier: the tier name must not be empty");
-    parse_options.tier = *tier;
-  }
-  if (const auto rate = arguments.value("sample-rate")) {
-    parse_options.timit_sample_rate_hz = parse_int_option("sample-rate", *rate, 1, 100'000'000);
-  }
+  const ParseOptions parse_options = parse_options_from(arguments);
   const RenderPlan plan = parse_render_plan(arguments);
   client::v1::AnimationSettings settings;
   settings.set_fps(static_cast<std::uint32_t>(plan.render.fps));

@@ -13,34 +13,13 @@
 #include <memory>
 #include <string>
 
+#include "../support/harvard_sentences.hpp"
 #include "lipsync/formats.hpp"
 #include "lipsync/phone_set.hpp"
 #include "lipsync/renderer.hpp"
 
 namespace {
 
-constexpr std::array<const char*, 20> kSentences = {
-    "The birch canoe slid on the smooth planks.",
-    "Glue the sheet to the dark blue background.",
-    "It's easy to tell the depth of a well.",
-    "These days a chicken leg is a rare dish.",
-    "Rice is often served in round bowls.",
-    "The juice of lemons makes fine punch.",
-    "The box was thrown beside the parked truck.",
-    "The hogs were fed chopped corn and garbage.",
-    "Four hours of steady work faced us.",
-    "A large size in stockings is hard to sell.",
-    "The boy was there when the sun rose.",
-    "A rod is used to catch pink salmon.",
-    "The source of the huge river is the clear spring.",
-    "Kick the ball straight and follow through.",
-    "Help the woman get back to her feet.",
-    "A pot of tea helps to pass the evening.",
-    "Smoky fires lack flame and heat.",
-    "The soft cushion broke the man's fall.",
-    "The salt breeze came across from the sea.",
-    "The girl at the booth sold fifty bonds.",
-};
 
 std::string flite_timing(const std::string& sentence) {
   const std::string command = "flite -voice slt -psdur -o none -t \"" + sentence + "\"";
@@ -62,7 +41,7 @@ int main(int argc, char** argv) {
   const PhoneSet radio = *PhoneSet::builtin("radio", model);
 
   std::vector<std::vector<Segment>> utterances;
-  for (const char* sentence : kSentences) {
+  for (const char* sentence : lipsync::testing::kHarvardSentences) {
     const LabeledUtterance parsed = parse_utterance(flite_timing(sentence), InputFormat::flite, "flite");
     utterances.push_back(build_segments(parsed, model, radio));
   }

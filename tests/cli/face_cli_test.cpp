@@ -128,34 +128,63 @@ TEST_F(FaceCliTest, missing_ffmpeg_is_a_clear_error_and_leaves_no_file) {
   EXPECT_TRUE(listing().empty());
 }
 
-TEST_F(FaceCliTest, video_with_audio_has_both_streams_the_track_duration_and_frame_count) {
-  const auto ffprobe = find_program("ffprobe");
-  if (!find_program("ffmpeg") || !ffprobe) GTEST_SKIP() << "ffmpeg/ffprobe not installed";
+// ffprobe's view of a video: its video and audio streams (each as JSON).
+struct ProbedVideo {
+  nlohmann::json video, audio;
+};
+
+ProbedVideo probe_video(const fs::path& file, const fs::path& capture) {
+  const RunResult probe = run_program({*find_program("ffprobe"), "-v", "error", "-count_frames", "-show_streams",
+                                       "-show_format", "-of", "json", file.string()},
+                                      file.parent_path(), capture);
+  EXPECT_EQ(probe.status, 0) << probe.err;
+  const auto info = nlohmann::json::parse(probe.out);
+  EXPECT_EQ(info["streams"].size(), 2U);
+  const bool video_first = info["streams"][0]["codec_type"] == "video";
+  return {info["streams"][video_first ? 0 : 1], info["streams"][video_first ? 1 : 0]};
+}
+
+// Audio longer than the phonemes: the track and the video are extended to cover it, and
+// the video ends within one frame after the audio.
+TEST_F(FaceCliTest, video_with_longer_audio_covers_the_audio) {
+  if (!find_program("ffmpeg") || !find_program("ffprobe")) GTEST_SKIP() << "ffmpeg/ffprobe not installed";
   write_wav(dir_ / "speech.wav", 1.2);
   const RunResult result =
       run({"render", kInput, "--video", "face.mp4", "--audio", "speech.wav", "--mesh-subdivision", "0"});
   ASSERT_EQ(result.status, 0) << result.err;
   EXPECT_EQ(listing(), (std::vector<std::string>{"face.mp4", "speech.wav"}));
-  const RunResult probe = run_program({*ffprobe, "-v", "error", "-count_frames", "-show_streams", "-show_format", "-of",
-                                       "json", (dir_ / "face.mp4").string()},
-                                      dir_, capture_);
-  ASSERT_EQ(probe.status, 0) << probe.err;
-  const auto info = nlohmann::json::parse(probe.out);
-  ASSERT_EQ(info["streams"].size(), 2U);
-  const auto& video = info["streams"][0]["codec_type"] == "video" ? info["streams"][0] : info["streams"][1];
-  const auto& audio = info["streams"][0]["codec_type"] == "audio" ? info["streams"][0] : info["streams"][1];
-  EXPECT_EQ(video["codec_type"], "video");
-  EXPECT_EQ(audio["codec_type"], "audio");
-  EXPECT_EQ(video["codec_name"], "h264");
-  EXPECT_EQ(video["r_frame_rate"], "30/1");
+  const ProbedVideo probed = probe_video(dir_ / "face.mp4", capture_);
+  EXPECT_EQ(probed.video["codec_name"], "h264");
+  EXPECT_EQ(probed.audio["codec_type"], "audio");
+  EXPECT_EQ(probed.video["r_frame_rate"], "30/1");
+  EXPECT_EQ(std::stoi(probed.video["nb_read_frames"].get<std::string>()), 36);  // ⌈1.2 s · 30⌉
+  EXPECT_NEAR(std::stod(probed.video["duration"].get<std::string>()), std::stod(probed.audio["duration"].get<std::string>()),
+              1.0 / 30);
+  // The track's last frame is at or after the end of the audio.
+  const RunResult track = run({"render", kInput, "--audio", "speech.wav", "--video", "again.mp4", "-o", "track.csv",
+                               "--format", "csv", "--mesh-subdivision", "0"});
+  ASSERT_EQ(track.status, 0) << track.err;
+  const std::string csv = read_text(dir_ / "track.csv");
+  const std::string last_line = csv.substr(csv.rfind('\n', csv.size() - 2) + 1);
+  EXPECT_GE(std::stod(last_line.substr(0, last_line.find(','))), 1.2);
+}
+
+// Audio shorter than the phonemes: the video has the track's frames, as without audio.
+TEST_F(FaceCliTest, video_with_shorter_audio_has_the_track_duration_and_frame_count) {
+  if (!find_program("ffmpeg") || !find_program("ffprobe")) GTEST_SKIP() << "ffmpeg/ffprobe not installed";
+  write_wav(dir_ / "speech.wav", 0.5);
+  const RunResult result =
+      run({"render", kInput, "--video", "face.mp4", "--audio", "speech.wav", "--mesh-subdivision", "0"});
+  ASSERT_EQ(result.status, 0) << result.err;
+  const ProbedVideo probed = probe_video(dir_ / "face.mp4", capture_);
   // The track of bump_map.lab ends at its last label's end; frames 0 .. ceil(end · 30).
   const RunResult track = run({"render", kInput, "--format", "csv"});
   ASSERT_EQ(track.status, 0);
   const std::string last_line = track.out.substr(track.out.rfind('\n', track.out.size() - 2) + 1);
   const double end_s = std::stod(last_line.substr(0, last_line.find(',')));
   const int frames = static_cast<int>(std::ceil(end_s * 30 - 1e-6)) + 1;
-  EXPECT_EQ(std::stoi(video["nb_read_frames"].get<std::string>()), frames) << "end " << end_s << " s";
-  EXPECT_NEAR(std::stod(video["duration"].get<std::string>()), frames / 30.0, 0.05);
+  EXPECT_EQ(std::stoi(probed.video["nb_read_frames"].get<std::string>()), frames) << "end " << end_s << " s";
+  EXPECT_NEAR(std::stod(probed.video["duration"].get<std::string>()), frames / 30.0, 0.05);
 }
 
 TEST_F(FaceCliTest, still_writes_one_png) {

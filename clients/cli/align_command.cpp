@@ -1,0 +1,61 @@
+// `lipsync align SPEECH.wav`: recorded speech in, a Praat TextGrid of its
+// phones (and words, with a transcript) out, which `lipsync render` and other
+// tools read. The alignment is lipsync::speech::align_speech (PocketSphinx).
+#include <iostream>
+
+#include "arguments.hpp"
+#include "cli_error.hpp"
+#include "commands.hpp"
+#include "files.hpp"
+#include "lipsync/speech/audio.hpp"
+#include "speech_input.hpp"
+
+namespace lipsync::cli {
+namespace {
+
+constexpr OptionSpec kOptions[] = {
+    {"output", 'o', "FILE", "write the TextGrid to FILE (all or nothing, via a temporary file); - for stdout",
+     "stdout"},
+    kTextOption,
+    kTextFileOption,
+};
+
+constexpr std::string_view kUsage = "lipsync align SPEECH.wav [--text WORDS | --text-file FILE] [options]";
+constexpr std::string_view kDescription =
+    "Aligns recorded speech with PocketSphinx and writes a Praat TextGrid with the tiers\n"
+    "'phones' (ARPAbet, empty labels for pauses) and, with a transcript, 'words'.\n"
+    "With --text or --text-file the words are force-aligned; without, the phones are\n"
+    "recognised freely (less exact). The WAV is best 16 kHz mono 16-bit; other rates,\n"
+    "channel counts and sample sizes are converted (a note on stderr says so). At most\n"
+    "120 s of audio; split longer recordings at pauses.";
+
+}  // namespace
+
+int run_align(std::span<const std::string_view> args) {
+  const Arguments arguments = Arguments::parse(args, kOptions, "align");
+  if (print_help_if_asked(arguments, kUsage, kDescription, kOptions, std::cout)) return 0;
+  if (arguments.positional().empty()) throw UsageError("align needs a WAV file (see 'lipsync align --help')");
+  if (arguments.positional().size() > 1) {
+    throw UsageError("align takes one WAV file, got also '" + arguments.positional()[1] + "'");
+  }
+  const std::string& input = arguments.positional().front();
+  const std::string output = arguments.value("output").value_or("-");
+  const std::optional<std::string> transcript = transcript_option(arguments);
+
+  const std::string content = read_file(input);
+  const std::string source = input == "-" ? std::string(kStdinName) : input;
+  const speech::Alignment alignment = align_wav(content, source, transcript);
+  const std::int64_t duration_us = alignment.phones.intervals.back().end_us;
+  if (output == "-") {
+    speech::write_textgrid(std::cout, alignment, duration_us);
+    std::cout.flush();
+    if (!std::cout) throw FileError("cannot write the TextGrid to standard output");
+    return 0;
+  }
+  AtomicOutputFile file(output);
+  speech::write_textgrid(file.stream(), alignment, duration_us);
+  file.commit();
+  return 0;
+}
+
+}  // namespace lipsync::cli

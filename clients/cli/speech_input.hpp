@@ -1,0 +1,33 @@
+// Speech as input to the command line: the --text / --text-file options, the
+// alignment of a WAV file through lipsync::speech (its notes printed to
+// stderr), and the length of an --audio WAV.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "arguments.hpp"
+#include "lipsync/speech/aligner.hpp"
+
+namespace lipsync::cli {
+
+inline constexpr OptionSpec kTextOption = {"text", 0, "WORDS",
+    "transcript of a WAV INPUT, for forced alignment (phones are recognised without one)", "none"};
+inline constexpr OptionSpec kTextFileOption = {"text-file", 0, "FILE", "the transcript read from FILE (UTF-8)",
+    "none"};
+
+/// The transcript from --text or --text-file (UsageError if both; FileError if unreadable).
+std::optional<std::string> transcript_option(const Arguments& arguments);
+
+/// Decodes and aligns the WAV bytes `content` of `source`; prints the conversions
+/// done on the audio as notes on stderr. Throws InputError.
+speech::Alignment align_wav(std::string_view content, const std::string& source,
+                            const std::optional<std::string>& transcript);
+
+/// The length of `path` in µs if it is a WAV file, else nullopt. Throws FileError
+/// if it cannot be read, InputError if it is a broken WAV.
+std::optional<std::int64_t> wav_duration_if_wav(const std::string& path);
+
+}  // namespace lipsync::cli

@@ -1,0 +1,61 @@
+// Audio in: timed phonemes from recorded speech with PocketSphinx (Debian's
+// 5prealpha library and its en-us model from pocketsphinx-en-us), the recogniser
+// Rhubarb Lip Sync is built on.
+//
+// With a transcript the audio is force-aligned: each word is looked up in the
+// CMU pronouncing dictionary shipped with the model (every listed pronunciation
+// is an alternative), and a JSGF grammar accepts exactly those words in order,
+// with optional pauses between them. The grammar's "words" are single phones
+// (one dictionary entry per phone and transcript word, `aa_3` is /AA/ of word 3),
+// so the recogniser's word segmentation is the phone alignment and each phone
+// still knows its word. Without a transcript the phones are recognised freely
+// with the model's phonetic language model (en-us-phone.lm.bin, PocketSphinx's
+// "allphone" search). Either way the result is ARPAbet at the recogniser's
+// 10 ms frame step.
+//
+// Bounds: the audio is converted to 16 kHz mono when it is not (a note says so),
+// longer audio than `max_duration_s` is refused before decoding (a decode takes
+// about 0.2x real time aligned and 1x recognised, on one core, and its memory grows
+// with its length), silence is refused before decoding, and a
+// transcript the recogniser cannot fit to the audio is an error that says so.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "lipsync/speech/audio.hpp"
+#include "lipsync/utterance.hpp"
+
+namespace lipsync::speech {
+
+struct AlignmentOptions {
+  /// Words spoken in the audio (punctuation and case ignored); none: recognise phones.
+  std::optional<std::string> transcript;
+  /// The acoustic model directory's parent, holding en-us/, cmudict-en-us.dict, en-us-phone.lm.bin.
+  std::string model_dir = "/usr/share/pocketsphinx/model/en-us";
+  /// Longest audio accepted, seconds.
+  double max_duration_s = 120;
+};
+
+struct Alignment {
+  LabeledUtterance phones;              ///< phone_set "arpabet"; "" is silence; tiles [0, audio end]
+  std::vector<LabeledInterval> words;   ///< transcript words (lower case); empty without a transcript
+  std::vector<std::string> notes;       ///< conversions done on the audio, for the user
+};
+
+/// Aligns `audio` (any rate, converted to 16 kHz); `source` names it in errors.
+/// Throws InputError: audio too long or silent, a word missing from the dictionary,
+/// a transcript that does not fit the audio, a model that cannot be loaded.
+Alignment align_speech(const PcmAudio& audio, std::string_view source, const AlignmentOptions& options = {});
+
+/// The transcript's words as the dictionary spells them: lower case, letters,
+/// digits and apostrophes; everything else separates words.
+std::vector<std::string> transcript_words(std::string_view transcript);
+
+/// Writes `alignment` as a long-format Praat TextGrid with the tiers "words" (when
+/// there are words) and "phones", from 0 to `duration_us`.
+void write_textgrid(std::ostream& out, const Alignment& alignment, std::int64_t duration_us);
+
+}  // namespace lipsync::speech

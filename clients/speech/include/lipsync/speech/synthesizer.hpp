@@ -1,0 +1,38 @@
+// Text in: speech synthesis with espeak-ng's C library, giving the audio and the
+// phonemes espeak-ng spoke, timed on that audio's own sample clock.
+//
+// espeak-ng reports each phoneme as an espeakEVENT_PHONEME event carrying its
+// mnemonic (`id.string`, the espeak phone set of data/phonesets/espeak.json) and
+// the sample at which it starts; a phoneme ends where the next one starts, the
+// last one where the audio ends. So the phoneme times are the synthesiser's
+// own, exact to the sample (45 µs at 22 050 Hz), not an estimate.
+//
+// espeak-ng keeps its synthesis state (voice, parameters, output buffers, the
+// callback) in process-wide globals and is not re-entrant. synthesize() therefore
+// initialises the library once per process and holds one global mutex for a whole
+// synthesis: calls from several threads are safe but run one at a time.
+#pragma once
+
+#include <string>
+#include <string_view>
+
+#include "lipsync/speech/audio.hpp"
+#include "lipsync/utterance.hpp"
+
+namespace lipsync::speech {
+
+struct SynthesisOptions {
+  std::string voice = "en-us";  ///< an espeak-ng voice name ("espeak-ng --voices" lists them)
+  int words_per_minute = 175;   ///< espeak-ng's speaking rate, 80 to 450
+};
+
+struct Synthesis {
+  PcmAudio audio;              ///< mono 16-bit at espeak-ng's rate (22 050 Hz)
+  LabeledUtterance phonemes;   ///< phone_set "espeak"; covers [0, audio end] without gaps
+};
+
+/// Speaks `text` (UTF-8). Throws InputError (source "espeak-ng") for an empty text,
+/// an unknown voice or a failed synthesis.
+Synthesis synthesize(std::string_view text, const SynthesisOptions& options = {});
+
+}  // namespace lipsync::speech

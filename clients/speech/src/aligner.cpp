@@ -1,0 +1,334 @@
+// Forced alignment and phone recognition with PocketSphinx 5prealpha
+// (lipsync/speech/aligner.hpp).
+#include "lipsync/speech/aligner.hpp"
+
+#include <pocketsphinx.h>
+#include <sphinxbase/err.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <sstream>
+#include <sys/stat.h>
+
+#include "lipsync/error.hpp"
+
+namespace lipsync::speech {
+namespace {
+
+constexpr int kRateHz = 16000;
+constexpr std::int64_t kFrameUs = 10'000;  // PocketSphinx's frame step (-frate 100)
+// Frame k analyses the window [k·10 ms, k·10 ms + 25.6 ms] (-wlen 0.025625), centred at
+// k·10 + 12.8 ms. A segment that starts at frame k starts midway between the centres of
+// frames k-1 and k: at k·10 ms + 7.8 ms. (Without this shift the boundaries come out
+// about 9 ms early on synthetic speech with known boundaries, tests/bench/alignment_accuracy.)
+constexpr std::int64_t kBoundaryOffsetUs = 7'800;
+// The grammar's pause between words (PocketSphinx's silence phone).
+constexpr const char* kPauseWord = "pause_";
+// Audio whose loudest 20 ms stays below this level holds no speech to align.
+constexpr double kSilenceDbfs = -50.0;
+
+struct DecoderDeleter {
+  void operator()(ps_decoder_t* decoder) const { ps_free(decoder); }
+};
+using Decoder = std::unique_ptr<ps_decoder_t, DecoderDeleter>;
+
+bool is_file(const std::string& path) {
+  struct stat info {};
+  return ::stat(path.c_str(), &info) == 0 && S_ISREG(info.st_mode);
+}
+
+Decoder make_decoder(const AlignmentOptions& options, const std::string& source, bool forced) {
+  const std::string hmm = options.model_dir + "/en-us";
+  const std::string dict = options.model_dir + "/cmudict-en-us.dict";
+  for (const std::string& path : {hmm + "/mdef", dict}) {
+    if (!is_file(path)) {
+      throw InputError(source, 0, "the PocketSphinx model is missing (" + path +
+                                      "; install it with 'apt-get install pocketsphinx-en-us')");
+    }
+  }
+  err_set_logfp(nullptr);  // PocketSphinx logs to stderr by default; its failures come back as results here
+  // Forced alignment searches a tiny grammar, so its beams can be all but open: with the
+  // defaults (1e-48) the right path through synthetic speech is often pruned and nothing
+  // fits. Pauses come only where the grammar allows them (between words), not as
+  // fillers between any two of its one-phone words. Phone recognition uses the settings
+  // the CMU Sphinx documentation gives for the phonetic LM (weight 2) with narrower beams
+  // (1e-10 rather than 1e-20: about 1x real time instead of 2.5x, on espeak-ng speech).
+  const char* beam = forced ? "1e-200" : "1e-10";
+  cmd_ln_t* config = cmd_ln_init(nullptr, ps_args(), TRUE, "-hmm", hmm.c_str(), "-dict", dict.c_str(),
+                                 "-samprate", "16000", "-remove_silence", "no", "-beam", beam, "-pbeam", beam,
+                                 "-wbeam", beam, "-bestpath", "no", "-fsgusefiller", "no", "-lw",
+                                 forced ? "6.5" : "2.0", nullptr);
+  if (config == nullptr) throw InputError(source, 0, "cannot configure PocketSphinx");
+  Decoder decoder(ps_init(config));
+  cmd_ln_free_r(config);  // the decoder keeps its own reference
+  if (!decoder) throw InputError(source, 0, "cannot load the PocketSphinx model from " + options.model_dir);
+  return decoder;
+}
+
+// Level of each 20 ms window of `audio`, dBFS (-200 for digital silence).
+std::vector<double> window_levels_dbfs(const PcmAudio& audio) {
+  const std::size_t window = static_cast<std::size_t>(audio.sample_rate_hz / 50);
+  std::vector<double> levels;
+  for (std::size_t start = 0; start < audio.samples.size(); start += window) {
+    const std::size_t end = std::min(audio.samples.size(), start + window);
+    double energy = 0;
+    for (std::size_t i = start; i < end; ++i) energy += double(audio.samples[i]) * audio.samples[i];
+    energy /= double(end - start);
+    levels.push_back(energy > 0 ? 10 * std::log10(energy / (32768.0 * 32768.0)) : -200.0);
+  }
+  return levels;
+}
+
+// Share of the loud windows (within kLoudDb of the loudest) that the alignment labels as
+// pause. A transcript that fits the audio leaves almost no speech in its pauses (stop
+// closures are quiet); one that does not fit squeezes its words into a corner and calls
+// the rest of the speech a pause.
+constexpr double kLoudDb = 20.0;
+constexpr double kMostSpeechInPauses = 0.3;
+
+double loud_share_in_pauses(const std::vector<double>& levels, double loudest, const std::vector<LabeledInterval>& phones) {
+  int loud = 0, loud_in_pause = 0;
+  for (std::size_t w = 0; w < levels.size(); ++w) {
+    if (levels[w] < loudest - kLoudDb) continue;
+    ++loud;
+    const std::int64_t centre_us = static_cast<std::int64_t>(w) * 20'000 + 10'000;
+    const auto it = std::find_if(phones.begin(), phones.end(), [&](const LabeledInterval& phone) {
+      return phone.start_us <= centre_us && centre_us < phone.end_us;
+    });
+    if (it != phones.end() && it->label.empty()) ++loud_in_pause;
+  }
+  return loud == 0 ? 0.0 : double(loud_in_pause) / loud;
+}
+
+// Phone label of a recognised "word": "aa_3" → ("AA", 3); a phone from the
+// phonetic LM ("AA") → ("AA", -1); silence and noise fillers → ("", -1).
+std::pair<std::string, int> phone_of(std::string_view word) {
+  if (word.empty() || word.front() == '<' || word.front() == '[' || word.front() == '+' || word == "SIL" || word == kPauseWord) {
+    return {"", -1};
+  }
+  int index = -1;
+  if (const auto underscore = word.rfind('_'); underscore != std::string_view::npos) {
+    index = std::atoi(std::string(word.substr(underscore + 1)).c_str());
+    word = word.substr(0, underscore);
+  }
+  std::string phone(word);
+  for (char& c : phone) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return {phone, index};
+}
+
+std::string count_words(std::size_t n) { return std::to_string(n) + (n == 1 ? " word" : " words"); }
+
+std::string lower(std::string text) {
+  for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return text;
+}
+
+// The JSGF grammar of the transcript: each word's pronunciations as alternatives
+// of one-phone words; pauses between words are PocketSphinx's own filler words.
+std::string build_grammar(ps_decoder_t* decoder, const std::vector<std::string>& words, const std::string& source) {
+  ps_add_word(decoder, kPauseWord, "SIL", FALSE);
+  const std::string pause = " [ " + std::string(kPauseWord) + " ]";
+  std::string rule = pause;
+  for (std::size_t w = 0; w < words.size(); ++w) {
+    std::vector<std::string> pronunciations;
+    for (int variant = 1; variant < 10; ++variant) {
+      const std::string entry = variant == 1 ? words[w] : words[w] + "(" + std::to_string(variant) + ")";
+      char* phones = ps_lookup_word(decoder, entry.c_str());
+      if (phones == nullptr) break;
+      pronunciations.emplace_back(phones);
+      std::free(phones);
+    }
+    if (pronunciations.empty()) {
+      throw InputError(source, 0, "transcript word " + std::to_string(w + 1) + " '" + words[w] +
+                                      "' is not in the pronouncing dictionary (write numbers and "
+                                      "abbreviations out as words)");
+    }
+    rule += " (";
+    for (std::size_t p = 0; p < pronunciations.size(); ++p) {
+      if (p > 0) rule += " |";
+      std::istringstream phones(pronunciations[p]);
+      for (std::string phone; phones >> phone;) {
+        const std::string word = lower(phone) + "_" + std::to_string(w);
+        if (char* known = ps_lookup_word(decoder, word.c_str())) {
+          std::free(known);
+        } else {
+          ps_add_word(decoder, word.c_str(), phone.c_str(), FALSE);
+        }
+        rule += " " + word;
+      }
+    }
+    rule += " ) " + pause;
+  }
+  return "#JSGF V1.0;\ngrammar transcript;\npublic <utterance> =" + rule + " ;\n";
+}
+
+}  // namespace
+
+std::vector<std::string> transcript_words(std::string_view transcript) {
+  std::vector<std::string> words;
+  std::string word;
+  for (const char c : transcript) {
+    const auto u = static_cast<unsigned char>(c);
+    if (std::isalnum(u) || c == '\'' || u >= 0x80) {
+      word += static_cast<char>(std::tolower(u));
+    } else if (!word.empty()) {
+      words.push_back(std::move(word));
+      word.clear();
+    }
+  }
+  if (!word.empty()) words.push_back(std::move(word));
+  // Quotes around a word are not part of it: 'hello' → hello, but don't stays.
+  for (std::string& w : words) {
+    while (!w.empty() && w.front() == '\'') w.erase(w.begin());
+    while (!w.empty() && w.back() == '\'') w.pop_back();
+  }
+  std::erase_if(words, [](const std::string& w) { return w.empty(); });
+  return words;
+}
+
+Alignment align_speech(const PcmAudio& input, std::string_view source_view, const AlignmentOptions& options) {
+  const std::string source(source_view);
+  Alignment result;
+  result.phones.source = source;
+  result.phones.phone_set = "arpabet";
+  const double duration_s = double(input.samples.size()) / input.sample_rate_hz;
+  if (duration_s > options.max_duration_s) {
+    char text[160];
+    std::snprintf(text, sizeof text, "%.1f s of audio is longer than the %.0f s an alignment accepts; split it at pauses",
+                  duration_s, options.max_duration_s);
+    throw InputError(source, 0, text);
+  }
+  if (input.sample_rate_hz < 8000) {
+    throw InputError(source, 0, "sample rate " + std::to_string(input.sample_rate_hz) +
+                                    " Hz is too low for speech recognition (16000 Hz wanted, 8000 Hz at least)");
+  }
+  if (duration_s < 0.1) throw InputError(source, 0, "the audio is too short to align (under 0.1 s)");
+  const std::vector<double> levels = window_levels_dbfs(input);
+  const double loudest = *std::max_element(levels.begin(), levels.end());
+  if (loudest < kSilenceDbfs) {
+    char text[160];
+    std::snprintf(text, sizeof text, "no speech found: the audio is silent (its loudest 20 ms is at %.0f dBFS)", loudest);
+    throw InputError(source, 0, text);
+  }
+  if (input.sample_rate_hz != kRateHz) {
+    result.notes.push_back("resampled from " + std::to_string(input.sample_rate_hz) + " Hz to 16000 Hz");
+  }
+  const PcmAudio audio = resample(input, kRateHz);
+
+  std::vector<std::string> words;
+  if (options.transcript) {
+    words = transcript_words(*options.transcript);
+    if (words.empty()) throw InputError(source, 0, "the transcript has no words");
+  }
+  const Decoder decoder = make_decoder(options, source, options.transcript.has_value());
+  if (options.transcript) {
+    const std::string grammar = build_grammar(decoder.get(), words, source);
+    if (ps_set_jsgf_string(decoder.get(), "transcript", grammar.c_str()) != 0 ||
+        ps_set_search(decoder.get(), "transcript") != 0) {
+      throw InputError(source, 0, "PocketSphinx rejected the transcript's grammar");
+    }
+  } else {
+    const std::string phone_lm = options.model_dir + "/en-us-phone.lm.bin";
+    if (ps_set_allphone_file(decoder.get(), "phones", phone_lm.c_str()) != 0 ||
+        ps_set_search(decoder.get(), "phones") != 0) {
+      throw InputError(source, 0, "cannot load the phonetic language model " + phone_lm);
+    }
+  }
+
+  ps_start_utt(decoder.get());
+  ps_process_raw(decoder.get(), audio.samples.data(), audio.samples.size(), FALSE, TRUE);
+  ps_end_utt(decoder.get());
+  std::int32_t score = 0;
+  if (ps_get_hyp(decoder.get(), &score) == nullptr) {
+    throw InputError(source, 0, options.transcript
+                                    ? "the transcript does not match the audio (no alignment of its " + count_words(words.size()) +
+                                          " fits)"
+                                    : "no phones were recognised in the audio");
+  }
+
+  const std::int64_t end_us = audio.duration_us();
+  std::vector<LabeledInterval>& phones = result.phones.intervals;
+  int word_index = -1;
+  for (ps_seg_t* seg = ps_seg_iter(decoder.get()); seg != nullptr; seg = ps_seg_next(seg)) {
+    int first_frame = 0, last_frame = 0;
+    ps_seg_frames(seg, &first_frame, &last_frame);
+    const std::int64_t start = first_frame == 0 ? 0 : std::min(end_us, first_frame * kFrameUs + kBoundaryOffsetUs);
+    const std::int64_t end = std::min(end_us, (last_frame + 1) * kFrameUs + kBoundaryOffsetUs);
+    if (end <= start) continue;
+    const std::string_view word = ps_seg_word(seg);
+    if (word == "(NULL)") continue;  // an empty grammar arc, no audio
+    auto [phone, index] = phone_of(word);
+    if (!phones.empty() && phone.empty() && phones.back().label.empty()) {
+      phones.back().end_us = end;  // adjacent pauses and noises are one silence
+    } else {
+      phones.push_back({phone, start, end, static_cast<int>(phones.size()) + 1});
+    }
+    if (index < 0) continue;
+    if (index != word_index) {
+      result.words.push_back({words[static_cast<std::size_t>(index)], start, end, index + 1});
+      word_index = index;
+    }
+    result.words.back().end_us = end;
+  }
+  // Tile [0, end]: a silence before the first and after the last recognised segment.
+  if (phones.empty() || phones.front().start_us > 0) {
+    phones.insert(phones.begin(), {"", 0, phones.empty() ? end_us : phones.front().start_us, 0});
+  }
+  if (phones.back().end_us < end_us) phones.push_back({"", phones.back().end_us, end_us, int(phones.size()) + 1});
+  if (options.transcript) {
+    const double share = loud_share_in_pauses(levels, loudest, phones);
+    if (share > kMostSpeechInPauses) {
+      throw InputError(source, 0, "the transcript does not match the audio (its " + count_words(words.size()) +
+                                      " fit only by leaving " + std::to_string(std::lround(100 * share)) +
+                                      " % of the speech unaligned)");
+    }
+  }
+  return result;
+}
+
+void write_textgrid(std::ostream& out, const Alignment& alignment, std::int64_t duration_us) {
+  const auto seconds = [](std::int64_t us) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.6f", double(us) / 1e6);
+    return std::string(text);
+  };
+  const auto quoted = [](const std::string& text) {
+    std::string q = "\"";
+    for (const char c : text) q += c == '"' ? std::string("\"\"") : std::string(1, c);
+    return q + "\"";
+  };
+  // Word tier with silences filled in between the words, so that the intervals tile the tier.
+  std::vector<LabeledInterval> word_tier;
+  for (const LabeledInterval& word : alignment.words) {
+    const std::int64_t previous_end = word_tier.empty() ? 0 : word_tier.back().end_us;
+    if (word.start_us > previous_end) word_tier.push_back({"", previous_end, word.start_us, 0});
+    word_tier.push_back(word);
+  }
+  if (!word_tier.empty() && word_tier.back().end_us < duration_us) {
+    word_tier.push_back({"", word_tier.back().end_us, duration_us, 0});
+  }
+  std::vector<std::pair<std::string, const std::vector<LabeledInterval>*>> tiers;
+  if (!word_tier.empty()) tiers.emplace_back("words", &word_tier);
+  tiers.emplace_back("phones", &alignment.phones.intervals);
+
+  out << "File type = \"ooTextFile\"\nObject class = \"TextGrid\"\n\n"
+      << "xmin = 0\nxmax = " << seconds(duration_us) << "\ntiers? <exists>\nsize = " << tiers.size()
+      << "\nitem []:\n";
+  for (std::size_t t = 0; t < tiers.size(); ++t) {
+    const auto& intervals = *tiers[t].second;
+    out << "    item [" << t + 1 << "]:\n        class = \"IntervalTier\"\n        name = " << quoted(tiers[t].first)
+        << "\n        xmin = 0\n        xmax = " << seconds(duration_us)
+        << "\n        intervals: size = " << intervals.size() << "\n";
+    for (std::size_t i = 0; i < intervals.size(); ++i) {
+      out << "        intervals [" << i + 1 << "]:\n            xmin = " << seconds(intervals[i].start_us)
+          << "\n            xmax = " << seconds(intervals[i].end_us)
+          << "\n            text = " << quoted(intervals[i].label) << "\n";
+    }
+  }
+}
+
+}  // namespace lipsync::speech

@@ -1,0 +1,309 @@
+// lipsync::speech on real espeak-ng, real PocketSphinx and real WAV bytes: text
+// to timed phonemes to a track, the WAV reader's conversions and refusals, and
+// the aligner's accuracy and its answers to bad input (silence, too long, a
+// transcript that does not fit, a word the dictionary lacks).
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <numbers>
+#include <sstream>
+
+#include "boundary_errors.hpp"
+#include "lipsync/error.hpp"
+#include "lipsync/formats.hpp"
+#include "lipsync/renderer.hpp"
+#include "lipsync/segment.hpp"
+#include "lipsync/speech/aligner.hpp"
+#include "lipsync/speech/audio.hpp"
+#include "lipsync/speech/synthesizer.hpp"
+
+namespace lipsync {
+namespace {
+
+using ::testing::HasSubstr;
+
+// Builds WAV bytes of any layout: `value(i, c)` in [-1, 1] for frame i, channel c.
+template <typename Value>
+std::string make_wav(int rate_hz, int channels, int bits, bool floating, std::size_t frames, Value value) {
+  std::string data;
+  for (std::size_t i = 0; i < frames; ++i) {
+    for (int c = 0; c < channels; ++c) {
+      const double v = value(i, c);
+      if (floating) {
+        const auto f = static_cast<float>(v);
+        data.append(reinterpret_cast<const char*>(&f), 4);
+        continue;
+      }
+      if (bits == 8) {
+        data.push_back(static_cast<char>(static_cast<std::uint8_t>(std::lround(v * 127) + 128)));
+        continue;
+      }
+      const auto scaled = static_cast<std::int64_t>(std::llround(v * (std::pow(2.0, bits - 1) - 1)));
+      for (int b = 0; b < bits / 8; ++b) data.push_back(static_cast<char>((scaled >> (8 * b)) & 0xFF));
+    }
+  }
+  std::string wav = "RIFF";
+  const auto u32 = [&](std::uint32_t v) { for (int b = 0; b < 4; ++b) wav.push_back(static_cast<char>((v >> (8 * b)) & 0xFF)); };
+  const auto u16 = [&](std::uint16_t v) { wav.push_back(static_cast<char>(v & 0xFF)); wav.push_back(static_cast<char>(v >> 8)); };
+  u32(static_cast<std::uint32_t>(36 + data.size()));
+  wav += "WAVEfmt ";
+  u32(16);
+  u16(floating ? 3 : 1);
+  u16(static_cast<std::uint16_t>(channels));
+  u32(static_cast<std::uint32_t>(rate_hz));
+  u32(static_cast<std::uint32_t>(rate_hz * channels * bits / 8));
+  u16(static_cast<std::uint16_t>(channels * bits / 8));
+  u16(static_cast<std::uint16_t>(bits));
+  wav += "data";
+  u32(static_cast<std::uint32_t>(data.size()));
+  return wav + data;
+}
+
+double tone(std::size_t i, int rate_hz, double hz) { return 0.5 * std::sin(2 * std::numbers::pi * hz * double(i) / rate_hz); }
+
+// Frequency of a tone from its upward zero crossings.
+double measured_hz(const speech::PcmAudio& audio) {
+  int crossings = 0;
+  for (std::size_t i = 1; i < audio.samples.size(); ++i) crossings += audio.samples[i - 1] < 0 && audio.samples[i] >= 0;
+  return crossings * double(audio.sample_rate_hz) / double(audio.samples.size());
+}
+
+template <typename Call>
+std::string error_of(Call call) {
+  try {
+    call();
+  } catch (const InputError& error) {
+    return error.what();
+  }
+  return "(no error)";
+}
+
+TEST(Synthesis, phonemes_tile_the_audio_and_render_to_a_track_that_covers_it) {
+  const ArticulationModel& model = ArticulationModel::builtin();
+  const PhoneSet espeak = *PhoneSet::builtin("espeak", model);
+  for (const char* text : {"Papa parked the car.", "Speech synchronization.", "Where were you, Bob? Mum waved.",
+                           "It's easy to tell the depth of a well."}) {
+    SCOPED_TRACE(text);
+    speech::Synthesis speech = speech::synthesize(text);
+    EXPECT_EQ(speech.audio.sample_rate_hz, 22050);
+    EXPECT_GT(speech.audio.duration_us(), 500'000);
+    const auto& phonemes = speech.phonemes.intervals;
+    ASSERT_GE(phonemes.size(), 5U);
+    EXPECT_EQ(phonemes.front().start_us, 0);
+    EXPECT_EQ(phonemes.back().end_us, speech.audio.duration_us());
+    for (std::size_t i = 0; i < phonemes.size(); ++i) {
+      EXPECT_LT(phonemes[i].start_us, phonemes[i].end_us) << phonemes[i].label;
+      if (i > 0) {
+        EXPECT_EQ(phonemes[i].start_us, phonemes[i - 1].end_us) << phonemes[i].label;
+      }
+      EXPECT_TRUE(espeak.lookup(phonemes[i].label)) << "unknown espeak phoneme '" << phonemes[i].label << "'";
+    }
+    speech::cover_audio(speech.phonemes, speech.audio.duration_us(), 30);
+    const Track track = render_track(model, build_segments(speech.phonemes, model, espeak));
+    ASSERT_GT(track.frame_count(), 0U);
+    EXPECT_GE(track.t_us.back(), speech.audio.duration_us());
+    EXPECT_LE(track.t_us.back(), speech.audio.duration_us() + 1'000'000 / 30 + 1);
+  }
+}
+
+TEST(Synthesis, bilabials_are_where_the_text_has_them) {
+  const speech::Synthesis speech = speech::synthesize("Papa parked the car.");
+  std::vector<std::string> labels;
+  for (const LabeledInterval& phoneme : speech.phonemes.intervals) labels.push_back(phoneme.label);
+  EXPECT_EQ(std::count(labels.begin(), labels.end(), "p"), 3);
+}
+
+TEST(Synthesis, unknown_voice_and_empty_text_are_errors) {
+  speech::SynthesisOptions options;
+  options.voice = "no-such-voice";
+  EXPECT_THAT(error_of([&] { speech::synthesize("Hello.", options); }), HasSubstr("unknown voice 'no-such-voice'"));
+  EXPECT_THAT(error_of([] { speech::synthesize("  \n"); }), HasSubstr("the text is empty"));
+  // The failed calls leave espeak-ng usable.
+  EXPECT_FALSE(speech::synthesize("Hello.").phonemes.intervals.empty());
+}
+
+TEST(Wav, written_audio_reads_back_unchanged) {
+  speech::PcmAudio audio;
+  audio.sample_rate_hz = 16000;
+  for (int i = 0; i < 1000; ++i) audio.samples.push_back(static_cast<std::int16_t>(i * 37 - 18000));
+  std::ostringstream out;
+  speech::write_wav(out, audio);
+  const speech::DecodedWav decoded = speech::decode_wav(out.str(), "x.wav");
+  EXPECT_EQ(decoded.audio.samples, audio.samples);
+  EXPECT_EQ(decoded.audio.sample_rate_hz, 16000);
+  EXPECT_TRUE(decoded.notes.empty());
+}
+
+TEST(Wav, other_layouts_are_converted_to_mono_16_bit_with_a_note) {
+  struct Layout {
+    int rate, channels, bits;
+    bool floating;
+    std::vector<std::string> notes;
+  };
+  const Layout layouts[] = {
+      {44100, 2, 24, false, {"2 channels averaged to mono", "24-bit integer samples converted to 16-bit"}},
+      {48000, 1, 32, true, {"32-bit float samples converted to 16-bit"}},
+      {8000, 1, 8, false, {"8-bit integer samples converted to 16-bit"}},
+      {22050, 2, 32, false, {"2 channels averaged to mono", "32-bit integer samples converted to 16-bit"}},
+  };
+  for (const Layout& layout : layouts) {
+    SCOPED_TRACE(std::to_string(layout.rate) + " Hz, " + std::to_string(layout.bits) + " bits");
+    // 440 Hz in the left channel, its copy in the right: the mono mix is the same tone.
+    const std::string wav = make_wav(layout.rate, layout.channels, layout.bits, layout.floating,
+                                     std::size_t(layout.rate), [&](std::size_t i, int) { return tone(i, layout.rate, 440); });
+    const speech::DecodedWav decoded = speech::decode_wav(wav, "x.wav");
+    EXPECT_EQ(decoded.notes, layout.notes);
+    EXPECT_EQ(decoded.audio.samples.size(), std::size_t(layout.rate));
+    const speech::PcmAudio at_16k = speech::resample(decoded.audio, 16000);
+    EXPECT_EQ(at_16k.samples.size(), 16000U);
+    EXPECT_NEAR(measured_hz(at_16k), 440, 2);
+    const auto peak = *std::max_element(at_16k.samples.begin(), at_16k.samples.end());
+    EXPECT_NEAR(peak, 16384, 16384 * 0.03);  // amplitude 0.5 kept (8-bit: within its precision)
+  }
+}
+
+TEST(Wav, resampling_removes_what_16_khz_cannot_hold) {
+  // A 7 kHz tone passes; a 10 kHz tone (above 8 kHz Nyquist) would alias to 6 kHz: it must vanish.
+  for (const auto& [hz, kept] : {std::pair{7000.0, true}, std::pair{10000.0, false}}) {
+    const std::string wav = make_wav(44100, 1, 16, false, 44100, [&](std::size_t i, int) { return tone(i, 44100, hz); });
+    const speech::PcmAudio out = speech::resample(speech::decode_wav(wav, "x.wav").audio, 16000);
+    const auto peak = *std::max_element(out.samples.begin() + 1000, out.samples.end() - 1000);
+    if (kept) {
+      EXPECT_GT(peak, 14000) << hz;
+    } else {
+      EXPECT_LT(peak, 200) << hz;
+    }
+  }
+}
+
+TEST(Wav, bad_files_are_refused_naming_the_file_and_what_was_found) {
+  EXPECT_EQ(error_of([] { speech::decode_wav("ID3\x03 an mp3 file", "song.mp3"); }),
+            "song.mp3: not a WAV file (expected a RIFF/WAVE header, found 'ID3\x03')");
+  EXPECT_EQ(error_of([] { speech::decode_wav("RIFF", "short.wav"); }),
+            "short.wav: not a WAV file (expected a RIFF/WAVE header, found 4 bytes)");
+  std::string adpcm = make_wav(16000, 1, 16, false, 100, [](std::size_t, int) { return 0.0; });
+  adpcm[20] = 2;  // format tag 2: Microsoft ADPCM
+  EXPECT_EQ(error_of([&] { speech::decode_wav(adpcm, "a.wav"); }),
+            "a.wav: unsupported WAV encoding (format tag 2, 16 bits): only PCM 8/16/24/32-bit integer and "
+            "32/64-bit float are read");
+  const std::string no_data = make_wav(16000, 1, 16, false, 0, [](std::size_t, int) { return 0.0; }).substr(0, 36);
+  EXPECT_EQ(error_of([&] { speech::decode_wav(no_data, "n.wav"); }), "n.wav: WAV file has no 'data' chunk");
+}
+
+TEST(Alignment, synthetic_speech_aligns_within_the_reported_error) {
+  // The figures of docs/input-formats.md, "Speech in": espeak-ng speech of the ten
+  // sentences, force-aligned, against espeak-ng's own phoneme boundaries. espeak-ng's
+  // boundaries move by up to about 1 ms from one call to the next (its pitch periods
+  // vary at random), so the bounds are the reported figures with that much slack.
+  const ArticulationModel& model = ArticulationModel::builtin();
+  const PhoneSet espeak = *PhoneSet::builtin("espeak", model);
+  const PhoneSet arpabet = *PhoneSet::builtin("arpabet", model);
+  testing::BoundaryScore score;
+  for (const char* sentence : testing::accuracy_sentences()) {
+    const speech::Synthesis speech = speech::synthesize(sentence);
+    speech::AlignmentOptions options;
+    options.transcript = sentence;
+    const speech::Alignment aligned = speech::align_speech(speech.audio, "espeak-ng", options);
+    ASSERT_EQ(aligned.words.size(), speech::transcript_words(sentence).size()) << sentence;
+    testing::score_alignment(speech.phonemes, espeak, aligned.phones, arpabet, model, score);
+  }
+  EXPECT_LE(testing::quantile(score.errors_ms, 0.5), 11.0);
+  EXPECT_LE(testing::quantile(score.errors_ms, 0.95), 95.0);
+  EXPECT_GE(double(score.matched_phonemes) / score.reference_phonemes, 0.85);
+  EXPECT_GE(score.bilabials_within_20ms, 7) << "of " << score.bilabials;
+}
+
+TEST(Alignment, words_and_phones_follow_the_transcript) {
+  const speech::Synthesis speech = speech::synthesize("Papa parked the car.");
+  speech::AlignmentOptions options;
+  options.transcript = "Papa parked the car.";
+  const speech::Alignment aligned = speech::align_speech(speech.audio, "papa.wav", options);
+  std::vector<std::string> words, phones;
+  for (const LabeledInterval& word : aligned.words) words.push_back(word.label);
+  for (const LabeledInterval& phone : aligned.phones.intervals) if (!phone.label.empty()) phones.push_back(phone.label);
+  EXPECT_THAT(words, ::testing::ElementsAre("papa", "parked", "the", "car"));
+  EXPECT_THAT(phones, ::testing::ElementsAre("P", "AA", "P", "AH", "P", "AA", "R", "K", "T", "DH", "AH", "K", "AA", "R"));
+  EXPECT_EQ(aligned.notes, std::vector<std::string>{"resampled from 22050 Hz to 16000 Hz"});
+  EXPECT_EQ(aligned.phones.intervals.front().start_us, 0);
+  EXPECT_EQ(aligned.phones.intervals.back().end_us, speech::resample(speech.audio, 16000).duration_us());
+}
+
+TEST(Alignment, without_a_transcript_phones_are_recognised) {
+  const speech::Synthesis speech = speech::synthesize("Papa parked the car.");
+  const speech::Alignment recognised = speech::align_speech(speech.audio, "papa.wav", {});
+  EXPECT_TRUE(recognised.words.empty());
+  const auto spoken = std::count_if(recognised.phones.intervals.begin(), recognised.phones.intervals.end(),
+                                    [](const LabeledInterval& phone) { return !phone.label.empty(); });
+  EXPECT_GE(spoken, 5);
+}
+
+TEST(Alignment, silence_only_is_an_error) {
+  speech::PcmAudio silence;
+  silence.samples.assign(32000, 0);
+  EXPECT_EQ(error_of([&] { speech::align_speech(silence, "quiet.wav", {}); }),
+            "quiet.wav: no speech found: the audio is silent (its loudest 20 ms is at -200 dBFS)");
+  for (std::size_t i = 0; i < silence.samples.size(); ++i) silence.samples[i] = static_cast<std::int16_t>(i % 3 == 0 ? 20 : -10);
+  EXPECT_THAT(error_of([&] { speech::align_speech(silence, "hiss.wav", {}); }), HasSubstr("no speech found"));
+}
+
+TEST(Alignment, ten_minutes_of_audio_are_refused_at_once) {
+  speech::PcmAudio long_audio;
+  long_audio.samples.resize(std::size_t(600) * 16000);
+  for (std::size_t i = 0; i < long_audio.samples.size(); ++i) long_audio.samples[i] = static_cast<std::int16_t>(tone(i, 16000, 200) * 20000);
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_EQ(error_of([&] { speech::align_speech(long_audio, "long.wav", {}); }),
+            "long.wav: 600.0 s of audio is longer than the 120 s an alignment accepts; split it at pauses");
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(1));
+}
+
+TEST(Alignment, a_transcript_that_does_not_fit_is_an_error) {
+  const speech::Synthesis speech = speech::synthesize("Papa parked the car.");
+  speech::AlignmentOptions options;
+  options.transcript = "The quick brown fox jumps over the lazy dog near the river bank today and tomorrow";
+  EXPECT_EQ(error_of([&] { speech::align_speech(speech.audio, "papa.wav", options); }),
+            "papa.wav: the transcript does not match the audio (no alignment of its 16 words fits)");
+  options.transcript = "Hello";
+  EXPECT_THAT(error_of([&] { speech::align_speech(speech.audio, "papa.wav", options); }),
+              HasSubstr("papa.wav: the transcript does not match the audio (its 1 word fit only by leaving"));
+}
+
+TEST(Alignment, a_word_missing_from_the_dictionary_is_named) {
+  const speech::Synthesis speech = speech::synthesize("Papa parked the car.");
+  speech::AlignmentOptions options;
+  options.transcript = "Papa parked the xyzzyq.";
+  EXPECT_EQ(error_of([&] { speech::align_speech(speech.audio, "papa.wav", options); }),
+            "papa.wav: transcript word 4 'xyzzyq' is not in the pronouncing dictionary (write numbers and "
+            "abbreviations out as words)");
+}
+
+TEST(Alignment, transcript_words_drop_punctuation_and_quotes) {
+  EXPECT_THAT(speech::transcript_words("\"It's 'easy', Bob!\" --well..."),
+              ::testing::ElementsAre("it's", "easy", "bob", "well"));
+}
+
+TEST(Alignment, the_textgrid_reads_back_as_the_alignment) {
+  const speech::Synthesis speech = speech::synthesize("Papa parked the car.");
+  speech::AlignmentOptions options;
+  options.transcript = "Papa parked the car.";
+  const speech::Alignment aligned = speech::align_speech(speech.audio, "papa.wav", options);
+  std::ostringstream grid;
+  speech::write_textgrid(grid, aligned, aligned.phones.intervals.back().end_us);
+  const LabeledUtterance phones = parse_utterance(grid.str(), InputFormat::textgrid, "papa.TextGrid");
+  ASSERT_EQ(phones.intervals.size(), aligned.phones.intervals.size());
+  for (std::size_t i = 0; i < phones.intervals.size(); ++i) {
+    EXPECT_EQ(phones.intervals[i].label, aligned.phones.intervals[i].label);
+    EXPECT_EQ(phones.intervals[i].start_us, aligned.phones.intervals[i].start_us);
+    EXPECT_EQ(phones.intervals[i].end_us, aligned.phones.intervals[i].end_us);
+  }
+  ParseOptions words_tier;
+  words_tier.tier = "words";
+  const LabeledUtterance words = parse_utterance(grid.str(), InputFormat::textgrid, "papa.TextGrid", words_tier);
+  std::vector<std::string> labels;
+  for (const LabeledInterval& word : words.intervals) if (!word.label.empty()) labels.push_back(word.label);
+  EXPECT_THAT(labels, ::testing::ElementsAre("papa", "parked", "the", "car"));
+}
+
+}  // namespace
+}  // namespace lipsync
