@@ -42,7 +42,8 @@ static_assert(SegmentOptions{}.closure_fraction == 0.6, "update the default show
 
 constexpr OptionSpec kOptions[] = {
     kTrackOutputOption,
-    kTrackFormatOption,
+    kRenderFormatOption,
+    kExtendedShapesOption,
     kFpsOption,
     {"model", 0, "FILE", "articulation model JSON (see 'lipsync model dump')", "the built-in model"},
     kPhoneSetOption,
@@ -203,7 +204,16 @@ int run_render(std::span<const std::string_view> args) {
   const std::string& input = arguments.positional().front();
 
   const std::string output = arguments.value("output").value_or("-");
-  const TrackFormat format = parse_track_format_option(arguments.value("format").value_or("json"));
+  const RenderFormat format = parse_render_format_option(arguments.value("format").value_or("json"));
+  VisemeOptions viseme_options;
+  if (format.visemes) viseme_options.vocabulary = vocabulary_of(*format.visemes);
+  if (const auto letters = arguments.value("extended-shapes")) {
+    if (viseme_options.vocabulary != VisemeVocabulary::rhubarb || !format.visemes)
+      throw UsageError("--extended-shapes needs --format rhubarb-tsv or rhubarb-json");
+    const auto shapes = rhubarb_shapes_from_string(*letters);
+    if (!shapes) throw UsageError("--extended-shapes: '" + *letters + "' is not a set of G, H and X (e.g. GHX, GX or \"\")");
+    viseme_options.rhubarb_shapes = *shapes;
+  }
   std::optional<InputFormat> input_format;
   if (const auto text = arguments.value("input-format")) input_format = parse_input_format_option(*text);
 
@@ -269,11 +279,20 @@ int run_render(std::span<const std::string_view> args) {
   std::vector<PhoneSet> candidates;
   const PhoneSet& phone_set = choose_phone_set(phone_set_name, utterance, model, candidates);
   const Track track = render_utterance(utterance, model, phone_set, request);
+  const auto write = [&] {
+    if (format.track) {
+      write_output(track, model, *format.track, output);
+    } else {
+      // The utterance ends where its last phoneme does (validated by render_utterance).
+      const std::int64_t end_us = utterance.intervals.empty() ? 0 : utterance.intervals.back().end_us;
+      write_viseme_output(track, model, viseme_options, *format.visemes, end_us, output);
+    }
+  };
   if (!face_outputs) {
-    write_output(track, model, format, output);
+    write();
     return 0;
   }
-  if (arguments.value("output")) write_output(track, model, format, output);
+  if (arguments.value("output")) write();
 
   // The face: simulated once on the uniform grid, then exported and/or rendered.
   const face::FaceMesh mesh = face::build_face_mesh(face::FaceAsset::builtin(), subdivision);
