@@ -34,6 +34,14 @@ TrackFormat parse_track_format_option(std::string_view text) {
   throw UsageError("--format: unknown track format '" + std::string(text) + "' (choose json, csv or arkit-csv)");
 }
 
+RenderFormat parse_render_format_option(std::string_view text) {
+  if (const auto format = track_format_from_string(text)) return {.track = *format, .visemes = std::nullopt};
+  if (const auto format = viseme_format_from_string(text)) return {.track = std::nullopt, .visemes = *format};
+  throw UsageError("--format: unknown format '" + std::string(text) +
+                   "' (choose json, csv, arkit-csv, visemes-oculus, visemes-azure, visemes-polly, rhubarb-tsv or "
+                   "rhubarb-json)");
+}
+
 InputFormat parse_input_format_option(std::string_view text) {
   if (const auto format = input_format_from_string(text)) return *format;
   throw UsageError("--input-format: unknown input format '" + std::string(text) +
@@ -121,6 +129,23 @@ void write_output(const Track& track, const ArticulationModel& model, TrackForma
   }
   AtomicOutputFile file(output);
   write_track(track, model, format, file.stream());
+  file.commit();
+}
+
+void write_viseme_output(const Track& track, const ArticulationModel& model, const VisemeOptions& options,
+                         VisemeFormat format, std::int64_t end_us, const std::string& output) {
+  const VisemeClassifier classifier(model, options);
+  const VisemeTrack visemes = compute_visemes(classifier, track);
+  const VisemeTrackView view{
+      .model = model.name(), .classifier = classifier, .track = track, .visemes = visemes, .end_us = end_us};
+  if (output == "-") {
+    write_visemes(view, format, std::cout);
+    std::cout.flush();
+    if (!std::cout) throw FileError("cannot write the visemes to standard output");
+    return;
+  }
+  AtomicOutputFile file(output);
+  write_visemes(view, format, file.stream());
   file.commit();
 }
 

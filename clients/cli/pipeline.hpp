@@ -22,6 +22,8 @@
 #include "lipsync/track.hpp"
 #include "lipsync/track_writer.hpp"
 #include "lipsync/utterance.hpp"
+#include "lipsync/viseme_writer.hpp"
+#include "lipsync/visemes.hpp"
 
 namespace lipsync::cli {
 
@@ -29,6 +31,14 @@ namespace lipsync::cli {
 inline constexpr OptionSpec kTrackOutputOption = {"output", 'o', "FILE", "write the track to FILE (all or nothing, via a temporary file); - for stdout",
     "stdout"};
 inline constexpr OptionSpec kTrackFormatOption = {"format", 0, "FORMAT", "track format: json, csv or arkit-csv (Unreal Live Link Face CSV)", "json"};
+inline constexpr OptionSpec kRenderFormatOption = {"format", 0, "FORMAT",
+    "track format: json, csv, arkit-csv (Unreal Live Link Face CSV), or visemes: visemes-oculus, visemes-azure, "
+    "visemes-polly, rhubarb-tsv, rhubarb-json",
+    "json"};
+inline constexpr OptionSpec kExtendedShapesOption = {"extended-shapes", 0, "LETTERS",
+    "which of Rhubarb's optional mouth shapes G, H and X the rhubarb formats use (its extendedShapes option); "
+    "\"\" for none",
+    "GHX"};
 inline constexpr OptionSpec kFpsOption = {"fps", 0, "N", "frames per second of the uniform grid, 1 to 240", "30"};
 inline constexpr OptionSpec kPhoneSetOption = {"phone-set", 0, "NAME", "phone set of the labels (see 'lipsync phone-sets'), or auto to detect it",
     "the set the file declares, else auto"};
@@ -55,6 +65,13 @@ ParseOptions parse_options_from(const Arguments& arguments);
 
 /// --format and --input-format values; UsageError listing the choices otherwise.
 TrackFormat parse_track_format_option(std::string_view text);
+
+/// `lipsync render`'s --format: a track format or a viseme format (exactly one is set).
+struct RenderFormat {
+  std::optional<TrackFormat> track;
+  std::optional<VisemeFormat> visemes;
+};
+RenderFormat parse_render_format_option(std::string_view text);
 InputFormat parse_input_format_option(std::string_view text);
 
 /// Names of the built-in phone sets plus "auto", for messages.
@@ -87,5 +104,10 @@ Track render_utterance(const LabeledUtterance& utterance, const ArticulationMode
 /// Writes `track` to `output` ("-" for standard output) atomically. Throws FileError.
 void write_output(const Track& track, const ArticulationModel& model, TrackFormat format,
                   const std::string& output);
+
+/// Writes the visemes of `track` (an utterance ending at `end_us`) in `format` to `output`
+/// atomically. Throws FileError.
+void write_viseme_output(const Track& track, const ArticulationModel& model, const VisemeOptions& options,
+                         VisemeFormat format, std::int64_t end_us, const std::string& output);
 
 }  // namespace lipsync::cli

@@ -45,7 +45,8 @@ static_assert(SegmentOptions{}.closure_fraction == 0.6, "update the default show
 
 constexpr OptionSpec kOptions[] = {
     kTrackOutputOption,
-    kTrackFormatOption,
+    kRenderFormatOption,
+    kExtendedShapesOption,
     kFpsOption,
     kModelOption,
     kPhoneSetOption,
@@ -198,7 +199,15 @@ OutputRequest parse_output_request(const Arguments& arguments) {
   OutputRequest out;
   out.output = arguments.value("output").value_or("-");
   out.output_given = arguments.value("output").has_value();
-  out.format = parse_track_format_option(arguments.value("format").value_or("json"));
+  out.format = parse_render_format_option(arguments.value("format").value_or("json"));
+  if (out.format.visemes) out.visemes.vocabulary = vocabulary_of(*out.format.visemes);
+  if (const auto letters = arguments.value("extended-shapes")) {
+    if (out.visemes.vocabulary != VisemeVocabulary::rhubarb || !out.format.visemes)
+      throw UsageError("--extended-shapes needs --format rhubarb-tsv or rhubarb-json");
+    const auto shapes = rhubarb_shapes_from_string(*letters);
+    if (!shapes) throw UsageError("--extended-shapes: '" + *letters + "' is not a set of G, H and X (e.g. GHX, GX or \"\")");
+    out.visemes.rhubarb_shapes = *shapes;
+  }
   TrackRequest& request = out.track;
   const RenderPlan plan = parse_render_plan(arguments);
   request.render = plan.render;
@@ -247,12 +256,21 @@ void render_outputs(const OutputRequest& out, LabeledUtterance utterance) {
   std::vector<PhoneSet> candidates;
   const PhoneSet& phone_set = choose_phone_set(out.phone_set_name, utterance, model, candidates);
   const Track track = render_utterance(utterance, model, phone_set, request);
+  const auto write = [&] {
+    if (out.format.track) {
+      write_output(track, model, *out.format.track, out.output);
+    } else {
+      // The visemes of the utterance, which ends where its last phoneme (or the audio) does.
+      const std::int64_t end_us = utterance.intervals.empty() ? 0 : utterance.intervals.back().end_us;
+      write_viseme_output(track, model, out.visemes, *out.format.visemes, end_us, out.output);
+    }
+  };
   const bool face_outputs = out.mesh_path || out.video_path || out.still_path;
   if (!face_outputs) {
-    write_output(track, model, out.format, out.output);
+    write();
     return;
   }
-  if (out.output_given) write_output(track, model, out.format, out.output);
+  if (out.output_given) write();
   // The face: simulated once on the uniform grid, then exported and/or rendered.
   const face::FaceMesh mesh = face::build_face_mesh(face::FaceAsset::builtin(), out.subdivision);
   const face::FaceRig rig = out.model_path

@@ -1,5 +1,5 @@
 // The output half of `lipsync render`, shared with `lipsync say`: the options
-// that say what to write (track, glTF mesh, video, still) are checked once,
+// that say what to write (track or visemes, glTF mesh, video, still) are checked once,
 // before any work, and a LabeledUtterance is then rendered to all of them.
 #pragma once
 
@@ -32,7 +32,8 @@ inline constexpr OptionSpec kStillAtOption = {"still-at", 0, "SECONDS", "time of
 struct OutputRequest {
   std::string output = "-";  ///< -o, "-" for stdout
   bool output_given = false;
-  TrackFormat format = TrackFormat::json;
+  RenderFormat format{TrackFormat::json, std::nullopt};  ///< --format: a track or a viseme format
+  VisemeOptions visemes;                                  ///< with a viseme format: vocabulary, Rhubarb shapes
   TrackRequest track;
   std::optional<std::string> phone_set_name, model_path;
   std::optional<std::string> mesh_path, video_path, audio_path, still_path;

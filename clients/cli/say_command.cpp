@@ -22,7 +22,8 @@ namespace {
 
 constexpr OptionSpec kOptions[] = {
     kTrackOutputOption,
-    kTrackFormatOption,
+    kRenderFormatOption,
+    kExtendedShapesOption,
     kFpsOption,
     {"wav", 0, "FILE", "also write the speech to FILE (16-bit mono PCM WAV at espeak-ng's 22050 Hz)", "no WAV"},
     {"voice", 0, "NAME", "espeak-ng voice ('espeak-ng --voices' lists them)", "en-us"},

@@ -117,6 +117,7 @@ TEST_F(CliTest, render_help_documents_every_option_with_its_default) {
       {"--tier NAME", "phones"},            {"--sample-rate HZ", "16000"},
       {"--closure-fraction F", "0.6"},      {"--fixed-rate", "off"},
       {"--incremental", "off"},             {"--lookahead N", "7"},
+      {"--extended-shapes LETTERS", "GHX"},
   };
   // One entry per option: its first line plus the wrapped continuation lines.
   std::vector<std::string> entries;
@@ -280,6 +281,161 @@ TEST_F(CliTest, incremental_output_is_byte_identical_to_offline) {
       }
     }
   }
+}
+
+// Rhubarb Lip Sync's output formats, read as its README documents them: TSV lines
+// "<seconds>\t<shape>" (first at 0.00, the last one the end of the recording with a closed mouth,
+// X or A); JSON {"metadata":{"soundFile","duration"},"mouthCues":[{"start","end","value"}]} with
+// each cue's end the next one's start. Shapes are A-F plus the extended G, H, X.
+struct RhubarbCueRead {
+  double start = 0, end = 0;
+  std::string shape;
+};
+
+bool is_rhubarb_shape(const std::string& shape) {
+  return shape.size() == 1 && std::string("ABCDEFGHX").find(shape[0]) != std::string::npos;
+}
+
+/// Seconds as Rhubarb writes them: digits, '.', exactly two digits.
+double rhubarb_seconds(const std::string& text) {
+  const auto dot = text.find('.');
+  if (dot == std::string::npos || dot == 0 || text.size() != dot + 3 ||
+      text.find_first_not_of("0123456789.") != std::string::npos) {
+    throw std::runtime_error("not Rhubarb seconds: '" + text + "'");
+  }
+  return std::stod(text);
+}
+
+std::vector<RhubarbCueRead> read_rhubarb_tsv(const std::string& text) {
+  std::vector<RhubarbCueRead> cues;
+  std::istringstream lines(text);
+  for (std::string line; std::getline(lines, line);) {
+    const auto tab = line.find('\t');
+    if (tab == std::string::npos) throw std::runtime_error("TSV line without a tab: '" + line + "'");
+    const RhubarbCueRead cue{rhubarb_seconds(line.substr(0, tab)), 0, line.substr(tab + 1)};
+    if (!is_rhubarb_shape(cue.shape)) throw std::runtime_error("not a Rhubarb shape: '" + cue.shape + "'");
+    if (!cues.empty()) cues.back().end = cue.start;
+    cues.push_back(cue);
+  }
+  return cues;
+}
+
+TEST_F(CliTest, rhubarb_tsv_and_json_read_back_as_rhubarb_documents_them) {
+  for (const char* input : {"festival_2.lab", "flite_4.psdur"}) {
+    const std::string path = (fs::path(LIPSYNC_TEST_DATA_DIR) / "closures" / input).string();
+    const RunResult tsv = run({"render", path, "--format", "rhubarb-tsv"});
+    const RunResult json = run({"render", path, "--format", "rhubarb-json"});
+    ASSERT_EQ(tsv.status, 0) << describe(tsv);
+    ASSERT_EQ(json.status, 0) << describe(json);
+
+    std::vector<RhubarbCueRead> from_tsv = read_rhubarb_tsv(tsv.out);
+    ASSERT_GE(from_tsv.size(), 10U) << input;
+    EXPECT_EQ(from_tsv.front().start, 0.0) << input;
+    const RhubarbCueRead last = from_tsv.back();  // the end marker line
+    EXPECT_TRUE(last.shape == "X") << input << ": last line " << last.shape;
+    from_tsv.pop_back();
+    for (std::size_t i = 1; i < from_tsv.size(); ++i) {
+      EXPECT_LT(from_tsv[i - 1].start, from_tsv[i].start) << input << " cue " << i;
+      EXPECT_NE(from_tsv[i - 1].shape, from_tsv[i].shape) << input << " cue " << i;
+    }
+    EXPECT_LT(from_tsv.back().start, last.start) << input;
+    EXPECT_EQ(from_tsv.back().end, last.start) << input;
+
+    const nlohmann::json doc = nlohmann::json::parse(json.out);
+    ASSERT_TRUE(doc.at("metadata").at("soundFile").is_string()) << input;
+    const double duration = doc.at("metadata").at("duration").get<double>();
+    EXPECT_DOUBLE_EQ(duration, last.start) << input;
+    const auto& cues = doc.at("mouthCues");
+    ASSERT_EQ(cues.size(), from_tsv.size()) << input;
+    for (std::size_t i = 0; i < cues.size(); ++i) {
+      // Same cues as the TSV; each ends where the next starts, the last at the duration.
+      EXPECT_DOUBLE_EQ(cues[i].at("start").get<double>(), from_tsv[i].start) << input << " cue " << i;
+      EXPECT_DOUBLE_EQ(cues[i].at("end").get<double>(), from_tsv[i].end) << input << " cue " << i;
+      EXPECT_EQ(cues[i].at("value").get<std::string>(), from_tsv[i].shape) << input << " cue " << i;
+    }
+    // The bilabials of real speech show as closed mouths.
+    EXPECT_NE(tsv.out.find("\tA\n"), std::string::npos) << input;
+  }
+}
+
+TEST_F(CliTest, rhubarb_without_extended_shapes_uses_the_six_basic_ones) {
+  const std::string path = (fs::path(LIPSYNC_TEST_DATA_DIR) / "closures" / "festival_3.lab").string();
+  const RunResult full = run({"render", path, "--format", "rhubarb-tsv"});
+  const RunResult basic = run({"render", path, "--format", "rhubarb-tsv", "--extended-shapes", ""});
+  ASSERT_EQ(full.status, 0) << describe(full);
+  ASSERT_EQ(basic.status, 0) << describe(basic);
+  std::set<std::string> full_shapes, basic_shapes;
+  for (const auto& cue : read_rhubarb_tsv(full.out)) full_shapes.insert(cue.shape);
+  for (const auto& cue : read_rhubarb_tsv(basic.out)) basic_shapes.insert(cue.shape);
+  EXPECT_TRUE(full_shapes.count("X") && full_shapes.count("G")) << full.out;
+  EXPECT_EQ(basic_shapes.count("G") + basic_shapes.count("H") + basic_shapes.count("X"), 0U) << basic.out;
+  EXPECT_THAT(basic.out, ::testing::EndsWith("\tA\n"));  // Rhubarb ends on A without X
+
+  const RunResult wrong = run({"render", path, "--format", "rhubarb-tsv", "--extended-shapes", "GQ"});
+  EXPECT_EQ(wrong.status, 2);
+  EXPECT_THAT(wrong.err, HasSubstr("--extended-shapes: 'GQ'"));
+  const RunResult not_rhubarb = run({"render", path, "--format", "visemes-oculus", "--extended-shapes", "G"});
+  EXPECT_EQ(not_rhubarb.status, 2);
+  EXPECT_THAT(not_rhubarb.err, HasSubstr("--extended-shapes needs --format rhubarb-tsv or rhubarb-json"));
+}
+
+TEST_F(CliTest, viseme_formats_stream_equals_batch_byte_for_byte) {
+  for (const char* input : {"festival_5.lab"}) {
+    const std::string path = (fs::path(LIPSYNC_TEST_DATA_DIR) / "closures" / input).string();
+    for (const char* format : {"visemes-oculus", "visemes-azure", "visemes-polly", "rhubarb-tsv", "rhubarb-json"}) {
+      for (const char* fps : {"24"}) {
+        std::vector<std::string> args = {"render", path, "--format", format, "--fps", fps};
+        const RunResult offline = run(args);
+        args.push_back("--incremental");
+        const RunResult incremental = run(args);
+        const std::string label = std::string(input) + " " + format + " at " + fps + " fps";
+        ASSERT_EQ(offline.status, 0) << label << "\n" << describe(offline);
+        ASSERT_EQ(incremental.status, 0) << label << "\n" << describe(incremental);
+        EXPECT_FALSE(offline.out.empty()) << label;
+        EXPECT_TRUE(offline.out == incremental.out) << label << ": incremental output differs";
+      }
+    }
+  }
+}
+
+TEST_F(CliTest, oculus_and_azure_visemes_carry_weights_per_frame_and_exact_event_times) {
+  const std::string path = (fs::path(LIPSYNC_TEST_DATA_DIR) / "closures" / "flite_1.psdur").string();
+  const RunResult azure = run({"render", path, "--format", "visemes-azure"});
+  ASSERT_EQ(azure.status, 0) << describe(azure);
+  const nlohmann::json doc = nlohmann::json::parse(azure.out);
+  EXPECT_EQ(doc.at("format"), "lipsync-visemes");
+  EXPECT_EQ(doc.at("vocabulary"), "azure");
+  ASSERT_EQ(doc.at("visemes").size(), 22U);
+  const auto& frames = doc.at("frames");
+  ASSERT_GT(frames.size(), 30U);
+  for (const auto& frame : frames) {
+    ASSERT_EQ(frame.at("weights").size(), 22U);
+    double sum = 0;
+    for (const auto& w : frame.at("weights")) sum += w.get<double>();
+    EXPECT_NEAR(sum, 1.0, 1e-5) << frame.at("t_us");
+  }
+  std::set<std::int64_t> frame_times;
+  for (const auto& frame : frames) frame_times.insert(frame.at("t_us").get<std::int64_t>());
+  for (const auto& event : doc.at("events")) {
+    const auto start_us = event.at("start_us").get<std::int64_t>();
+    EXPECT_TRUE(frame_times.count(start_us)) << "event at " << start_us << " is not at a frame";
+    EXPECT_EQ(event.at("audio_offset_ticks").get<std::int64_t>(), 10 * start_us);  // Azure's 100-ns ticks
+  }
+  const RunResult polly = run({"render", path, "--format", "visemes-polly"});
+  ASSERT_EQ(polly.status, 0) << describe(polly);
+  std::istringstream lines(polly.out);
+  // Polly's vocabulary groups phonemes differently, so its events are its own; each starts at a
+  // frame, in whole milliseconds (rounded half up).
+  std::set<std::int64_t> frame_times_ms;
+  for (const std::int64_t t_us : frame_times) frame_times_ms.insert((t_us + 500) / 1000);
+  std::size_t marks = 0;
+  for (std::string line; std::getline(lines, line); ++marks) {
+    const nlohmann::json mark = nlohmann::json::parse(line);  // Polly speech marks: one JSON object per line
+    EXPECT_EQ(mark.at("type"), "viseme");
+    ASSERT_TRUE(mark.at("time").is_number_integer()) << line;
+    EXPECT_TRUE(frame_times_ms.count(mark.at("time").get<std::int64_t>())) << "mark at a time with no frame: " << line;
+  }
+  EXPECT_GT(marks, 10U);
 }
 
 TEST_F(CliTest, phone_set_can_be_forced) {
