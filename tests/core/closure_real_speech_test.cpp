@@ -66,7 +66,7 @@ void check(const testing::TimedUtterance& utterance, const RenderOptions& option
 
 TEST(RealSpeechClosures, EveryBilabialAndLabiodentalKeyFrameIsClosedInChannelsAndArkit) {
   const auto corpus = testing::load_closure_corpus(LIPSYNC_TEST_DATA_DIR, model());
-  ASSERT_EQ(corpus.size(), 18U);
+  ASSERT_EQ(corpus.size(), 30U);
   for (const int fps : {24, 30, 60, 120}) {
     Tally tally;
     for (const auto& utterance : corpus) check(utterance, {.fps = fps}, tally);

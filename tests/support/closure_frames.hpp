@@ -95,8 +95,9 @@ struct TimedUtterance {
   std::vector<Segment> segments;
 };
 
-/// The closure corpus: real TTS timings in tests/data/closures (regenerate.sh there), as segments
-/// of `model` through the Festival/flite "radio" phone set, in file-name order.
+/// The closure corpus in tests/data/closures (regenerate.sh there), as segments of `model`, in
+/// file-name order: Festival's and flite's own timings (the "radio" phone set) and the same voices
+/// force-aligned by PocketSphinx (TextGrids, "arpabet").
 inline std::vector<TimedUtterance> load_closure_corpus(const std::string& data_dir, const ArticulationModel& model) {
   std::vector<std::filesystem::path> files;
   for (const auto& entry : std::filesystem::directory_iterator(data_dir + "/closures")) {
@@ -104,6 +105,7 @@ inline std::vector<TimedUtterance> load_closure_corpus(const std::string& data_d
   }
   std::sort(files.begin(), files.end());
   const PhoneSet radio = *PhoneSet::builtin("radio", model);
+  const PhoneSet arpabet = *PhoneSet::builtin("arpabet", model);
   std::vector<TimedUtterance> corpus;
   for (const auto& path : files) {
     std::ifstream file(path, std::ios::binary);
@@ -111,7 +113,8 @@ inline std::vector<TimedUtterance> load_closure_corpus(const std::string& data_d
     text << file.rdbuf();
     const std::string name = path.filename().string();
     const InputFormat format = detect_input_format(name, text.str());
-    corpus.push_back({name, build_segments(parse_utterance(text.str(), format, name), model, radio)});
+    const PhoneSet& phone_set = format == InputFormat::textgrid ? arpabet : radio;
+    corpus.push_back({name, build_segments(parse_utterance(text.str(), format, name), model, phone_set)});
   }
   return corpus;
 }
