@@ -175,6 +175,15 @@ TEST(FaceRig, errors_name_the_muscle_and_the_field) {
               testing::HasSubstr("channel 'jaw_rotation' is of kind 'jaw', not 'muscle'"));
   EXPECT_THAT(rig_error([](auto& d) { d["jaw"]["max_rotation_deg"] = 90; }),
               testing::HasSubstr("jaw: field 'max_rotation_deg' = 90"));
+  // The lower lip's jaw compensation (muscle 12, orbicularis_oris_lower).
+  EXPECT_THAT(rig_error([](auto& d) { d["muscles"][12]["jaw_compensation"]["driver"] = "jaw_rotation"; }),
+              testing::HasSubstr("muscle 'orbicularis_oris_lower' jaw_compensation: channel 'jaw_rotation' is of kind 'jaw'"));
+  EXPECT_THAT(rig_error([](auto& d) { d["muscles"][12]["jaw_compensation"]["full"] = 0.2; }),
+              testing::HasSubstr("muscle 'orbicularis_oris_lower' jaw_compensation: field 'full' must be greater than field 'from'"));
+  EXPECT_THAT(rig_error([](auto& d) { d["muscles"][12]["jaw_compensation"]["share"] = 1.5; }),
+              testing::HasSubstr("jaw_compensation: field 'share' = 1.5"));
+  EXPECT_THAT(rig_error([](auto& d) { d["muscles"][11]["jaw_compensation"] = d["muscles"][12]["jaw_compensation"]; }),
+              testing::HasSubstr("muscle 'orbicularis_oris_upper': field 'jaw_compensation' needs 'bone' = 'jaw'"));
 }
 
 TEST(FaceSolver, rest_is_an_equilibrium) {

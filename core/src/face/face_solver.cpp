@@ -100,7 +100,7 @@ struct Binding {
 
 struct CompensatedNode {
   std::uint32_t node;
-  double share;  // the binding share β of the compensating muscle
+  double share;  // the node's jaw share J: how much of the jaw's motion it would follow
 };
 
 struct MuscleBindings {
@@ -109,10 +109,11 @@ struct MuscleBindings {
   std::vector<Binding> bindings;          // displaced by c · displacement
   std::vector<Binding> closure_bindings;  // a sphincter's closure: by min(c, saturation) · displacement
   // A sphincter's protrusion: by max(c − saturation, 0) / (1 − saturation) · displacement, so that a
-  // closing lip (c up to the saturation) meets the other without being pushed forward of it.
+  // closing lip (c up to the saturation) meets the other without being pushed forward of it; by
+  // c · displacement when the closure does not saturate (saturation 1).
   std::vector<Binding> protrusion_bindings;
   double closure_saturation = 1.0;
-  // Lip–jaw compensation (rig.json "jaw_compensation"): each node gives back s · β of the jaw's
+  // Lip–jaw compensation (rig.json "jaw_compensation"): each node gives back s · J of the jaw's
   // displacement of its rest position, s = share · smoothstep(from, full, c_driver).
   std::size_t compensation_channel = MuscleSpec::kNoChannel;
   double compensation_from = 0, compensation_full = 1, compensation_share = 0;
@@ -659,7 +660,7 @@ struct FaceSolver::Impl {
     }
     for (const MuscleBindings& mb : muscles) {
       if (!mb.compensated.empty()) {
-        // The lip holds s of its jaw-closed position: minus s · β of the jaw's displacement.
+        // The lip holds s of its jaw-closed position: minus s · J of the jaw's displacement.
         const double s = mb.compensation_share * smoothstep(mb.compensation_from, mb.compensation_full,
                                                             channel(values, mb.compensation_channel, 0.0, 1.0));
         if (s > 0.0) {
@@ -683,7 +684,9 @@ struct FaceSolver::Impl {
       };
       displace(mb.bindings, c);
       displace(mb.closure_bindings, std::min(c, mb.closure_saturation));
-      if (c > mb.closure_saturation && mb.closure_saturation < 1.0)
+      if (mb.closure_saturation >= 1.0)
+        displace(mb.protrusion_bindings, c);
+      else if (c > mb.closure_saturation)
         displace(mb.protrusion_bindings, (c - mb.closure_saturation) / (1.0 - mb.closure_saturation));
     }
   }
@@ -781,8 +784,9 @@ struct FaceSolver::Impl {
   }
 
   // Lip–lip contact: a facing upper/lower pair (lip line and inner ring) may touch but not cross.
-  // Lips pressed together (the upper node at or below the lower one) are wet and stick where they
-  // meet: the pair is projected onto its mass-weighted meeting point. Run after every local–global
+  // Lips pressed together (the upper node at or below the lower one) meet face to face: the pair is
+  // projected onto its mass-weighted meeting point in height and depth, and each node keeps its
+  // sideways position (the lips slide along each other, no zipper pulls the corners in). Run after every local–global
   // iteration, so that the next iteration's springs start from the projection and the lips deform
   // around the contact, and once more at the end of the step, so that no step ends crossed.
   void resolve_lip_contact() {
