@@ -24,8 +24,10 @@
 #include <filesystem>
 #include <iostream>
 
+#ifdef LIPSYNC_WITH_FACE
 #include "lipsync/face/face_animation.hpp"
 #include "lipsync/face/face_raster.hpp"
+#endif
 
 #include "arguments.hpp"
 #include "cli_error.hpp"
@@ -231,7 +233,7 @@ int run_render(std::span<const std::string_view> args) {
   const std::optional<std::string> video_path = arguments.value("video");
   const std::optional<std::string> audio_path = arguments.value("audio");
   const std::optional<std::string> still_path = arguments.value("still");
-  const int subdivision = plan.mesh_subdivision;
+  [[maybe_unused]] const int subdivision = plan.mesh_subdivision;  // only with LIPSYNC_WITH_FACE
   double still_at_s = 0.0;
   if (const auto text = arguments.value("still-at")) {
     still_at_s = parse_double_option("still-at", *text);
@@ -240,6 +242,12 @@ int run_render(std::span<const std::string_view> args) {
   }
   if (audio_path && !video_path) throw UsageError("--audio needs --video FILE");
   const bool face_outputs = mesh_path || video_path || still_path;
+#ifndef LIPSYNC_WITH_FACE
+  if (face_outputs) {
+    throw UsageError(std::string(mesh_path ? "--mesh" : video_path ? "--video" : "--still") +
+                     ": this lipsync was built without the physics face (LIPSYNC_BUILD_FACE=OFF)");
+  }
+#endif
   if (!face_outputs && arguments.value("mesh-subdivision"))
     throw UsageError("--mesh-subdivision needs --mesh, --video or --still");
   const std::pair<const char*, std::optional<std::string>> face_files[] = {
@@ -274,7 +282,7 @@ int run_render(std::span<const std::string_view> args) {
     return 0;
   }
   if (arguments.value("output")) write_output(track, model, format, output);
-
+#ifdef LIPSYNC_WITH_FACE
   // The face: simulated once on the uniform grid, then exported and/or rendered.
   const face::FaceMesh mesh = face::build_face_mesh(face::FaceAsset::builtin(), subdivision);
   const face::FaceRig rig = arguments.value("model")
@@ -319,6 +327,7 @@ int run_render(std::span<const std::string_view> args) {
     writer.write(rgb);
     writer.commit();
   }
+#endif
   return 0;
 }
 
