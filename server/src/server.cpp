@@ -1,11 +1,19 @@
 // Server: builds the gRPC server around LipSyncService (health checking and
 // reflection on), and shuts it down with a drain deadline.
+//
+// The drain is for rolling restarts behind a load balancer: the listener closes
+// and every connection gets a GOAWAY at once (gRPC's Shutdown), so new sessions
+// are opened on another replica (nginx and Envoy retry a refused connection
+// elsewhere, which they never do for a call that got a status), while the
+// streams already running here finish.
 #include "lipsync/server/server.hpp"
 
+#include <atomic>
 #include <mutex>
 #include <stdexcept>
 #include <thread>
 
+#include <grpc/grpc.h>
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
@@ -40,6 +48,7 @@ Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(con
   if (!impl_->server || impl_->port == 0) {
     throw std::runtime_error("cannot listen on " + impl_->config.listen);
   }
+  impl_->service.routing().set_bound_address(address());
 }
 
 Server::~Server() { shutdown(std::chrono::milliseconds(0)); }
@@ -53,17 +62,30 @@ std::string Server::address() const {
 
 void Server::shutdown(std::chrono::milliseconds drain) {
   std::call_once(impl_->shutdown_once, [&] {
-    // The drain is ours, not gRPC's: Shutdown(deadline) also waits for the
-    // connections of clients that have finished their calls (until the
-    // deadline) once a stream has run on them. So: refuse new calls, wait for
-    // the running ones, then shut gRPC down at once (cancelling what is left).
-    impl_->service.admission().begin_drain();
+    // gRPC's Shutdown(deadline) closes the listener and sends GOAWAY at once, lets
+    // the running calls finish until the deadline, then cancels them. It also
+    // waits, until the deadline, for connections that stay open with no call on
+    // them (an idle client keeps its channel), so it runs on a thread of its own
+    // while this one watches the calls: once none is running, the remaining
+    // connections are closed (grpc_server_cancel_all_calls, repeated until
+    // Shutdown returns, since it may have not begun when first asked). Calls that
+    // slip in before the GOAWAY reaches their client get UNAVAILABLE.
     if (auto* health = impl_->server->GetHealthCheckService()) health->Shutdown();
+    impl_->service.admission().begin_drain();
+    std::atomic<bool> stopped = false;
+    std::thread stopper([&] {
+      impl_->server->Shutdown(std::chrono::system_clock::now() + drain);
+      stopped = true;
+    });
     const auto deadline = std::chrono::steady_clock::now() + drain;
     while (impl_->service.admission().calls_in_progress() > 0 && std::chrono::steady_clock::now() < deadline) {
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
     }
-    impl_->server->Shutdown(std::chrono::system_clock::now());
+    while (!stopped) {
+      grpc_server_cancel_all_calls(impl_->server->c_server());
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    stopper.join();
     impl_->server->Wait();
   });
 }
