@@ -45,8 +45,12 @@ if(LIPSYNC_BUILD_CLIENT)
           ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT dev
           LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT dev
           INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+  set(_lipsync_without_face "")
+  if(NOT LIPSYNC_BUILD_FACE)
+    set(_lipsync_without_face PATTERN face EXCLUDE)
+  endif()
   install(DIRECTORY core/include/lipsync clients/lib/include/lipsync
-          DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} COMPONENT dev)
+          DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} COMPONENT dev ${_lipsync_without_face})
   install(FILES ${PROJECT_BINARY_DIR}/proto/lipsync/v1/lipsync.pb.h
                 ${PROJECT_BINARY_DIR}/proto/lipsync/v1/lipsync.grpc.pb.h
           DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/lipsync/v1 COMPONENT dev)
