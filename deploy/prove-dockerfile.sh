@@ -33,12 +33,21 @@ cleanup() {
   if [[ -n "${server_pid:-}" ]]; then kill "$server_pid" 2>/dev/null || true; fi
 }
 trap cleanup EXIT
-make_root() {  # DIR: a fresh minimal Debian 12 with /proc, /sys and /dev mounted
+make_root() {  # DIR: a fresh minimal Debian 12 with its own /proc and a private /dev
   rm -rf "$1"
   debootstrap --variant=minbase bookworm "$1" "$mirror" >"$1.debootstrap.log" 2>&1 ||
     { tail -20 "$1.debootstrap.log"; exit 1; }
   cp /etc/resolv.conf "$1/etc/resolv.conf"
-  for fs in proc sys dev; do mount --bind "/$fs" "$1/$fs"; mounted+=("$1/$fs"); done
+  mount -t proc proc "$1/proc"; mounted+=("$1/proc")
+  # Never bind the host's /dev: package scripts in the chroot may replace /dev/null (it happened:
+  # the host's /dev/null became a plain file). A private tmpfs with the few nodes apt needs.
+  mount -t tmpfs -o mode=755,nosuid tmpfs "$1/dev"; mounted+=("$1/dev")
+  mknod -m 666 "$1/dev/null" c 1 3
+  mknod -m 666 "$1/dev/zero" c 1 5
+  mknod -m 666 "$1/dev/random" c 1 8
+  mknod -m 666 "$1/dev/urandom" c 1 9
+  mkdir -p "$1/dev/pts" "$1/dev/shm"
+  mount -t devpts -o newinstance,ptmxmode=0666 devpts "$1/dev/pts" 2>/dev/null && mounted+=("$1/dev/pts") || true
 }
 in_root() { chroot "$1" /usr/bin/env -i PATH=/usr/sbin:/usr/bin:/sbin:/bin HOME=/root DEBIAN_FRONTEND=noninteractive "${@:2}"; }
 
