@@ -1,6 +1,6 @@
 #include "listener.hpp"
 
-#include <fcntl.h>
+#include <arpa/inet.h>
 #include <netdb.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
@@ -36,6 +36,18 @@ void set_port(sockaddr* address, int port) {
   } else {
     reinterpret_cast<sockaddr_in*>(address)->sin_port = htons(static_cast<std::uint16_t>(port));
   }
+}
+
+std::string peer_name(const sockaddr_storage& peer) {
+  char text[INET6_ADDRSTRLEN] = "?";
+  if (peer.ss_family == AF_INET6) {
+    const auto& v6 = reinterpret_cast<const sockaddr_in6&>(peer);
+    ::inet_ntop(AF_INET6, &v6.sin6_addr, text, sizeof(text));
+    return "ipv6:[" + std::string(text) + "]:" + std::to_string(ntohs(v6.sin6_port));
+  }
+  const auto& v4 = reinterpret_cast<const sockaddr_in&>(peer);
+  ::inet_ntop(AF_INET, &v4.sin_addr, text, sizeof(text));
+  return "ipv4:" + std::string(text) + ":" + std::to_string(ntohs(v4.sin_port));
 }
 
 }  // namespace
@@ -95,7 +107,10 @@ void Listener::start(grpc::Server& server) {
       if (polled.back().revents != 0) return;  // close()
       for (std::size_t i = 0; i + 1 < polled.size(); ++i) {
         if ((polled[i].revents & POLLIN) == 0) continue;
-        const int connection = ::accept4(polled[i].fd, nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC);
+        sockaddr_storage peer{};
+        socklen_t peer_size = sizeof(peer);
+        const int connection = ::accept4(polled[i].fd, reinterpret_cast<sockaddr*>(&peer), &peer_size,
+                                         SOCK_NONBLOCK | SOCK_CLOEXEC);
         if (connection < 0) {
           if (errno != EAGAIN && errno != EINTR && errno != ECONNABORTED) {
             spdlog::warn("accept failed: {}", std::strerror(errno));
@@ -105,6 +120,8 @@ void Listener::start(grpc::Server& server) {
         }
         const int on = 1;
         ::setsockopt(connection, IPPROTO_TCP, TCP_NODELAY, &on, sizeof(on));
+        // gRPC names such a connection's peer "fd:N" in the call logs: this line says who it is.
+        spdlog::debug("connection fd:{} from {}", connection, peer_name(peer));
         grpc::AddInsecureChannelFromFd(&server, connection);
       }
     }
