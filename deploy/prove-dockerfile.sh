@@ -34,6 +34,9 @@ cleanup() {
 }
 trap cleanup EXIT
 make_root() {  # DIR: a fresh minimal Debian 12 with its own /proc and a private /dev
+  if findmnt -rn -o TARGET | grep -q "^$1/"; then  # rm -rf must never walk into a mount
+    echo "prove-dockerfile: something is still mounted under $1: unmount it first" >&2; exit 1
+  fi
   rm -rf "$1"
   debootstrap --variant=minbase bookworm "$1" "$mirror" >"$1.debootstrap.log" 2>&1 ||
     { tail -20 "$1.debootstrap.log"; exit 1; }
