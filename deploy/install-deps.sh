@@ -19,8 +19,10 @@ packages=(
   libespeak-ng-dev espeak-ng-data libpocketsphinx-dev libsphinxbase-dev pocketsphinx-en-us
   # `lipsync render --video/--still` pipes frames to ffmpeg; the CLI tests check with ffprobe
   ffmpeg
-  # the Python client (run with /usr/bin/python3)
-  python3 python3-grpcio python3-protobuf
+  # the Python client (run with /usr/bin/python3), its pip package test (venv) and the manifest test
+  python3 python3-grpcio python3-protobuf python3-venv python3-pip python3-yaml
+  # the install test (pkg-config consumer) and the multi-replica test (nginx as the balancer)
+  pkg-config nginx
 )
 
 missing=()

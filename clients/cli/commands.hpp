@@ -20,6 +20,7 @@ int run_subscribe(std::span<const std::string_view> args);
 int run_play(std::span<const std::string_view> args);
 int run_loadtest(std::span<const std::string_view> args);
 int run_server_models(std::span<const std::string_view> args);
+int run_health(std::span<const std::string_view> args);
 #endif
 
 }  // namespace lipsync::cli

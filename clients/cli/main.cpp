@@ -38,6 +38,7 @@ constexpr Command kCommands[] = {
     {"play", "play a lipsyncd session in the terminal in real time", run_play},
     {"loadtest", "load-test a lipsyncd on this machine", run_loadtest},
     {"server-models", "list a running lipsyncd's models, or describe one (NAME)", run_server_models},
+    {"health", "ask a lipsyncd's gRPC health service whether it serves (exit 0) or not", run_health},
 #endif
 };
 

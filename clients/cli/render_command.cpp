@@ -24,8 +24,10 @@
 #include <filesystem>
 #include <iostream>
 
+#ifdef LIPSYNC_WITH_FACE
 #include "lipsync/face/face_animation.hpp"
 #include "lipsync/face/face_raster.hpp"
+#endif
 
 #include "arguments.hpp"
 #include "cli_error.hpp"
@@ -228,6 +230,12 @@ OutputRequest parse_output_request(const Arguments& arguments) {
   }
   if (out.audio_path && !out.video_path) throw UsageError("--audio needs --video FILE");
   const bool face_outputs = out.mesh_path || out.video_path || out.still_path;
+#ifndef LIPSYNC_WITH_FACE
+  if (face_outputs) {
+    throw UsageError(std::string(out.mesh_path ? "--mesh" : out.video_path ? "--video" : "--still") +
+                     ": this lipsync was built without the physics face (LIPSYNC_BUILD_FACE=OFF)");
+  }
+#endif
   if (!face_outputs && arguments.value("mesh-subdivision"))
     throw UsageError("--mesh-subdivision needs --mesh, --video or --still");
   const std::pair<const char*, std::optional<std::string>> face_files[] = {
@@ -271,6 +279,7 @@ void render_outputs(const OutputRequest& out, LabeledUtterance utterance) {
     return;
   }
   if (out.output_given) write();
+#ifdef LIPSYNC_WITH_FACE
   // The face: simulated once on the uniform grid, then exported and/or rendered.
   const face::FaceMesh mesh = face::build_face_mesh(face::FaceAsset::builtin(), out.subdivision);
   const face::FaceRig rig = out.model_path
@@ -322,6 +331,7 @@ void render_outputs(const OutputRequest& out, LabeledUtterance utterance) {
     writer.write(rgb);
     writer.commit();
   }
+#endif
 }
 
 int run_render(std::span<const std::string_view> args) {

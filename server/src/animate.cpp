@@ -154,6 +154,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   }
 
   grpc::Status start(const v1::AnimationSettings& settings) {
+    if (auto status = service_.routing().check_metadata(*context_, settings.session()); !status.ok()) return status;
     if (auto status = resolve_settings(settings, service_.catalog(), true, plan_); !status.ok()) return status;
     if (auto status = prepare_face(plan_, service_.faces(), face_setup_); !status.ok()) return status;
     auto header = std::make_shared<v1::TrackMessage>();

@@ -1,12 +1,15 @@
-// Command line and JSON configuration for lipsyncd.
+// Command line, environment and JSON configuration for lipsyncd.
 //
 // One table lists every option: its flag, a value hint, the help line, how to
-// apply a value and how to show the default. The flag parser, the JSON file
-// reader and `--help` all walk that table, so they cannot disagree.
+// apply a value and how to show the default. The flag parser, the environment
+// reader, the JSON file reader and `--help` all walk that table, so they
+// cannot disagree.
 #include "lipsync/server/config.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
+#include <cstdlib>
 #include <fstream>
 #include <functional>
 #include <limits>
@@ -128,6 +131,10 @@ const std::vector<Option>& options() {
          c.models.push_back({s.value.substr(0, eq), s.value.substr(eq + 1)});
        },
        [](const ServerConfig&) { return std::string("none"); }},
+      {"--replica-name", "NAME",
+       "this replica's name in errors about sessions it does not hold (a pod or host name)",
+       [](ServerConfig& c, const Setting& s) { c.replica_name = s.value; },
+       [](const ServerConfig&) { return std::string("host name and listen address"); }},
   };
   return table;
 }
@@ -178,9 +185,49 @@ std::string option_of(const std::string& where) {
   return "--" + where.substr(start, where.find('"', start) - start);
 }
 
+/// Settings from LIPSYNCD_* variables, named after the variable in errors.
+std::vector<Setting> read_environment(const Environment& environment, std::vector<const Option*>& applies_to) {
+  std::vector<Setting> settings;
+  if (!environment) return settings;
+  for (const Option& option : options()) {
+    const std::string variable = environment_variable(option.flag);
+    const std::optional<std::string> value = environment(variable);
+    if (!value) continue;
+    if (option.flag == "--model") {  // a comma-separated list of NAME=FILE
+      std::size_t begin = 0;
+      while (begin <= value->size()) {
+        const std::size_t comma = std::min(value->find(',', begin), value->size());
+        settings.push_back({variable, value->substr(begin, comma - begin)});
+        applies_to.push_back(&option);
+        begin = comma + 1;
+      }
+      continue;
+    }
+    settings.push_back({variable, *value});
+    applies_to.push_back(&option);
+  }
+  return settings;
+}
+
 }  // namespace
 
-CommandLine parse_command_line(const std::vector<std::string>& args) {
+Environment process_environment() {
+  return [](const std::string& name) -> std::optional<std::string> {
+    const char* value = std::getenv(name.c_str());
+    if (value == nullptr) return std::nullopt;
+    return std::string(value);
+  };
+}
+
+std::string environment_variable(const std::string& flag) {
+  std::string name = "LIPSYNCD_";
+  for (const char c : flag.substr(flag.rfind("--", 0) == 0 ? 2 : 0)) {
+    name += c == '-' ? '_' : static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  }
+  return name;
+}
+
+CommandLine parse_command_line(const std::vector<std::string>& args, const Environment& environment) {
   CommandLine result;
   std::vector<Setting> flags;
   std::string config_path;
@@ -208,14 +255,28 @@ CommandLine parse_command_line(const std::vector<std::string>& args) {
       flags.push_back({flag, value});
     }
   }
+  if (config_path.empty() && environment) {
+    config_path = environment(environment_variable("--config")).value_or("");
+  }
+  std::vector<const Option*> environment_options;
+  const std::vector<Setting> from_environment = read_environment(environment, environment_options);
   std::vector<Setting> settings;
   if (!config_path.empty()) settings = read_config_file(config_path);
   const bool flags_have_models = std::any_of(flags.begin(), flags.end(), [](const Setting& s) {
     return s.name == "--model";
   });
+  const bool environment_has_models = std::any_of(environment_options.begin(), environment_options.end(),
+                                                  [](const Option* o) { return o->flag == "--model"; });
+  // Each source overrides the one before; a list of models replaces the list before it.
   for (const Setting& setting : settings) {
-    if (flags_have_models && option_of(setting.name) == "--model") continue;  // flags replace the file's list
+    if ((flags_have_models || environment_has_models) && option_of(setting.name) == "--model") continue;
     find_option(option_of(setting.name))->apply(result.config, setting);
+  }
+  for (std::size_t i = 0; i < from_environment.size(); ++i) {
+    // A flag replaces its variable, even one that would not parse (a container's default).
+    const std::string& flag = environment_options[i]->flag;
+    if (std::any_of(flags.begin(), flags.end(), [&](const Setting& s) { return s.name == flag; })) continue;
+    environment_options[i]->apply(result.config, from_environment[i]);
   }
   for (const Setting& setting : flags) find_option(setting.name)->apply(result.config, setting);
   return result;
@@ -227,15 +288,19 @@ std::string help_text() {
   out << "lipsyncd: coarticulated lip-sync animation over gRPC (lipsync.v1.LipSync)\n\n"
       << "Usage: lipsyncd [--config FILE] [flags]\n\n"
       << "  --config FILE  JSON object with any of the settings below (keys without the\n"
-      << "                 dashes); flags given on the command line override it\n";
+      << "                 dashes); flags given on the command line override it\n"
+      << "Every setting can also come from an environment variable, LIPSYNCD_ and the flag in\n"
+      << "capitals with '_' for '-' (LIPSYNCD_LISTEN, LIPSYNCD_MAX_STREAMS, LIPSYNCD_CONFIG;\n"
+      << "LIPSYNCD_MODEL=NAME=FILE,NAME=FILE): over the file, under the flags.\n\n";
   for (const Option& option : options()) {
     std::string left = "  " + option.flag + " " + option.value_hint;
     if (left.size() < 36) left.resize(36, ' ');
     out << left << " " << option.help << " (default: " << option.show(defaults) << ")\n";
   }
-  out << "\nOn SIGTERM or SIGINT the server stops accepting calls, lets running streams finish\n"
-      << "for --drain-deadline-ms, cancels the rest and exits 0. Bad flags exit 2; a bad\n"
-      << "model file exits 1.\n";
+  out << "\nOn SIGTERM or SIGINT the server closes its listener (balancers and clients go to another\n"
+      << "replica), lets running streams finish for --drain-deadline-ms, cancels the rest and exits 0.\n"
+      << "SIGHUP re-reads the configuration: the log level changes at once; other changes are\n"
+      << "logged as needing a restart. Bad flags exit 2; a bad model file exits 1.\n";
   return out.str();
 }
 

@@ -1,11 +1,14 @@
 // lipsyncd: the gRPC lip-sync animation server.
 //
-// Reads the configuration (exit 2 on a bad flag, 1 on a bad model file or an
-// address it cannot bind), starts the server, prints
-// "lipsyncd listening on HOST:PORT" on stdout, and waits for SIGTERM or SIGINT
-// in sigwait (the signals are blocked in every thread, so no handler runs in
-// an arbitrary thread). It then drains: no new calls, running streams get
-// --drain-deadline-ms to finish, the rest are cancelled, exit 0.
+// Reads the configuration from flags, LIPSYNCD_* variables and --config (exit 2
+// on a bad setting, 1 on a bad model file or an address it cannot bind), starts
+// the server, prints "lipsyncd listening on HOST:PORT" on stdout, and waits for
+// SIGTERM, SIGINT or SIGHUP in sigwait (the signals are blocked in every
+// thread, so no handler runs in an arbitrary thread). SIGHUP re-reads the
+// configuration (systemd's ExecReload): the log level applies at once, other
+// changes are logged as needing a restart. SIGTERM and SIGINT drain: the
+// listener closes (GOAWAY), running streams get --drain-deadline-ms to finish,
+// the rest are cancelled, exit 0.
 #include <csignal>
 #include <cstdio>
 #include <iostream>
@@ -18,11 +21,34 @@
 #include "lipsync/server/config.hpp"
 #include "lipsync/server/server.hpp"
 
+namespace {
+
+/// SIGHUP: reads flags, environment and file again; applies what can change while running.
+void reload(const std::vector<std::string>& args, lipsync::server::ServerConfig& running) {
+  using namespace lipsync::server;
+  try {
+    ServerConfig next = parse_command_line(args, process_environment()).config;
+    spdlog::set_level(spdlog::level::from_str(next.log_level));
+    if (next.log_level != running.log_level) spdlog::info("SIGHUP: log level now {}", next.log_level);
+    running.log_level = next.log_level;
+    if (next == running) {
+      spdlog::info("SIGHUP: configuration re-read");
+    } else {
+      spdlog::warn("SIGHUP: settings other than log-level changed: they take effect at the next restart");
+    }
+  } catch (const ConfigError& error) {
+    spdlog::error("SIGHUP: configuration not reloaded: {}", error.what());
+  }
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
   using namespace lipsync::server;
+  const std::vector<std::string> args(argv + 1, argv + argc);
   CommandLine command_line;
   try {
-    command_line = parse_command_line(std::vector<std::string>(argv + 1, argv + argc));
+    command_line = parse_command_line(args, process_environment());
   } catch (const ConfigError& error) {
     std::cerr << "lipsyncd: " << error.what() << "\n";
     return 2;
@@ -31,7 +57,7 @@ int main(int argc, char** argv) {
     std::cout << help_text();
     return 0;
   }
-  const ServerConfig& config = command_line.config;
+  ServerConfig config = command_line.config;
   spdlog::set_default_logger(spdlog::stderr_color_mt("lipsyncd"));
   spdlog::set_level(spdlog::level::from_str(config.log_level));
 
@@ -39,6 +65,7 @@ int main(int argc, char** argv) {
   sigemptyset(&signals);
   sigaddset(&signals, SIGTERM);
   sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGHUP);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
   std::unique_ptr<Server> server;
@@ -55,7 +82,7 @@ int main(int argc, char** argv) {
   spdlog::info("listening on {}", server->address());
 
   int signal_number = 0;
-  sigwait(&signals, &signal_number);
+  while (sigwait(&signals, &signal_number) == 0 && signal_number == SIGHUP) reload(args, config);
   spdlog::info("{} received: draining for up to {} ms ({} streams open)",
                signal_number == SIGTERM ? "SIGTERM" : "SIGINT", config.drain_deadline_ms,
                server->active_streams());

@@ -1,5 +1,11 @@
 // Server: builds the gRPC server around LipSyncService (health checking and
 // reflection on), and shuts it down with a drain deadline.
+//
+// The drain is for rolling restarts behind a load balancer: the listener (our
+// own, listener.hpp) closes at once, so a balancer's new connection is refused
+// and the new session opens on another replica (nginx and Envoy retry a refused
+// connection elsewhere, which they never do for a call that got a status),
+// while the streams already running here finish on their connections.
 #include "lipsync/server/server.hpp"
 
 #include <mutex>
@@ -12,6 +18,7 @@
 #include <spdlog/spdlog.h>
 
 #include "catalog.hpp"
+#include "listener.hpp"
 #include "service.hpp"
 
 namespace lipsync::server {
@@ -23,6 +30,7 @@ struct Server::Impl {
   ServerConfig config;
   ModelCatalog catalog;
   LipSyncService service;
+  std::unique_ptr<Listener> listener;
   std::unique_ptr<grpc::Server> server;
   int port = 0;
   std::once_flag shutdown_once;
@@ -32,14 +40,15 @@ Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(con
   spdlog::set_level(spdlog::level::from_str(impl_->config.log_level));
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  impl_->listener = std::make_unique<Listener>(impl_->config.listen);  // throws: cannot listen
+  impl_->port = impl_->listener->port();
   grpc::ServerBuilder builder;
-  builder.AddListeningPort(impl_->config.listen, grpc::InsecureServerCredentials(), &impl_->port);
   builder.SetMaxReceiveMessageSize(static_cast<int>(impl_->config.max_message_bytes));
   builder.RegisterService(&impl_->service);
   impl_->server = builder.BuildAndStart();
-  if (!impl_->server || impl_->port == 0) {
-    throw std::runtime_error("cannot listen on " + impl_->config.listen);
-  }
+  if (!impl_->server) throw std::runtime_error("cannot start the gRPC server on " + impl_->config.listen);
+  impl_->service.routing().set_bound_address(address());
+  impl_->listener->start(*impl_->server);
 }
 
 Server::~Server() { shutdown(std::chrono::milliseconds(0)); }
@@ -53,12 +62,14 @@ std::string Server::address() const {
 
 void Server::shutdown(std::chrono::milliseconds drain) {
   std::call_once(impl_->shutdown_once, [&] {
-    // The drain is ours, not gRPC's: Shutdown(deadline) also waits for the
-    // connections of clients that have finished their calls (until the
-    // deadline) once a stream has run on them. So: refuse new calls, wait for
-    // the running ones, then shut gRPC down at once (cancelling what is left).
-    impl_->service.admission().begin_drain();
+    // No new connections from now on; calls that still arrive on open connections
+    // are refused with UNAVAILABLE; running calls get `drain` to finish. Only then
+    // is gRPC shut down (GOAWAY, the rest cancelled): sent earlier, GOAWAY makes
+    // gRPC 1.51 close each connection right after its last stream, racing that
+    // stream's final frames (a balancer then reports the finished stream as reset).
+    impl_->listener->close();
     if (auto* health = impl_->server->GetHealthCheckService()) health->Shutdown();
+    impl_->service.admission().begin_drain();
     const auto deadline = std::chrono::steady_clock::now() + drain;
     while (impl_->service.admission().calls_in_progress() > 0 && std::chrono::steady_clock::now() < deadline) {
       std::this_thread::sleep_for(std::chrono::milliseconds(5));

@@ -11,6 +11,7 @@
 #include "face_workers.hpp"
 #include "lipsync/server/config.hpp"
 #include "session.hpp"
+#include "session_routing.hpp"
 
 // The generated base declares sync-API overloads of each method that the
 // callback overrides hide on purpose.
@@ -41,6 +42,8 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   const ModelCatalog& catalog() const { return catalog_; }
   /// Which calls the server takes on (--max-streams, the drain).
   Admission& admission() { return admission_; }
+  /// The x-lipsync-session check and the words of a misrouted Subscribe's NOT_FOUND.
+  SessionRouting& routing() { return routing_; }
   /// Meshes and rigs shared by the streams that ask for the mesh output (built lazily).
   FaceLibrary& faces() { return faces_; }
   /// The low-priority threads the face runs on.
@@ -51,6 +54,7 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   const ModelCatalog& catalog_;
   SessionRegistry sessions_;
   Admission admission_;
+  SessionRouting routing_;
   FaceLibrary faces_;
   // Last, so that it is destroyed first: its destructor runs the jobs still
   // queued, which use the members above.

@@ -39,11 +39,13 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
       return;
     }
     admitted_ = true;
+    if (auto routed = service_.routing().check_metadata(*context_, session_name_); !routed.ok()) {
+      outbox_->close(routed);
+      return;
+    }
     session_ = service_.sessions().find(session_name_);
     if (!session_) {
-      outbox_->close({grpc::StatusCode::NOT_FOUND,
-                      "no session named '" + session_name_ + "' (never opened, or ended more than " +
-                          std::to_string(service_.config().session_retention_ms) + " ms ago)"});
+      outbox_->close(service_.routing().not_held(session_name_, service_.config().session_retention_ms));
       return;
     }
     const bool from_beginning = request.start() != v1::SubscribeRequest::START_FROM_NOW;

@@ -247,7 +247,7 @@ TEST_F(NetworkCliTest, network_failures_exit_1_and_usage_errors_exit_2) {
 }
 
 TEST_F(NetworkCliTest, every_network_command_has_help_with_the_server_option) {
-  for (const std::string command : {"stream", "subscribe", "play", "loadtest", "server-models"}) {
+  for (const std::string command : {"stream", "subscribe", "play", "loadtest", "server-models", "health"}) {
     const RunResult result = run({command, "--help"});
     EXPECT_EQ(result.status, 0) << command;
     EXPECT_THAT(result.out, ::testing::StartsWith("Usage: lipsync " + command)) << command;
@@ -329,6 +329,17 @@ TEST_F(NetworkCliTest, server_models_without_a_server_exits_1_saying_it_cannot_b
   EXPECT_EQ(result.status, 1);
   EXPECT_THAT(result.err, HasSubstr("connecting to lipsyncd at " + nowhere + " failed: UNAVAILABLE"));
   EXPECT_THAT(result.err, HasSubstr("is lipsyncd running there?"));
+}
+
+TEST_F(NetworkCliTest, health_prints_serving_and_exits_0_and_exits_1_when_no_server_answers) {
+  const RunResult serving = run({"health", "--server", server()});
+  EXPECT_EQ(serving.status, 0) << serving.err;
+  EXPECT_EQ(serving.out, "SERVING\n");
+  const std::string nowhere = "127.0.0.1:" + std::to_string(unused_port());
+  const RunResult down = run({"health", "--server", nowhere, "--timeout", "1"});
+  EXPECT_EQ(down.status, 1);
+  EXPECT_THAT(down.err, HasSubstr("lipsyncd at " + nowhere + " did not answer: DEADLINE_EXCEEDED"));
+  EXPECT_THAT(down.out, IsEmpty());
 }
 
 TEST_F(NetworkCliTest, server_models_usage_errors_exit_2_naming_the_mistake) {

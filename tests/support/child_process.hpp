@@ -93,11 +93,27 @@ class ChildProcess {
     return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
   }
   void terminate() { ::kill(pid_, SIGTERM); }
+  void signal(int number) { ::kill(pid_, number); }
+  pid_t pid() const { return pid_; }
 
  private:
   pid_t pid_ = -1;
   bool waited_ = false;
 };
+
+/// The HOST:PORT of a lipsyncd whose stdout goes to `out`, from its line "lipsyncd listening on
+/// HOST:PORT"; "" if that line has not come within 10 s.
+inline std::string wait_for_listening_address(const std::filesystem::path& out) {
+  const std::string prefix = "lipsyncd listening on ";
+  for (int i = 0; i < 500; ++i) {
+    const std::string text = read_text(out);
+    const auto at = text.find(prefix);
+    const auto end = at == std::string::npos ? at : text.find('\n', at);
+    if (end != std::string::npos) return text.substr(at + prefix.size(), end - at - prefix.size());
+    ::usleep(20'000);
+  }
+  return "";
+}
 
 /// Runs `argv` (argv[0] a path to the program) in `cwd` and waits for it;
 /// stdout and stderr go through files in `capture`.

@@ -18,6 +18,12 @@ std::chrono::system_clock::time_point deadline_after(std::chrono::milliseconds t
   return std::chrono::system_clock::now() + timeout;
 }
 
+// The session travels twice: in the body, and as metadata that a balancer can route on (the
+// replica holding a session is chosen by hashing it, docs/deploy.md). lipsyncd checks they agree.
+void add_session_metadata(grpc::ClientContext& context, const std::string& session) {
+  if (!session.empty()) context.AddMetadata(std::string(kSessionMetadataKey), session);
+}
+
 void throw_unless_ok(const grpc::Status& status, std::string_view context) {
   if (!status.ok()) throw CallError(context, status.error_code(), status.error_message());
 }
@@ -219,6 +225,7 @@ class AnimateReactor : public grpc::ClientBidiReactor<v1::AnimateRequest, v1::Tr
                  DoneHandler on_done, std::chrono::milliseconds timeout)
       : guard_(std::move(handler)), completion_(std::move(on_done)) {
     context_.set_deadline(deadline_after(timeout));
+    add_session_metadata(context_, settings.session());
     stub.async()->Animate(&context_, this);
     AddHold();
     hold_held_ = true;
@@ -354,6 +361,7 @@ class SubscribeReactor : public grpc::ClientReadReactor<v1::TrackMessage> {
                    DoneHandler on_done, std::chrono::milliseconds timeout)
       : guard_(std::move(handler)), completion_(std::move(on_done)), request_(request) {
     context_.set_deadline(deadline_after(timeout));
+    add_session_metadata(context_, request.session());
     stub.async()->Subscribe(&context_, &request_, this);
     StartRead(&incoming_);
     StartCall();

@@ -88,6 +88,15 @@ class Track:
     summary: Any
 
 
+SESSION_METADATA_KEY = "x-lipsync-session"
+
+
+def session_metadata(session: str) -> Tuple[Tuple[str, str], ...]:
+    """The metadata that lets a load balancer route a call to the replica holding
+    `session` (docs/deploy.md); none for a private (unnamed) stream."""
+    return ((SESSION_METADATA_KEY, session),) if session else ()
+
+
 def _phoneme(item: Any) -> Any:
     if isinstance(item, lipsync_pb2.Phoneme):
         return item
@@ -321,6 +330,7 @@ class Client:
         call = self.stub.Animate(
             self._requests(first_request, phonemes, chunk_size),
             timeout=self.timeout if timeout is None else timeout,
+            metadata=session_metadata(first_request.settings.session),
         )
         return FrameStream(call)
 
@@ -362,6 +372,7 @@ class Client:
         call = self.stub.Subscribe(
             lipsync_pb2.SubscribeRequest(session=session, start=start),
             timeout=self.timeout if timeout is None else timeout,
+            metadata=session_metadata(session),
         )
         return FrameStream(call)
 

@@ -1,14 +1,19 @@
 // lipsyncd's configuration: listening address, admission limits, fan-out
 // buffers and shutdown behaviour.
 //
-// Values come from defaults, then an optional JSON file (`--config FILE`, keys
-// are the flag names without the dashes), then command-line flags, each
-// overriding the one before. Every value is checked once, here; a bad one
-// throws ConfigError naming the flag (or file key) and the value.
+// Values come from defaults, then an optional JSON file (`--config FILE` or
+// LIPSYNCD_CONFIG; keys are the flag names without the dashes), then
+// environment variables (LIPSYNCD_ and the flag in capitals, `-` as `_`:
+// LIPSYNCD_LISTEN, LIPSYNCD_MAX_STREAMS, ...; LIPSYNCD_MODEL is a
+// comma-separated list of NAME=FILE), then command-line flags, each overriding
+// the one before. Every value is checked once, here; a bad one throws
+// ConfigError naming the flag (or file key, or variable) and the value.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -24,6 +29,7 @@ class ConfigError : public std::runtime_error {
 struct ModelFile {
   std::string name;
   std::string path;
+  bool operator==(const ModelFile&) const = default;
 };
 
 struct ServerConfig {
@@ -55,6 +61,11 @@ struct ServerConfig {
 
   std::string log_level = "info";  ///< trace, debug, info, warn, error, off
   std::vector<ModelFile> models;   ///< extra models beside the built-in one
+  /// How this replica names itself in errors about sessions it does not hold (a balancer
+  /// misrouting shows in one look); "" = "<host name> (<listen address>)".
+  std::string replica_name;
+
+  bool operator==(const ServerConfig&) const = default;
 };
 
 /// The result of reading the command line: a configuration, or a request for help.
@@ -63,8 +74,16 @@ struct CommandLine {
   bool help = false;
 };
 
-/// Parses `args` (without the program name). Throws ConfigError.
-CommandLine parse_command_line(const std::vector<std::string>& args);
+/// Reads one environment variable; nullopt when it is not set.
+using Environment = std::function<std::optional<std::string>(const std::string& name)>;
+/// The process environment (getenv).
+Environment process_environment();
+/// The variable that sets `flag`: "--max-streams" -> "LIPSYNCD_MAX_STREAMS".
+std::string environment_variable(const std::string& flag);
+
+/// Parses `args` (without the program name), with `environment` under the flags (none by
+/// default). Throws ConfigError.
+CommandLine parse_command_line(const std::vector<std::string>& args, const Environment& environment = {});
 
 /// The `--help` text: every flag with its default.
 std::string help_text();

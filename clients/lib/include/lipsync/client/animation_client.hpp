@@ -6,6 +6,10 @@
 //              handler as it arrives (callback API: no thread per stream)
 //   subscribe  follow a session's frames until its producer finishes
 //
+// Every call that names a session (an Animate with settings.session, a Subscribe)
+// also sends it as the metadata `x-lipsync-session`, on which a load balancer in
+// front of several lipsyncd replicas routes (docs/deploy.md).
+//
 // Every call carries a deadline (ClientOptions). A failed call becomes a
 // CallError with the gRPC status code and the server's message, prefixed with
 // what was being done and where, e.g. "Animate on 127.0.0.1:50051 failed:
@@ -37,6 +41,9 @@
 namespace lipsync::client {
 
 namespace v1 = ::lipsync::v1;
+
+/// The metadata key that carries a call's session name, for load balancers (docs/deploy.md).
+inline constexpr std::string_view kSessionMetadataKey = "x-lipsync-session";
 
 /// "INVALID_ARGUMENT" for grpc::StatusCode::INVALID_ARGUMENT, and so on.
 std::string_view status_code_name(grpc::StatusCode code);

@@ -1,0 +1,51 @@
+// Listener: lipsyncd's own listening sockets, whose accepted connections are
+// handed to gRPC (AddInsecureChannelFromFd).
+//
+// Owning the listener lets a drain stop new connections at once while the
+// connections already open stay untouched until their calls end. gRPC's own
+// Shutdown closes its listener only together with sending GOAWAY on every
+// connection, and gRPC 1.51 then closes a connection right after its last
+// stream, racing the stream's final frames: behind nginx, streams that had
+// finished on the server reached the client as RST_STREAM INTERNAL_ERROR
+// ("upstream prematurely closed connection"). With the listener closed first,
+// a balancer's new connection is refused and goes to another replica.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace grpc {
+class Server;
+}
+
+namespace lipsync::server {
+
+class Listener {
+ public:
+  /// Binds and listens on `host_port` ("127.0.0.1:0", "0.0.0.0:50051", "[::]:50051",
+  /// "localhost:6000": every address the host resolves to). Throws std::runtime_error
+  /// saying why it cannot.
+  explicit Listener(const std::string& host_port);
+  ~Listener();
+  Listener(const Listener&) = delete;
+  Listener& operator=(const Listener&) = delete;
+
+  /// The port bound (the one picked when asked for port 0).
+  int port() const { return port_; }
+
+  /// Accepts connections on a thread of its own and hands them to `server`.
+  void start(grpc::Server& server);
+  /// Stops accepting and closes the listening sockets (new connections are refused).
+  /// Idempotent.
+  void close();
+
+ private:
+  std::vector<int> sockets_;
+  int wake_fd_ = -1;  // an eventfd that wakes the accepting thread to stop
+  int port_ = 0;
+  std::thread acceptor_;
+};
+
+}  // namespace lipsync::server
