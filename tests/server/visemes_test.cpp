@@ -1,9 +1,10 @@
 // The viseme output over the network (proto: OutputSelection.visemes): a real lipsyncd on
 // 127.0.0.1:0. For every vocabulary, Animate in any chunking equals Render and both equal the
 // core's offline visemes (compute_visemes, what `lipsync render --format visemes-*` writes);
-// a subscriber gets the producer's visemes; a bad vocabulary is refused naming the field; a stream
-// that does not ask carries no viseme bytes; and on a Festival utterance the streamed Oculus
-// weights make PP win at every bilabial key frame (read through the C++ client library).
+// a subscriber and a mesh stream get the same visemes; a bad vocabulary is refused naming the
+// field; a stream that does not ask carries no viseme bytes; and on a Festival utterance the
+// streamed Oculus weights make PP win at every bilabial key frame (read through the C++ client
+// library).
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -135,6 +136,20 @@ TEST_F(VisemeServerTest, ASubscriberGetsTheProducersVisemes) {
   EXPECT_EQ(produced.frames.viseme_weights, offline.weights);
   EXPECT_EQ(followed.frames.viseme_weights, offline.weights);
   EXPECT_EQ(followed.frames.viseme_events, offline.events);
+}
+
+TEST_F(VisemeServerTest, AMeshStreamCarriesTheSameVisemesOneFrameAtATime) {
+  const auto intervals = utterance(12, 6);
+  const VocabularyCase& polly = kCases[2];
+  v1::AnimationSettings settings = viseme_settings(polly);
+  settings.mutable_outputs()->mutable_mesh()->set_enabled(true);
+  settings.mutable_outputs()->mutable_mesh()->set_subdivision(0);
+  const Received streamed = animate(*stub_, whole(settings, intervals, 3));
+  ASSERT_TRUE(streamed.status.ok()) << streamed.status.error_message();
+  const VisemeTrack offline = offline_visemes(intervals, polly.core);
+  EXPECT_EQ(streamed.batches, streamed.frames.t_us.size());  // the mesh sends one frame per batch
+  EXPECT_EQ(streamed.frames.viseme_weights, offline.weights);
+  EXPECT_EQ(streamed.frames.viseme_events, offline.events);
 }
 
 TEST_F(VisemeServerTest, BadVisemeSettingsAreRefusedNamingTheField) {
