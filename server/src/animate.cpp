@@ -242,7 +242,8 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     for (std::size_t begin = 0; begin < track.frame_count(); begin += per_batch) {
       const std::size_t end = std::min(track.frame_count(), begin + per_batch);
       auto message = std::make_shared<v1::TrackMessage>();
-      encode_frames(plan_, track, begin, end, frames_sent_, *message->mutable_frames(), face_.get());
+      encoder_.face = face_.get();
+      encode_frames(plan_, track, begin, end, frames_sent_, *message->mutable_frames(), encoder_);
       frames_sent_ += end - begin;
       // The session first: once the producer has seen a batch, subscribers can see it too.
       if (auto session = current_session()) session->publish(message, end - begin);
@@ -290,6 +291,9 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   FaceSetup face_setup_;
   std::optional<FaceLane> lane_;
   std::unique_ptr<FaceStream> face_;
+  // The face (above) and this stream's viseme event detector; used where frames are encoded
+  // (the reactions, or the lane for a mesh stream), one batch at a time, in order.
+  StreamEncoder encoder_;
   std::atomic<bool> stopped_ = false;  // failed, cancelled or done: queued face work is skipped
   std::vector<Segment> segments_;
   Track track_;

@@ -26,6 +26,44 @@ RenderSettings requested_settings(const v1::AnimationSettings& settings) {
   return requested;
 }
 
+/// The viseme output of `settings` into `plan` (nothing unless it is enabled).
+grpc::Status resolve_visemes(const v1::AnimationSettings& settings, Plan& plan) {
+  const v1::VisemeOutput& output = settings.outputs().visemes();
+  if (!output.enabled()) return grpc::Status::OK;
+  VisemeOptions options;
+  switch (output.vocabulary()) {
+    case v1::VISEME_VOCABULARY_UNSPECIFIED:
+    case v1::VISEME_VOCABULARY_OCULUS: options.vocabulary = VisemeVocabulary::oculus; break;
+    case v1::VISEME_VOCABULARY_AZURE: options.vocabulary = VisemeVocabulary::azure; break;
+    case v1::VISEME_VOCABULARY_POLLY: options.vocabulary = VisemeVocabulary::polly; break;
+    case v1::VISEME_VOCABULARY_RHUBARB: options.vocabulary = VisemeVocabulary::rhubarb; break;
+    default:
+      return invalid("settings.outputs.visemes.vocabulary: unknown vocabulary " + std::to_string(output.vocabulary()) +
+                     " (OCULUS, AZURE, POLLY or RHUBARB)");
+  }
+  plan.viseme_vocabulary =
+      output.vocabulary() == v1::VISEME_VOCABULARY_UNSPECIFIED ? v1::VISEME_VOCABULARY_OCULUS : output.vocabulary();
+  if (output.has_rhubarb_extended_shapes()) {
+    const std::string& letters = output.rhubarb_extended_shapes();
+    if (options.vocabulary != VisemeVocabulary::rhubarb) {
+      return invalid("settings.outputs.visemes.rhubarb_extended_shapes: set for vocabulary " +
+                     v1::VisemeVocabulary_Name(plan.viseme_vocabulary) + " (RHUBARB only)");
+    }
+    const auto shapes = rhubarb_shapes_from_string(letters);
+    if (!shapes) {
+      return invalid("settings.outputs.visemes.rhubarb_extended_shapes: '" + letters +
+                     "' is not a set of G, H and X (e.g. GHX, GX or \"\")");
+    }
+    options.rhubarb_shapes = *shapes;
+  }
+  try {
+    plan.visemes = std::make_shared<const VisemeClassifier>(*plan.model->model, options);
+  } catch (const InputError& error) {
+    return invalid("settings.outputs.visemes.vocabulary: " + std::string(error.what()));
+  }
+  return grpc::Status::OK;
+}
+
 }  // namespace
 
 grpc::Status invalid(const std::string& message) { return {grpc::StatusCode::INVALID_ARGUMENT, message}; }
@@ -71,6 +109,7 @@ grpc::Status resolve_settings(const v1::AnimationSettings& settings, const Model
                        " (FLOAT32 or INT16)");
     }
   }
+  if (auto status = resolve_visemes(settings, plan); !status.ok()) return status;
   plan.header = encode_header(plan, settings, with_session);
   return grpc::Status::OK;
 }

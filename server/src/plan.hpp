@@ -5,11 +5,13 @@
 // (lipsync/render_plan.hpp); this file maps the wire's fields onto them (a zero
 // fps or closure fraction and an unset lookahead or subdivision mean "the
 // default"), checks what only the server knows (model and phone set names, the
-// session name, the mesh encoding) and turns every error into INVALID_ARGUMENT
+// session name, the mesh encoding, the viseme vocabulary) and turns every
+// error into INVALID_ARGUMENT
 // naming the field, e.g. "settings.fps: '241' is out of range (1 to 240, default 30)".
 #pragma once
 
 #include <cstddef>
+#include <memory>
 #include <string>
 
 #include <grpcpp/support/status.h>
@@ -18,6 +20,7 @@
 #include "face_stream.hpp"
 #include "lipsync/render_plan.hpp"
 #include "lipsync/v1/lipsync.pb.h"
+#include "lipsync/visemes.hpp"
 
 namespace lipsync::server {
 
@@ -32,6 +35,9 @@ struct Plan {
   bool arkit = true;
   bool mesh = false;
   v1::MeshEncoding mesh_encoding = v1::MESH_ENCODING_FLOAT32;
+  /// The viseme output's classifier (null unless asked for); each stream brings its own event detector.
+  std::shared_ptr<const VisemeClassifier> visemes;
+  v1::VisemeVocabulary viseme_vocabulary = v1::VISEME_VOCABULARY_UNSPECIFIED;
   v1::TrackHeader header;
 };
 

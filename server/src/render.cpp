@@ -38,9 +38,10 @@ grpc::Status render(LipSyncService& service, const v1::RenderRequest& request, v
     face_stream = std::make_unique<FaceStream>(
         *face_setup.topology, service.faces().solver(*face_setup.topology, *face_setup.rig), plan.mesh_encoding);
   }
+  StreamEncoder encoder{.face = face_stream.get(), .viseme_detector = {}};
   const Track track = render_track(plan.model->tables, segments, plan.engine.render);
   *response.mutable_header() = plan.header;
-  encode_frames(plan, track, 0, track.frame_count(), 0, *response.mutable_frames(), face_stream.get());
+  encode_frames(plan, track, 0, track.frame_count(), 0, *response.mutable_frames(), encoder);
   encode_summary(track.frame_count(), static_cast<std::uint64_t>(request.phonemes_size()), input.end_us(),
                  *response.mutable_summary());
   return grpc::Status::OK;

@@ -1,8 +1,10 @@
 // Frames to protobuf (wire.hpp). A batch's channel values are one copy (the
-// track's frames are contiguous); ARKit weights are retargeted frame by frame.
+// track's frames are contiguous); ARKit weights are retargeted and viseme
+// weights computed frame by frame, straight into the batch.
 #include "wire.hpp"
 
 #include <array>
+#include <span>
 #include <string>
 
 namespace lipsync::server {
@@ -33,11 +35,15 @@ v1::TrackHeader encode_header(const Plan& plan, const v1::AnimationSettings& set
   if (with_session) header.set_session(settings.session());
   if (settings.has_media_clock()) *header.mutable_media_clock() = settings.media_clock();
   header.set_lookahead(static_cast<std::uint32_t>(plan.engine.render.lookahead));
+  if (plan.visemes) {
+    header.set_viseme_vocabulary(plan.viseme_vocabulary);
+    for (const auto& name : plan.visemes->names()) header.add_viseme_names(name);
+  }
   return header;
 }
 
 void encode_frames(const Plan& plan, const Track& track, std::size_t begin, std::size_t end,
-                   std::uint64_t first_frame, v1::FrameBatch& batch, FaceStream* face_stream) {
+                   std::uint64_t first_frame, v1::FrameBatch& batch, StreamEncoder& stream) {
   const std::size_t count = end - begin;
   const std::size_t channels = track.channel_count;
   batch.set_first_frame(first_frame);
@@ -60,7 +66,22 @@ void encode_frames(const Plan& plan, const Track& track, std::size_t begin, std:
       batch.mutable_arkit()->Add(arkit.begin(), arkit.end());
     }
   }
-  if (face_stream) face_stream->encode(track, begin, end, batch);
+  if (plan.visemes) {
+    const std::size_t visemes = plan.visemes->viseme_count();
+    auto& weights = *batch.mutable_viseme_weights();
+    weights.Resize(static_cast<int>(count * visemes), 0.0f);
+    for (std::size_t frame = begin; frame < end; ++frame) {
+      const std::span<float> frame_weights(weights.mutable_data() + (frame - begin) * visemes, visemes);
+      plan.visemes->weigh(track.frame_values(frame), frame_weights);
+      const std::uint32_t winner = VisemeClassifier::winner(frame_weights);
+      if (const auto event = stream.viseme_detector.next(track.t_us[frame], winner)) {
+        v1::VisemeEvent* wire_event = batch.add_viseme_events();
+        wire_event->set_viseme(event->viseme);
+        wire_event->set_start_us(event->start_us);
+      }
+    }
+  }
+  if (stream.face) stream.face->encode(track, begin, end, batch);
 }
 
 void encode_summary(std::uint64_t frames, std::uint64_t phonemes, std::int64_t duration_us,

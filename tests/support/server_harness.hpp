@@ -25,6 +25,7 @@
 #include "lipsync/server/server.hpp"
 #include "lipsync/synthetic.hpp"
 #include "lipsync/utterance.hpp"
+#include "lipsync/visemes.hpp"
 #include "lipsync/v1/lipsync.grpc.pb.h"
 
 namespace lipsync::server::harness {
@@ -38,6 +39,8 @@ struct Frames {
   std::vector<int> kinds;
   std::vector<float> values;
   std::vector<float> arkit;
+  std::vector<float> viseme_weights;
+  std::vector<VisemeEvent> viseme_events;
   std::uint64_t first_frame = 0;
 
   void append(const v1::FrameBatch& batch) {
@@ -46,6 +49,8 @@ struct Frames {
     kinds.insert(kinds.end(), batch.kinds().begin(), batch.kinds().end());
     values.insert(values.end(), batch.values().begin(), batch.values().end());
     arkit.insert(arkit.end(), batch.arkit().begin(), batch.arkit().end());
+    viseme_weights.insert(viseme_weights.end(), batch.viseme_weights().begin(), batch.viseme_weights().end());
+    for (const auto& event : batch.viseme_events()) viseme_events.push_back({event.viseme(), event.start_us()});
   }
 };
 

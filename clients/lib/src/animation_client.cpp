@@ -8,6 +8,7 @@
 // run OnDone, which takes it.
 #include "lipsync/client/animation_client.hpp"
 
+#include <algorithm>
 #include <deque>
 #include <utility>
 
@@ -89,6 +90,8 @@ void ReceivedTrack::add(const v1::TrackMessage& message) {
       track.fps = static_cast<int>(header.fps());
       arkit.clear();
       mesh_positions.clear();
+      viseme_weights.clear();
+      viseme_events.clear();
       first_frame = 0;
       break;
     case v1::TrackMessage::kFrames:
@@ -118,11 +121,20 @@ void ReceivedTrack::add_frames(const v1::FrameBatch& batch) {
   }
   if (static_cast<std::size_t>(batch.values_size()) != frames * track.channel_count ||
       static_cast<std::size_t>(batch.arkit_size()) != frames * arkit_count ||
+      static_cast<std::size_t>(batch.viseme_weights_size()) != frames * static_cast<std::size_t>(header.viseme_names_size()) ||
       static_cast<std::size_t>(batch.mesh_positions_size()) != (int16 ? 0 : frames * mesh_count) ||
       batch.mesh_positions_int16().size() != (int16 ? frames * mesh_count * 2 : 0) ||
       (batch.kinds_size() != 0 && static_cast<std::size_t>(batch.kinds_size()) != frames)) {
     throw protocol_error("frame batch at frame " + std::to_string(batch.first_frame()) +
                          " has sizes that do not match its " + std::to_string(frames) + " frames");
+  }
+  for (const v1::VisemeEvent& event : batch.viseme_events()) {
+    if (event.viseme() >= static_cast<std::uint32_t>(header.viseme_names_size()) ||
+        std::find(batch.t_us().begin(), batch.t_us().end(), event.start_us()) == batch.t_us().end()) {
+      throw protocol_error("frame batch at frame " + std::to_string(batch.first_frame()) + " has a viseme event (" +
+                           std::to_string(event.viseme()) + " at " + std::to_string(event.start_us()) +
+                           " us) that names no viseme or starts at none of its frames");
+    }
   }
   for (std::size_t i = 0; i < frames; ++i) {
     const std::int64_t t_us = batch.t_us(static_cast<int>(i));
@@ -135,6 +147,10 @@ void ReceivedTrack::add_frames(const v1::FrameBatch& batch) {
   }
   track.values.insert(track.values.end(), batch.values().begin(), batch.values().end());
   arkit.insert(arkit.end(), batch.arkit().begin(), batch.arkit().end());
+  viseme_weights.insert(viseme_weights.end(), batch.viseme_weights().begin(), batch.viseme_weights().end());
+  for (const v1::VisemeEvent& event : batch.viseme_events()) {
+    viseme_events.push_back({.viseme = event.viseme(), .start_us = event.start_us()});
+  }
   mesh_positions.insert(mesh_positions.end(), batch.mesh_positions().begin(), batch.mesh_positions().end());
   if (int16) {
     const std::string& bytes = batch.mesh_positions_int16();

@@ -19,7 +19,10 @@ Settings (keyword arguments of render and animate; all optional, defaults are th
     name), media_clock ((clock_name, utterance_zero_us)), mesh (bool: also the simulated
     face's vertices, Frame.mesh), mesh_subdivision (int, 0..2; unset = 1), mesh_encoding
     ("float32" or "int16": int16 halves the bytes, error <= half the header's
-    quantisation_scale_m, about 2.1 µm; Frame.mesh is decoded to metres either way).
+    quantisation_scale_m, about 2.1 µm; Frame.mesh is decoded to metres either way),
+    visemes (str: "oculus", "azure", "polly" or "rhubarb": also the viseme weights,
+    Frame.visemes, and events, Frame.viseme_event and Track.viseme_events()),
+    rhubarb_extended_shapes (str, rhubarb only: Rhubarb's --extendedShapes letters; unset = "GHX").
 
 Errors are the server's: every call raises ``grpc.RpcError`` (use ``.code()`` and
 ``.details()``), e.g. INVALID_ARGUMENT for a bad phoneme, DEADLINE_EXCEEDED when
@@ -43,7 +46,7 @@ except ImportError as _error:  # pragma: no cover - depends on the environment
         f"(see docs/python-client.md); import failed with: {_error}"
     ) from _error
 
-__all__ = ["Client", "Frame", "FrameStream", "Track", "make_settings", "KIND_NAMES"]
+__all__ = ["Client", "Frame", "FrameStream", "Track", "make_settings", "KIND_NAMES", "VISEME_VOCABULARIES"]
 
 #: FrameKind enum values to the short names used in Frame.kind.
 KIND_NAMES: Dict[int, str] = {
@@ -52,6 +55,14 @@ KIND_NAMES: Dict[int, str] = {
     lipsync_pb2.FRAME_KIND_CLOSURE_START: "closure_start",
     lipsync_pb2.FRAME_KIND_CLOSURE_END: "closure_end",
     lipsync_pb2.FRAME_KIND_SHORT_SEGMENT: "short_segment",
+}
+
+#: The `visemes` setting's names to the VisemeVocabulary enum.
+VISEME_VOCABULARIES: Dict[str, int] = {
+    "oculus": lipsync_pb2.VISEME_VOCABULARY_OCULUS,
+    "azure": lipsync_pb2.VISEME_VOCABULARY_AZURE,
+    "polly": lipsync_pb2.VISEME_VOCABULARY_POLLY,
+    "rhubarb": lipsync_pb2.VISEME_VOCABULARY_RHUBARB,
 }
 
 DEFAULT_TIMEOUT_S = 60.0
@@ -67,7 +78,9 @@ class Frame:
     channels: model channel name -> value (empty if not selected);
     arkit: ARKit blendshape name (Apple's spelling, e.g. "jawOpen") -> weight;
     mesh: with the mesh output, the face's vertex positions in metres, flat
-    [x0, y0, z0, x1, ...] (header.mesh.vertex_count × 3; topology in header.mesh), else None.
+    [x0, y0, z0, x1, ...] (header.mesh.vertex_count × 3; topology in header.mesh), else None;
+    visemes: with the viseme output, viseme name (header.viseme_names) -> weight, else None;
+    viseme_event: the name of the viseme whose event starts at this frame, else None.
     """
 
     index: int
@@ -76,6 +89,8 @@ class Frame:
     channels: Dict[str, float]
     arkit: Dict[str, float]
     mesh: Optional[List[float]] = None
+    visemes: Optional[Dict[str, float]] = None
+    viseme_event: Optional[str] = None
 
 
 @dataclasses.dataclass
@@ -86,6 +101,10 @@ class Track:
     header: Any
     frames: List[Frame]
     summary: Any
+
+    def viseme_events(self) -> List[Tuple[str, int]]:
+        """The viseme events as (viseme name, start_us), in time order (empty without visemes)."""
+        return [(f.viseme_event, f.t_us) for f in self.frames if f.viseme_event is not None]
 
 
 SESSION_METADATA_KEY = "x-lipsync-session"
@@ -138,6 +157,8 @@ def make_settings(
     mesh: bool = False,
     mesh_subdivision: Optional[int] = None,
     mesh_encoding: str = "float32",
+    visemes: Optional[str] = None,
+    rhubarb_extended_shapes: Optional[str] = None,
 ) -> Any:
     """Builds a lipsync_pb2.AnimationSettings from keyword arguments (see the module doc).
     Unknown keywords raise TypeError."""
@@ -162,6 +183,13 @@ def make_settings(
         if mesh_encoding not in encodings:
             raise ValueError(f"mesh_encoding must be 'float32' or 'int16', not {mesh_encoding!r}")
         settings.outputs.mesh.encoding = encodings[mesh_encoding]
+    if visemes is not None:
+        if visemes not in VISEME_VOCABULARIES:
+            raise ValueError(f"visemes must be one of {', '.join(VISEME_VOCABULARIES)}, not {visemes!r}")
+        settings.outputs.visemes.enabled = True
+        settings.outputs.visemes.vocabulary = VISEME_VOCABULARIES[visemes]
+    if rhubarb_extended_shapes is not None:
+        settings.outputs.visemes.rhubarb_extended_shapes = rhubarb_extended_shapes
     if media_clock is not None:
         clock, zero_us = media_clock
         settings.media_clock.clock = clock
@@ -180,6 +208,7 @@ class _Decoder:
         self.mesh_int16 = self.mesh_width > 0 and header.mesh.encoding == lipsync_pb2.MESH_ENCODING_INT16
         self.mesh_scale = header.mesh.quantisation_scale_m
         self.mesh_offset = list(header.mesh.quantisation_offset_m)
+        self.viseme_names = list(header.viseme_names)
 
     def _mesh(self, batch: Any, count: int) -> Optional[List[float]]:
         """All the batch's coordinates in metres (None without the mesh)."""
@@ -209,6 +238,17 @@ class _Decoder:
             )
         values, arkit = batch.values, batch.arkit
         mesh, mesh_width = self._mesh(batch, count), self.mesh_width
+        viseme_width, weights = len(self.viseme_names), batch.viseme_weights
+        if len(weights) != count * viseme_width:
+            raise ValueError(
+                f"malformed frame batch at frame {batch.first_frame}: {len(weights)} viseme weights "
+                f"for {count} frames of {viseme_width} visemes"
+            )
+        events = {}
+        for event in batch.viseme_events:
+            if event.viseme >= viseme_width:
+                raise ValueError(f"viseme event at {event.start_us} µs names viseme {event.viseme} of {viseme_width}")
+            events[event.start_us] = self.viseme_names[event.viseme]
         for i in range(count):
             yield Frame(
                 index=batch.first_frame + i,
@@ -217,6 +257,10 @@ class _Decoder:
                 channels=dict(zip(self.channel_names, values[i * width : (i + 1) * width])),
                 arkit=dict(zip(self.arkit_names, arkit[i * arkit_width : (i + 1) * arkit_width])),
                 mesh=None if mesh is None else mesh[i * mesh_width : (i + 1) * mesh_width],
+                visemes=dict(zip(self.viseme_names, weights[i * viseme_width : (i + 1) * viseme_width]))
+                if viseme_width
+                else None,
+                viseme_event=events.get(batch.t_us[i]),
             )
         self.next_index = batch.first_frame + count
 

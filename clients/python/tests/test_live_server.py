@@ -227,6 +227,23 @@ class LiveServerTest(unittest.TestCase):
         fixed = self.client.render(self.phonemes, phone_set="radio", fixed_rate=True)
         self.assertEqual({f.kind for f in fixed.frames}, {"uniform"})
 
+    def test_visemes_stream_equal_render_with_names_weights_and_events(self):
+        rendered = self.client.render(self.phonemes, phone_set="radio", visemes="rhubarb", rhubarb_extended_shapes="GX")
+        self.assertEqual(list(rendered.header.viseme_names), ["A", "B", "C", "D", "E", "F", "G", "H", "X"])
+        self.assertTrue(all(len(f.visemes) == 9 and abs(sum(f.visemes.values()) - 1) < 1e-4 and f.visemes["H"] == 0
+                            for f in rendered.frames))
+        events = rendered.viseme_events()
+        self.assertEqual(events[0], (max(rendered.frames[0].visemes, key=rendered.frames[0].visemes.get),
+                                     rendered.frames[0].t_us))
+        self.assertIn("A", {name for name, _ in events})  # the closures of "Peter picked a peck ..."
+        streamed = self.client.animate(self.phonemes, phone_set="radio", visemes="rhubarb",
+                                       rhubarb_extended_shapes="GX", chunk_size=3).collect()
+        self.assertEqual([f.visemes for f in streamed.frames], [f.visemes for f in rendered.frames])
+        self.assertEqual(streamed.viseme_events(), events)
+        plain = self.client.render(self.phonemes, phone_set="radio")
+        self.assertEqual(list(plain.header.viseme_names), [])
+        self.assertTrue(all(f.visemes is None and f.viseme_event is None for f in plain.frames))
+
     def test_bad_input_is_invalid_argument(self):
         overlapping = [("pau", 0, 100000), ("p", 50000, 150000)]
         with self.assertRaises(grpc.RpcError) as caught:

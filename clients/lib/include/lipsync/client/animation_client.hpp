@@ -36,6 +36,7 @@
 
 #include "lipsync/track.hpp"
 #include "lipsync/utterance.hpp"
+#include "lipsync/visemes.hpp"
 #include "lipsync/v1/lipsync.grpc.pb.h"
 
 namespace lipsync::client {
@@ -76,12 +77,18 @@ struct ReceivedTrack {
   /// With the mesh output (header.has_mesh()): frame_count() × header.mesh().vertex_count() × 3
   /// vertex coordinates in metres, int16 batches decoded as offset + scale × q; empty otherwise.
   std::vector<float> mesh_positions;
+  /// With the viseme output (header.viseme_names() not empty): frame_count() × header.viseme_names_size()
+  /// weights, frame-major; empty otherwise.
+  std::vector<float> viseme_weights;
+  /// With the viseme output: every event received, in time order (viseme = index into header.viseme_names()).
+  std::vector<VisemeEvent> viseme_events;
   std::optional<v1::TrackSummary> summary;
   std::uint64_t first_frame = 0;  ///< track index of track.t_us[0] (> 0 for a subscriber joining late)
 
   /// Takes one stream message. Throws CallError (INTERNAL) naming the problem when
   /// the server breaks the protocol (frames before the header, wrong sizes,
-  /// times not increasing, a gap in frame indices after the first batch).
+  /// times not increasing, a gap in frame indices after the first batch, a viseme
+  /// event that names no viseme or starts at none of its batch's frames).
   void add(const v1::TrackMessage& message);
   void add_frames(const v1::FrameBatch& batch);
 };
