@@ -12,6 +12,8 @@
 #include <cstdint>
 #include <vector>
 
+#include <google/protobuf/stubs/logging.h>
+
 #include "catalog.hpp"
 #include "fuzz_support.hpp"
 #include "lipsync/renderer.hpp"
@@ -38,6 +40,12 @@ void check_refusal(const grpc::Status& status) {
 }
 
 }  // namespace
+
+/// Protobuf's log of undecodable UTF-8 strings would drown the fuzzer's own output.
+extern "C" int LLVMFuzzerInitialize(int*, char***) {
+  google::protobuf::SetLogHandler(nullptr);
+  return 0;
+}
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace lipsync;
