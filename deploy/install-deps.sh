@@ -13,6 +13,8 @@ packages=(
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
+  # deploy/fuzz.sh (CI): clang 14 and its libFuzzer + sanitizer runtimes
+  clang-14 libclang-rt-14-dev
   # TTS front-ends used by the examples and tests (phoneme timings)
   flite festival festvox-kallpc16k
   # lipsync::speech: `lipsync say` (espeak-ng) and `lipsync align` (PocketSphinx and its en-us model)
