@@ -158,7 +158,7 @@ ArticulationModel ArticulationModel::from_json(std::string_view json_text, std::
   json root;
   try {
     root = json::parse(json_text.begin(), json_text.end());
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number that overflows
     throw InputError(source, 0, std::string("not valid JSON: ") + e.what());
   }
   ArticulationModel model;

@@ -125,6 +125,17 @@ TEST(ArticulationModel, RejectsEveryBadModelFile) {
   }
 }
 
+// Found by fuzzing (the rig loader had the same parse step): a number too large for a double made
+// nlohmann::json throw out_of_range, which escaped as a non-InputError.
+TEST(ArticulationModel, ANumberThatOverflowsIsAnInputErrorNotACrash) {
+  try {
+    ArticulationModel::from_json(R"({"format": "lipsync-articulation-model", "version": 1E999999})", "big.json");
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("big.json"));
+  }
+}
+
 TEST(ArticulationModel, DumpedBuiltinJsonLoadsAgain) {
   const ArticulationModel model = ArticulationModel::from_json(ArticulationModel::builtin_json(), "dump");
   EXPECT_EQ(model.phonemes().size(), ArticulationModel::builtin().phonemes().size());

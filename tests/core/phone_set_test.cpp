@@ -15,6 +15,12 @@ std::string name_of(std::optional<int> phoneme) {
   return phoneme ? model().phoneme(*phoneme).name : std::string("<unknown>");
 }
 
+// A number too large for a double made nlohmann::json throw out_of_range, which escaped the
+// loader as a non-InputError (the same parse step as the rig loader's fuzzing finding).
+TEST(PhoneSet, ANumberThatOverflowsIsAnInputErrorNotACrash) {
+  EXPECT_THROW(PhoneSet::from_json(R"({"format": 1E999999})", "big.json", model()), InputError);
+}
+
 TEST(PhoneSet, EveryBuiltinSetLoadsAgainstTheBuiltinModel) {
   const auto sets = PhoneSet::builtin_all(model());
   std::vector<std::string> names;

@@ -186,6 +186,14 @@ TEST(FaceRig, errors_name_the_muscle_and_the_field) {
               testing::HasSubstr("muscle 'orbicularis_oris_upper': field 'jaw_compensation' needs 'bone' = 'jaw'"));
 }
 
+// Found by fuzz_face_rig_from_json: a number too large for a double made nlohmann::json throw
+// out_of_range, which escaped as a non-InputError and terminated the program.
+TEST(FaceRig, a_number_that_overflows_is_an_input_error_not_a_crash) {
+  const std::string overflowing = R"({"format": "lipsync-face-rig", "jaw": 22222222222222222222E2222222222})";
+  EXPECT_THROW(FaceRig::from_json(overflowing, "rig.json", ArticulationModel::builtin()), InputError);
+  EXPECT_THROW(FaceAsset::from_json(R"({"format": 1E999999})", "asset.json"), InputError);
+}
+
 TEST(FaceSolver, rest_is_an_equilibrium) {
   FaceSolver solver(level1(), FaceRig::builtin());
   hold(solver, std::vector<float>(ArticulationModel::builtin().channel_count(), 0.0F));

@@ -112,7 +112,7 @@ FaceAsset FaceAsset::from_json(std::string_view json_text, std::string_view sour
   nlohmann::json doc;
   try {
     doc = nlohmann::json::parse(json_text);
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {  // parse_error, and out_of_range for a number that overflows
     throw InputError(src, 0, std::string("not valid JSON: ") + e.what());
   }
   FaceAsset asset;

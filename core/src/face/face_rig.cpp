@@ -71,7 +71,7 @@ FaceRig FaceRig::from_json(std::string_view json_text, std::string_view source, 
   nlohmann::json doc;
   try {
     doc = nlohmann::json::parse(json_text);
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {  // parse_error, and out_of_range for a number that overflows
     in.fail("rig", std::string("not valid JSON: ") + e.what());
   }
   if (in.text(doc, "format", "rig") != "lipsync-face-rig") in.fail("rig", "field 'format' must be lipsync-face-rig");
