@@ -257,7 +257,9 @@ OutputRequest parse_output_request(const Arguments& arguments) {
 
 void render_outputs(const OutputRequest& out, LabeledUtterance utterance) {
   const TrackRequest& request = out.track;
-  const std::int64_t phonemes_end_us = utterance.intervals.empty() ? 0 : utterance.intervals.back().end_us;
+  // Used only with the face (--video), which a client-only build leaves out.
+  [[maybe_unused]] const std::int64_t phonemes_end_us =
+      utterance.intervals.empty() ? 0 : utterance.intervals.back().end_us;
   if (out.audio_end_us) speech::cover_audio(utterance, *out.audio_end_us, request.render.fps);
   const ModelSource model_source(out.model_path);
   const ArticulationModel& model = model_source.model();
