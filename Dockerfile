@@ -10,6 +10,7 @@ RUN apt-get update \
  && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends \
       build-essential cmake ninja-build nlohmann-json3-dev libeigen3-dev libspdlog-dev libboost-dev \
       libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler \
+      libespeak-ng-dev libpocketsphinx-dev libsphinxbase-dev \
  && rm -rf /var/lib/apt/lists/*
 WORKDIR /src
 COPY CMakeLists.txt ./
@@ -27,11 +28,12 @@ RUN cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_INSTALL_PREF
  && cmake --build build --target lipsyncd lipsync \
  && DESTDIR=/staging cmake --install build --component server
 
-# --- runtime: only the shared libraries lipsyncd links --------------------------------------------
+# --- runtime: only the shared libraries lipsyncd links (espeak-ng and its data: Speak) ----------
 FROM debian:12-slim AS runtime
 RUN apt-get update \
  && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends \
       libgrpc++1.51 libprotobuf32 libspdlog1.10 libfmt9 ca-certificates \
+      libespeak-ng1 espeak-ng-data libpocketsphinx3 libsphinxbase3 \
  && rm -rf /var/lib/apt/lists/* \
  && useradd --system --uid 10001 --no-create-home --shell /usr/sbin/nologin lipsyncd
 COPY --from=build /staging/usr/bin/lipsyncd /staging/usr/bin/lipsync /usr/bin/

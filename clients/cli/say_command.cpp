@@ -16,6 +16,7 @@
 #include "lipsync/speech/audio.hpp"
 #include "lipsync/speech/synthesizer.hpp"
 #include "render_outputs.hpp"
+#include "speech_input.hpp"
 
 namespace lipsync::cli {
 namespace {
@@ -26,8 +27,8 @@ constexpr OptionSpec kOptions[] = {
     kExtendedShapesOption,
     kFpsOption,
     {"wav", 0, "FILE", "also write the speech to FILE (16-bit mono PCM WAV at espeak-ng's 22050 Hz)", "no WAV"},
-    {"voice", 0, "NAME", "espeak-ng voice ('espeak-ng --voices' lists them)", "en-us"},
-    {"rate", 0, "WPM", "speaking rate in words per minute, 80 to 450", "175"},
+    kVoiceOption,
+    kRateOption,
     kModelOption,
     kClosureFractionOption,
     kFixedRateOption,
@@ -63,12 +64,7 @@ int run_say(std::span<const std::string_view> args) {
   if (arguments.positional().size() > 1) {
     throw UsageError("say takes one TEXT (quote it), got also '" + arguments.positional()[1] + "'");
   }
-  speech::SynthesisOptions synthesis;
-  if (const auto voice = arguments.value("voice")) {
-    if (voice->empty()) throw UsageError("--voice: the name must not be empty");
-    synthesis.voice = *voice;
-  }
-  if (const auto rate = arguments.value("rate")) synthesis.words_per_minute = parse_int_option("rate", *rate, 80, 450);
+  const speech::SynthesisOptions synthesis = synthesis_options(arguments);
   const std::optional<std::string> wav_path = arguments.value("wav");
   if (wav_path && (wav_path->empty() || *wav_path == "-")) throw UsageError("--wav: needs a file name");
   OutputRequest request = parse_output_request(arguments);

@@ -8,6 +8,16 @@
 
 namespace lipsync::cli {
 
+speech::SynthesisOptions synthesis_options(const Arguments& arguments) {
+  speech::SynthesisOptions options;
+  if (const auto voice = arguments.value("voice")) {
+    if (voice->empty()) throw UsageError("--voice: the name must not be empty");
+    options.voice = *voice;
+  }
+  if (const auto rate = arguments.value("rate")) options.words_per_minute = parse_int_option("rate", *rate, 80, 450);
+  return options;
+}
+
 std::optional<std::string> transcript_option(const Arguments& arguments) {
   const auto text = arguments.value("text");
   const auto file = arguments.value("text-file");

@@ -1,6 +1,7 @@
 // Speech as input to the command line: the --text / --text-file options, the
 // alignment of a WAV file through lipsync::speech (its notes printed to
-// stderr), and the length of an --audio WAV.
+// stderr), the length of an --audio WAV, and the --voice / --rate options of
+// `say` (spoken here) and `speak` (spoken by lipsyncd).
 #pragma once
 
 #include <cstdint>
@@ -10,6 +11,7 @@
 
 #include "arguments.hpp"
 #include "lipsync/speech/aligner.hpp"
+#include "lipsync/speech/synthesizer.hpp"
 
 namespace lipsync::cli {
 
@@ -17,6 +19,13 @@ inline constexpr OptionSpec kTextOption = {"text", 0, "WORDS",
     "transcript of a WAV INPUT, for forced alignment (phones are recognised without one)", "none"};
 inline constexpr OptionSpec kTextFileOption = {"text-file", 0, "FILE", "the transcript read from FILE (UTF-8)",
     "none"};
+
+inline constexpr OptionSpec kVoiceOption = {"voice", 0, "NAME", "espeak-ng voice ('espeak-ng --voices' lists them)",
+    "en-us"};
+inline constexpr OptionSpec kRateOption = {"rate", 0, "WPM", "speaking rate in words per minute, 80 to 450", "175"};
+
+/// The synthesis options from --voice and --rate (UsageError for an empty voice or a rate out of range).
+speech::SynthesisOptions synthesis_options(const Arguments& arguments);
 
 /// The transcript from --text or --text-file (UsageError if both; FileError if unreadable).
 std::optional<std::string> transcript_option(const Arguments& arguments);

@@ -12,6 +12,7 @@
 #include "lipsync/server/config.hpp"
 #include "session.hpp"
 #include "session_routing.hpp"
+#include "speech_thread.hpp"
 
 // The generated base declares sync-API overloads of each method that the
 // callback overrides hide on purpose.
@@ -31,6 +32,8 @@ class LipSyncService final : public v1::LipSync::CallbackService {
                                    v1::RenderResponse* response) override;
   grpc::ServerWriteReactor<v1::TrackMessage>* Subscribe(grpc::CallbackServerContext* context,
                                                         const v1::SubscribeRequest* request) override;
+  grpc::ServerWriteReactor<v1::SpeakResponse>* Speak(grpc::CallbackServerContext* context,
+                                                     const v1::SpeakRequest* request) override;
   grpc::ServerUnaryReactor* ListModels(grpc::CallbackServerContext* context,
                                        const v1::ListModelsRequest* request,
                                        v1::ListModelsResponse* response) override;
@@ -48,6 +51,8 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   FaceLibrary& faces() { return faces_; }
   /// The low-priority threads the face runs on.
   FaceWorkers& face_workers() { return face_workers_; }
+  /// The one thread Speak synthesises on (espeak-ng is not re-entrant).
+  SpeechThread& speech_thread() { return speech_thread_; }
 
  private:
   const ServerConfig& config_;
@@ -56,6 +61,8 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   Admission admission_;
   SessionRouting routing_;
   FaceLibrary faces_;
+  // After what its jobs use, so that it is joined before they go.
+  SpeechThread speech_thread_;
   // Last, so that it is destroyed first: its destructor runs the jobs still
   // queued, which use the members above.
   FaceWorkers face_workers_;

@@ -514,6 +514,80 @@ ReceivedTrack AnimationClient::subscribe(const std::string& session, v1::Subscri
   return received;
 }
 
+void SpokenTrack::add(const v1::SpeakResponse& message) {
+  const bool started = header.sample_rate_hz() != 0;
+  if (!started && !message.has_header()) throw protocol_error("a Speak message before the SpeakHeader");
+  switch (message.kind_case()) {
+    case v1::SpeakResponse::kHeader: {
+      if (started) throw protocol_error("a second SpeakHeader");
+      if (message.header().sample_rate_hz() == 0 || message.header().channels() != 1 ||
+          message.header().sample_format() != v1::SAMPLE_FORMAT_PCM_S16LE) {
+        throw protocol_error("a SpeakHeader with an audio format other than mono PCM_S16LE at a known rate");
+      }
+      header = message.header();
+      samples.clear();
+      samples.reserve(header.sample_count());
+      v1::TrackMessage track_header;
+      *track_header.mutable_header() = header.track();
+      track.add(track_header);
+      break;
+    }
+    case v1::SpeakResponse::kAudio: {
+      const v1::AudioChunk& chunk = message.audio();
+      const std::string& pcm = chunk.pcm();
+      if (chunk.first_sample() != samples.size()) {
+        throw protocol_error("an audio chunk starting at sample " + std::to_string(chunk.first_sample()) +
+                             " after " + std::to_string(samples.size()) + " samples");
+      }
+      if (pcm.size() % 2 != 0 || samples.size() + pcm.size() / 2 > header.sample_count()) {
+        throw protocol_error("an audio chunk of " + std::to_string(pcm.size()) + " bytes at sample " +
+                             std::to_string(samples.size()) + " of " + std::to_string(header.sample_count()));
+      }
+      for (std::size_t i = 0; i < pcm.size(); i += 2) {
+        const auto low = static_cast<std::uint8_t>(pcm[i]);
+        const auto high = static_cast<std::uint8_t>(pcm[i + 1]);
+        samples.push_back(static_cast<std::int16_t>(static_cast<std::uint16_t>(low | (high << 8))));
+      }
+      break;
+    }
+    case v1::SpeakResponse::kFrames:
+      track.add_frames(message.frames());
+      break;
+    case v1::SpeakResponse::kSummary:
+      summary = message.summary();
+      track.summary = message.summary().track();
+      break;
+    default:
+      throw protocol_error("a Speak message with no content");
+  }
+}
+
+SpokenTrack AnimationClient::speak(const v1::SpeakRequest& request,
+                                   const std::function<void(const v1::SpeakResponse&)>& handler) const {
+  grpc::ClientContext context;
+  context.set_deadline(deadline_after(options_.stream_timeout));
+  add_session_metadata(context, request.settings().session());
+  auto reader = stub_->Speak(&context, request);
+  SpokenTrack spoken;
+  v1::SpeakResponse message;
+  while (reader->Read(&message)) {
+    try {
+      spoken.add(message);
+    } catch (const CallError&) {
+      context.TryCancel();
+      reader->Finish();
+      throw;
+    }
+    if (handler) handler(message);
+  }
+  throw_unless_ok(reader->Finish(), "Speak on " + address_);
+  if (spoken.samples.size() != spoken.header.sample_count()) {
+    throw protocol_error("the Speak stream ended after " + std::to_string(spoken.samples.size()) + " of " +
+                         std::to_string(spoken.header.sample_count()) + " samples");
+  }
+  return spoken;
+}
+
 v1::ListModelsResponse AnimationClient::list_models() const {
   grpc::ClientContext context;
   context.set_deadline(deadline_after(options_.unary_timeout));

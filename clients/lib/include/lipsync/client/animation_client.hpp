@@ -5,6 +5,8 @@
 //              produces them, an end marker; every TrackMessage goes to a
 //              handler as it arrives (callback API: no thread per stream)
 //   subscribe  follow a session's frames until its producer finishes
+//   speak      text in; the server speaks it (espeak-ng) and returns the audio
+//              and the track of what it spoke, on one utterance clock (blocking)
 //
 // Every call that names a session (an Animate with settings.session, a Subscribe)
 // also sends it as the metadata `x-lipsync-session`, on which a load balancer in
@@ -91,6 +93,20 @@ struct ReceivedTrack {
   /// event that names no viseme or starts at none of its batch's frames).
   void add(const v1::TrackMessage& message);
   void add_frames(const v1::FrameBatch& batch);
+};
+
+/// What a Speak call returned: the speech and its frames on one utterance clock
+/// (audio sample n plays at n × 10⁶ / header.sample_rate_hz() µs, frame t_us at t_us).
+struct SpokenTrack {
+  v1::SpeakHeader header;  ///< the audio's format, the phonemes animated; header.track(): the frames' TrackHeader
+  std::vector<std::int16_t> samples;  ///< the whole audio, mono, at header.sample_rate_hz()
+  ReceivedTrack track;                ///< the frames, as render() and animate() return them
+  std::optional<v1::SpeakSummary> summary;
+
+  /// Takes one Speak message. Throws CallError (INTERNAL) naming the problem when the
+  /// server breaks the protocol (content before the header, an audio chunk that does
+  /// not continue the audio, an odd byte count, more samples than announced).
+  void add(const v1::SpeakResponse& message);
 };
 
 FrameKind to_core(v1::FrameKind kind);
@@ -182,6 +198,12 @@ class AnimationClient {
   /// Follows `session` until its producer finishes. Throws CallError.
   ReceivedTrack subscribe(const std::string& session, v1::SubscribeRequest::Start start,
                           const MessageHandler& handler = {}) const;
+
+  /// Speaks `request.text()` on the server and returns the audio and its track;
+  /// every message also goes to `handler` if given. With request.settings().session()
+  /// the frames are published for subscribers too. Throws CallError.
+  SpokenTrack speak(const v1::SpeakRequest& request,
+                    const std::function<void(const v1::SpeakResponse&)>& handler = {}) const;
 
   v1::ListModelsResponse list_models() const;
   v1::ModelInfo get_model(const std::string& name) const;

@@ -1,0 +1,99 @@
+// `lipsync speak TEXT --server ADDR`: lipsyncd speaks the text (its Speak RPC,
+// espeak-ng on the server) and sends back the speech and the frames of what it
+// spoke; this writes the track (-o, named after the server's model, as `lipsync
+// stream` does) and the speech (--wav). With the built-in model and the default
+// settings both equal what `lipsync say TEXT -o ... --wav ...` writes on this
+// machine, byte for byte (the same espeak-ng, the same render path).
+// --session publishes the frames for `lipsync subscribe` / `play`.
+#include <chrono>
+#include <iostream>
+
+#include "arguments.hpp"
+#include "cli_error.hpp"
+#include "commands.hpp"
+#include "files.hpp"
+#include "lipsync/speech/audio.hpp"
+#include "network.hpp"
+#include "pipeline.hpp"
+#include "received_track_writer.hpp"
+#include "speech_input.hpp"
+
+namespace lipsync::cli {
+namespace {
+
+constexpr OptionSpec kOptions[] = {
+    kServerOption,
+    kTrackOutputOption,
+    kTrackFormatOption,
+    {"wav", 0, "FILE", "also write the speech to FILE (16-bit mono PCM WAV at the server's rate, 22050 Hz)",
+     "no WAV"},
+    kVoiceOption,
+    kRateOption,
+    kFpsOption,
+    {"server-model", 0, "NAME",
+     "the server's model to animate with (see 'lipsync server-models'); the output is named after its channels",
+     "the server's default model"},
+    {"session", 0, "NAME", "publish the frames under this session name for subscribers", "private"},
+    {"timeout", 0, "S", "give up when the call has not finished after S seconds, 1 to 86400", "600"},
+};
+
+constexpr std::string_view kUsage = "lipsync speak TEXT [options]";
+constexpr std::string_view kDescription =
+    "Asks lipsyncd to speak TEXT (espeak-ng on the server) and writes the animation\n"
+    "track of what it spoke, which covers the whole audio, and with --wav the speech.\n"
+    "With the default settings both equal 'lipsync say TEXT' byte for byte.";
+
+}  // namespace
+
+int run_speak(std::span<const std::string_view> args) {
+  const Arguments arguments = Arguments::parse(args, kOptions, "speak");
+  if (print_help_if_asked(arguments, kUsage, kDescription, kOptions, std::cout)) return 0;
+  if (arguments.positional().empty()) throw UsageError("speak needs a TEXT to speak (see 'lipsync speak --help')");
+  if (arguments.positional().size() > 1) {
+    throw UsageError("speak takes one TEXT (quote it), got also '" + arguments.positional()[1] + "'");
+  }
+  const std::string address = server_address(arguments);
+  const std::string output = arguments.value("output").value_or("-");
+  const TrackFormat format = parse_track_format_option(arguments.value("format").value_or("json"));
+  const std::optional<std::string> wav_path = arguments.value("wav");
+  if (wav_path && (wav_path->empty() || *wav_path == "-")) throw UsageError("--wav: needs a file name");
+  const int timeout_s = parse_int_option("timeout", arguments.value("timeout").value_or("600"), 1, 86'400);
+  const speech::SynthesisOptions synthesis = synthesis_options(arguments);
+
+  client::v1::SpeakRequest request;
+  request.set_text(arguments.positional().front());
+  request.set_voice(synthesis.voice);
+  request.set_words_per_minute(static_cast<std::uint32_t>(synthesis.words_per_minute));
+  client::v1::AnimationSettings& settings = *request.mutable_settings();
+  settings.set_fps(static_cast<std::uint32_t>(parse_render_plan(arguments).render.fps));
+  settings.mutable_outputs()->set_channels(true);
+  settings.mutable_outputs()->set_arkit(format != TrackFormat::csv);  // the server's retargeting for its model
+  if (const auto model_name = arguments.value("server-model")) {
+    if (model_name->empty()) throw UsageError("--server-model: the name must not be empty (see 'lipsync server-models')");
+    settings.set_model(*model_name);
+  }
+  if (const auto session = arguments.value("session")) {
+    if (session->empty()) throw UsageError("--session: the name must not be empty");
+    settings.set_session(*session);
+  }
+
+  client::ClientOptions client_options;
+  client_options.stream_timeout = std::chrono::seconds(timeout_s);
+  const client::AnimationClient connection(address, client_options);
+  connection.wait_connected();
+  const client::SpokenTrack spoken = connection.speak(request);
+
+  // The WAV first: the track, usually what a caller waits for, then appears last.
+  if (wav_path) {
+    speech::PcmAudio audio;
+    audio.sample_rate_hz = static_cast<int>(spoken.header.sample_rate_hz());
+    audio.samples = spoken.samples;
+    AtomicOutputFile file(*wav_path);
+    speech::write_wav(file.stream(), audio);
+    file.commit();
+  }
+  write_received_track(spoken.track, format, output, "lipsyncd at " + address);
+  return 0;
+}
+
+}  // namespace lipsync::cli

@@ -1,0 +1,320 @@
+// Speak: text in, voice and face out of one call, on one utterance clock.
+//
+// The reaction that starts the call only checks the request (text, voice,
+// rate, settings, the session name) and opens the session; everything else
+// runs on the speech thread (speech_thread.hpp), one call at a time, because
+// espeak-ng is a process-wide, non-re-entrant synthesiser:
+//   1. lipsync::speech::synthesize speaks the text and reports the phonemes it
+//      spoke, timed on the audio's own samples (the espeak phone set);
+//   2. lipsync::speech::cover_audio appends the silence that takes the track to
+//      a frame at or after the audio's end, as `lipsync say` does;
+//   3. the phonemes go one at a time through the same PhonemeInput and
+//      StreamingRenderer as Animate's, and each released frame batch through the
+//      same wire encoding and, with a session name, to the session as it is
+//      produced, so subscribers follow a Speak exactly as they follow an Animate.
+// The frames therefore equal an offline render of the header's phonemes bit for
+// bit (lookahead 7, the default). The caller's messages, prepared meanwhile in
+// utterance-time order (each audio chunk before the frames at or after its
+// start), are then written back to back, as fast as the client reads: the
+// whole utterance is bounded by the text limit, so nothing waits on a pace.
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <spdlog/spdlog.h>
+
+#include "call_log.hpp"
+#include "lipsync/error.hpp"
+#include "lipsync/renderer.hpp"
+#include "lipsync/speech/audio.hpp"
+#include "lipsync/speech/synthesizer.hpp"
+#include "phoneme_input.hpp"
+#include "plan.hpp"
+#include "service.hpp"
+#include "wire.hpp"
+
+namespace lipsync::server {
+namespace {
+
+/// The longest text a Speak call may carry (about four minutes of speech at 175 words per minute).
+constexpr std::size_t kMaxTextBytes = 4096;
+/// The longest voice name accepted (espeak-ng's are a few characters, "en-us", "de+f3").
+constexpr std::size_t kMaxVoiceBytes = 64;
+/// Audio per AudioChunk.
+constexpr std::int64_t kAudioChunkUs = 100'000;
+
+grpc::Status check_text(const std::string& text) {
+  if (text.find_first_not_of(" \t\r\n") == std::string::npos) {
+    return invalid("text: empty (Speak needs something to say)");
+  }
+  if (text.size() > kMaxTextBytes) {
+    return invalid("text: " + std::to_string(text.size()) + " bytes, longer than the limit of " +
+                   std::to_string(kMaxTextBytes) + " bytes");
+  }
+  return grpc::Status::OK;
+}
+
+/// The request's voice and rate as synthesis options, or INVALID_ARGUMENT naming the field.
+grpc::Status synthesis_options(const v1::SpeakRequest& request, speech::SynthesisOptions& options) {
+  if (request.voice().size() > kMaxVoiceBytes) {
+    return invalid("voice: the name is longer than " + std::to_string(kMaxVoiceBytes) + " bytes");
+  }
+  if (!request.voice().empty()) options.voice = request.voice();
+  const std::uint32_t rate = request.words_per_minute();
+  if (rate != 0 && (rate < 80 || rate > 450)) {
+    return invalid("words_per_minute: " + std::to_string(rate) + " is out of range (80 to 450; 0 = " +
+                   std::to_string(speech::SynthesisOptions{}.words_per_minute) + ")");
+  }
+  if (rate != 0) options.words_per_minute = static_cast<int>(rate);
+  return grpc::Status::OK;
+}
+
+/// Speak's settings: Animate's, with the espeak phone set and without the mesh.
+grpc::Status speak_settings(const v1::AnimationSettings& requested, v1::AnimationSettings& settings) {
+  settings = requested;
+  if (settings.phone_set().empty()) settings.set_phone_set("espeak");
+  if (settings.phone_set() != "espeak") {
+    return invalid("settings.phone_set: '" + settings.phone_set() +
+                   "' given, but Speak animates espeak-ng's phonemes (leave it empty or 'espeak')");
+  }
+  if (wants_mesh(settings)) {
+    return invalid("settings.outputs.mesh: not offered by Speak (its solver would hold up the speech thread); "
+                   "Render the header's phonemes with the mesh output instead");
+  }
+  return grpc::Status::OK;
+}
+
+class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
+ public:
+  SpeakReactor(LipSyncService& service, grpc::CallbackServerContext* context, const v1::SpeakRequest& request)
+      : service_(service), context_(context), request_(request), started_(Clock::now()) {
+    grpc::Status status = service_.admission().admit_stream();
+    if (!status.ok()) {
+      finish(status);
+      return;
+    }
+    admitted_ = true;
+    try {
+      status = start();
+    } catch (const std::exception& error) {
+      status = grpc::Status(grpc::StatusCode::INTERNAL, error.what());
+    }
+    if (!status.ok()) {
+      fail_session("producer failed: " + status.error_message());
+      finish(status);
+    }
+  }
+
+  void OnWriteDone(bool ok) override {
+    if (!ok) {
+      finish(grpc::Status(grpc::StatusCode::CANCELLED, "the client stopped reading"));
+      return;
+    }
+    write_next();
+  }
+
+  void OnCancel() override { cancelled_ = true; }
+
+  void OnDone() override {
+    if (admitted_) {
+      spdlog::info("Speak end peer={} session='{}' samples={} frames={} duration_ms={:.1f} status={}",
+                   context_->peer(), session_name_, samples_sent_, frames_sent_, elapsed_ms(started_),
+                   status_name(final_status_));
+      service_.admission().release_stream();
+    } else {
+      spdlog::warn("Speak refused peer={} status={}", context_->peer(), status_name(final_status_));
+    }
+    delete this;
+  }
+
+ private:
+  /// Checks the request, opens the session and queues the synthesis (on a reaction: quick).
+  grpc::Status start() {
+    if (auto status = check_text(request_.text()); !status.ok()) return status;
+    if (auto status = synthesis_options(request_, options_); !status.ok()) return status;
+    v1::AnimationSettings settings;
+    if (auto status = speak_settings(request_.settings(), settings); !status.ok()) return status;
+    if (auto status = service_.routing().check_metadata(*context_, settings.session()); !status.ok()) return status;
+    if (auto status = resolve_settings(settings, service_.catalog(), true, plan_); !status.ok()) return status;
+    if (!settings.session().empty()) {
+      auto header = std::make_shared<v1::TrackMessage>();
+      *header->mutable_header() = plan_.header;
+      if (auto status = service_.sessions().open(settings.session(), header, session_); !status.ok()) return status;
+      session_name_ = settings.session();
+    }
+    spdlog::info("Speak start peer={} session='{}' text_bytes={}", context_->peer(), session_name_,
+                 request_.text().size());
+    // From here on the speech thread owns the call until its first write or its Finish.
+    return service_.speech_thread().post([this] { run(); });
+  }
+
+  /// On the speech thread: synthesis, rendering, then the first write (or Finish).
+  void run() {
+    if (cancelled_) {
+      fail_session("producer disconnected: the Speak call was cancelled");
+      finish(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled before synthesis"));
+      return;
+    }
+    grpc::Status status;
+    try {
+      status = speak();
+    } catch (const std::exception& error) {
+      status = grpc::Status(grpc::StatusCode::INTERNAL, error.what());
+    }
+    if (!status.ok()) {
+      fail_session("producer failed: " + status.error_message());
+      finish(status);
+      return;
+    }
+    write_next();
+  }
+
+  grpc::Status speak() {
+    speech::Synthesis speech;
+    try {
+      speech = speech::synthesize(request_.text(), options_);
+    } catch (const InputError& error) {
+      // synthesize refuses a voice espeak-ng does not know, or a text it finds nothing to say in.
+      const bool voice = std::string(error.what()).find("unknown voice") != std::string::npos;
+      return invalid((voice ? "voice: " : "text: ") + std::string(error.what()));
+    }
+    audio_ = std::move(speech.audio);
+    speech::cover_audio(speech.phonemes, audio_.duration_us(), plan_.engine.render.fps);
+
+    v1::SpeakHeader& header = *responses_.emplace_back().mutable_header();
+    header.set_sample_rate_hz(static_cast<std::uint32_t>(audio_.sample_rate_hz));
+    header.set_channels(1);
+    header.set_sample_format(v1::SAMPLE_FORMAT_PCM_S16LE);
+    header.set_sample_count(audio_.samples.size());
+    header.set_audio_duration_us(audio_.duration_us());
+    *header.mutable_track() = plan_.header;
+    header.set_voice(options_.voice);
+    header.set_words_per_minute(static_cast<std::uint32_t>(options_.words_per_minute));
+    for (const LabeledInterval& interval : speech.phonemes.intervals) {
+      v1::Phoneme& phoneme = *header.add_phonemes();
+      phoneme.set_label(interval.label);
+      phoneme.set_start_us(interval.start_us);
+      phoneme.set_end_us(interval.end_us);
+    }
+
+    PhonemeInput input(plan_, service_.config());
+    StreamingRenderer renderer(plan_.model->tables, plan_.engine.render);
+    Track track;
+    track.channel_count = plan_.model->model->channel_count();
+    track.fps = plan_.engine.render.fps;
+    std::vector<Segment> segments;
+    for (const v1::Phoneme& phoneme : header.phonemes()) {
+      if (auto status = input.push(phoneme, segments); !status.ok()) return status;
+      for (const Segment& segment : segments) renderer.push(segment, track);
+      segments.clear();
+      send_frames(track);
+    }
+    renderer.finish(track);
+    send_frames(track);
+    send_audio_until(audio_.samples.size());
+
+    auto summary = std::make_shared<v1::TrackMessage>();
+    encode_summary(frames_sent_, input.count(), input.end_us(), *summary->mutable_summary());
+    if (session_) session_->finish(summary);
+    v1::SpeakSummary& speak_summary = *responses_.emplace_back().mutable_summary();
+    *speak_summary.mutable_track() = summary->summary();
+    speak_summary.set_sample_count(samples_sent_);
+    speak_summary.set_audio_duration_us(audio_.duration_us());
+    return grpc::Status::OK;
+  }
+
+  /// Queues the frames the renderer released since the last call, after the
+  /// audio chunks that start at or before the last of them; publishes them to the session.
+  void send_frames(Track& track) {
+    if (track.frame_count() == 0) return;
+    send_audio_until(sample_at(track.t_us.back()) + 1);
+    for (std::size_t begin = 0; begin < track.frame_count(); begin += kMaxFramesPerBatch) {
+      const std::size_t end = std::min(track.frame_count(), begin + kMaxFramesPerBatch);
+      v1::FrameBatch& batch = *responses_.emplace_back().mutable_frames();
+      encode_frames(plan_, track, begin, end, frames_sent_, batch, encoder_);
+      frames_sent_ += end - begin;
+      if (session_) {
+        auto message = std::make_shared<v1::TrackMessage>();
+        *message->mutable_frames() = batch;
+        session_->publish(message, end - begin);
+      }
+    }
+    track.clear();
+  }
+
+  /// The first sample at or after utterance time `t_us`.
+  std::size_t sample_at(std::int64_t t_us) const {
+    const std::int64_t rate = audio_.sample_rate_hz;
+    return static_cast<std::size_t>((t_us * rate + 999'999) / 1'000'000);
+  }
+
+  /// Queues whole audio chunks until every chunk starting before sample `limit` is queued.
+  void send_audio_until(std::size_t limit) {
+    const auto chunk_samples = static_cast<std::size_t>(audio_.sample_rate_hz * kAudioChunkUs / 1'000'000);
+    const std::size_t total = audio_.samples.size();
+    while (samples_sent_ < std::min(limit, total)) {
+      const std::size_t count = std::min(chunk_samples, total - samples_sent_);
+      v1::AudioChunk& chunk = *responses_.emplace_back().mutable_audio();
+      chunk.set_first_sample(samples_sent_);
+      chunk.set_start_us(static_cast<std::int64_t>(samples_sent_) * 1'000'000 / audio_.sample_rate_hz);
+      std::string& pcm = *chunk.mutable_pcm();
+      pcm.reserve(count * 2);
+      for (std::size_t i = samples_sent_; i < samples_sent_ + count; ++i) {
+        const auto sample = static_cast<std::uint16_t>(audio_.samples[i]);
+        pcm.push_back(static_cast<char>(sample & 0xFF));
+        pcm.push_back(static_cast<char>(sample >> 8));
+      }
+      samples_sent_ += count;
+    }
+  }
+
+  /// Writes the next prepared message, or finishes with OK after the last.
+  void write_next() {
+    if (next_ < responses_.size()) {
+      StartWrite(&responses_[next_++]);
+    } else {
+      finish(grpc::Status::OK);
+    }
+  }
+
+  void finish(const grpc::Status& status) {
+    final_status_ = status;
+    Finish(status);
+  }
+
+  void fail_session(const std::string& reason) {
+    if (session_) session_->fail(reason);
+  }
+
+  LipSyncService& service_;
+  grpc::CallbackServerContext* context_;
+  const v1::SpeakRequest& request_;
+  const Clock::time_point started_;
+  bool admitted_ = false;
+  std::atomic<bool> cancelled_ = false;
+  speech::SynthesisOptions options_;
+  Plan plan_;
+  std::shared_ptr<Session> session_;
+  std::string session_name_;
+  // Filled on the speech thread, then written in order by the reactions; a
+  // deque, so that the messages stay where StartWrite was given them.
+  speech::PcmAudio audio_;
+  std::deque<v1::SpeakResponse> responses_;
+  std::size_t next_ = 0;
+  StreamEncoder encoder_;
+  std::uint64_t frames_sent_ = 0;
+  std::uint64_t samples_sent_ = 0;
+  grpc::Status final_status_;
+};
+
+}  // namespace
+
+grpc::ServerWriteReactor<v1::SpeakResponse>* LipSyncService::Speak(grpc::CallbackServerContext* context,
+                                                                   const v1::SpeakRequest* request) {
+  return new SpeakReactor(*this, context, *request);
+}
+
+}  // namespace lipsync::server

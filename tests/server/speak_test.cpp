@@ -1,0 +1,272 @@
+// The Speak RPC on a real lipsyncd (127.0.0.1:0) with the real espeak-ng: the
+// frames equal the core's offline render of the phonemes espeak-ng reports
+// through lipsync::speech::synthesize (the call `lipsync say` makes) after
+// cover_audio, and the audio equals its samples; the track's last frame is at or
+// after the audio's end and within one frame step of it; audio and frames arrive
+// in utterance-time order; a subscriber of the session gets the same frames; bad
+// input and full servers get the right status with a message naming the field;
+// and `lipsync speak` writes what `lipsync say` writes, byte for byte.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <grpcpp/grpcpp.h>
+
+#include "lipsync/client/animation_client.hpp"
+#include "lipsync/model.hpp"
+#include "lipsync/phone_set.hpp"
+#include "lipsync/renderer.hpp"
+#include "lipsync/segment.hpp"
+#include "lipsync/speech/audio.hpp"
+#include "lipsync/speech/synthesizer.hpp"
+#include "lipsync/v1/lipsync.grpc.pb.h"
+#include "../support/child_process.hpp"
+#include "../support/server_harness.hpp"
+
+namespace lipsync::server {
+namespace {
+
+using namespace harness;
+using ::testing::ElementsAreArray;
+using ::testing::HasSubstr;
+
+constexpr const char* kSentences[] = {"Papa parked the car.", "Where were you, Bob? Mum waved from the ferry."};
+
+v1::SpeakRequest speak_request(const std::string& text, const std::string& session = "") {
+  v1::SpeakRequest request;
+  request.set_text(text);
+  if (!session.empty()) request.mutable_settings()->set_session(session);
+  return request;
+}
+
+/// What espeak-ng says for `text` and the phonemes a track of it at `fps` is rendered from (`lipsync say`'s steps).
+speech::Synthesis spoken_locally(const std::string& text, int fps) {
+  speech::Synthesis speech = speech::synthesize(text);
+  speech::cover_audio(speech.phonemes, speech.audio.duration_us(), fps);
+  return speech;
+}
+
+/// Every message of one Speak call, in order, and its status.
+struct SpeakStream {
+  std::vector<v1::SpeakResponse> messages;
+  grpc::Status status;
+};
+
+SpeakStream speak_raw(v1::LipSync::Stub& stub, const v1::SpeakRequest& request) {
+  grpc::ClientContext context;
+  set_deadline(context);
+  auto reader = stub.Speak(&context, request);
+  SpeakStream stream;
+  v1::SpeakResponse message;
+  while (reader->Read(&message)) stream.messages.push_back(message);
+  stream.status = reader->Finish();
+  return stream;
+}
+
+class SpeakTest : public LiveServerTest {
+ protected:
+  client::SpokenTrack speak(const v1::SpeakRequest& request) {
+    return client::AnimationClient(server_->address()).speak(request);
+  }
+};
+
+TEST_F(SpeakTest, frames_equal_the_offline_render_of_the_phonemes_espeak_reports) {
+  const ArticulationModel& model = ArticulationModel::builtin();
+  const PhoneSet espeak = *PhoneSet::builtin("espeak", model);
+  for (const char* text : kSentences) {
+    SCOPED_TRACE(text);
+    const speech::Synthesis local = spoken_locally(text, 30);
+    const Track offline = render_track(model, build_segments(local.phonemes, model, espeak));
+    const client::SpokenTrack spoken = speak(speak_request(text));
+
+    std::vector<v1::Phoneme> expected_phonemes;
+    for (const LabeledInterval& interval : local.phonemes.intervals) expected_phonemes.push_back(to_proto(interval));
+    ASSERT_EQ(spoken.header.phonemes_size(), static_cast<int>(expected_phonemes.size()));
+    for (int i = 0; i < spoken.header.phonemes_size(); ++i) {
+      EXPECT_EQ(spoken.header.phonemes(i).SerializeAsString(), expected_phonemes[static_cast<std::size_t>(i)].SerializeAsString())
+          << "phoneme " << i;
+    }
+    EXPECT_EQ(spoken.header.track().fps(), 30U);
+    EXPECT_EQ(spoken.track.track.channel_count, model.channel_count());
+    EXPECT_THAT(spoken.track.track.t_us, ElementsAreArray(offline.t_us));
+    EXPECT_THAT(spoken.track.track.kinds, ElementsAreArray(offline.kinds));
+    EXPECT_THAT(spoken.track.track.values, ElementsAreArray(offline.values));  // exact floats: bit for bit
+    ASSERT_TRUE(spoken.summary.has_value());
+    EXPECT_EQ(spoken.summary->track().frames(), offline.frame_count());
+    EXPECT_EQ(spoken.summary->track().duration_us(), local.phonemes.intervals.back().end_us);
+  }
+}
+
+TEST_F(SpeakTest, audio_equals_the_samples_espeak_gives_and_is_described_by_the_header) {
+  const speech::Synthesis local = spoken_locally(kSentences[0], 30);
+  const client::SpokenTrack spoken = speak(speak_request(kSentences[0]));
+  EXPECT_EQ(spoken.header.sample_rate_hz(), static_cast<std::uint32_t>(local.audio.sample_rate_hz));
+  EXPECT_EQ(spoken.header.channels(), 1U);
+  EXPECT_EQ(spoken.header.sample_format(), v1::SAMPLE_FORMAT_PCM_S16LE);
+  EXPECT_EQ(spoken.header.sample_count(), local.audio.samples.size());
+  EXPECT_EQ(spoken.header.audio_duration_us(), local.audio.duration_us());
+  EXPECT_EQ(spoken.header.voice(), "en-us");
+  EXPECT_EQ(spoken.header.words_per_minute(), 175U);
+  EXPECT_TRUE(spoken.samples == local.audio.samples) << "the samples differ from espeak-ng's";
+  ASSERT_TRUE(spoken.summary.has_value());
+  EXPECT_EQ(spoken.summary->sample_count(), local.audio.samples.size());
+}
+
+TEST_F(SpeakTest, last_frame_is_at_or_after_the_end_of_the_audio_and_within_one_frame_step) {
+  for (const std::uint32_t fps : {24U, 30U, 60U}) {
+    SCOPED_TRACE("fps " + std::to_string(fps));
+    v1::SpeakRequest request = speak_request(kSentences[1]);
+    request.mutable_settings()->set_fps(fps);
+    const client::SpokenTrack spoken = speak(request);
+    const std::int64_t audio_end_us = spoken.header.audio_duration_us();
+    const std::int64_t step_us = (1'000'000 + fps - 1) / fps;
+    ASSERT_FALSE(spoken.track.track.t_us.empty());
+    EXPECT_GE(spoken.track.track.t_us.back(), audio_end_us);
+    EXPECT_LT(spoken.track.track.t_us.back(), audio_end_us + step_us);
+  }
+}
+
+TEST_F(SpeakTest, audio_chunks_continue_each_other_and_come_before_the_frames_they_sound_under) {
+  const SpeakStream stream = speak_raw(*stub_, speak_request(kSentences[1]));
+  ASSERT_TRUE(stream.status.ok()) << stream.status.error_message();
+  ASSERT_TRUE(stream.messages.front().has_header());
+  ASSERT_TRUE(stream.messages.back().has_summary());
+  const v1::SpeakHeader& header = stream.messages.front().header();
+  std::uint64_t samples = 0;
+  std::int64_t last_frame_us = -1;
+  for (const v1::SpeakResponse& message : stream.messages) {
+    if (message.has_audio()) {
+      const v1::AudioChunk& chunk = message.audio();
+      EXPECT_EQ(chunk.first_sample(), samples);
+      EXPECT_EQ(chunk.start_us(), static_cast<std::int64_t>(samples * 1'000'000 / header.sample_rate_hz()));
+      EXPECT_GT(chunk.start_us(), last_frame_us) << "a frame at " << last_frame_us
+                                                 << " us came before the audio chunk starting at " << chunk.start_us();
+      samples += chunk.pcm().size() / 2;
+    }
+    if (message.has_frames()) last_frame_us = message.frames().t_us(message.frames().t_us_size() - 1);
+  }
+  EXPECT_EQ(samples, header.sample_count());
+}
+
+TEST_F(SpeakTest, a_subscriber_of_the_session_gets_the_same_frames) {
+  v1::SpeakRequest request = speak_request(kSentences[1], "speaker");
+  request.mutable_settings()->mutable_media_clock()->set_clock("unix");
+  request.mutable_settings()->mutable_media_clock()->set_utterance_zero_us(1'700'000'000'000'000);
+  grpc::ClientContext context;
+  set_deadline(context);
+  auto reader = stub_->Speak(&context, request);
+  v1::SpeakResponse message;
+  ASSERT_TRUE(reader->Read(&message));
+  ASSERT_TRUE(message.has_header());  // the session is open from the call's start
+  const v1::SpeakHeader header = message.header();
+  Received subscribed;
+  std::thread subscriber([&] { subscribed = subscribe_all(*stub_, "speaker"); });
+  client::SpokenTrack spoken;
+  spoken.add(message);
+  while (reader->Read(&message)) spoken.add(message);
+  ASSERT_TRUE(reader->Finish().ok());
+  subscriber.join();
+
+  ASSERT_TRUE(subscribed.status.ok()) << subscribed.status.error_message();
+  ASSERT_TRUE(subscribed.header.has_value());
+  EXPECT_EQ(subscribed.header->SerializeAsString(), header.track().SerializeAsString());
+  EXPECT_EQ(subscribed.header->session(), "speaker");
+  EXPECT_EQ(subscribed.header->media_clock().utterance_zero_us(), 1'700'000'000'000'000);
+  EXPECT_THAT(subscribed.frames.t_us, ElementsAreArray(spoken.track.track.t_us));
+  EXPECT_THAT(subscribed.frames.values, ElementsAreArray(spoken.track.track.values));
+  EXPECT_THAT(subscribed.frames.arkit, ElementsAreArray(spoken.track.arkit));
+  ASSERT_TRUE(subscribed.summary.has_value());
+  EXPECT_EQ(subscribed.summary->SerializeAsString(), spoken.summary->track().SerializeAsString());
+}
+
+struct BadRequest {
+  const char* what;
+  v1::SpeakRequest request;
+  const char* field;    // the message names it
+  const char* detail;   // and says this
+};
+
+TEST_F(SpeakTest, bad_requests_are_refused_naming_the_field) {
+  std::vector<BadRequest> cases;
+  cases.push_back({"empty text", speak_request(""), "text:", "empty"});
+  cases.push_back({"white space only", speak_request(" \n\t"), "text:", "empty"});
+  cases.push_back({"text over the limit", speak_request(std::string(4097, 'a')), "text:", "4096 bytes"});
+  cases.push_back({"unknown voice", speak_request("Hello."), "voice:", "'no-such-voice'"});
+  cases.back().request.set_voice("no-such-voice");
+  cases.push_back({"rate too high", speak_request("Hello."), "words_per_minute:", "500"});
+  cases.back().request.set_words_per_minute(500);
+  cases.push_back({"fps out of range", speak_request("Hello."), "settings.fps:", "241"});
+  cases.back().request.mutable_settings()->set_fps(241);
+  cases.push_back({"another phone set", speak_request("Hello."), "settings.phone_set:", "'arpabet'"});
+  cases.back().request.mutable_settings()->set_phone_set("arpabet");
+  cases.push_back({"mesh output", speak_request("Hello."), "settings.outputs.mesh:", "Render"});
+  cases.back().request.mutable_settings()->mutable_outputs()->mutable_mesh()->set_enabled(true);
+  cases.push_back({"unknown model", speak_request("Hello."), "settings.model:", "'nobody'"});
+  cases.back().request.mutable_settings()->set_model("nobody");
+  for (const BadRequest& bad : cases) {
+    SCOPED_TRACE(bad.what);
+    const SpeakStream stream = speak_raw(*stub_, bad.request);
+    EXPECT_EQ(stream.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_THAT(stream.status.error_message(), HasSubstr(bad.field));
+    EXPECT_THAT(stream.status.error_message(), HasSubstr(bad.detail));
+    EXPECT_TRUE(stream.messages.empty());
+  }
+  // Refused calls leave the server and espeak-ng serving.
+  EXPECT_TRUE(speak_raw(*stub_, speak_request("Hello.")).status.ok());
+}
+
+TEST_F(SpeakTest, a_session_name_in_use_is_already_exists_and_an_unknown_voice_aborts_its_subscribers) {
+  Producer producer(*stub_, session_settings("taken"));
+  const SpeakStream taken = speak_raw(*stub_, speak_request("Hello.", "taken"));
+  EXPECT_EQ(taken.status.error_code(), grpc::StatusCode::ALREADY_EXISTS) << taken.status.error_message();
+  producer.cancel();
+
+  v1::SpeakRequest bad_voice = speak_request("Hello.", "mute");
+  bad_voice.set_voice("no-such-voice");
+  EXPECT_EQ(speak_raw(*stub_, bad_voice).status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  const Received subscribed = subscribe_all(*stub_, "mute");
+  EXPECT_EQ(subscribed.status.error_code(), grpc::StatusCode::ABORTED);
+  EXPECT_THAT(subscribed.status.error_message(), HasSubstr("no-such-voice"));
+}
+
+TEST_F(SpeakTest, a_full_server_refuses_with_resource_exhausted) {
+  ServerConfig config;
+  config.max_streams = 1;
+  start(config);
+  Producer producer(*stub_, {});
+  const SpeakStream refused = speak_raw(*stub_, speak_request("Hello."));
+  EXPECT_EQ(refused.status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << refused.status.error_message();
+  EXPECT_THAT(refused.status.error_message(), HasSubstr("--max-streams"));
+}
+
+TEST_F(SpeakTest, lipsync_speak_writes_what_lipsync_say_writes) {
+  namespace fs = std::filesystem;
+  const fs::path dir = testing::make_temp_dir("lipsync-speak-test-");
+  const auto run = [&](std::vector<std::string> args) {
+    args.insert(args.begin(), LIPSYNC_CLI_BINARY);
+    return testing::run_program(std::move(args), dir, dir);
+  };
+  const std::string text = kSentences[1];
+  const auto said = run({"say", text, "-o", "said.json", "--wav", "said.wav"});
+  ASSERT_EQ(said.status, 0) << said.err;
+  const auto spoken = run({"speak", text, "--server", server_->address(), "-o", "spoken.json", "--wav", "spoken.wav"});
+  ASSERT_EQ(spoken.status, 0) << spoken.err;
+  const std::string said_wav = testing::read_text(dir / "said.wav");
+  EXPECT_GT(said_wav.size(), 44U);
+  EXPECT_TRUE(testing::read_text(dir / "spoken.wav") == said_wav) << "the WAV files differ";
+  const std::string said_track = testing::read_text(dir / "said.json");
+  EXPECT_GT(said_track.size(), 100U);
+  EXPECT_TRUE(testing::read_text(dir / "spoken.json") == said_track) << "the track files differ";
+
+  const auto refused = run({"speak", "Hello.", "--server", server_->address(), "--voice", "no-such-voice"});
+  EXPECT_EQ(refused.status, 1);
+  EXPECT_THAT(refused.err, HasSubstr("INVALID_ARGUMENT: voice:"));
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace lipsync::server
