@@ -17,6 +17,8 @@
 // utterance-time order (each audio chunk before the frames at or after its
 // start), are then written back to back, as fast as the client reads: the
 // whole utterance is bounded by the text limit, so nothing waits on a pace.
+#include <algorithm>
+#include <atomic>
 #include <cstdint>
 #include <deque>
 #include <memory>

@@ -115,6 +115,22 @@ TEST(Synthesis, bilabials_are_where_the_text_has_them) {
   EXPECT_EQ(std::count(labels.begin(), labels.end(), "p"), 3);
 }
 
+TEST(Synthesis, the_same_text_gives_the_same_speech_whatever_the_process_spoke_before) {
+  // espeak-ng's wave generator carries state from one utterance to the next; each
+  // synthesis runs in a fresh child process, so a long-running caller (lipsyncd) gets
+  // what `lipsync say` gets.
+  const speech::Synthesis first = speech::synthesize("Papa parked the car.");
+  speech::synthesize("Where were you, Bob? Mum waved from the ferry.");
+  const speech::Synthesis again = speech::synthesize("Papa parked the car.");
+  EXPECT_TRUE(again.audio.samples == first.audio.samples) << "the audio differs";
+  ASSERT_EQ(again.phonemes.intervals.size(), first.phonemes.intervals.size());
+  for (std::size_t i = 0; i < first.phonemes.intervals.size(); ++i) {
+    EXPECT_EQ(again.phonemes.intervals[i].start_us, first.phonemes.intervals[i].start_us) << i;
+    EXPECT_EQ(again.phonemes.intervals[i].end_us, first.phonemes.intervals[i].end_us) << i;
+    EXPECT_EQ(again.phonemes.intervals[i].label, first.phonemes.intervals[i].label) << i;
+  }
+}
+
 TEST(Synthesis, unknown_voice_and_empty_text_are_errors) {
   speech::SynthesisOptions options;
   options.voice = "no-such-voice";

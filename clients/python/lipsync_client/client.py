@@ -6,6 +6,8 @@
             ...
         for frame in client.subscribe("demo"):
             ...
+        speech = client.speak("Papa parked the car.", session="demo")   # voice and face
+        speech.write_wav("speech.wav"); speech.track.frames ...
 
 Phonemes may be given as ``(label, start_us, end_us)`` tuples, as objects with
 ``label``, ``start_us`` and ``end_us`` attributes (``lipsync_client.tts.TimedPhoneme``),
@@ -33,6 +35,7 @@ from __future__ import annotations
 
 import dataclasses
 import struct
+import wave
 from typing import Any, Dict, Iterable, Iterator, List, Optional, Tuple
 
 import grpc
@@ -46,7 +49,7 @@ except ImportError as _error:  # pragma: no cover - depends on the environment
         f"(see docs/python-client.md); import failed with: {_error}"
     ) from _error
 
-__all__ = ["Client", "Frame", "FrameStream", "Track", "make_settings", "KIND_NAMES", "VISEME_VOCABULARIES"]
+__all__ = ["Client", "Frame", "FrameStream", "Speech", "Track", "make_settings", "KIND_NAMES", "VISEME_VOCABULARIES"]
 
 #: FrameKind enum values to the short names used in Frame.kind.
 KIND_NAMES: Dict[int, str] = {
@@ -105,6 +108,38 @@ class Track:
     def viseme_events(self) -> List[Tuple[str, int]]:
         """The viseme events as (viseme name, start_us), in time order (empty without visemes)."""
         return [(f.viseme_event, f.t_us) for f in self.frames if f.viseme_event is not None]
+
+
+@dataclasses.dataclass
+class Speech:
+    """What a Speak call returned: the speech and its track on one utterance clock
+    (audio sample n plays at n * 10**6 / sample_rate_hz µs, frame t_us at t_us).
+
+    header: lipsync_pb2.SpeakHeader (audio format, the phonemes animated, header.track the
+    frames' TrackHeader); pcm: the whole audio, mono signed 16-bit little-endian bytes;
+    track: the frames as a Track; summary: lipsync_pb2.SpeakSummary.
+    """
+
+    header: Any
+    pcm: bytes
+    track: Track
+    summary: Any
+
+    @property
+    def sample_rate_hz(self) -> int:
+        return self.header.sample_rate_hz
+
+    def samples(self) -> Tuple[int, ...]:
+        """The audio as integers (-32768..32767)."""
+        return struct.unpack(f"<{len(self.pcm) // 2}h", self.pcm)
+
+    def write_wav(self, path: str) -> None:
+        """Writes the audio as a 16-bit mono PCM WAV file."""
+        with wave.open(path, "wb") as out:
+            out.setnchannels(1)
+            out.setsampwidth(2)
+            out.setframerate(self.sample_rate_hz)
+            out.writeframes(self.pcm)
 
 
 SESSION_METADATA_KEY = "x-lipsync-session"
@@ -419,6 +454,51 @@ class Client:
             metadata=session_metadata(session),
         )
         return FrameStream(call)
+
+    def speak(
+        self,
+        text: str,
+        *,
+        voice: str = "",
+        words_per_minute: int = 0,
+        timeout: Optional[float] = None,
+        **settings: Any,
+    ) -> Speech:
+        """Has the server speak `text` with espeak-ng (Speak) and returns the audio and the
+        track of what it spoke. voice: an espeak-ng voice ("" = en-us); words_per_minute:
+        80..450 (0 = 175); settings as for animate (phone_set must stay "" or "espeak"; no
+        mesh), session publishes the frames for subscribers."""
+        request = lipsync_pb2.SpeakRequest(
+            text=text, voice=voice, words_per_minute=words_per_minute, settings=make_settings(**settings)
+        )
+        call = self.stub.Speak(
+            request,
+            timeout=self.timeout if timeout is None else timeout,
+            metadata=session_metadata(request.settings.session),
+        )
+        header, summary, decoder = None, None, None
+        chunks: List[bytes] = []
+        samples = 0
+        frames: List[Frame] = []
+        for message in call:
+            kind = message.WhichOneof("kind")
+            if kind == "header":
+                header, decoder = message.header, _Decoder(message.header.track)
+            elif decoder is None:
+                raise ValueError("the server sent Speak content before the SpeakHeader")
+            elif kind == "audio":
+                if message.audio.first_sample != samples or len(message.audio.pcm) % 2:
+                    raise ValueError(f"an audio chunk at sample {message.audio.first_sample} does not continue the audio")
+                chunks.append(message.audio.pcm)
+                samples += len(message.audio.pcm) // 2
+            elif kind == "frames":
+                frames.extend(decoder.frames(message.frames))
+            elif kind == "summary":
+                summary = message.summary
+        pcm = b"".join(chunks)
+        if header is None or len(pcm) != header.sample_count * 2:
+            raise ValueError("the Speak stream ended before the whole audio arrived")
+        return Speech(header, pcm, Track(header.track, frames, summary.track if summary else None), summary)
 
     def list_models(self, *, timeout: Optional[float] = None) -> List[Any]:
         """The models this server can animate with (lipsync_pb2.ModelInfo messages)."""

@@ -23,6 +23,7 @@ import tempfile
 import threading
 import time
 import unittest
+import wave
 
 import grpc
 
@@ -299,6 +300,37 @@ class LiveServerTest(unittest.TestCase):
         with self.assertRaises(grpc.RpcError) as caught:
             self.client.subscribe(f"{session}-absent").collect()
         self.assertEqual(caught.exception.code(), grpc.StatusCode.NOT_FOUND)
+
+    def test_speak_returns_audio_and_the_frames_of_its_phonemes(self):
+        session = f"python-speak-test-{os.getpid()}"
+        speech = self.client.speak("Papa parked the car.", words_per_minute=200, session=session)
+        header = speech.header
+        self.assertEqual((header.sample_rate_hz, header.channels, header.words_per_minute), (22050, 1, 200))
+        self.assertEqual(len(speech.pcm), header.sample_count * 2)
+        self.assertEqual(header.audio_duration_us, header.sample_count * 1_000_000 // header.sample_rate_hz)
+        self.assertTrue(any(s != 0 for s in speech.samples()), "the audio is silent")
+        times = [frame.t_us for frame in speech.track.frames]
+        self.assert_times_strictly_increasing_integers(times)
+        self.assertGreaterEqual(times[-1], header.audio_duration_us, "the track ends before the audio")
+        # The frames are those of the phonemes the header reports, rendered offline by the server.
+        rendered = self.client.render(list(header.phonemes), phone_set="espeak")
+        self.assert_frames_equal(rendered.frames, speech.track.frames, "Speak against Render")
+        # The session replays the same frames to a subscriber that joins after the call.
+        followed = self.client.subscribe(session).collect()
+        self.assert_frames_equal(speech.track.frames, followed.frames, "Subscribe to a Speak session")
+        with tempfile.TemporaryDirectory() as directory:
+            path = os.path.join(directory, "speech.wav")
+            speech.write_wav(path)
+            with wave.open(path, "rb") as wav:
+                self.assertEqual((wav.getframerate(), wav.getnchannels()), (22050, 1))
+                self.assertEqual(wav.readframes(wav.getnframes()), speech.pcm)
+
+    def test_speak_refuses_an_unknown_voice_naming_it(self):
+        with self.assertRaises(grpc.RpcError) as caught:
+            self.client.speak("Hello.", voice="no-such-voice")
+        self.assertEqual(caught.exception.code(), grpc.StatusCode.INVALID_ARGUMENT)
+        self.assertIn("voice:", caught.exception.details())
+        self.assertIn("no-such-voice", caught.exception.details())
 
 
 if __name__ == "__main__":

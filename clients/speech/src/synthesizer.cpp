@@ -1,11 +1,30 @@
 // espeak-ng synthesis with phoneme events (lipsync/speech/synthesizer.hpp).
+//
+// espeak-ng's output depends on what the process spoke before: its wave
+// generator keeps state across calls in function-level statics (the pitch
+// flutter index, the automatic gain, the phase of the glottal cycle), so the
+// same text spoken twice in one process gives audio a few samples apart, with
+// phoneme times shifted to match. espeak_Terminate does not reset them, and a
+// second espeak_Initialize after it hangs (espeak-ng 1.51). So every synthesis
+// runs in a child process forked for it, in which espeak-ng starts fresh: the
+// audio and the timings depend on the text and the options alone, whichever
+// process asks and whatever it spoke before (`lipsync say`, a long-running
+// lipsyncd, a test). The parent never initialises espeak-ng itself. The child
+// only synthesises, writes its result to a pipe and _exits (no destructors, no
+// atexit handlers run in it); a fork costs a few milliseconds beside the
+// synthesis's tens.
 #include "lipsync/speech/synthesizer.hpp"
 
 #include <espeak-ng/speak_lib.h>
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstring>
 #include <mutex>
+#include <stdexcept>
 #include <vector>
 
 #include "lipsync/error.hpp"
@@ -15,9 +34,10 @@ namespace {
 
 constexpr std::string_view kSource = "espeak-ng";
 
-// espeak-ng's globals: one initialisation per process, one synthesis at a time.
+// One synthesis at a time (one child process at a time).
 std::mutex espeak_mutex;
-int espeak_rate_hz = 0;  // guarded by espeak_mutex; 0 until initialised
+// espeak-ng's globals, in a child process only: one initialisation per process.
+int espeak_rate_hz = 0;  // 0 until initialised
 
 struct PhonemeStart {
   std::string name;
@@ -29,7 +49,7 @@ struct Collector {
   std::vector<std::int16_t> samples;
   std::vector<PhonemeStart> phonemes;
 };
-Collector* active_collector = nullptr;  // guarded by espeak_mutex; set during espeak_Synth
+Collector* active_collector = nullptr;  // set during espeak_Synth
 
 int collect(short* wav, int sample_count, espeak_EVENT* events) {
   Collector* collector = active_collector;
@@ -58,16 +78,10 @@ void initialise_once() {
   espeak_rate_hz = rate;
 }
 
-}  // namespace
 
-Synthesis synthesize(std::string_view text, const SynthesisOptions& options) {
+/// The synthesis itself, in the child process.
+Synthesis synthesize_here(std::string_view text, const SynthesisOptions& options) {
   const std::string source(kSource);
-  if (text.find_first_not_of(" \t\r\n") == std::string_view::npos) throw InputError(source, 0, "the text is empty");
-  if (options.words_per_minute < 80 || options.words_per_minute > 450) {
-    throw InputError(source, 0, "speaking rate " + std::to_string(options.words_per_minute) +
-                                    " words per minute is out of range (80 to 450)");
-  }
-  const std::lock_guard lock(espeak_mutex);
   initialise_once();
   if (espeak_SetVoiceByName(options.voice.c_str()) != EE_OK) {
     throw InputError(source, 0, "unknown voice '" + options.voice + "' (see 'espeak-ng --voices')");
@@ -108,6 +122,152 @@ Synthesis synthesize(std::string_view text, const SynthesisOptions& options) {
                                      {"", 0, result.phonemes.intervals.front().start_us, 0});
   }
   return result;
+}
+
+// --- the result through the pipe: [kind byte] then, for kOk, the rate, the samples and the
+// intervals; for an error, its message. Integers in the machine's own byte order (same host).
+constexpr char kOk = 0;
+constexpr char kInputError = 1;
+constexpr char kOtherError = 2;
+
+template <typename T>
+void put(std::string& out, const T& value) {
+  out.append(reinterpret_cast<const char*>(&value), sizeof value);
+}
+
+void put_string(std::string& out, const std::string& text) {
+  put(out, static_cast<std::uint64_t>(text.size()));
+  out += text;
+}
+
+std::string encode(const Synthesis& synthesis) {
+  std::string out(1, kOk);
+  put(out, synthesis.audio.sample_rate_hz);
+  put(out, static_cast<std::uint64_t>(synthesis.audio.samples.size()));
+  out.append(reinterpret_cast<const char*>(synthesis.audio.samples.data()),
+             synthesis.audio.samples.size() * sizeof(std::int16_t));
+  put(out, static_cast<std::uint64_t>(synthesis.phonemes.intervals.size()));
+  for (const LabeledInterval& interval : synthesis.phonemes.intervals) {
+    put_string(out, interval.label);
+    put(out, interval.start_us);
+    put(out, interval.end_us);
+    put(out, interval.line);
+  }
+  return out;
+}
+
+/// Reads what encode() wrote; std::runtime_error if it is cut short.
+class Decoder {
+ public:
+  explicit Decoder(std::string_view bytes) : bytes_(bytes) {}
+  template <typename T>
+  T get() {
+    T value;
+    std::memcpy(&value, take(sizeof value).data(), sizeof value);
+    return value;
+  }
+  std::string get_string() { return std::string(take(get<std::uint64_t>())); }
+  std::string_view take(std::size_t size) {
+    if (size > bytes_.size()) throw std::runtime_error("espeak-ng: the synthesis process's answer is cut short");
+    const std::string_view part = bytes_.substr(0, size);
+    bytes_.remove_prefix(size);
+    return part;
+  }
+
+ private:
+  std::string_view bytes_;
+};
+
+Synthesis decode(std::string_view bytes) {
+  Decoder in(bytes);
+  const char kind = in.get<char>();
+  if (kind == kInputError) throw InputError(std::string(kSource), 0, in.get_string());
+  if (kind != kOk) throw std::runtime_error("espeak-ng: " + in.get_string());
+  Synthesis result;
+  result.audio.sample_rate_hz = in.get<int>();
+  result.audio.samples.resize(in.get<std::uint64_t>());
+  const std::string_view samples = in.take(result.audio.samples.size() * sizeof(std::int16_t));
+  std::memcpy(result.audio.samples.data(), samples.data(), samples.size());
+  result.phonemes.source = std::string(kSource);
+  result.phonemes.phone_set = "espeak";
+  const auto count = in.get<std::uint64_t>();
+  for (std::uint64_t i = 0; i < count; ++i) {
+    LabeledInterval interval;
+    interval.label = in.get_string();
+    interval.start_us = in.get<std::int64_t>();
+    interval.end_us = in.get<std::int64_t>();
+    interval.line = in.get<int>();
+    result.phonemes.intervals.push_back(std::move(interval));
+  }
+  return result;
+}
+
+/// In the child: synthesises, writes the encoded result (or error) to `fd`, and _exits.
+[[noreturn]] void run_child(int fd, std::string_view text, const SynthesisOptions& options) {
+  std::string out;
+  try {
+    out = encode(synthesize_here(text, options));
+  } catch (const InputError& error) {
+    out = std::string(1, kInputError);
+    put_string(out, error.message());
+  } catch (const std::exception& error) {
+    out = std::string(1, kOtherError);
+    put_string(out, error.what());
+  }
+  for (std::size_t written = 0; written < out.size();) {
+    const ssize_t n = ::write(fd, out.data() + written, out.size() - written);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) ::_exit(1);
+    written += static_cast<std::size_t>(n);
+  }
+  ::_exit(0);
+}
+
+/// Forks a child that synthesises `text` with a fresh espeak-ng and returns its result.
+Synthesis synthesize_in_child(std::string_view text, const SynthesisOptions& options) {
+  int fds[2];
+  if (::pipe2(fds, O_CLOEXEC) != 0) throw std::runtime_error("espeak-ng: cannot create a pipe: " + std::string(std::strerror(errno)));
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    const int error = errno;
+    ::close(fds[0]);
+    ::close(fds[1]);
+    throw std::runtime_error("espeak-ng: cannot fork the synthesis process: " + std::string(std::strerror(error)));
+  }
+  if (pid == 0) {
+    ::close(fds[0]);
+    run_child(fds[1], text, options);
+  }
+  ::close(fds[1]);
+  std::string answer;
+  char buffer[65536];
+  for (;;) {
+    const ssize_t n = ::read(fds[0], buffer, sizeof buffer);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    answer.append(buffer, static_cast<std::size_t>(n));
+  }
+  ::close(fds[0]);
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (WIFSIGNALED(status)) {
+    throw std::runtime_error("espeak-ng: the synthesis process died with signal " + std::to_string(WTERMSIG(status)));
+  }
+  return decode(answer);
+}
+
+}  // namespace
+
+Synthesis synthesize(std::string_view text, const SynthesisOptions& options) {
+  const std::string source(kSource);
+  if (text.find_first_not_of(" \t\r\n") == std::string_view::npos) throw InputError(source, 0, "the text is empty");
+  if (options.words_per_minute < 80 || options.words_per_minute > 450) {
+    throw InputError(source, 0, "speaking rate " + std::to_string(options.words_per_minute) +
+                                    " words per minute is out of range (80 to 450)");
+  }
+  const std::lock_guard lock(espeak_mutex);
+  return synthesize_in_child(text, options);
 }
 
 }  // namespace lipsync::speech

@@ -8,9 +8,12 @@
 // own, exact to the sample (45 µs at 22 050 Hz), not an estimate.
 //
 // espeak-ng keeps its synthesis state (voice, parameters, output buffers, the
-// callback) in process-wide globals and is not re-entrant. synthesize() therefore
-// initialises the library once per process and holds one global mutex for a whole
-// synthesis: calls from several threads are safe but run one at a time.
+// callback, and wave-generator state that carries from one utterance to the next)
+// in process-wide globals and is not re-entrant. synthesize() therefore runs each
+// synthesis in a child process forked for it, where espeak-ng starts fresh (so the
+// result depends on the text and options alone, not on what the process spoke
+// before), and holds one global mutex for a whole synthesis: calls from several
+// threads are safe but run one at a time.
 #pragma once
 
 #include <string>
@@ -31,8 +34,9 @@ struct Synthesis {
   LabeledUtterance phonemes;   ///< phone_set "espeak"; covers [0, audio end] without gaps
 };
 
-/// Speaks `text` (UTF-8). Throws InputError (source "espeak-ng") for an empty text,
-/// an unknown voice or a failed synthesis.
+/// Speaks `text` (UTF-8) in a fresh espeak-ng (a child process). Throws InputError
+/// (source "espeak-ng") for an empty text, an unknown voice or a failed synthesis;
+/// std::runtime_error when the child process cannot be started or dies.
 Synthesis synthesize(std::string_view text, const SynthesisOptions& options = {});
 
 }  // namespace lipsync::speech
