@@ -210,9 +210,9 @@ TEST(Wav, bad_files_are_refused_naming_the_file_and_what_was_found) {
 
 TEST(Alignment, synthetic_speech_aligns_within_the_reported_error) {
   // The figures of docs/input-formats.md, "Speech in": espeak-ng speech of the ten
-  // sentences, force-aligned, against espeak-ng's own phoneme boundaries. espeak-ng's
-  // boundaries move by up to about 1 ms from one call to the next (its pitch periods
-  // vary at random), so the bounds are the reported figures with that much slack.
+  // sentences, force-aligned, against espeak-ng's own phoneme boundaries. Each
+  // synthesis runs in a fresh espeak-ng, so the figures are reproducible; the bounds
+  // are the reported figures (10.7 ms, 88.5 ms, 87.5 %, 6 of 15) rounded outward.
   const ArticulationModel& model = ArticulationModel::builtin();
   const PhoneSet espeak = *PhoneSet::builtin("espeak", model);
   const PhoneSet arpabet = *PhoneSet::builtin("arpabet", model);
@@ -228,7 +228,7 @@ TEST(Alignment, synthetic_speech_aligns_within_the_reported_error) {
   EXPECT_LE(testing::quantile(score.errors_ms, 0.5), 11.0);
   EXPECT_LE(testing::quantile(score.errors_ms, 0.95), 95.0);
   EXPECT_GE(double(score.matched_phonemes) / score.reference_phonemes, 0.85);
-  EXPECT_GE(score.bilabials_within_20ms, 7) << "of " << score.bilabials;
+  EXPECT_GE(score.bilabials_within_20ms, 6) << "of " << score.bilabials;
 }
 
 TEST(Alignment, words_and_phones_follow_the_transcript) {
