@@ -265,6 +265,11 @@ TEST_F(SpeakTest, lipsync_speak_writes_what_lipsync_say_writes) {
   const auto refused = run({"speak", "Hello.", "--server", server_->address(), "--voice", "no-such-voice"});
   EXPECT_EQ(refused.status, 1);
   EXPECT_THAT(refused.err, HasSubstr("INVALID_ARGUMENT: voice:"));
+  EXPECT_EQ(run({"speak", "--server", server_->address()}).status, 2);  // no TEXT
+  const auto help = run({"speak", "--help"});
+  EXPECT_EQ(help.status, 0);
+  EXPECT_THAT(help.out, HasSubstr("--server ADDR"));
+  EXPECT_THAT(help.out, HasSubstr("--wav FILE"));
   fs::remove_all(dir);
 }
 
