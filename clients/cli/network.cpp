@@ -12,6 +12,20 @@ std::string server_address(const Arguments& arguments) {
   return address;
 }
 
+void set_track_request_options(const Arguments& arguments, TrackFormat format,
+                               client::v1::AnimationSettings& settings) {
+  settings.mutable_outputs()->set_channels(true);
+  settings.mutable_outputs()->set_arkit(format != TrackFormat::csv);  // the server's retargeting for its model
+  if (const auto model_name = arguments.value("server-model")) {
+    if (model_name->empty()) throw UsageError("--server-model: the name must not be empty (see 'lipsync server-models')");
+    settings.set_model(*model_name);
+  }
+  if (const auto session = arguments.value("session")) {
+    if (session->empty()) throw UsageError("--session: the name must not be empty");
+    settings.set_session(*session);
+  }
+}
+
 bool is_loopback_address(std::string_view address) {
   if (address.starts_with("unix:")) return true;
   if (address.starts_with("ipv4:") || address.starts_with("dns:")) {

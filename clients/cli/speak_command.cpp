@@ -30,10 +30,8 @@ constexpr OptionSpec kOptions[] = {
     kVoiceOption,
     kRateOption,
     kFpsOption,
-    {"server-model", 0, "NAME",
-     "the server's model to animate with (see 'lipsync server-models'); the output is named after its channels",
-     "the server's default model"},
-    {"session", 0, "NAME", "publish the frames under this session name for subscribers", "private"},
+    kServerModelOption,
+    kSessionOption,
     {"timeout", 0, "S", "give up when the call has not finished after S seconds, 1 to 86400", "600"},
 };
 
@@ -66,16 +64,7 @@ int run_speak(std::span<const std::string_view> args) {
   request.set_words_per_minute(static_cast<std::uint32_t>(synthesis.words_per_minute));
   client::v1::AnimationSettings& settings = *request.mutable_settings();
   settings.set_fps(static_cast<std::uint32_t>(parse_render_plan(arguments).render.fps));
-  settings.mutable_outputs()->set_channels(true);
-  settings.mutable_outputs()->set_arkit(format != TrackFormat::csv);  // the server's retargeting for its model
-  if (const auto model_name = arguments.value("server-model")) {
-    if (model_name->empty()) throw UsageError("--server-model: the name must not be empty (see 'lipsync server-models')");
-    settings.set_model(*model_name);
-  }
-  if (const auto session = arguments.value("session")) {
-    if (session->empty()) throw UsageError("--session: the name must not be empty");
-    settings.set_session(*session);
-  }
+  set_track_request_options(arguments, format, settings);
 
   client::ClientOptions client_options;
   client_options.stream_timeout = std::chrono::seconds(timeout_s);

@@ -37,10 +37,8 @@ constexpr OptionSpec kOptions[] = {
     {"realtime", 0, "", "send each phoneme when its start time arrives (the default)", ""},
     {"fast", 0, "", "send all phonemes as fast as possible", ""},
     {"chunk", 0, "N", "phonemes per message, 1 to 10000", "1"},
-    {"server-model", 0, "NAME",
-     "the server's model to animate with (see 'lipsync server-models'); the output is named after its channels",
-     "the server's default model"},
-    {"session", 0, "NAME", "publish the frames under this session name for subscribers", "private"},
+    kServerModelOption,
+    kSessionOption,
     {"playout-delay", 0, "MS",
      "media clock: utterance time 0 plays this long after the stream starts, 0 to 600000", "1000"},
     kFpsOption,
@@ -85,16 +83,7 @@ int run_stream(std::span<const std::string_view> args) {
   client::v1::AnimationSettings settings;
   settings.set_fps(static_cast<std::uint32_t>(plan.render.fps));
   if (arguments.value("lookahead")) settings.set_lookahead(static_cast<std::uint32_t>(plan.render.lookahead));
-  settings.mutable_outputs()->set_channels(true);
-  settings.mutable_outputs()->set_arkit(format != TrackFormat::csv);  // the server's retargeting for its model
-  if (const auto model_name = arguments.value("server-model")) {
-    if (model_name->empty()) throw UsageError("--server-model: the name must not be empty (see 'lipsync server-models')");
-    settings.set_model(*model_name);
-  }
-  if (const auto session = arguments.value("session")) {
-    if (session->empty()) throw UsageError("--session: the name must not be empty");
-    settings.set_session(*session);
-  }
+  set_track_request_options(arguments, format, settings);
   const std::optional<std::string> phone_set_name = arguments.value("phone-set");
   if (phone_set_name && phone_set_name->empty()) throw UsageError("--phone-set: the name must not be empty");
 

@@ -99,15 +99,7 @@ class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
       return;
     }
     admitted_ = true;
-    try {
-      status = start();
-    } catch (const std::exception& error) {
-      status = grpc::Status(grpc::StatusCode::INTERNAL, error.what());
-    }
-    if (!status.ok()) {
-      fail_session("producer failed: " + status.error_message());
-      finish(status);
-    }
+    run_step([this] { return start(); });
   }
 
   void OnWriteDone(bool ok) override {
@@ -160,18 +152,23 @@ class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
       finish(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled before synthesis"));
       return;
     }
+    if (run_step([this] { return speak(); })) write_next();
+  }
+
+  /// Runs `step`; a failure (INTERNAL if it throws: nothing may escape a reaction or the
+  /// speech thread) fails the session and finishes the call. Returns whether it succeeded.
+  template <class Step>
+  bool run_step(Step step) {
     grpc::Status status;
     try {
-      status = speak();
+      status = step();
     } catch (const std::exception& error) {
       status = grpc::Status(grpc::StatusCode::INTERNAL, error.what());
     }
-    if (!status.ok()) {
-      fail_session("producer failed: " + status.error_message());
-      finish(status);
-      return;
-    }
-    write_next();
+    if (status.ok()) return true;
+    fail_session("producer failed: " + status.error_message());
+    finish(status);
+    return false;
   }
 
   grpc::Status speak() {

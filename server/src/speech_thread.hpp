@@ -2,9 +2,9 @@
 //
 // espeak-ng keeps its state (voice, parameters, output buffers, the callback)
 // in process-wide globals and is not re-entrant; lipsync::speech::synthesize
-// holds one global mutex for a whole synthesis. Several threads would only
-// queue on that mutex, so Speak calls run one at a time on this single thread,
-// in arrival order. A synthesis takes tens of milliseconds to a few seconds
+// runs each synthesis in a child process of its own and holds one global mutex
+// for it. Several threads would only queue on that mutex, so Speak calls run
+// one at a time on this single thread, in arrival order. A synthesis takes tens of milliseconds to a few seconds
 // (docs/server.md, "Speak"), which no reaction may spend. At most
 // kMaxSpeakCalls calls wait for or run on the thread; a call beyond that is
 // refused with RESOURCE_EXHAUSTED, so a burst of Speak calls cannot queue
