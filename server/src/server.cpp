@@ -22,6 +22,12 @@
 #include "service.hpp"
 
 namespace lipsync::server {
+namespace {
+
+/// How long connections may take to flush and close after GOAWAY at the end of a drain.
+constexpr auto kConnectionGrace = std::chrono::milliseconds(50);
+
+}  // namespace
 
 struct Server::Impl {
   explicit Impl(ServerConfig config_in)
@@ -74,7 +80,13 @@ void Server::shutdown(std::chrono::milliseconds drain) {
     while (impl_->service.admission().calls_in_progress() > 0 && std::chrono::steady_clock::now() < deadline) {
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
     }
-    impl_->server->Shutdown(std::chrono::system_clock::now());
+    // GOAWAY only now, with no call left. A shutdown deadline already past would
+    // cut every connection at once, racing the final frames a connection may still
+    // be flushing (behind nginx: the last subscriber of a drained session got
+    // RST_STREAM INTERNAL_ERROR now and then). With the grace, a connection closes
+    // once its peer has it all (nginx closes an upstream connection after its
+    // response); only idle client connections still open are cut at its end.
+    impl_->server->Shutdown(std::chrono::system_clock::now() + kConnectionGrace);
     impl_->server->Wait();
   });
 }
