@@ -93,7 +93,7 @@ class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
  public:
   SpeakReactor(LipSyncService& service, grpc::CallbackServerContext* context, const v1::SpeakRequest& request)
       : service_(service), context_(context), request_(request), started_(Clock::now()) {
-    grpc::Status status = service_.admission().admit_stream();
+    grpc::Status status = service_.admission().admit_stream(context_->peer());
     if (!status.ok()) {
       finish(status);
       return;
