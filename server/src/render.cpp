@@ -51,6 +51,13 @@ grpc::Status render(LipSyncService& service, const v1::RenderRequest& request, v
 
 grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* context,
                                                  const v1::RenderRequest* request, v1::RenderResponse* response) {
+  // The tenant (tenants.hpp): its key, its phoneme rate and, with the mesh, its mesh calls.
+  Caller caller;
+  auto mesh_hold = std::make_shared<QuotaHold>();
+  grpc::Status refused = tenants_.authenticate(*context, "Render", caller);
+  if (refused.ok()) refused = caller.take_phonemes(static_cast<std::size_t>(request->phonemes_size()));
+  if (refused.ok() && wants_mesh(request->settings())) refused = caller.hold(Quota::mesh_streams, *mesh_hold);
+  if (!refused.ok()) return unary(context, "Render", [&] { return refused; });
   if (grpc::Status admission = admission_.admit_render(); !admission.ok()) {
     return unary(context, "Render", [&] { return admission; });
   }
@@ -61,7 +68,7 @@ grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* co
   }
   // Seconds of solver work for a long utterance: off the reaction (face_workers.hpp).
   auto* reactor = context->DefaultReactor();
-  face_workers_.post([this, context, request, response, reactor] {
+  face_workers_.post([this, context, request, response, reactor, mesh_hold] {
     reactor->Finish(run_unary(context, "Render", [&] { return render(*this, *request, *response); }));
     admission_.release_render();
   });

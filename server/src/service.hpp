@@ -12,6 +12,7 @@
 #include "lipsync/server/config.hpp"
 #include "session.hpp"
 #include "session_routing.hpp"
+#include "tenants.hpp"
 
 // The generated base declares sync-API overloads of each method that the
 // callback overrides hide on purpose.
@@ -48,6 +49,8 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   FaceLibrary& faces() { return faces_; }
   /// The low-priority threads the face runs on.
   FaceWorkers& face_workers() { return face_workers_; }
+  /// API keys, tenants and their quotas (--api-keys; open without).
+  Tenants& tenants() { return tenants_; }
 
  private:
   const ServerConfig& config_;
@@ -55,6 +58,7 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   SessionRegistry sessions_;
   Admission admission_;
   SessionRouting routing_;
+  Tenants tenants_;
   FaceLibrary faces_;
   // Last, so that it is destroyed first: its destructor runs the jobs still
   // queued, which use the members above.
