@@ -221,17 +221,6 @@ std::vector<Setting> read_environment(const Environment& environment, std::vecto
   return settings;
 }
 
-/// The TLS files come together: a certificate with its key, a client CA only with both.
-void check_tls_settings(const ServerConfig& config) {
-  if (config.tls_cert.empty() != config.tls_key.empty()) {
-    throw ConfigError(config.tls_cert.empty() ? "--tls-key: needs --tls-cert (the certificate of that key)"
-                                              : "--tls-cert: needs --tls-key (the certificate's private key)");
-  }
-  if (!config.tls_client_ca.empty() && config.tls_cert.empty()) {
-    throw ConfigError("--tls-client-ca: needs --tls-cert and --tls-key (client certificates are checked over TLS)");
-  }
-}
-
 }  // namespace
 
 Environment process_environment() {
@@ -302,7 +291,6 @@ CommandLine parse_command_line(const std::vector<std::string>& args, const Envir
     environment_options[i]->apply(result.config, from_environment[i]);
   }
   for (const Setting& setting : flags) find_option(setting.name)->apply(result.config, setting);
-  check_tls_settings(result.config);
   return result;
 }
 

@@ -49,7 +49,8 @@ Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(con
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
-  if (impl_->config.tls_cert.empty()) {
+  const ServerConfig& settings = impl_->config;
+  if (settings.tls_cert.empty() && settings.tls_key.empty() && settings.tls_client_ca.empty()) {
     impl_->listener = std::make_unique<Listener>(impl_->config.listen);  // throws: cannot listen
     impl_->port = impl_->listener->port();
   } else {

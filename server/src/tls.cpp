@@ -72,6 +72,13 @@ void check_not_expired(const std::string& flag, const std::string& path, const C
 
 TlsMaterial read_tls_material(const std::string& cert_path, const std::string& key_path,
                               const std::string& client_ca_path) {
+  if (cert_path.empty() != key_path.empty()) {
+    throw TlsError(cert_path.empty() ? "--tls-key: needs --tls-cert (the certificate of that key)"
+                                     : "--tls-cert: needs --tls-key (the certificate's private key)");
+  }
+  if (cert_path.empty()) {
+    throw TlsError("--tls-client-ca: needs --tls-cert and --tls-key (client certificates are checked over TLS)");
+  }
   TlsMaterial material;
   material.certificate_chain = read_whole("--tls-cert", cert_path);
   material.private_key = read_whole("--tls-key", key_path);

@@ -44,14 +44,14 @@ struct TlsMaterial {
   std::string client_ca;  ///< "" without mTLS
 };
 
-/// Reads and checks the files of --tls-cert, --tls-key and --tls-client-ca ("": none).
-/// Throws TlsError.
+/// Reads and checks the files of --tls-cert, --tls-key and --tls-client-ca ("": none):
+/// a certificate needs its key, a client CA both. Throws TlsError.
 TlsMaterial read_tls_material(const std::string& cert_path, const std::string& key_path,
                               const std::string& client_ca_path);
 
 class TlsCredentials {
  public:
-  /// Reads the files of `config` (which has tls_cert set) and stages them. Throws TlsError.
+  /// Reads the files of `config` (any of the three set) and stages them. Throws TlsError.
   explicit TlsCredentials(const ServerConfig& config);
   ~TlsCredentials();
   TlsCredentials(const TlsCredentials&) = delete;
