@@ -26,7 +26,7 @@ from .tts import (
     timed_phonemes,
 )
 
-_CLIENT_NAMES = ("Client", "Frame", "FrameStream", "Track", "make_settings", "KIND_NAMES")
+_CLIENT_NAMES = ("Client", "make_channel", "Frame", "FrameStream", "Track", "make_settings", "KIND_NAMES")
 
 __all__ = [
     "TimedPhoneme",
