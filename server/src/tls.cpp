@@ -8,6 +8,7 @@
 #include <openssl/pem.h>
 #include <openssl/x509.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <cerrno>
 #include <cstdlib>
@@ -68,6 +69,14 @@ void check_not_expired(const std::string& flag, const std::string& path, const C
   }
 }
 
+/// Where the staged copies go: $TMPDIR when set, else /dev/shm (memory, and writable under
+/// a read-only root file system), else the system's temporary directory.
+std::filesystem::path staging_parent() {
+  if (const char* tmpdir = std::getenv("TMPDIR"); tmpdir != nullptr && *tmpdir != '\0') return tmpdir;
+  if (::access("/dev/shm", W_OK | X_OK) == 0) return "/dev/shm";
+  return std::filesystem::temp_directory_path();
+}
+
 }  // namespace
 
 TlsMaterial read_tls_material(const std::string& cert_path, const std::string& key_path,
@@ -106,10 +115,11 @@ TlsCredentials::TlsCredentials(const ServerConfig& config)
       client_ca_path_(config.tls_client_ca),
       mutual_(!config.tls_client_ca.empty()) {
   const TlsMaterial material = read_tls_material(cert_path_, key_path_, client_ca_path_);
-  std::string pattern = (std::filesystem::temp_directory_path() / "lipsyncd-tls-XXXXXX").string();
+  const std::filesystem::path parent = staging_parent();
+  std::string pattern = (parent / "lipsyncd-tls-XXXXXX").string();
   if (::mkdtemp(pattern.data()) == nullptr) {
-    throw TlsError("cannot create a private directory for the TLS files in " +
-                   std::filesystem::temp_directory_path().string() + ": " + std::strerror(errno));
+    throw TlsError("cannot create a private directory for the TLS files in " + parent.string() + ": " +
+                   std::strerror(errno) + " (set TMPDIR to a writable directory)");
   }
   staging_ = pattern;  // mkdtemp makes it 0700
   stage(material);

@@ -7,12 +7,13 @@
 // re-reads its files every second and serves what it read to new handshakes;
 // it never drops a connection. It does not watch the operator's files: a
 // half-copied certificate, or a new certificate beside the old key, would be
-// served as it stands. It watches a private staging copy instead (a 0700
-// directory under $TMPDIR, removed at exit): the operator's files are read and
-// checked (PEM that parses, the key that matches the certificate, not expired,
-// a CA bundle with at least one certificate), and only a good set is staged,
-// swapped in as a whole by renaming a symbolic link. A bad set at start-up is
-// an error naming the file; at reload it is logged and the old set stays.
+// served as it stands. It watches a private staging copy instead, removed at
+// exit (a 0700 directory in $TMPDIR, else /dev/shm, else /tmp; files 0600).
+// The operator's files are read and checked (PEM that parses, the key that
+// matches the certificate, not expired, a CA bundle with at least one
+// certificate), and only a good set is staged, swapped in as a whole by
+// renaming a symbolic link. A bad set at start-up is an error naming the file;
+// at reload it is logged and the old set stays.
 #pragma once
 
 #include <filesystem>
