@@ -7,9 +7,8 @@
 #include <array>
 #include <cctype>
 #include <fstream>
-#include <sstream>
-
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 namespace lipsync::server {
 namespace {
@@ -27,8 +26,8 @@ bool valid_tenant_name(const std::string& name) {
 
 bool is_sha256_hex(const std::string& text) {
   return text.size() == 64 && std::all_of(text.begin(), text.end(), [](char c) {
-    return std::isdigit(static_cast<unsigned char>(c)) || (c >= 'a' && c <= 'f');
-  });
+           return std::isdigit(static_cast<unsigned char>(c)) || (c >= 'a' && c <= 'f');
+         });
 }
 
 /// Reads the JSON text of a key file, each error naming `source` and where in it.
@@ -83,8 +82,8 @@ class KeyFileParser {
         {"max_phonemes_per_second", &quotas.max_phonemes_per_second},
     };
     for (const auto& [field, value] : json.items()) {
-      const auto known = std::find_if(std::begin(fields), std::end(fields),
-                                      [&](const auto& entry) { return field == entry.first; });
+      const auto known =
+          std::find_if(std::begin(fields), std::end(fields), [&](const auto& entry) { return field == entry.first; });
       if (known == std::end(fields)) {
         fail(where + "." + field,
              "unknown quota (max_streams, max_sessions, max_subscribers, max_mesh_streams, "
@@ -143,12 +142,21 @@ std::size_t index_of(Quota quota) { return static_cast<std::size_t>(quota); }
 
 std::string_view quota_name(Quota quota) {
   switch (quota) {
-    case Quota::streams: return "max_streams";
-    case Quota::sessions: return "max_sessions";
-    case Quota::subscribers: return "max_subscribers";
-    case Quota::mesh_streams: return "max_mesh_streams";
+    case Quota::streams:
+      return "max_streams";
+    case Quota::sessions:
+      return "max_sessions";
+    case Quota::subscribers:
+      return "max_subscribers";
+    case Quota::mesh_streams:
+      return "max_mesh_streams";
   }
   return "unknown";
+}
+
+std::size_t TenantQuotas::limit(Quota quota) const {
+  const std::size_t limits[] = {max_streams, max_sessions, max_subscribers, max_mesh_streams};
+  return limits[index_of(quota)];
 }
 
 std::string sha256_hex(std::string_view key) {
@@ -244,13 +252,7 @@ std::string Caller::session_key(const std::string& name) const {
 
 grpc::Status Caller::hold(Quota quota, QuotaHold& hold) const {
   if (!usage_) return grpc::Status::OK;
-  std::size_t limit = kUnlimited;
-  switch (quota) {
-    case Quota::streams: limit = quotas_->max_streams; break;
-    case Quota::sessions: limit = quotas_->max_sessions; break;
-    case Quota::subscribers: limit = quotas_->max_subscribers; break;
-    case Quota::mesh_streams: limit = quotas_->max_mesh_streams; break;
-  }
+  const std::size_t limit = quotas_->limit(quota);
   if (limit == kUnlimited) return grpc::Status::OK;
   if (grpc::Status status = usage_->acquire(quota, limit); !status.ok()) return status;
   hold = QuotaHold(usage_, quota);
@@ -294,9 +296,8 @@ grpc::Status Tenants::authenticate(const grpc::CallbackServerContext& context, s
   const std::string_view value(found->second.data(), found->second.size());
   constexpr std::string_view kScheme = "bearer ";
   const bool bearer = value.size() > kScheme.size() &&
-                      std::equal(kScheme.begin(), kScheme.end(), value.begin(), [](char a, char b) {
-                        return a == std::tolower(static_cast<unsigned char>(b));
-                      });
+                      std::equal(kScheme.begin(), kScheme.end(), value.begin(),
+                                 [](char a, char b) { return a == std::tolower(static_cast<unsigned char>(b)); });
   if (!bearer) {
     return {grpc::StatusCode::UNAUTHENTICATED, "the authorization metadata must read `Bearer <key>`"};
   }
@@ -307,9 +308,9 @@ grpc::Status Tenants::authenticate(const grpc::CallbackServerContext& context, s
   if (!key->second.calls.empty() && key->second.calls.count(std::string(method)) == 0) {
     std::string allowed;
     for (const std::string& call : key->second.calls) allowed += (allowed.empty() ? "" : ", ") + call;
-    return {grpc::StatusCode::PERMISSION_DENIED, "API key '" + key->second.name + "' of tenant '" +
-                                                     key->second.tenant + "' may not call " + std::string(method) +
-                                                     " (it may call " + allowed + ")"};
+    return {grpc::StatusCode::PERMISSION_DENIED, "API key '" + key->second.name + "' of tenant '" + key->second.tenant +
+                                                     "' may not call " + std::string(method) + " (it may call " +
+                                                     allowed + ")"};
   }
   const std::string& tenant = key->second.tenant;
   auto& usage = usage_[tenant];

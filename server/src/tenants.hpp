@@ -28,6 +28,9 @@
 // counting, unit-tested on its own; Tenants and Caller are the gRPC edge.
 #pragma once
 
+#include <grpcpp/server_context.h>
+#include <grpcpp/support/status.h>
+
 #include <chrono>
 #include <cstddef>
 #include <limits>
@@ -39,9 +42,6 @@
 #include <string>
 #include <string_view>
 
-#include <grpcpp/server_context.h>
-#include <grpcpp/support/status.h>
-
 namespace lipsync::server {
 
 /// A key file that cannot be used; the message names the file and the entry.
@@ -52,22 +52,25 @@ class KeyFileError : public std::runtime_error {
 
 inline constexpr std::size_t kUnlimited = std::numeric_limits<std::size_t>::max();
 
+/// The counted quotas (held while a call runs), in the order of TenantUsage's counts.
+enum class Quota { streams, sessions, subscribers, mesh_streams };
+
 struct TenantQuotas {
   std::size_t max_streams = kUnlimited;
   std::size_t max_sessions = kUnlimited;
   std::size_t max_subscribers = kUnlimited;
   std::size_t max_mesh_streams = kUnlimited;
   std::size_t max_phonemes_per_second = kUnlimited;
-};
 
-/// The counted quotas (held while a call runs).
-enum class Quota { streams, sessions, subscribers, mesh_streams };
+  /// The limit of a counted quota.
+  std::size_t limit(Quota quota) const;
+};
 
 /// The quota's name in the key file and in refusals ("max_streams").
 std::string_view quota_name(Quota quota);
 
 struct ApiKey {
-  std::string name;             ///< for logs ("studio-a-tts"); never the key
+  std::string name;  ///< for logs ("studio-a-tts"); never the key
   std::string tenant;
   std::set<std::string> calls;  ///< the methods it may call ("Animate", ...); empty: all
 };
@@ -164,8 +167,7 @@ class Tenants {
   /// Who calls `method` ("Animate") on `context`: OK and `caller`, or UNAUTHENTICATED
   /// (no key, a malformed header, an unknown key) or PERMISSION_DENIED (a key not
   /// allowed to call `method`).
-  grpc::Status authenticate(const grpc::CallbackServerContext& context, std::string_view method,
-                            Caller& caller) const;
+  grpc::Status authenticate(const grpc::CallbackServerContext& context, std::string_view method, Caller& caller) const;
 
   /// Reads the key file again; throws KeyFileError and keeps the old table if it is bad.
   void reload();

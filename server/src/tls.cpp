@@ -3,6 +3,9 @@
 // mistake is reported here, naming the file, rather than as failed handshakes.
 #include "tls.hpp"
 
+#include <grpcpp/security/server_credentials.h>
+#include <grpcpp/security/tls_certificate_provider.h>
+#include <grpcpp/security/tls_credentials_options.h>
 #include <openssl/bio.h>
 #include <openssl/err.h>
 #include <openssl/pem.h>
@@ -17,10 +20,6 @@
 #include <sstream>
 #include <system_error>
 #include <vector>
-
-#include <grpcpp/security/server_credentials.h>
-#include <grpcpp/security/tls_certificate_provider.h>
-#include <grpcpp/security/tls_credentials_options.h>
 
 #include "lipsync/server/config.hpp"
 
@@ -51,8 +50,7 @@ std::unique_ptr<BIO, BioDeleter> memory_bio(const std::string& text) {
 }
 
 /// Every certificate in `pem`; TlsError naming the file if there is none.
-std::vector<Certificate> parse_certificates(const std::string& flag, const std::string& path,
-                                            const std::string& pem) {
+std::vector<Certificate> parse_certificates(const std::string& flag, const std::string& path, const std::string& pem) {
   auto bio = memory_bio(pem);
   std::vector<Certificate> certificates;
   while (X509* certificate = PEM_read_bio_X509(bio.get(), nullptr, nullptr, nullptr)) {

@@ -2,6 +2,8 @@
 // counting on their own, then every refusal and the session namespaces on a
 // real lipsyncd (in-process on 127.0.0.1:0, the C++ client library sending the
 // key), and the binary's start-up log, key-file errors and --hash-key.
+#include "tenants.hpp"
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -11,7 +13,6 @@
 #include "../support/child_process.hpp"
 #include "../support/server_harness.hpp"
 #include "lipsync/client/animation_client.hpp"
-#include "tenants.hpp"
 
 namespace lipsync::server {
 namespace {
@@ -29,8 +30,10 @@ TEST(ApiKeys, KeysAreHashedWithSha256) {
 TEST(ApiKeys, AKeyFileMapsHashedKeysToTenantsWithQuotas) {
   const KeyTable table = parse_key_file(R"({
     "tenants": {"studio": {"max_streams": 3, "max_phonemes_per_second": 40}, "lab": {}},
-    "keys": [{"name": "tts", "tenant": "studio", "sha256": ")" + sha256_hex("k1") + R"(", "calls": ["Animate"]},
-             {"tenant": "lab", "sha256": ")" + sha256_hex("k2") + R"("}]})",
+    "keys": [{"name": "tts", "tenant": "studio", "sha256": ")" +
+                                            sha256_hex("k1") + R"(", "calls": ["Animate"]},
+             {"tenant": "lab", "sha256": ")" +
+                                            sha256_hex("k2") + R"("}]})",
                                         "keys.json");
   ASSERT_EQ(table.keys_by_hash.size(), 2u);
   const ApiKey& tts = table.keys_by_hash.at(sha256_hex("k1"));
@@ -285,10 +288,14 @@ TEST_F(TenantServer, ATenantCannotSeeSubscribeToOrCollideWithAnotherTenantsSessi
   Stream b_producer = start_stream(b, "shared", false, 50);
   ASSERT_TRUE(*b_producer.header) << b_producer.refusal.error_message();
   std::atomic<std::uint32_t> a_fps = 0, b_fps = 0;
-  auto a_subscriber = a.start_subscribe("shared", v1::SubscribeRequest::START_FROM_BEGINNING,
-                                        [&](const v1::TrackMessage& m) { if (m.has_header()) a_fps = m.header().fps(); });
-  auto b_subscriber = b.start_subscribe("shared", v1::SubscribeRequest::START_FROM_BEGINNING,
-                                        [&](const v1::TrackMessage& m) { if (m.has_header()) b_fps = m.header().fps(); });
+  auto a_subscriber =
+      a.start_subscribe("shared", v1::SubscribeRequest::START_FROM_BEGINNING, [&](const v1::TrackMessage& m) {
+        if (m.has_header()) a_fps = m.header().fps();
+      });
+  auto b_subscriber =
+      b.start_subscribe("shared", v1::SubscribeRequest::START_FROM_BEGINNING, [&](const v1::TrackMessage& m) {
+        if (m.has_header()) b_fps = m.header().fps();
+      });
   ASSERT_TRUE(eventually([&] { return a_fps != 0 && b_fps != 0; }));
   EXPECT_EQ(a_fps, 30u);
   EXPECT_EQ(b_fps, 50u);
@@ -335,7 +342,8 @@ TEST(LipsyncdKeys, TheStartUpLogSaysWhetherTheServerIsOpenOrHowManyKeysItHas) {
 
 TEST(LipsyncdKeys, ABadKeyFileExits1NamingTheFileAndTheEntry) {
   const fs::path work = lipsync::testing::make_temp_dir("lipsyncd-keys-");
-  lipsync::testing::write_text(work / "keys.json", R"({"tenants": {"a": {}}, "keys": [{"tenant": "a", "sha256": "x"}]})");
+  lipsync::testing::write_text(work / "keys.json",
+                               R"({"tenants": {"a": {}}, "keys": [{"tenant": "a", "sha256": "x"}]})");
   const auto run = lipsync::testing::run_program(
       {LIPSYNCD_PATH, "--listen", "127.0.0.1:0", "--api-keys", (work / "keys.json").string()}, work, work);
   EXPECT_EQ(run.status, 1);

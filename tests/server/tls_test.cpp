@@ -20,12 +20,14 @@ using namespace harness;
 using ::testing::HasSubstr;
 namespace fs = std::filesystem;
 
-/// The certificates, made once for the whole file.
+/// The certificates: made by the ctest fixture tls_test_certificates (LIPSYNC_TEST_CERTIFICATES),
+/// else once for this process.
 const fs::path& certificates() {
   static const fs::path directory = [] {
+    if (const char* made = std::getenv("LIPSYNC_TEST_CERTIFICATES")) return fs::path(made);
     const fs::path made = lipsync::testing::make_temp_dir("lipsync-tls-test-");
-    const std::string command = std::string("bash ") + LIPSYNC_SOURCE_DIR + "/tests/support/make_test_certs.sh " +
-                                made.string();
+    const std::string command =
+        std::string("bash ") + LIPSYNC_SOURCE_DIR + "/tests/support/make_test_certs.sh " + made.string();
     if (std::system(command.c_str()) != 0) throw std::runtime_error("make_test_certs.sh failed: " + command);
     return made;
   }();
@@ -146,7 +148,9 @@ TEST_F(MutualTlsServer, AClientCertificateFromAnotherCaIsRefused) {
 
 TEST_F(MutualTlsServer, TheCaSignedClientIsServedThroughTheClientLibrary) {
   client::ClientOptions options;
-  options.tls = {.enabled = true, .ca_file = cert_path("ca.pem"), .cert_file = cert_path("client.pem"),
+  options.tls = {.enabled = true,
+                 .ca_file = cert_path("ca.pem"),
+                 .cert_file = cert_path("client.pem"),
                  .key_file = cert_path("client.key")};
   const client::AnimationClient secure(server_->address(), options);
   const auto models = secure.list_models();
@@ -171,20 +175,18 @@ struct RunningServer {
 
 TEST(LipsyncdTls, StartUpWithAnUnreadableCertificateExits1NamingTheFile) {
   const fs::path work = lipsync::testing::make_temp_dir("lipsyncd-tls-bad-");
-  const auto run = lipsync::testing::run_program(
-      {LIPSYNCD_PATH, "--listen", "127.0.0.1:0", "--tls-cert", "/nonexistent/cert.pem", "--tls-key",
-       cert_path("server.key")},
-      work, work);
+  const auto run = lipsync::testing::run_program({LIPSYNCD_PATH, "--listen", "127.0.0.1:0", "--tls-cert",
+                                                  "/nonexistent/cert.pem", "--tls-key", cert_path("server.key")},
+                                                 work, work);
   EXPECT_EQ(run.status, 1);
   EXPECT_THAT(run.err, HasSubstr("--tls-cert: cannot read '/nonexistent/cert.pem'"));
 }
 
 TEST(LipsyncdTls, StartUpWithAKeyThatIsNotTheCertificatesExits1NamingBoth) {
   const fs::path work = lipsync::testing::make_temp_dir("lipsyncd-tls-bad-");
-  const auto run = lipsync::testing::run_program(
-      {LIPSYNCD_PATH, "--listen", "127.0.0.1:0", "--tls-cert", cert_path("server.pem"), "--tls-key",
-       cert_path("server2.key")},
-      work, work);
+  const auto run = lipsync::testing::run_program({LIPSYNCD_PATH, "--listen", "127.0.0.1:0", "--tls-cert",
+                                                  cert_path("server.pem"), "--tls-key", cert_path("server2.key")},
+                                                 work, work);
   EXPECT_EQ(run.status, 1);
   EXPECT_THAT(run.err, HasSubstr("does not belong to the certificate"));
   EXPECT_THAT(run.err, HasSubstr(cert_path("server2.key")));
@@ -220,8 +222,9 @@ TEST(LipsyncdTls, SighupServesAReplacedCertificateToNewConnectionsWhileAnOpenStr
   // The good new pair reaches new connections.
   install("server2.pem", "server2.key");
   server.process->signal(SIGHUP);
-  EXPECT_TRUE(eventually([&] { return list_models(connect_new(server.address, "ca")).server_name == "lipsyncd-reloaded"; }))
-      << server.log();
+  EXPECT_TRUE(eventually([&] {
+    return list_models(connect_new(server.address, "ca")).server_name == "lipsyncd-reloaded";
+  })) << server.log();
 
   for (std::size_t i = 1; i < chunks.size(); ++i) producer.write(chunks[i]);
   producer.write(end_request());
@@ -234,8 +237,8 @@ TEST(LipsyncdTls, SighupServesAReplacedCertificateToNewConnectionsWhileAnOpenStr
 }
 
 TEST(LipsyncdTls, TheCliConnectsWithItsCaCertAndKeyOptions) {
-  RunningServer server({"--tls-cert", cert_path("server.pem"), "--tls-key", cert_path("server.key"),
-                        "--tls-client-ca", cert_path("ca.pem")});
+  RunningServer server({"--tls-cert", cert_path("server.pem"), "--tls-key", cert_path("server.key"), "--tls-client-ca",
+                        cert_path("ca.pem")});
   ASSERT_FALSE(server.address.empty()) << server.log();
   const fs::path work = lipsync::testing::make_temp_dir("lipsync-cli-tls-");
   const auto served = lipsync::testing::run_program(
@@ -250,8 +253,7 @@ TEST(LipsyncdTls, TheCliConnectsWithItsCaCertAndKeyOptions) {
       work, work);
   EXPECT_EQ(health.status, 0) << health.err;
   const auto without_certificate = lipsync::testing::run_program(
-      {LIPSYNC_CLI_BINARY, "server-models", "--server", server.address, "--ca", cert_path("ca.pem"), "--timeout",
-       "2"},
+      {LIPSYNC_CLI_BINARY, "server-models", "--server", server.address, "--ca", cert_path("ca.pem"), "--timeout", "2"},
       work, work);
   EXPECT_EQ(without_certificate.status, 1);
   server.process->terminate();

@@ -29,7 +29,10 @@ void add_session_metadata(grpc::ClientContext& context, const std::string& sessi
 
 std::string read_pem(const std::string& what, const std::string& path) {
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw CallError("setting up TLS", grpc::StatusCode::INVALID_ARGUMENT, "cannot read the " + what + " '" + path + "'");
+  if (!in) {
+    throw CallError("setting up TLS", grpc::StatusCode::INVALID_ARGUMENT,
+                    "cannot read the " + what + " '" + path + "'");
+  }
   std::ostringstream text;
   text << in.rdbuf();
   return text.str();
@@ -478,8 +481,10 @@ AnimationClient::AnimationClient(std::string address, ClientOptions options)
 void AnimationClient::wait_connected() const {
   if (!channel_->WaitForConnected(deadline_after(options_.connect_timeout))) {
     throw CallError("connecting to lipsyncd at " + address_, grpc::StatusCode::UNAVAILABLE,
-                    "no answer within " + std::to_string(options_.connect_timeout.count()) +
-                        " ms (is lipsyncd running there? see --server)");
+                    "no answer within " + std::to_string(options_.connect_timeout.count()) + " ms " +
+                        (options_.tls.on() ? "(is lipsyncd running there with TLS, and do --ca, --cert and --key "
+                                             "match its certificate and client CA? see --server)"
+                                           : "(is lipsyncd running there? see --server)"));
   }
 }
 
