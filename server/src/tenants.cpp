@@ -82,8 +82,9 @@ class KeyFileParser {
         {"max_phonemes_per_second", &quotas.max_phonemes_per_second},
     };
     for (const auto& [field, value] : json.items()) {
+      const std::string& name = field;  // clang 14 (the fuzz build) cannot capture a structured binding
       const auto known =
-          std::find_if(std::begin(fields), std::end(fields), [&](const auto& entry) { return field == entry.first; });
+          std::find_if(std::begin(fields), std::end(fields), [&](const auto& entry) { return name == entry.first; });
       if (known == std::end(fields)) {
         fail(where + "." + field,
              "unknown quota (max_streams, max_sessions, max_subscribers, max_mesh_streams, "

@@ -253,7 +253,7 @@ TEST(LipsyncdTls, TheCliConnectsWithItsCaCertAndKeyOptions) {
       work, work);
   EXPECT_EQ(health.status, 0) << health.err;
   const auto without_certificate = lipsync::testing::run_program(
-      {LIPSYNC_CLI_BINARY, "server-models", "--server", server.address, "--ca", cert_path("ca.pem"), "--timeout", "2"},
+      {LIPSYNC_CLI_BINARY, "server-models", "--server", server.address, "--ca", cert_path("ca.pem"), "--timeout", "1"},
       work, work);
   EXPECT_EQ(without_certificate.status, 1);
   server.process->terminate();
