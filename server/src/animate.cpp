@@ -53,17 +53,17 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
  public:
   AnimateReactor(LipSyncService& service, grpc::CallbackServerContext* context)
       : service_(service), context_(context), outbox_(*this), started_(Clock::now()) {
-    if (auto status = service_.tenants().authenticate(*context_, "Animate", caller_); !status.ok()) {
-      outbox_.close(status);
-      return;
-    }
-    const grpc::Status admission = service_.admission().admit_stream();
+    const grpc::Status admission = service_.admission().admit_stream(context_->peer());
     if (!admission.ok()) {
       outbox_.close(admission);
       return;
     }
     admitted_ = true;
     spdlog::info("Animate start peer={}", context_->peer());
+    if (auto status = service_.tenants().authenticate(*context_, "Animate", caller_); !status.ok()) {
+      outbox_.close(status);
+      return;
+    }
     if (auto status = caller_.hold(Quota::streams, stream_hold_); !status.ok()) {
       outbox_.close(status);
       return;

@@ -51,15 +51,19 @@ grpc::Status render(LipSyncService& service, const v1::RenderRequest& request, v
 
 grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* context,
                                                  const v1::RenderRequest* request, v1::RenderResponse* response) {
+  if (grpc::Status admission = admission_.admit_render(context->peer()); !admission.ok()) {
+    return unary(context, "Render", [&] { return admission; });
+  }
   // The tenant (tenants.hpp): its key, its phoneme rate and, with the mesh, its mesh calls.
   Caller caller;
   auto mesh_hold = std::make_shared<QuotaHold>();
   grpc::Status refused = tenants_.authenticate(*context, "Render", caller);
   if (refused.ok()) refused = caller.take_phonemes(static_cast<std::size_t>(request->phonemes_size()));
   if (refused.ok() && wants_mesh(request->settings())) refused = caller.hold(Quota::mesh_streams, *mesh_hold);
-  if (!refused.ok()) return unary(context, "Render", [&] { return refused; });
-  if (grpc::Status admission = admission_.admit_render(); !admission.ok()) {
-    return unary(context, "Render", [&] { return admission; });
+  if (!refused.ok()) {
+    auto* reactor = unary(context, "Render", [&] { return refused; });
+    admission_.release_render();
+    return reactor;
   }
   if (!wants_mesh(request->settings())) {
     auto* reactor = unary(context, "Render", [&] { return render(*this, *request, *response); });

@@ -33,16 +33,16 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
             "subscriber fell behind: more than " + std::to_string(service.config().subscriber_queue_frames) +
                 " frames waiting (--subscriber-queue-frames=" +
                 std::to_string(service.config().subscriber_queue_frames) + ")")) {
-    if (auto status = service_.tenants().authenticate(*context_, "Subscribe", caller_); !status.ok()) {
-      outbox_->close(status);
-      return;
-    }
-    const grpc::Status admission = service_.admission().admit_stream();
+    const grpc::Status admission = service_.admission().admit_stream(context_->peer());
     if (!admission.ok()) {
       outbox_->close(admission);
       return;
     }
     admitted_ = true;
+    if (auto status = service_.tenants().authenticate(*context_, "Subscribe", caller_); !status.ok()) {
+      outbox_->close(status);
+      return;
+    }
     for (auto [quota, hold] : {std::pair{Quota::streams, &stream_hold_}, {Quota::subscribers, &subscriber_hold_}}) {
       if (auto status = caller_.hold(quota, *hold); !status.ok()) {
         outbox_->close(status);
