@@ -25,6 +25,9 @@ packages=(
   python3 python3-grpcio python3-protobuf python3-venv python3-pip python3-yaml
   # the install test (pkg-config consumer) and the multi-replica test (nginx as the balancer)
   pkg-config nginx
+  # TLS and API keys: libcrypto (lipsyncd checks its TLS files and hashes API keys with SHA-256);
+  # the openssl command makes the test certificates (tests/support/make_test_certs.sh)
+  libssl-dev openssl
 )
 
 missing=()

@@ -19,7 +19,7 @@ namespace lipsync::cli {
 namespace {
 
 constexpr OptionSpec kOptions[] = {
-    kServerOption,
+    kServerOption, kTlsOption, kCaOption, kCertOption, kKeyOption, kApiKeyOption,
     {"timeout", 0, "S", "give up when the server has not answered after S seconds, 1 to 3600", "3"},
 };
 
@@ -40,7 +40,8 @@ int run_health(std::span<const std::string_view> args) {
   const std::string address = server_address(arguments);
   const int timeout_s = parse_int_option("timeout", arguments.value("timeout").value_or("3"), 1, 3600);
 
-  grpc::GenericStub stub(grpc::CreateChannel(address, grpc::InsecureChannelCredentials()));
+  const client::ClientOptions options = connection_options(arguments);
+  grpc::GenericStub stub(grpc::CreateChannel(address, client::channel_credentials(options.tls)));
   grpc::ClientContext context;
   context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(timeout_s));
   context.set_wait_for_ready(true);  // a server still starting up gets the whole timeout

@@ -70,7 +70,7 @@ namespace asio = boost::asio;
 using Clock = std::chrono::steady_clock;
 
 constexpr OptionSpec kOptions[] = {
-    kServerOption,
+    kServerOption, kTlsOption, kCaOption, kCertOption, kKeyOption, kApiKeyOption,
     {"producers", 0, "N", "concurrent Animate streams, 1 to 10000", "10"},
     {"subscribers-per-session", 0, "M", "subscribers following each producer's session, 0 to 16", "0"},
     {"duration", 0, "S", "seconds during which new utterances start, 1 to 600", "10"},
@@ -573,7 +573,7 @@ int run_loadtest(std::span<const std::string_view> args) {
     pool.push_back(make_utterance(config.seed * 1'000'003 + i, config.phonemes, model, *arpabet));
   }
 
-  client::ClientOptions client_options;
+  client::ClientOptions client_options = connection_options(arguments);
   client_options.stream_timeout = config.duration + kGrace + std::chrono::seconds(5);
   std::vector<std::unique_ptr<client::AnimationClient>> clients;
   for (int c = 0; c < connections; ++c) {

@@ -1,6 +1,7 @@
 #include "network.hpp"
 
 #include <chrono>
+#include <cstdlib>
 
 #include "cli_error.hpp"
 
@@ -24,6 +25,27 @@ void set_track_request_options(const Arguments& arguments, TrackFormat format,
     if (session->empty()) throw UsageError("--session: the name must not be empty");
     settings.set_session(*session);
   }
+}
+
+client::ClientOptions connection_options(const Arguments& arguments) {
+  client::ClientOptions options;
+  options.tls.enabled = arguments.flag("tls");
+  for (const auto& [name, file] : {std::pair{"ca", &options.tls.ca_file}, {"cert", &options.tls.cert_file},
+                                   {"key", &options.tls.key_file}}) {
+    if (const auto value = arguments.value(name)) {
+      if (value->empty()) throw UsageError("--" + std::string(name) + ": the file name must not be empty");
+      *file = *value;
+    }
+  }
+  if (options.tls.cert_file.empty() != options.tls.key_file.empty()) {
+    throw UsageError("--cert and --key go together (a client certificate and its private key)");
+  }
+  if (const auto key = arguments.value("api-key")) {
+    options.api_key = *key;
+  } else if (const char* from_environment = std::getenv("LIPSYNC_API_KEY")) {
+    options.api_key = from_environment;
+  }
+  return options;
 }
 
 bool is_loopback_address(std::string_view address) {

@@ -1,6 +1,7 @@
 // What the network commands (stream, speak, subscribe, play, loadtest, server-models)
-// share: the --server option, the loopback check and the clocks; the
-// --server-model and --session options of the commands that produce a track. Received
+// share: the --server option, the connection options (TLS and the API key), the
+// loopback check and the clocks; the --server-model and --session options of the
+// commands that produce a track. Received
 // tracks are written by received_track_writer.hpp.
 #pragma once
 
@@ -29,8 +30,24 @@ inline constexpr OptionSpec kSessionOption = {"session", 0, "NAME",
 void set_track_request_options(const Arguments& arguments, TrackFormat format,
                                client::v1::AnimationSettings& settings);
 
+/// How to reach a server that uses TLS or API keys (docs/security.md); a command lists
+/// them after kServerOption. The API key may also come from LIPSYNC_API_KEY (kept out of `ps`).
+inline constexpr OptionSpec kTlsOption = {"tls", 0, "", "connect with TLS (implied by --ca, --cert and --key)",
+                                          "plaintext"};
+inline constexpr OptionSpec kCaOption = {"ca", 0, "FILE", "PEM CA bundle that signed the server's certificate",
+                                         "the system's roots"};
+inline constexpr OptionSpec kCertOption = {"cert", 0, "FILE",
+                                           "PEM client certificate, for a server that requires one (with --key)", ""};
+inline constexpr OptionSpec kKeyOption = {"key", 0, "FILE", "PEM private key of --cert", ""};
+inline constexpr OptionSpec kApiKeyOption = {"api-key", 0, "KEY",
+                                             "API key, sent as `authorization: Bearer KEY`",
+                                             "$LIPSYNC_API_KEY, else none"};
+
 /// --server, checked to be non-empty.
 std::string server_address(const Arguments& arguments);
+
+/// ClientOptions with the TLS settings and API key of the command line (and LIPSYNC_API_KEY).
+client::ClientOptions connection_options(const Arguments& arguments);
 
 /// Whether `address` names this machine (127.x.y.z, localhost, [::1], unix:).
 bool is_loopback_address(std::string_view address);

@@ -31,7 +31,7 @@ namespace lipsync::cli {
 namespace {
 
 constexpr OptionSpec kOptions[] = {
-    kServerOption,
+    kServerOption, kTlsOption, kCaOption, kCertOption, kKeyOption, kApiKeyOption,
     {"from-now", 0, "", "only frames produced after joining (default: replay what the server holds)", ""},
     {"rate", 0, "N", "display updates per second, 1 to 240", "the track's fps"},
     {"frames", 0, "N", "stop after N display updates, 1 to 10000000", "when the session ends"},
@@ -138,7 +138,7 @@ int run_play(std::span<const std::string_view> args) {
   const bool redraw = !arguments.flag("no-tty") && ::isatty(STDOUT_FILENO) == 1;
   const int wait_s = parse_int_option("wait", arguments.value("wait").value_or("0"), 0, 3600);
 
-  const client::AnimationClient connection(address);
+  const client::AnimationClient connection(address, connection_options(arguments));
   connection.wait_connected();
   const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(wait_s);
 

@@ -17,7 +17,7 @@ namespace lipsync::cli {
 namespace {
 
 constexpr OptionSpec kOptions[] = {
-    kServerOption,
+    kServerOption, kTlsOption, kCaOption, kCertOption, kKeyOption, kApiKeyOption,
     {"json", 0, "", "print JSON: {\"models\": [MODEL...]} without NAME, MODEL with it", ""},
     {"timeout", 0, "S", "give up when the server has not answered after S seconds, 1 to 3600", "5"},
 };
@@ -106,7 +106,7 @@ int run_server_models(std::span<const std::string_view> args) {
   const int timeout_s = parse_int_option("timeout", arguments.value("timeout").value_or("5"), 1, 3600);
   const bool json = arguments.flag("json");
 
-  client::ClientOptions options;
+  client::ClientOptions options = connection_options(arguments);
   options.connect_timeout = std::chrono::seconds(timeout_s);
   options.unary_timeout = std::chrono::seconds(timeout_s);
   const client::AnimationClient connection(address, options);

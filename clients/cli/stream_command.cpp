@@ -31,7 +31,7 @@ namespace lipsync::cli {
 namespace {
 
 constexpr OptionSpec kOptions[] = {
-    kServerOption,
+    kServerOption, kTlsOption, kCaOption, kCertOption, kKeyOption, kApiKeyOption,
     kTrackOutputOption,
     kTrackFormatOption,
     {"realtime", 0, "", "send each phoneme when its start time arrives (the default)", ""},
@@ -98,7 +98,7 @@ int run_stream(std::span<const std::string_view> args) {
   std::vector<PhoneSet> candidates;
   settings.set_phone_set(choose_phone_set(phone_set_name, utterance, model, candidates).name());
 
-  client::ClientOptions client_options;
+  client::ClientOptions client_options = connection_options(arguments);
   client_options.stream_timeout = std::chrono::seconds(timeout_s);
   const client::AnimationClient connection(address, client_options);
   connection.wait_connected();

@@ -18,7 +18,7 @@ namespace lipsync::cli {
 namespace {
 
 constexpr OptionSpec kOptions[] = {
-    kServerOption,
+    kServerOption, kTlsOption, kCaOption, kCertOption, kKeyOption, kApiKeyOption,
     kTrackOutputOption,
     kTrackFormatOption,
     {"from-beginning", 0, "", "replay the frames the server still holds, then follow (the default)", ""},
@@ -53,7 +53,7 @@ int run_subscribe(std::span<const std::string_view> args) {
   const int wait_s = parse_int_option("wait", arguments.value("wait").value_or("0"), 0, 3600);
   const int timeout_s = parse_int_option("timeout", arguments.value("timeout").value_or("3600"), 1, 86'400);
 
-  client::ClientOptions client_options;
+  client::ClientOptions client_options = connection_options(arguments);
   client_options.stream_timeout = std::chrono::seconds(timeout_s);
   const client::AnimationClient connection(address, client_options);
   connection.wait_connected();

@@ -60,6 +60,14 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     }
     admitted_ = true;
     spdlog::info("Animate start peer={}", context_->peer());
+    if (auto status = service_.tenants().authenticate(*context_, "Animate", caller_); !status.ok()) {
+      outbox_.close(status);
+      return;
+    }
+    if (auto status = caller_.hold(Quota::streams, stream_hold_); !status.ok()) {
+      outbox_.close(status);
+      return;
+    }
     StartRead(&request_);
   }
 
@@ -157,11 +165,17 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     if (auto status = service_.routing().check_metadata(*context_, settings.session()); !status.ok()) return status;
     if (auto status = resolve_settings(settings, service_.catalog(), true, plan_); !status.ok()) return status;
     if (auto status = prepare_face(plan_, service_.faces(), face_setup_); !status.ok()) return status;
+    if (plan_.mesh) {
+      if (auto status = caller_.hold(Quota::mesh_streams, mesh_hold_); !status.ok()) return status;
+    }
     auto header = std::make_shared<v1::TrackMessage>();
     *header->mutable_header() = plan_.header;
     if (!settings.session().empty()) {
       std::shared_ptr<Session> session;
-      if (auto status = service_.sessions().open(settings.session(), header, session); !status.ok()) {
+      if (auto status = caller_.hold(Quota::sessions, session_hold_); !status.ok()) return status;
+      if (auto status = service_.sessions().open(settings.session(), header, session,
+                                                 caller_.session_key(settings.session()));
+          !status.ok()) {
         return status;
       }
       std::lock_guard lock(session_mutex_);
@@ -189,6 +203,9 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   }
 
   grpc::Status add_phonemes(const v1::PhonemeChunk& chunk) {
+    if (auto status = caller_.take_phonemes(static_cast<std::size_t>(chunk.phonemes_size())); !status.ok()) {
+      return status;
+    }
     for (const v1::Phoneme& phoneme : chunk.phonemes()) {
       if (auto status = input_->push(phoneme, segments_); !status.ok()) return status;
       for (const Segment& segment : segments_) renderer_->push(segment, track_);
@@ -279,6 +296,8 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
 
   LipSyncService& service_;
   grpc::CallbackServerContext* context_;
+  Caller caller_;  // the tenant; its quotas are held until the reactor is deleted
+  QuotaHold stream_hold_, session_hold_, mesh_hold_;
   Outbox outbox_;
   const Clock::time_point started_;
   bool admitted_ = false;

@@ -135,6 +135,18 @@ const std::vector<Option>& options() {
        "this replica's name in errors about sessions it does not hold (a pod or host name)",
        [](ServerConfig& c, const Setting& s) { c.replica_name = s.value; },
        [](const ServerConfig&) { return std::string("host name and listen address"); }},
+      {"--tls-cert", "FILE", "PEM certificate chain: serve TLS (needs --tls-key; reloaded on SIGHUP)",
+       [](ServerConfig& c, const Setting& s) { c.tls_cert = s.value; },
+       [](const ServerConfig&) { return std::string("none: plaintext"); }},
+      {"--tls-key", "FILE", "PEM private key of --tls-cert (reloaded on SIGHUP)",
+       [](ServerConfig& c, const Setting& s) { c.tls_key = s.value; },
+       [](const ServerConfig&) { return std::string("none"); }},
+      {"--tls-client-ca", "FILE", "PEM CA bundle: require client certificates it signed (mTLS; reloaded on SIGHUP)",
+       [](ServerConfig& c, const Setting& s) { c.tls_client_ca = s.value; },
+       [](const ServerConfig&) { return std::string("none: no client certificates"); }},
+      {"--api-keys", "FILE", "JSON file of hashed API keys, their tenants and quotas (reloaded on SIGHUP)",
+       [](ServerConfig& c, const Setting& s) { c.api_keys = s.value; },
+       [](const ServerConfig&) { return std::string("none: open to every caller"); }},
   };
   return table;
 }
@@ -286,7 +298,8 @@ std::string help_text() {
   const ServerConfig defaults;
   std::ostringstream out;
   out << "lipsyncd: coarticulated lip-sync animation over gRPC (lipsync.v1.LipSync)\n\n"
-      << "Usage: lipsyncd [--config FILE] [flags]\n\n"
+      << "Usage: lipsyncd [--config FILE] [flags]\n"
+      << "       lipsyncd --hash-key < KEY   (prints the key's SHA-256, as --api-keys files hold it)\n\n"
       << "  --config FILE  JSON object with any of the settings below (keys without the\n"
       << "                 dashes); flags given on the command line override it\n"
       << "Every setting can also come from an environment variable, LIPSYNCD_ and the flag in\n"
@@ -299,7 +312,8 @@ std::string help_text() {
   }
   out << "\nOn SIGTERM or SIGINT the server closes its listener (balancers and clients go to another\n"
       << "replica), lets running streams finish for --drain-deadline-ms, cancels the rest and exits 0.\n"
-      << "SIGHUP re-reads the configuration: the log level changes at once; other changes are\n"
+      << "SIGHUP re-reads the configuration: the log level changes at once, the TLS files and the\n"
+      << "API key file are read again (a bad one is logged and the old one kept); other changes are\n"
       << "logged as needing a restart. Bad flags exit 2; a bad model file exits 1.\n";
   return out.str();
 }

@@ -8,7 +8,11 @@
 // configuration (systemd's ExecReload): the log level applies at once, other
 // changes are logged as needing a restart. SIGTERM and SIGINT drain: the
 // listener closes (GOAWAY), running streams get --drain-deadline-ms to finish,
-// the rest are cancelled, exit 0.
+// the rest are cancelled, exit 0. SIGHUP also re-reads the TLS files and the
+// API key file (server.hpp, reload_credentials).
+//
+// `lipsyncd --hash-key` reads an API key from standard input and prints its
+// SHA-256, the form the key file holds (tenants.hpp).
 #include <csignal>
 #include <cstdio>
 #include <iostream>
@@ -20,6 +24,7 @@
 #include "lipsync/error.hpp"
 #include "lipsync/server/config.hpp"
 #include "lipsync/server/server.hpp"
+#include "tenants.hpp"
 
 namespace {
 
@@ -46,6 +51,16 @@ void reload(const std::vector<std::string>& args, lipsync::server::ServerConfig&
 int main(int argc, char** argv) {
   using namespace lipsync::server;
   const std::vector<std::string> args(argv + 1, argv + argc);
+  if (args.size() == 1 && args[0] == "--hash-key") {
+    std::string key;
+    std::getline(std::cin, key);
+    if (key.empty()) {
+      std::cerr << "lipsyncd: --hash-key: no key on standard input (echo -n KEY | lipsyncd --hash-key)\n";
+      return 2;
+    }
+    std::cout << sha256_hex(key) << "\n";
+    return 0;
+  }
   CommandLine command_line;
   try {
     command_line = parse_command_line(args, process_environment());
@@ -82,7 +97,10 @@ int main(int argc, char** argv) {
   spdlog::info("listening on {}", server->address());
 
   int signal_number = 0;
-  while (sigwait(&signals, &signal_number) == 0 && signal_number == SIGHUP) reload(args, config);
+  while (sigwait(&signals, &signal_number) == 0 && signal_number == SIGHUP) {
+    reload(args, config);
+    server->reload_credentials();
+  }
   spdlog::info("{} received: draining for up to {} ms ({} streams open)",
                signal_number == SIGTERM ? "SIGTERM" : "SIGINT", config.drain_deadline_ms,
                server->active_streams());

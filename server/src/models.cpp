@@ -29,6 +29,8 @@ grpc::ServerUnaryReactor* LipSyncService::ListModels(grpc::CallbackServerContext
                                                      const v1::ListModelsRequest*,
                                                      v1::ListModelsResponse* response) {
   return unary(context, "ListModels", [&] {
+    Caller caller;
+    if (auto status = tenants_.authenticate(*context, "ListModels", caller); !status.ok()) return status;
     for (const auto& entry : catalog_.entries()) describe(*entry, *response->add_models());
     return grpc::Status::OK;
   });
@@ -37,6 +39,8 @@ grpc::ServerUnaryReactor* LipSyncService::ListModels(grpc::CallbackServerContext
 grpc::ServerUnaryReactor* LipSyncService::GetModel(grpc::CallbackServerContext* context,
                                                    const v1::GetModelRequest* request, v1::ModelInfo* response) {
   return unary(context, "GetModel", [&] {
+    Caller caller;
+    if (auto status = tenants_.authenticate(*context, "GetModel", caller); !status.ok()) return status;
     const ModelEntry* entry = catalog_.find(request->name());
     if (!entry) {
       return grpc::Status(grpc::StatusCode::NOT_FOUND,

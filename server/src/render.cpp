@@ -54,6 +54,17 @@ grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* co
   if (grpc::Status admission = admission_.admit_render(context->peer()); !admission.ok()) {
     return unary(context, "Render", [&] { return admission; });
   }
+  // The tenant (tenants.hpp): its key, its phoneme rate and, with the mesh, its mesh calls.
+  Caller caller;
+  auto mesh_hold = std::make_shared<QuotaHold>();
+  grpc::Status refused = tenants_.authenticate(*context, "Render", caller);
+  if (refused.ok()) refused = caller.take_phonemes(static_cast<std::size_t>(request->phonemes_size()));
+  if (refused.ok() && wants_mesh(request->settings())) refused = caller.hold(Quota::mesh_streams, *mesh_hold);
+  if (!refused.ok()) {
+    auto* reactor = unary(context, "Render", [&] { return refused; });
+    admission_.release_render();
+    return reactor;
+  }
   if (!wants_mesh(request->settings())) {
     auto* reactor = unary(context, "Render", [&] { return render(*this, *request, *response); });
     admission_.release_render();
@@ -61,7 +72,7 @@ grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* co
   }
   // Seconds of solver work for a long utterance: off the reaction (face_workers.hpp).
   auto* reactor = context->DefaultReactor();
-  face_workers_.post([this, context, request, response, reactor] {
+  face_workers_.post([this, context, request, response, reactor, mesh_hold] {
     reactor->Finish(run_unary(context, "Render", [&] { return render(*this, *request, *response); }));
     admission_.release_render();
   });

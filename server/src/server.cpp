@@ -6,6 +6,12 @@
 // and the new session opens on another replica (nginx and Envoy retry a refused
 // connection elsewhere, which they never do for a call that got a status),
 // while the streams already running here finish on their connections.
+//
+// With TLS (tls.hpp) gRPC listens itself: it cannot take an accepted socket
+// into a TLS channel. The drain then cannot refuse new connections before the
+// end: it refuses new calls (UNAVAILABLE "the server is shutting down"), health
+// says NOT_SERVING, running calls get the deadline, and gRPC's Shutdown closes
+// the listener. The plaintext path is unchanged.
 #include "lipsync/server/server.hpp"
 
 #include <mutex>
@@ -20,6 +26,7 @@
 #include "catalog.hpp"
 #include "listener.hpp"
 #include "service.hpp"
+#include "tls.hpp"
 
 namespace lipsync::server {
 namespace {
@@ -36,7 +43,8 @@ struct Server::Impl {
   ServerConfig config;
   ModelCatalog catalog;
   LipSyncService service;
-  std::unique_ptr<Listener> listener;
+  std::unique_ptr<Listener> listener;  // plaintext only: with TLS gRPC listens
+  std::unique_ptr<TlsCredentials> tls;
   std::unique_ptr<grpc::Server> server;
   int port = 0;
   std::once_flag shutdown_once;
@@ -46,15 +54,29 @@ Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(con
   spdlog::set_level(spdlog::level::from_str(impl_->config.log_level));
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
-  impl_->listener = std::make_unique<Listener>(impl_->config.listen);  // throws: cannot listen
-  impl_->port = impl_->listener->port();
   grpc::ServerBuilder builder;
+  const ServerConfig& settings = impl_->config;
+  if (settings.tls_cert.empty() && settings.tls_key.empty() && settings.tls_client_ca.empty()) {
+    impl_->listener = std::make_unique<Listener>(impl_->config.listen);  // throws: cannot listen
+    impl_->port = impl_->listener->port();
+  } else {
+    impl_->tls = std::make_unique<TlsCredentials>(impl_->config);  // throws TlsError naming the file
+    builder.AddListeningPort(impl_->config.listen, impl_->tls->server_credentials(), &impl_->port);
+  }
   builder.SetMaxReceiveMessageSize(static_cast<int>(impl_->config.max_message_bytes));
   builder.RegisterService(&impl_->service);
   impl_->server = builder.BuildAndStart();
-  if (!impl_->server) throw std::runtime_error("cannot start the gRPC server on " + impl_->config.listen);
+  if (!impl_->server || impl_->port == 0) {
+    throw std::runtime_error("cannot start the gRPC server on " + impl_->config.listen);
+  }
   impl_->service.routing().set_bound_address(address());
-  impl_->listener->start(*impl_->server, impl_->service.admission().connections());
+  if (impl_->listener) impl_->listener->start(*impl_->server, impl_->service.admission().connections());
+  spdlog::info("transport: {}", impl_->tls ? (impl_->config.tls_client_ca.empty()
+                                                  ? "TLS (" + impl_->config.tls_cert + ")"
+                                                  : "mutual TLS (" + impl_->config.tls_cert + ", clients of " +
+                                                        impl_->config.tls_client_ca + ")")
+                                           : std::string("plaintext (no --tls-cert)"));
+  spdlog::info("callers: {}", impl_->service.tenants().describe());
 }
 
 Server::~Server() { shutdown(std::chrono::milliseconds(0)); }
@@ -73,8 +95,10 @@ void Server::shutdown(std::chrono::milliseconds drain) {
     // is gRPC shut down (GOAWAY, the rest cancelled): sent earlier, GOAWAY makes
     // gRPC 1.51 close each connection right after its last stream, racing that
     // stream's final frames (a balancer then reports the finished stream as reset).
-    impl_->listener->close();
-    spdlog::info("listener closed: new connections are refused");
+    if (impl_->listener) {
+      impl_->listener->close();
+      spdlog::info("listener closed: new connections are refused");
+    }
     if (auto* health = impl_->server->GetHealthCheckService()) health->Shutdown();
     Admission& admission = impl_->service.admission();
     admission.begin_drain();
@@ -93,6 +117,25 @@ void Server::shutdown(std::chrono::milliseconds drain) {
     impl_->server->Shutdown(std::chrono::system_clock::now() + kConnectionGrace);
     impl_->server->Wait();
   });
+}
+
+void Server::reload_credentials() {
+  if (impl_->tls) {
+    try {
+      impl_->tls->reload();
+      spdlog::info("SIGHUP: TLS files re-read: new connections get them within {} s", TlsCredentials::kRefreshSeconds);
+    } catch (const TlsError& error) {
+      spdlog::error("SIGHUP: TLS files not reloaded, the old ones stay: {}", error.what());
+    }
+  }
+  if (!impl_->service.tenants().open()) {
+    try {
+      impl_->service.tenants().reload();
+      spdlog::info("SIGHUP: API keys re-read: {}", impl_->service.tenants().describe());
+    } catch (const KeyFileError& error) {
+      spdlog::error("SIGHUP: API keys not reloaded, the old ones stay: {}", error.what());
+    }
+  }
 }
 
 std::size_t Server::active_streams() const { return impl_->service.admission().active_streams(); }

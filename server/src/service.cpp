@@ -33,6 +33,7 @@ LipSyncService::LipSyncService(const ServerConfig& config, const ModelCatalog& c
       sessions_(config.max_sessions, config.replay_frames, std::chrono::milliseconds(config.session_retention_ms)),
       admission_(config.max_streams),
       routing_(config.replica_name, config.listen),
+      tenants_(config.api_keys),
       face_workers_(config.face_threads > 0 ? config.face_threads : std::max(1u, std::thread::hardware_concurrency()),
                     face_priority(config.face_priority)) {}
 

@@ -13,6 +13,7 @@
 #include "session.hpp"
 #include "session_routing.hpp"
 #include "speech_thread.hpp"
+#include "tenants.hpp"
 
 // The generated base declares sync-API overloads of each method that the
 // callback overrides hide on purpose.
@@ -53,6 +54,8 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   FaceWorkers& face_workers() { return face_workers_; }
   /// The one thread Speak synthesises on (espeak-ng is not re-entrant).
   SpeechThread& speech_thread() { return speech_thread_; }
+  /// API keys, tenants and their quotas (--api-keys; open without).
+  Tenants& tenants() { return tenants_; }
 
  private:
   const ServerConfig& config_;
@@ -60,6 +63,7 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   SessionRegistry sessions_;
   Admission admission_;
   SessionRouting routing_;
+  Tenants tenants_;
   FaceLibrary faces_;
   // After what its jobs use, so that it is joined before they go.
   SpeechThread speech_thread_;

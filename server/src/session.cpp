@@ -117,10 +117,10 @@ void SessionRegistry::sweep_locked() {
 }
 
 grpc::Status SessionRegistry::open(const std::string& name, const Message& header,
-                                   std::shared_ptr<Session>& out) {
+                                   std::shared_ptr<Session>& out, const std::string& key) {
   std::lock_guard lock(mutex_);
   sweep_locked();
-  if (const auto it = sessions_.find(name); it != sessions_.end()) {
+  if (const auto it = sessions_.find(key.empty() ? name : key); it != sessions_.end()) {
     if (it->second->live()) {
       return {grpc::StatusCode::ALREADY_EXISTS,
               "session '" + name + "' already has a live producer"};
@@ -133,7 +133,7 @@ grpc::Status SessionRegistry::open(const std::string& name, const Message& heade
                 " sessions (--max-sessions=" + std::to_string(max_sessions_) + ")"};
   }
   out = std::make_shared<Session>(name, header, replay_frames_);
-  sessions_.emplace(name, out);
+  sessions_.emplace(key.empty() ? name : key, out);
   return grpc::Status::OK;
 }
 

@@ -80,10 +80,12 @@ class SessionRegistry {
 
   /// Opens a session for a producer. ALREADY_EXISTS if a live producer holds the
   /// name; RESOURCE_EXHAUSTED beyond max_sessions. An ended session of that name
-  /// is replaced.
-  grpc::Status open(const std::string& name, const Message& header, std::shared_ptr<Session>& out);
-  /// nullptr if there is no such session (or it has expired).
-  std::shared_ptr<Session> find(const std::string& name);
+  /// is replaced. `key` (default: the name) is what the registry files it under:
+  /// the name in its tenant's namespace (Caller::session_key); messages show the name.
+  grpc::Status open(const std::string& name, const Message& header, std::shared_ptr<Session>& out,
+                    const std::string& key = {});
+  /// nullptr if there is no session under `key` (or it has expired).
+  std::shared_ptr<Session> find(const std::string& key);
   std::size_t size();
 
  private:

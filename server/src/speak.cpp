@@ -99,6 +99,14 @@ class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
       return;
     }
     admitted_ = true;
+    // The tenant (tenants.hpp): its key, its streams, its session and phoneme rate below.
+    if (status = service_.tenants().authenticate(*context_, "Speak", caller_); status.ok()) {
+      status = caller_.hold(Quota::streams, stream_hold_);
+    }
+    if (!status.ok()) {
+      finish(status);
+      return;
+    }
     run_step([this] { return start(); });
   }
 
@@ -136,7 +144,12 @@ class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
     if (!settings.session().empty()) {
       auto header = std::make_shared<v1::TrackMessage>();
       *header->mutable_header() = plan_.header;
-      if (auto status = service_.sessions().open(settings.session(), header, session_); !status.ok()) return status;
+      if (auto status = caller_.hold(Quota::sessions, session_hold_); !status.ok()) return status;
+      if (auto status = service_.sessions().open(settings.session(), header, session_,
+                                                 caller_.session_key(settings.session()));
+          !status.ok()) {
+        return status;
+      }
       session_name_ = settings.session();
     }
     spdlog::info("Speak start peer={} session='{}' text_bytes={}", context_->peer(), session_name_,
@@ -180,6 +193,7 @@ class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
       const bool voice = std::string(error.what()).find("unknown voice") != std::string::npos;
       return invalid((voice ? "voice: " : "text: ") + std::string(error.what()));
     }
+    if (auto status = caller_.take_phonemes(speech.phonemes.intervals.size()); !status.ok()) return status;
     audio_ = std::move(speech.audio);
     speech::cover_audio(speech.phonemes, audio_.duration_us(), plan_.engine.render.fps);
 
@@ -293,6 +307,8 @@ class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
   const v1::SpeakRequest& request_;
   const Clock::time_point started_;
   bool admitted_ = false;
+  Caller caller_;  // the tenant; its quotas are held until the reactor is deleted
+  QuotaHold stream_hold_, session_hold_;
   std::atomic<bool> cancelled_ = false;
   speech::SynthesisOptions options_;
   Plan plan_;

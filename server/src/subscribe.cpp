@@ -39,11 +39,22 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
       return;
     }
     admitted_ = true;
+    if (auto status = service_.tenants().authenticate(*context_, "Subscribe", caller_); !status.ok()) {
+      outbox_->close(status);
+      return;
+    }
+    for (auto [quota, hold] : {std::pair{Quota::streams, &stream_hold_}, {Quota::subscribers, &subscriber_hold_}}) {
+      if (auto status = caller_.hold(quota, *hold); !status.ok()) {
+        outbox_->close(status);
+        return;
+      }
+    }
     if (auto routed = service_.routing().check_metadata(*context_, session_name_); !routed.ok()) {
       outbox_->close(routed);
       return;
     }
-    session_ = service_.sessions().find(session_name_);
+    // Another tenant's session is not found, with the same words as one that does not exist.
+    session_ = service_.sessions().find(caller_.session_key(session_name_));
     if (!session_) {
       outbox_->close(service_.routing().not_held(session_name_, service_.config().session_retention_ms));
       return;
@@ -113,6 +124,8 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
   grpc::CallbackServerContext* context_;
   const std::string session_name_;
   const Clock::time_point started_;
+  Caller caller_;  // the tenant; its quotas are held until the reactor is deleted
+  QuotaHold stream_hold_, subscriber_hold_;
   std::shared_ptr<Outbox> outbox_;
   std::shared_ptr<Session> session_;
   bool admitted_ = false;

@@ -31,7 +31,9 @@ const std::map<std::string, std::string> kValues = {
     {"--max-utterance-ms", "21"},    {"--max-message-bytes", "4096"},  {"--replay-frames", "22"},
     {"--subscriber-queue-frames", "23"}, {"--face-threads", "3"},      {"--face-priority", "low"},
     {"--stalled-subscriber-ms", "24"}, {"--session-retention-ms", "25"}, {"--log-level", "debug"},
-    {"--model", "mine=/m.json"},     {"--replica-name", "pod-7"},
+    {"--model", "mine=/m.json"},     {"--replica-name", "pod-7"},     {"--tls-cert", "/etc/lipsyncd/cert.pem"},
+    {"--tls-key", "/etc/lipsyncd/key.pem"}, {"--tls-client-ca", "/etc/lipsyncd/clients.pem"},
+    {"--api-keys", "/etc/lipsyncd/keys.json"},
 };
 
 std::vector<std::string> flags_in_help() {

@@ -10,6 +10,8 @@
 
 #include <algorithm>
 #include <deque>
+#include <fstream>
+#include <sstream>
 #include <utility>
 
 namespace lipsync::client {
@@ -23,6 +25,17 @@ std::chrono::system_clock::time_point deadline_after(std::chrono::milliseconds t
 // replica holding a session is chosen by hashing it, docs/deploy.md). lipsyncd checks they agree.
 void add_session_metadata(grpc::ClientContext& context, const std::string& session) {
   if (!session.empty()) context.AddMetadata(std::string(kSessionMetadataKey), session);
+}
+
+std::string read_pem(const std::string& what, const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    throw CallError("setting up TLS", grpc::StatusCode::INVALID_ARGUMENT,
+                    "cannot read the " + what + " '" + path + "'");
+  }
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
 }
 
 void throw_unless_ok(const grpc::Status& status, std::string_view context) {
@@ -71,6 +84,25 @@ FrameKind to_core(v1::FrameKind kind) {
     case v1::FRAME_KIND_SHORT_SEGMENT: return FrameKind::short_segment;
     default: return FrameKind::uniform;
   }
+}
+
+std::shared_ptr<grpc::ChannelCredentials> channel_credentials(const TlsOptions& tls) {
+  if (!tls.on()) return grpc::InsecureChannelCredentials();
+  if (tls.cert_file.empty() != tls.key_file.empty()) {
+    throw CallError("setting up TLS", grpc::StatusCode::INVALID_ARGUMENT,
+                    "a client certificate needs its key and a key its certificate (--cert and --key together)");
+  }
+  grpc::SslCredentialsOptions options;
+  if (!tls.ca_file.empty()) options.pem_root_certs = read_pem("CA file", tls.ca_file);
+  if (!tls.cert_file.empty()) {
+    options.pem_cert_chain = read_pem("client certificate", tls.cert_file);
+    options.pem_private_key = read_pem("client key", tls.key_file);
+  }
+  return grpc::SslCredentials(options);
+}
+
+void add_api_key(grpc::ClientContext& context, const std::string& api_key) {
+  if (!api_key.empty()) context.AddMetadata(std::string(kAuthorizationMetadataKey), "Bearer " + api_key);
 }
 
 v1::Phoneme to_wire(const LabeledInterval& interval) {
@@ -238,9 +270,10 @@ class CallCompletion {
 class AnimateReactor : public grpc::ClientBidiReactor<v1::AnimateRequest, v1::TrackMessage> {
  public:
   AnimateReactor(v1::LipSync::Stub& stub, const v1::AnimationSettings& settings, MessageHandler handler,
-                 DoneHandler on_done, std::chrono::milliseconds timeout)
+                 DoneHandler on_done, std::chrono::milliseconds timeout, const std::string& api_key)
       : guard_(std::move(handler)), completion_(std::move(on_done)) {
     context_.set_deadline(deadline_after(timeout));
+    add_api_key(context_, api_key);
     add_session_metadata(context_, settings.session());
     stub.async()->Animate(&context_, this);
     AddHold();
@@ -374,9 +407,10 @@ class AnimateReactor : public grpc::ClientBidiReactor<v1::AnimateRequest, v1::Tr
 class SubscribeReactor : public grpc::ClientReadReactor<v1::TrackMessage> {
  public:
   SubscribeReactor(v1::LipSync::Stub& stub, const v1::SubscribeRequest& request, MessageHandler handler,
-                   DoneHandler on_done, std::chrono::milliseconds timeout)
+                   DoneHandler on_done, std::chrono::milliseconds timeout, const std::string& api_key)
       : guard_(std::move(handler)), completion_(std::move(on_done)), request_(request) {
     context_.set_deadline(deadline_after(timeout));
+    add_api_key(context_, api_key);
     add_session_metadata(context_, request.session());
     stub.async()->Subscribe(&context_, &request_, this);
     StartRead(&incoming_);
@@ -440,15 +474,17 @@ AnimationClient::AnimationClient(std::string address, ClientOptions options)
   arguments.SetMaxReceiveMessageSize(256 * 1024 * 1024);
   // Each client gets its own connection, so that a load test can spread its streams.
   arguments.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
-  channel_ = grpc::CreateCustomChannel(address_, grpc::InsecureChannelCredentials(), arguments);
+  channel_ = grpc::CreateCustomChannel(address_, channel_credentials(options_.tls), arguments);
   stub_ = v1::LipSync::NewStub(channel_);
 }
 
 void AnimationClient::wait_connected() const {
   if (!channel_->WaitForConnected(deadline_after(options_.connect_timeout))) {
     throw CallError("connecting to lipsyncd at " + address_, grpc::StatusCode::UNAVAILABLE,
-                    "no answer within " + std::to_string(options_.connect_timeout.count()) +
-                        " ms (is lipsyncd running there? see --server)");
+                    "no answer within " + std::to_string(options_.connect_timeout.count()) + " ms " +
+                        (options_.tls.on() ? "(is lipsyncd running there with TLS, and do --ca, --cert and --key "
+                                             "match its certificate and client CA? see --server)"
+                                           : "(is lipsyncd running there? see --server)"));
   }
 }
 
@@ -460,6 +496,7 @@ ReceivedTrack AnimationClient::render(const v1::AnimationSettings& settings,
   for (const v1::Phoneme& phoneme : phonemes) *request.add_phonemes() = phoneme;
   grpc::ClientContext context;
   context.set_deadline(deadline_after(options_.unary_timeout));
+  add_api_key(context, options_.api_key);
   v1::RenderResponse response;
   throw_unless_ok(stub_->Render(&context, request, &response), "Render on " + address_);
   ReceivedTrack received;
@@ -474,7 +511,7 @@ ReceivedTrack AnimationClient::render(const v1::AnimationSettings& settings,
 std::unique_ptr<AnimateCall> AnimationClient::start_animate(const v1::AnimationSettings& settings,
                                                             MessageHandler handler, DoneHandler on_done) const {
   return std::unique_ptr<AnimateCall>(new AnimateCall(std::make_unique<detail::AnimateReactor>(
-      *stub_, settings, std::move(handler), std::move(on_done), options_.stream_timeout)));
+      *stub_, settings, std::move(handler), std::move(on_done), options_.stream_timeout, options_.api_key)));
 }
 
 ReceivedTrack AnimationClient::animate(const v1::AnimationSettings& settings,
@@ -500,7 +537,7 @@ std::unique_ptr<SubscribeCall> AnimationClient::start_subscribe(const std::strin
   request.set_session(session);
   request.set_start(start);
   return std::unique_ptr<SubscribeCall>(new SubscribeCall(std::make_unique<detail::SubscribeReactor>(
-      *stub_, request, std::move(handler), std::move(on_done), options_.stream_timeout)));
+      *stub_, request, std::move(handler), std::move(on_done), options_.stream_timeout, options_.api_key)));
 }
 
 ReceivedTrack AnimationClient::subscribe(const std::string& session, v1::SubscribeRequest::Start start,
@@ -591,6 +628,7 @@ SpokenTrack AnimationClient::speak(const v1::SpeakRequest& request,
 v1::ListModelsResponse AnimationClient::list_models() const {
   grpc::ClientContext context;
   context.set_deadline(deadline_after(options_.unary_timeout));
+  add_api_key(context, options_.api_key);
   v1::ListModelsResponse response;
   throw_unless_ok(stub_->ListModels(&context, v1::ListModelsRequest{}, &response), "ListModels on " + address_);
   return response;
@@ -599,6 +637,7 @@ v1::ListModelsResponse AnimationClient::list_models() const {
 v1::ModelInfo AnimationClient::get_model(const std::string& name) const {
   grpc::ClientContext context;
   context.set_deadline(deadline_after(options_.unary_timeout));
+  add_api_key(context, options_.api_key);
   v1::GetModelRequest request;
   request.set_name(name);
   v1::ModelInfo response;

@@ -26,7 +26,7 @@ from .tts import (
     timed_phonemes,
 )
 
-_CLIENT_NAMES = ("Client", "Frame", "FrameStream", "Speech", "Track", "make_settings", "KIND_NAMES")
+_CLIENT_NAMES = ("Client", "make_channel", "Frame", "FrameStream", "Speech", "Track", "make_settings", "KIND_NAMES")
 
 __all__ = [
     "TimedPhoneme",

@@ -26,6 +26,12 @@ Settings (keyword arguments of render and animate; all optional, defaults are th
     Frame.visemes, and events, Frame.viseme_event and Track.viseme_events()),
     rhubarb_extended_shapes (str, rhubarb only: Rhubarb's --extendedShapes letters; unset = "GHX").
 
+Security (docs/security.md): plaintext by default. ``Client(target, ca="ca.pem")``
+(or ``tls=True`` for the system's roots) connects with TLS; ``cert=`` and ``key=``
+add a client certificate for a server that requires one (mTLS). ``api_key=`` (default:
+the environment variable LIPSYNC_API_KEY) is sent as ``authorization: Bearer <key>``
+on every call.
+
 Errors are the server's: every call raises ``grpc.RpcError`` (use ``.code()`` and
 ``.details()``), e.g. INVALID_ARGUMENT for a bad phoneme, DEADLINE_EXCEEDED when
 the call outlasts its timeout. Every call has a deadline (`timeout`, seconds).
@@ -33,7 +39,9 @@ the call outlasts its timeout. Every call has a deadline (`timeout`, seconds).
 
 from __future__ import annotations
 
+import collections
 import dataclasses
+import os
 import struct
 import wave
 from typing import Any, Dict, Iterable, Iterator, List, Optional, Tuple
@@ -49,7 +57,7 @@ except ImportError as _error:  # pragma: no cover - depends on the environment
         f"(see docs/python-client.md); import failed with: {_error}"
     ) from _error
 
-__all__ = ["Client", "Frame", "FrameStream", "Speech", "Track", "make_settings", "KIND_NAMES", "VISEME_VOCABULARIES"]
+__all__ = ["Client", "make_channel", "Frame", "FrameStream", "Speech", "Track", "make_settings", "KIND_NAMES", "VISEME_VOCABULARIES"]
 
 #: FrameKind enum values to the short names used in Frame.kind.
 KIND_NAMES: Dict[int, str] = {
@@ -337,12 +345,93 @@ class FrameStream:
         return Track(self.header, frames, self.summary)
 
 
+AUTHORIZATION_METADATA_KEY = "authorization"
+
+
+class _CallDetails(
+    collections.namedtuple(
+        "_CallDetails", ("method", "timeout", "metadata", "credentials", "wait_for_ready", "compression")
+    ),
+    grpc.ClientCallDetails,
+):
+    pass
+
+
+class _ApiKeyInterceptor(
+    grpc.UnaryUnaryClientInterceptor,
+    grpc.UnaryStreamClientInterceptor,
+    grpc.StreamUnaryClientInterceptor,
+    grpc.StreamStreamClientInterceptor,
+):
+    """Adds `authorization: Bearer <key>` to every call (call credentials would need TLS;
+    a server behind a TLS-terminating proxy sees plaintext)."""
+
+    def __init__(self, api_key: str) -> None:
+        self._entry = (AUTHORIZATION_METADATA_KEY, "Bearer " + api_key)
+
+    def _details(self, details: Any) -> Any:
+        metadata = list(details.metadata or ()) + [self._entry]
+        return _CallDetails(
+            details.method, details.timeout, metadata, details.credentials,
+            getattr(details, "wait_for_ready", None), getattr(details, "compression", None),
+        )
+
+    def intercept_unary_unary(self, continuation, details, request):  # type: ignore[no-untyped-def]
+        return continuation(self._details(details), request)
+
+    def intercept_unary_stream(self, continuation, details, request):  # type: ignore[no-untyped-def]
+        return continuation(self._details(details), request)
+
+    def intercept_stream_unary(self, continuation, details, requests):  # type: ignore[no-untyped-def]
+        return continuation(self._details(details), requests)
+
+    def intercept_stream_stream(self, continuation, details, requests):  # type: ignore[no-untyped-def]
+        return continuation(self._details(details), requests)
+
+
+def _read_pem(what: str, path: Optional[str]) -> Optional[bytes]:
+    if path is None:
+        return None
+    try:
+        with open(path, "rb") as file:
+            return file.read()
+    except OSError as error:
+        raise ValueError(f"cannot read the {what} {path!r}: {error.strerror}") from error
+
+
+def make_channel(
+    target: str,
+    *,
+    tls: bool = False,
+    ca: Optional[str] = None,
+    cert: Optional[str] = None,
+    key: Optional[str] = None,
+) -> grpc.Channel:
+    """A channel to lipsyncd: plaintext, or TLS when `tls` or any file is given (`ca`: PEM
+    bundle that signed the server's certificate, default the system's roots; `cert` and
+    `key`: a PEM client certificate and its key, for mTLS). Raises ValueError naming a file
+    that cannot be read, or a certificate without its key."""
+    if not (tls or ca or cert or key):
+        return grpc.insecure_channel(target)
+    if bool(cert) != bool(key):
+        raise ValueError("a client certificate needs its key and a key its certificate (cert= and key=)")
+    credentials = grpc.ssl_channel_credentials(
+        root_certificates=_read_pem("CA file", ca),
+        private_key=_read_pem("client key", key),
+        certificate_chain=_read_pem("client certificate", cert),
+    )
+    return grpc.secure_channel(target, credentials)
+
+
 class Client:
     """A connection to lipsyncd.
 
-    target: "host:port" (insecure channel), or pass a ready `channel`.
+    target: "host:port", or pass a ready `channel`.
     timeout: default deadline of every call, in seconds (a whole stream for
     Animate and Subscribe).
+    tls, ca, cert, key: TLS (see make_channel); plaintext by default.
+    api_key: sent as `authorization: Bearer <key>` on every call; default: the
+    environment variable LIPSYNC_API_KEY, else none.
     """
 
     def __init__(
@@ -351,15 +440,27 @@ class Client:
         *,
         timeout: float = DEFAULT_TIMEOUT_S,
         channel: Optional[grpc.Channel] = None,
+        tls: bool = False,
+        ca: Optional[str] = None,
+        cert: Optional[str] = None,
+        key: Optional[str] = None,
+        api_key: Optional[str] = None,
     ) -> None:
-        self._channel = channel if channel is not None else grpc.insecure_channel(target)
+        self._channel = (
+            channel if channel is not None else make_channel(target, tls=tls, ca=ca, cert=cert, key=key)
+        )
         self._owns_channel = channel is None
+        if api_key is None:
+            api_key = os.environ.get("LIPSYNC_API_KEY") or None
+        self._transport = self._channel
+        if api_key:
+            self._channel = grpc.intercept_channel(self._channel, _ApiKeyInterceptor(api_key))
         self.timeout = timeout
         self.stub = lipsync_pb2_grpc.LipSyncStub(self._channel)
 
     def close(self) -> None:
         if self._owns_channel:
-            self._channel.close()
+            self._transport.close()
 
     def __enter__(self) -> "Client":
         return self
@@ -369,7 +470,7 @@ class Client:
 
     def wait_ready(self, timeout: Optional[float] = None) -> None:
         """Blocks until the channel is connected; raises grpc.FutureTimeoutError otherwise."""
-        grpc.channel_ready_future(self._channel).result(
+        grpc.channel_ready_future(self._transport).result(
             timeout=self.timeout if timeout is None else timeout
         )
 

@@ -65,6 +65,12 @@ struct ServerConfig {
   /// misrouting shows in one look); "" = "<host name> (<listen address>)".
   std::string replica_name;
 
+  // Transport security and callers (docs/security.md). Empty: off.
+  std::string tls_cert;       ///< PEM certificate chain served to clients (with tls_key: TLS on)
+  std::string tls_key;        ///< PEM private key of tls_cert
+  std::string tls_client_ca;  ///< PEM CA bundle; when set, clients must present a certificate it signed (mTLS)
+  std::string api_keys;       ///< JSON key file: hashed API keys, their tenants and quotas; "" = open server
+
   bool operator==(const ServerConfig&) const = default;
 };
 

@@ -16,7 +16,8 @@ namespace lipsync::server {
 class Server {
  public:
   /// Loads the models (throws lipsync::InputError for a bad model file), binds
-  /// and starts serving. Throws std::runtime_error if it cannot listen.
+  /// and starts serving. Throws std::runtime_error if it cannot listen, or if a
+  /// TLS file or the key file cannot be used (the message names the file).
   explicit Server(ServerConfig config);
   ~Server();
   Server(const Server&) = delete;
@@ -31,6 +32,11 @@ class Server {
   /// `drain`, then cancels the rest and waits until every call has ended.
   /// Returns as soon as no call is running. Idempotent.
   void shutdown(std::chrono::milliseconds drain);
+
+  /// SIGHUP: reads the TLS files and the key file again. A good TLS set is served
+  /// to new connections within about a second, a good key file applies to new
+  /// calls; a bad one is logged and the old one stays. Open streams are untouched.
+  void reload_credentials();
 
   /// Animate and Subscribe streams currently open.
   std::size_t active_streams() const;

@@ -12,6 +12,10 @@
 // also sends it as the metadata `x-lipsync-session`, on which a load balancer in
 // front of several lipsyncd replicas routes (docs/deploy.md).
 //
+// The channel is plaintext unless ClientOptions::tls asks for TLS (a CA to trust,
+// and a client certificate for a server that requires one); with an API key
+// every call carries `authorization: Bearer <key>` (docs/security.md).
+//
 // Every call carries a deadline (ClientOptions). A failed call becomes a
 // CallError with the gRPC status code and the server's message, prefixed with
 // what was being done and where, e.g. "Animate on 127.0.0.1:50051 failed:
@@ -64,11 +68,32 @@ class CallError : public std::runtime_error {
   std::string message_;
 };
 
+/// The metadata key that carries a call's API key ("Bearer <key>").
+inline constexpr std::string_view kAuthorizationMetadataKey = "authorization";
+
+/// Transport security of the channel. Default: plaintext.
+struct TlsOptions {
+  bool enabled = false;   ///< TLS on; also implied by any file below
+  std::string ca_file;    ///< PEM CA bundle that signed the server's certificate; "": the system's roots
+  std::string cert_file;  ///< PEM client certificate for a server that requires one (mTLS); needs key_file
+  std::string key_file;   ///< PEM private key of cert_file
+
+  bool on() const { return enabled || !ca_file.empty() || !cert_file.empty() || !key_file.empty(); }
+};
+
 struct ClientOptions {
   std::chrono::milliseconds connect_timeout{5000};  ///< wait_connected()
   std::chrono::milliseconds unary_timeout{30000};   ///< Render, ListModels, GetModel
   std::chrono::milliseconds stream_timeout{3600 * 1000};  ///< whole Animate / Subscribe stream
+  TlsOptions tls;                                   ///< plaintext unless asked
+  std::string api_key;  ///< sent as `authorization: Bearer <key>` on every call; "": none
 };
+
+/// The channel credentials for `tls`: insecure when it is off. Throws CallError
+/// (INVALID_ARGUMENT) naming a file that cannot be read, or a certificate without its key.
+std::shared_ptr<grpc::ChannelCredentials> channel_credentials(const TlsOptions& tls);
+/// Adds `authorization: Bearer <api_key>` to `context` (nothing for an empty key).
+void add_api_key(grpc::ClientContext& context, const std::string& api_key);
 
 /// A track as received: the header, the frames gathered into a core Track
 /// (channel values; arkit weights beside it) and the summary.
@@ -171,7 +196,8 @@ class SubscribeCall {
 class AnimationClient {
  public:
   /// A client for lipsyncd at `address` ("127.0.0.1:50051", "localhost:50051",
-  /// "unix:/path"), without TLS. Connects lazily; see wait_connected().
+  /// "unix:/path"), with TLS if options.tls asks for it. Connects lazily; see
+  /// wait_connected(). Throws CallError if a TLS file cannot be read.
   explicit AnimationClient(std::string address, ClientOptions options = {});
 
   const std::string& address() const { return address_; }
