@@ -194,13 +194,13 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
       for (const Segment& segment : segments_) renderer_->push(segment, track_);
       segments_.clear();
     }
-    send_frames();
+    send_frames(input_->newest_start_us());
     return grpc::Status::OK;
   }
 
   grpc::Status end() {
     renderer_->finish(track_);
-    send_frames();
+    send_frames(input_->end_us());
     in_order([this, phonemes = phonemes(), duration_us = input_->end_us()] {
       auto summary = std::make_shared<v1::TrackMessage>();
       encode_summary(frames_sent_, phonemes, duration_us, *summary->mutable_summary());
@@ -211,11 +211,12 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     return grpc::Status::OK;
   }
 
-  /// Sends the frames the renderer released since the last call.
-  void send_frames() {
+  /// Sends the frames the renderer released since the last call, when the
+  /// producer's input had reached utterance time `input_us`.
+  void send_frames(std::int64_t input_us) {
     if (track_.frame_count() == 0) return;
     if (!lane_) {
-      publish(track_);
+      publish(track_, input_us);
       track_.clear();
       return;
     }
@@ -224,11 +225,11 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     released->fps = track_.fps;
     std::swap(*released, track_);
     frames_in_lane_ += released->frame_count();
-    lane_->post([this, released] {
+    lane_->post([this, released, input_us] {
       // Counted out before they reach the outbox, so the write completion that
       // follows sees them only there (and can resume reading).
       frames_in_lane_ -= released->frame_count();
-      if (!stopped_) publish(*released);
+      if (!stopped_) publish(*released, input_us);
     });
   }
 
@@ -237,13 +238,14 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
 
   std::size_t frames_waiting() const { return outbox_.queued_frames() + frames_in_lane_.load(); }
 
-  void publish(const Track& track) {
+  void publish(const Track& track, std::int64_t input_us) {
     const std::size_t per_batch = face_setup_.frames_per_batch;
     for (std::size_t begin = 0; begin < track.frame_count(); begin += per_batch) {
       const std::size_t end = std::min(track.frame_count(), begin + per_batch);
       auto message = std::make_shared<v1::TrackMessage>();
       encoder_.face = face_.get();
       encode_frames(plan_, track, begin, end, frames_sent_, *message->mutable_frames(), encoder_);
+      message->mutable_frames()->set_release_lag_us(input_us - track.t_us[begin]);
       frames_sent_ += end - begin;
       // The session first: once the producer has seen a batch, subscribers can see it too.
       if (auto session = current_session()) session->publish(message, end - begin);

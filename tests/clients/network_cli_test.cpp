@@ -18,6 +18,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -213,6 +214,66 @@ TEST_F(NetworkCliTest, play_prints_a_line_per_update_until_the_session_ends) {
   EXPECT_THAT(played.out, HasSubstr("jaw |"));
   EXPECT_THAT(played.out, HasSubstr("anchored to media clock 'unix'"));
   EXPECT_GT(std::count(played.out.begin(), played.out.end(), '\n'), 10);
+}
+
+/// What `lipsync play` says when it stops: underruns, worst lateness and the playout offset it chose.
+struct PlaySummary {
+  long underruns = -1;
+  std::optional<long> max_lateness_ms;
+  long playout_offset_ms = -1;
+  long release_delay_ms = -1;
+  long max_release_lag_ms = -1;
+};
+
+PlaySummary parse_play_summary(const std::string& out) {
+  static const std::regex summary(
+      R"((\d+) underruns, max behind -?\d+ ms, max lateness (-?\d+ ms|-), playout offset (\d+) ms \(release delay )"
+      R"((\d+) ms, max release lag (-?\d+) ms\))");
+  std::smatch match;
+  PlaySummary parsed;
+  if (!std::regex_search(out, match, summary)) return parsed;
+  parsed.underruns = std::stol(match[1]);
+  if (match[2] != "-") parsed.max_lateness_ms = std::stol(match[2]);
+  parsed.playout_offset_ms = std::stol(match[3]);
+  parsed.release_delay_ms = std::stol(match[4]);
+  parsed.max_release_lag_ms = std::stol(match[5]);
+  return parsed;
+}
+
+TEST_F(NetworkCliTest, play_of_real_speech_streamed_in_real_time_has_no_late_frame_at_the_defaults) {
+  auto producer = start({"stream", (fs::path(LIPSYNC_TEST_DATA_DIR) / "closures/flite_1.psdur").string(),
+                         "--realtime", "--session", "play-real-speech", "--server", server(), "-o", "stream.json"},
+                        "producer");
+  const RunResult played = run({"play", "play-real-speech", "--wait", "5", "--no-tty", "--server", server()});
+  ASSERT_EQ(producer->wait(), 0) << read_text(capture_ / "producer.err");
+  ASSERT_EQ(played.status, 0) << played.err;
+  const PlaySummary summary = parse_play_summary(played.out);
+  ASSERT_GE(summary.underruns, 0) << played.out;
+  EXPECT_EQ(summary.underruns, 0) << played.out;
+  ASSERT_TRUE(summary.max_lateness_ms.has_value()) << played.out;
+  EXPECT_LT(*summary.max_lateness_ms, 0) << played.out;
+  // The producer's default delay covers the lookahead: played on its media clock, no offset.
+  EXPECT_EQ(summary.playout_offset_ms, 0) << played.out;
+  // The server really made frames wait for the 7 segments ahead (else nothing was shown).
+  EXPECT_GT(summary.max_release_lag_ms, 300) << played.out;
+  EXPECT_LE(summary.max_release_lag_ms, summary.release_delay_ms) << played.out;
+}
+
+TEST_F(NetworkCliTest, play_delays_itself_when_the_producers_playout_delay_is_shorter_than_the_release_delay) {
+  auto producer = start({"stream", (fs::path(LIPSYNC_TEST_DATA_DIR) / "closures/flite_2.psdur").string(),
+                         "--realtime", "--session", "play-short-delay", "--playout-delay", "200", "--server",
+                         server(), "-o", "stream.json"},
+                        "producer");
+  const RunResult played = run({"play", "play-short-delay", "--wait", "5", "--no-tty", "--server", server()});
+  ASSERT_EQ(producer->wait(), 0) << read_text(capture_ / "producer.err");
+  ASSERT_EQ(played.status, 0) << played.err;
+  const PlaySummary summary = parse_play_summary(played.out);
+  ASSERT_GE(summary.underruns, 0) << played.out;
+  EXPECT_EQ(summary.underruns, 0) << played.out;
+  ASSERT_TRUE(summary.max_lateness_ms.has_value()) << played.out;
+  EXPECT_LT(*summary.max_lateness_ms, 0) << played.out;
+  // 200 ms cannot cover a wait of over a second: the player adds the difference.
+  EXPECT_GT(summary.playout_offset_ms, summary.release_delay_ms - 200) << played.out;
 }
 
 TEST_F(NetworkCliTest, play_stops_after_the_requested_number_of_updates) {
