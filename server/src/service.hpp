@@ -7,6 +7,7 @@
 
 #include "admission.hpp"
 #include "catalog.hpp"
+#include "face_capacity.hpp"
 #include "face_stream.hpp"
 #include "face_workers.hpp"
 #include "lipsync/server/config.hpp"
@@ -21,7 +22,9 @@
 
 namespace lipsync::server {
 
-class LipSyncService final : public v1::LipSync::CallbackService {
+// Subscribe is a raw method: its reactor writes the bytes a session serialised
+// once for all its subscribers (outbox.hpp); the request is parsed in subscribe.cpp.
+class LipSyncService final : public v1::LipSync::WithRawCallbackMethod_Subscribe<v1::LipSync::CallbackService> {
  public:
   LipSyncService(const ServerConfig& config, const ModelCatalog& catalog);
 
@@ -29,8 +32,8 @@ class LipSyncService final : public v1::LipSync::CallbackService {
       grpc::CallbackServerContext* context) override;
   grpc::ServerUnaryReactor* Render(grpc::CallbackServerContext* context, const v1::RenderRequest* request,
                                    v1::RenderResponse* response) override;
-  grpc::ServerWriteReactor<v1::TrackMessage>* Subscribe(grpc::CallbackServerContext* context,
-                                                        const v1::SubscribeRequest* request) override;
+  grpc::ServerWriteReactor<grpc::ByteBuffer>* Subscribe(grpc::CallbackServerContext* context,
+                                                        const grpc::ByteBuffer* request) override;
   grpc::ServerUnaryReactor* ListModels(grpc::CallbackServerContext* context,
                                        const v1::ListModelsRequest* request,
                                        v1::ListModelsResponse* response) override;
@@ -48,6 +51,8 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   FaceLibrary& faces() { return faces_; }
   /// The low-priority threads the face runs on.
   FaceWorkers& face_workers() { return face_workers_; }
+  /// How much mesh work is admitted (--max-mesh-streams-per-face-thread).
+  FaceCapacity& face_capacity() { return face_capacity_; }
 
  private:
   const ServerConfig& config_;
@@ -56,6 +61,7 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   Admission admission_;
   SessionRouting routing_;
   FaceLibrary faces_;
+  FaceCapacity face_capacity_;
   // Last, so that it is destroyed first: its destructor runs the jobs still
   // queued, which use the members above.
   FaceWorkers face_workers_;

@@ -34,13 +34,11 @@ v1::TrackHeader encode_header(const Plan& plan, const v1::AnimationSettings& set
   if (plan.arkit) {
     for (const auto name : kArkitNames) header.add_arkit_names(std::string(name));
   }
-  if (with_session) {
-    // A stream (Animate, and Subscribe through its session): frames leave after their lookahead.
-    header.set_session(settings.session());
-    header.set_release_delay_us(read_speech_release_delay_us(plan.engine.render.lookahead));
-  }
+  if (with_session) header.set_session(settings.session());
   if (settings.has_media_clock()) *header.mutable_media_clock() = settings.media_clock();
   header.set_lookahead(static_cast<std::uint32_t>(plan.engine.render.lookahead));
+  // What a stream at this lookahead waits (Render says it too, so that its header equals Animate's).
+  header.set_release_delay_us(read_speech_release_delay_us(plan.engine.render.lookahead));
   if (plan.visemes) {
     header.set_viseme_vocabulary(plan.viseme_vocabulary);
     for (const auto& name : plan.visemes->names()) header.add_viseme_names(name);

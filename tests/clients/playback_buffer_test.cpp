@@ -250,6 +250,20 @@ TEST(PlaybackBuffer, a_replayed_batch_does_not_hold_the_offset_once_a_live_one_a
   EXPECT_EQ(buffer.playout_offset_us(), kReleaseDelayUs + kMarginUs - kAnchorUs);
 }
 
+TEST(PlaybackBuffer, samples_before_the_first_frame_do_not_hold_back_a_later_playout_offset) {
+  PlaybackBuffer buffer = released_stream();
+  std::array<float, 1> out{};
+  // The player ticks before anything arrived: the media clock is already at 0.4 s.
+  EXPECT_EQ(buffer.sample(kAnchorUs + 400'000, out).state, SampleState::no_frames);
+  buffer.note_batch(0, 1'200'000, 1'200'000);
+  ASSERT_TRUE(buffer.push(0, std::array{0.5F}, 1'200'000));
+  // With the offset the clock now shows utterance time −0.4 s: the first frame, held, not an underrun.
+  const PlaybackSample sample = buffer.sample(1'200'000, out);
+  EXPECT_EQ(sample.state, SampleState::before_first);
+  EXPECT_FALSE(sample.clamped);
+  EXPECT_EQ(buffer.stats().underruns, 0U);
+}
+
 TEST(PlaybackBuffer, without_a_release_delay_from_the_server_the_offset_stays_zero) {
   PlaybackBuffer buffer(1);
   buffer.anchor(kAnchorUs);

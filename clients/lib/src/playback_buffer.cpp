@@ -68,6 +68,12 @@ PlaybackSample PlaybackBuffer::sample(std::int64_t clock_us, std::span<float> ou
 PlaybackSample PlaybackBuffer::sample_utterance(std::int64_t utterance_us, std::span<float> out) {
   PlaybackSample result;
   ++stats_.samples;
+  if (times_us_.empty() && !last_sample_us_) {
+    // Nothing shown yet, so nothing to stay ahead of: the playout offset may
+    // still move the play position back before the first frame arrives.
+    result.utterance_us = utterance_us;
+    return result;
+  }
   if (last_sample_us_ && utterance_us < *last_sample_us_) {
     utterance_us = *last_sample_us_;
     result.clamped = true;

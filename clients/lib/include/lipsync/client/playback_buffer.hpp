@@ -16,7 +16,8 @@
 //     arrival time records lateness = arrival − (utterance_zero_us + t_us).
 //   - never backwards: a sample earlier than the previous one is clamped to
 //     the previous one (and counted), so a clock that steps back never makes
-//     the mouth replay.
+//     the mouth replay. Samples taken before any frame arrived showed nothing
+//     and do not count as "previous".
 //   - bounded memory: frames older than the one at or before the last sample
 //     are dropped, and at most `capacity_frames` frames are held (the oldest
 //     goes first, counted as dropped).
