@@ -7,13 +7,16 @@
 namespace lipsync::server {
 
 const grpc::ByteBuffer& OutgoingMessage::bytes() const {
-  std::call_once(encoded_, [this] {
+  if (encoded_.load(std::memory_order_acquire)) return bytes_;
+  std::lock_guard lock(encode_mutex_);
+  if (!encoded_.load(std::memory_order_relaxed)) {
     bool own_buffer = false;
     const grpc::Status status = grpc::SerializationTraits<v1::TrackMessage>::Serialize(message_, &bytes_, &own_buffer);
     // Serialising an in-memory message only fails beyond protobuf's 2 GiB limit,
     // which the server's batch and replay limits keep far away.
     if (!status.ok()) throw std::runtime_error("cannot serialise a TrackMessage: " + status.error_message());
-  });
+    encoded_.store(true, std::memory_order_release);
+  }
   return bytes_;
 }
 
