@@ -10,9 +10,16 @@
 // marker). A frame's latency is its arrival time minus the send time of that
 // phoneme, so it measures the server and the network, not the lookahead the
 // algorithm needs by design. The received frames are checked against the
-// offline render (count and times): "every frame arrived" means each
-// utterance that ended OK delivered exactly the offline frames, to its
-// producer and to each subscriber.
+// offline render (count, times and channel values, bit for bit): "every frame
+// arrived" means each utterance that ended OK delivered exactly the offline
+// frames, to its producer and to each subscriber.
+//
+// The check is cheap enough for thousands of streams on one core: a batch is
+// compared with the precomputed track as two memory ranges (its times and its
+// packed values), not frame by frame, and all its frames get the latency of
+// the phoneme that released them (the server releases a batch per phoneme).
+// The report includes the generator's own CPU (getrusage), so a run whose
+// generator was saturated can be told apart from one that measured the server.
 //
 // --realtime sends each phoneme when its start time arrives (and the end
 // marker at the utterance's end); --fast sends everything at once. All timing
@@ -34,6 +41,7 @@
 // checked, and a frame's latency is its arrival time minus the send time of
 // the last message sent on the stream before it arrived (for lipsyncd in real
 // time that is the same phoneme as above).
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -47,6 +55,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <iostream>
 #include <map>
 #include <memory>
@@ -104,6 +113,7 @@ constexpr auto kPauseAfterError = std::chrono::milliseconds(100);
 struct Utterance {
   std::vector<client::v1::Phoneme> phonemes;
   std::vector<std::int64_t> frame_t_us;     ///< the offline render's frame times
+  std::vector<float> frame_values;          ///< the offline render's channel values, frame-major
   std::vector<std::uint32_t> released_by;   ///< per frame: phoneme index that released it (size() = end marker)
 };
 
@@ -133,6 +143,7 @@ Utterance make_utterance(std::uint64_t seed, std::size_t phonemes, const Articul
   const Track offline = render_track(model, build_segments(whole, model, phone_set));
   if (offline.t_us != streamed.t_us) throw std::logic_error("streaming and offline renders differ");
   utterance.frame_t_us = offline.t_us;
+  utterance.frame_values = offline.values;
   return utterance;
 }
 
@@ -196,16 +207,34 @@ void count_frames(const client::v1::TrackMessage& message, const Run& run, Strea
     return;
   }
   const Utterance& utterance = *run.utterance;
-  for (int i = 0; i < batch.t_us_size(); ++i) {
-    const std::uint64_t index = batch.first_frame() + static_cast<std::uint64_t>(i);
-    ++tally.frames;
-    if (index >= utterance.frame_t_us.size() || utterance.frame_t_us[index] != batch.t_us(i)) {
-      ++tally.unexpected;
-      continue;
-    }
-    const std::int64_t sent = run.sent_us[utterance.released_by[index]].load(std::memory_order_acquire);
-    tally.latencies_us.push_back(static_cast<std::int32_t>(std::clamp<std::int64_t>(arrival_us - sent, 0, INT32_MAX)));
+  const auto count = static_cast<std::size_t>(batch.t_us_size());
+  const std::uint64_t first = batch.first_frame();
+  tally.frames += count;
+  if (count == 0) return;
+  const std::size_t channels = utterance.frame_values.size() / std::max<std::size_t>(1, utterance.frame_t_us.size());
+  const bool in_range = first < utterance.frame_t_us.size() && count <= utterance.frame_t_us.size() - first;
+  const bool same =
+      in_range && static_cast<std::size_t>(batch.values_size()) == count * channels &&
+      std::memcmp(batch.t_us().data(), utterance.frame_t_us.data() + first, count * sizeof(std::int64_t)) == 0 &&
+      std::memcmp(batch.values().data(), utterance.frame_values.data() + first * channels,
+                  count * channels * sizeof(float)) == 0;
+  if (!same) {
+    tally.unexpected += count;
+    return;
   }
+  const std::int64_t sent = run.sent_us[utterance.released_by[first]].load(std::memory_order_acquire);
+  const auto latency = static_cast<std::int32_t>(std::clamp<std::int64_t>(arrival_us - sent, 0, INT32_MAX));
+  tally.latencies_us.insert(tally.latencies_us.end(), count, latency);
+}
+
+/// CPU time this process has used (user + system), seconds.
+double process_cpu_seconds() {
+  rusage usage{};
+  ::getrusage(RUSAGE_SELF, &usage);
+  const auto seconds = [](const timeval& time) {
+    return static_cast<double>(time.tv_sec) + static_cast<double>(time.tv_usec) * 1e-6;
+  };
+  return seconds(usage.ru_utime) + seconds(usage.ru_stime);
 }
 
 /// What the producers of one kind (with or without the mesh) and their subscribers got.
@@ -582,8 +611,12 @@ int run_loadtest(std::span<const std::string_view> args) {
   }
 
   LoadTest test(config, clients, pool);
+  const double cpu_before = process_cpu_seconds();
   Results results = test.run();
   const double seconds = test.elapsed().count();
+  // Cores the generator kept busy on average while the streams ran (its own
+  // threads and gRPC's): near the cores it may use, it and not the server was the limit.
+  const double generator_cpu = (process_cpu_seconds() - cpu_before) / seconds;
   std::array<Percentiles, 2> producer_latency_by_mesh;
   std::array<Percentiles, 2> subscriber_latency_by_mesh;
   for (std::size_t m = 0; m < 2; ++m) {
@@ -650,6 +683,7 @@ int run_loadtest(std::span<const std::string_view> args) {
         {"by_output", {{"mesh", group_json(1)}, {"no_mesh", group_json(0)}}},
         {"errors", results.errors},
         {"verified", config.verify},
+        {"generator_cpu_cores", generator_cpu},
         {"every_frame_arrived", every_frame},
     };
     std::cout << report.dump(2) << '\n';
@@ -699,6 +733,8 @@ int run_loadtest(std::span<const std::string_view> args) {
         }
       }
     }
+    std::snprintf(line, sizeof line, "load generator CPU: %.2f cores\n", generator_cpu);
+    std::cout << line;
     std::cout << "errors:";
     if (results.errors.empty()) std::cout << " none";
     for (const auto& [code, count] : results.errors) std::cout << ' ' << code << ' ' << count;

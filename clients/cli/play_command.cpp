@@ -10,6 +10,12 @@
 // compression as bars) with the measured drift: how far the newest frame is
 // ahead of the audio (lead) and how late the newest frame arrived for its play
 // time (late). Playback ends when the session ends and its last frame played.
+//
+// The buffer plays later than the media clock (its playout offset) only when
+// the server's release delay and per-batch release lag say that frames would
+// otherwise arrive after they are due (playback_buffer.hpp); with a producer
+// whose playout delay covers the lookahead (lipsync stream's default) the
+// offset is 0. The summary line reports it.
 #include <unistd.h>
 
 #include <algorithm>
@@ -57,6 +63,7 @@ struct PlayState {
   bool anchor_on_first_frame = false;
   std::string anchor_text;
   int fps = 30;
+  std::int64_t release_delay_us = 0;
   std::vector<int> jaw_channels;
   std::vector<int> lip_channels;
   std::optional<grpc::Status> status;
@@ -69,6 +76,8 @@ struct PlayState {
       const auto& header = message.header();
       if (header.channels().empty()) throw std::runtime_error("the session carries no channel values");
       buffer.emplace(static_cast<std::size_t>(header.channels_size()));
+      buffer->expect_release_delay(header.release_delay_us());
+      release_delay_us = header.release_delay_us();
       fps = header.fps() == 0 ? 30 : static_cast<int>(header.fps());
       for (int c = 0; c < header.channels_size(); ++c) {
         const std::string& name = header.channels(c);
@@ -90,10 +99,12 @@ struct PlayState {
     }
     if (!message.has_frames() || !buffer) return;
     const auto& batch = message.frames();
+    if (batch.t_us_size() == 0) return;
     const std::size_t channels = buffer->channel_count();
+    const std::int64_t arrival_us = now_us();
+    if (anchor_on_first_frame && !buffer->anchored()) buffer->anchor(arrival_us - batch.t_us(0));
+    buffer->note_batch(batch.t_us(0), batch.release_lag_us(), arrival_us);
     for (int i = 0; i < batch.t_us_size(); ++i) {
-      const std::int64_t arrival_us = now_us();
-      if (anchor_on_first_frame && !buffer->anchored()) buffer->anchor(arrival_us - batch.t_us(i));
       const std::span<const float> values(batch.values().data() + static_cast<std::size_t>(i) * channels, channels);
       buffer->push(batch.t_us(i), values, arrival_us);
     }
@@ -206,7 +217,10 @@ int run_play(std::span<const std::string_view> args) {
         std::cout << (redraw ? "\n" : "") << "played " << updates << " updates anchored to " << state.anchor_text
                   << ": " << stats.frames_pushed << " frames, " << stats.underruns << " underruns, max behind "
                   << stats.max_behind_us / 1000 << " ms, max lateness "
-                  << (stats.max_lateness_us ? std::to_string(*stats.max_lateness_us / 1000) + " ms" : "-") << "\n";
+                  << (stats.max_lateness_us ? std::to_string(*stats.max_lateness_us / 1000) + " ms" : "-")
+                  << ", playout offset " << state.buffer->playout_offset_us() / 1000 << " ms (release delay "
+                  << state.release_delay_us / 1000 << " ms, max release lag " << stats.max_release_lag_us / 1000
+                  << " ms)\n";
       }
     }
     if (stop) return;

@@ -22,7 +22,7 @@ namespace lipsync::cli {
 namespace {
 
 constexpr OptionSpec kOptions[] = {
-    kServerOption,
+    kServerOption, kTlsOption, kCaOption, kCertOption, kKeyOption, kApiKeyOption,
     kTrackOutputOption,
     kTrackFormatOption,
     {"wav", 0, "FILE", "also write the speech to FILE (16-bit mono PCM WAV at the server's rate, 22050 Hz)",
@@ -66,7 +66,7 @@ int run_speak(std::span<const std::string_view> args) {
   settings.set_fps(static_cast<std::uint32_t>(parse_render_plan(arguments).render.fps));
   set_track_request_options(arguments, format, settings);
 
-  client::ClientOptions client_options;
+  client::ClientOptions client_options = connection_options(arguments);
   client_options.stream_timeout = std::chrono::seconds(timeout_s);
   const client::AnimationClient connection(address, client_options);
   connection.wait_connected();

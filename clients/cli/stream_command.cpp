@@ -11,7 +11,9 @@
 // on a steady clock started at the first send (and the end marker at the end
 // of the last phoneme), as a TTS front-end would; --fast sends everything at
 // once. The session's media clock says utterance time 0 plays
-// --playout-delay after the stream starts, on the "unix" clock.
+// --playout-delay after the stream starts, on the "unix" clock; by default
+// that is the lookahead's release delay on read speech (release_delay.hpp)
+// plus a margin, so that players on that clock get every frame in time.
 #include <algorithm>
 #include <chrono>
 #include <mutex>
@@ -23,6 +25,7 @@
 #include "commands.hpp"
 #include "files.hpp"
 #include "lipsync/error.hpp"
+#include "lipsync/release_delay.hpp"
 #include "network.hpp"
 #include "pipeline.hpp"
 #include "received_track_writer.hpp"
@@ -40,7 +43,8 @@ constexpr OptionSpec kOptions[] = {
     kServerModelOption,
     kSessionOption,
     {"playout-delay", 0, "MS",
-     "media clock: utterance time 0 plays this long after the stream starts, 0 to 600000", "1000"},
+     "media clock: utterance time 0 plays this long after the stream starts, 0 to 600000",
+     "the lookahead's release delay on read speech + 250 (1780 at lookahead 7)"},
     kFpsOption,
     kPhoneSetOption,
     kInputFormatOption,
@@ -50,6 +54,10 @@ constexpr OptionSpec kOptions[] = {
      "segments after a frame's own that must be known before it is sent, 0 to 7 (7 is exact)", "7"},
     {"timeout", 0, "S", "give up when the stream has not finished after S seconds, 1 to 86400", "3600"},
 };
+
+// On top of the lookahead's release delay: the network, scheduling and the
+// player's own margin (PlaybackBuffer::kDefaultReleaseMarginUs), ms.
+constexpr int kPlayoutMarginMs = 250;
 
 constexpr std::string_view kUsage = "lipsync stream INPUT [options]";
 constexpr std::string_view kDescription =
@@ -73,13 +81,16 @@ int run_stream(std::span<const std::string_view> args) {
   if (arguments.flag("realtime") && arguments.flag("fast")) throw UsageError("choose one of --realtime and --fast");
   const bool realtime = !arguments.flag("fast");
   const int chunk_size = parse_int_option("chunk", arguments.value("chunk").value_or("1"), 1, 10'000);
-  const int delay_ms = parse_int_option("playout-delay", arguments.value("playout-delay").value_or("1000"), 0, 600'000);
   const int timeout_s = parse_int_option("timeout", arguments.value("timeout").value_or("3600"), 1, 86'400);
 
   std::optional<InputFormat> input_format;
   if (const auto text = arguments.value("input-format")) input_format = parse_input_format_option(*text);
   const ParseOptions parse_options = parse_options_from(arguments);
   const RenderPlan plan = parse_render_plan(arguments);
+  const int delay_ms =
+      arguments.value("playout-delay")
+          ? parse_int_option("playout-delay", *arguments.value("playout-delay"), 0, 600'000)
+          : static_cast<int>(read_speech_release_delay_us(plan.render.lookahead) / 1000) + kPlayoutMarginMs;
   client::v1::AnimationSettings settings;
   settings.set_fps(static_cast<std::uint32_t>(plan.render.fps));
   if (arguments.value("lookahead")) settings.set_lookahead(static_cast<std::uint32_t>(plan.render.lookahead));

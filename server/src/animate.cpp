@@ -18,7 +18,10 @@
 // everything it sends after its header (frames, summary, Finish) leaves from
 // low-priority face threads, in order; the reactions only queue the released
 // frames. Streams that do not ask for the mesh never create or touch a solver
-// or a lane.
+// or a lane. A mesh stream is admitted against the face's capacity
+// (face_capacity.hpp: RESOURCE_EXHAUSTED beyond it) and ends with
+// DEADLINE_EXCEEDED if its face falls more than --mesh-max-lag-ms behind real
+// time.
 #include <algorithm>
 #include <atomic>
 #include <functional>
@@ -126,6 +129,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
       spdlog::warn("Animate refused peer={} status={}", context_->peer(), status_name(status));
     }
     stopped_ = true;
+    if (mesh_weight_milli_ > 0) service_.face_capacity().release(mesh_weight_milli_);
     if (lane_) {
       lane_->retire([this] { delete this; });  // after the face jobs still queued
     } else {
@@ -133,7 +137,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     }
   }
 
-  void start_write(const v1::TrackMessage* message) override { StartWrite(message); }
+  void start_write(const OutgoingMessage& message) override { StartWrite(&message.message()); }
   void finish(const grpc::Status& status) override { Finish(status); }
 
  private:
@@ -167,9 +171,14 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     if (auto status = prepare_face(plan_, service_.faces(), face_setup_); !status.ok()) return status;
     if (plan_.mesh) {
       if (auto status = caller_.hold(Quota::mesh_streams, mesh_hold_); !status.ok()) return status;
+      const std::int64_t weight = FaceCapacity::weight_milli(plan_.engine.mesh_subdivision, plan_.engine.render.fps);
+      if (auto status = service_.face_capacity().admit(weight); !status.ok()) return status;
+      mesh_weight_milli_ = weight;
+      face_deadline_.emplace(FaceDeadline::Clock::now(), std::chrono::milliseconds(service_.config().mesh_max_lag_ms));
     }
-    auto header = std::make_shared<v1::TrackMessage>();
-    *header->mutable_header() = plan_.header;
+    v1::TrackMessage header_message;
+    *header_message.mutable_header() = plan_.header;
+    const Message header = make_message(std::move(header_message));
     if (!settings.session().empty()) {
       std::shared_ptr<Session> session;
       if (auto status = caller_.hold(Quota::sessions, session_hold_); !status.ok()) return status;
@@ -211,16 +220,17 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
       for (const Segment& segment : segments_) renderer_->push(segment, track_);
       segments_.clear();
     }
-    send_frames();
+    send_frames(input_->newest_start_us());
     return grpc::Status::OK;
   }
 
   grpc::Status end() {
     renderer_->finish(track_);
-    send_frames();
+    send_frames(input_->end_us());
     in_order([this, phonemes = phonemes(), duration_us = input_->end_us()] {
-      auto summary = std::make_shared<v1::TrackMessage>();
-      encode_summary(frames_sent_, phonemes, duration_us, *summary->mutable_summary());
+      v1::TrackMessage summary_message;
+      encode_summary(frames_sent_, phonemes, duration_us, *summary_message.mutable_summary());
+      const Message summary = make_message(std::move(summary_message));
       if (auto session = current_session()) session->finish(summary);
       outbox_.push(summary);
     });
@@ -228,11 +238,12 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     return grpc::Status::OK;
   }
 
-  /// Sends the frames the renderer released since the last call.
-  void send_frames() {
+  /// Sends the frames the renderer released since the last call, when the
+  /// producer's input had reached utterance time `input_us`.
+  void send_frames(std::int64_t input_us) {
     if (track_.frame_count() == 0) return;
     if (!lane_) {
-      publish(track_);
+      publish(track_, input_us);
       track_.clear();
       return;
     }
@@ -241,11 +252,11 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     released->fps = track_.fps;
     std::swap(*released, track_);
     frames_in_lane_ += released->frame_count();
-    lane_->post([this, released] {
+    lane_->post([this, released, input_us, released_at = FaceDeadline::Clock::now()] {
       // Counted out before they reach the outbox, so the write completion that
       // follows sees them only there (and can resume reading).
       frames_in_lane_ -= released->frame_count();
-      if (!stopped_) publish(*released);
+      if (!stopped_) publish(*released, input_us, released_at);
     });
   }
 
@@ -254,13 +265,25 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
 
   std::size_t frames_waiting() const { return outbox_.queued_frames() + frames_in_lane_.load(); }
 
-  void publish(const Track& track) {
+  /// Encodes and sends `track`'s frames; a mesh stream (released at `released_at`)
+  /// first checks each batch against its face deadline and fails when it is late.
+  void publish(const Track& track, std::int64_t input_us,
+               FaceDeadline::Clock::time_point released_at = FaceDeadline::Clock::now()) {
     const std::size_t per_batch = face_setup_.frames_per_batch;
     for (std::size_t begin = 0; begin < track.frame_count(); begin += per_batch) {
       const std::size_t end = std::min(track.frame_count(), begin + per_batch);
-      auto message = std::make_shared<v1::TrackMessage>();
+      if (face_deadline_) {
+        const auto due = face_deadline_->due(track.t_us[begin], released_at);
+        if (auto late = face_deadline_->check(due, FaceDeadline::Clock::now()); !late.ok()) {
+          fail(late, "producer failed: " + late.error_message());
+          return;
+        }
+      }
+      v1::TrackMessage batch;
       encoder_.face = face_.get();
-      encode_frames(plan_, track, begin, end, frames_sent_, *message->mutable_frames(), encoder_);
+      encode_frames(plan_, track, begin, end, frames_sent_, *batch.mutable_frames(), encoder_);
+      batch.mutable_frames()->set_release_lag_us(input_us - track.t_us[begin]);
+      const Message message = make_message(std::move(batch));
       frames_sent_ += end - begin;
       // The session first: once the producer has seen a batch, subscribers can see it too.
       if (auto session = current_session()) session->publish(message, end - begin);
@@ -309,6 +332,8 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   // Only when the mesh is asked for: the face is built and stepped on the lane.
   FaceSetup face_setup_;
   std::optional<FaceLane> lane_;
+  std::int64_t mesh_weight_milli_ = 0;  // admitted against the face's capacity (0: no mesh)
+  std::optional<FaceDeadline> face_deadline_;
   std::unique_ptr<FaceStream> face_;
   // The face (above) and this stream's viseme event detector; used where frames are encoded
   // (the reactions, or the lane for a mesh stream), one batch at a time, in order.

@@ -106,6 +106,16 @@ const std::vector<Option>& options() {
          c.face_priority = s.value;
        },
        [](const ServerConfig& c) { return c.face_priority; }},
+      {"--max-mesh-streams-per-face-thread", "N",
+       "mesh work admitted per face thread, in level-1 30 fps streams (others weigh their CPU need), 0 to 1000",
+       [](ServerConfig& c, const Setting& s) {
+         c.max_mesh_streams_per_face_thread = static_cast<std::size_t>(parse_integer(s, 0, 1000));
+       },
+       [](const ServerConfig& c) { return std::to_string(c.max_mesh_streams_per_face_thread); }},
+      {"--mesh-max-lag-ms", "MS",
+       "a mesh stream whose face falls further behind real time ends with DEADLINE_EXCEEDED, 1 to 3600000",
+       [](ServerConfig& c, const Setting& s) { c.mesh_max_lag_ms = parse_integer(s, 1, 3'600'000); },
+       [](const ServerConfig& c) { return std::to_string(c.mesh_max_lag_ms); }},
       {"--stalled-subscriber-ms", "MS",
        "a subscriber cut off for falling behind that has stopped reading is cancelled after this long",
        [](ServerConfig& c, const Setting& s) { c.stalled_subscriber_ms = parse_integer(s, 1, 3'600'000); },

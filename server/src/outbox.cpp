@@ -1,6 +1,24 @@
 #include "outbox.hpp"
 
+#include <stdexcept>
+
+#include <grpcpp/impl/codegen/proto_utils.h>
+
 namespace lipsync::server {
+
+const grpc::ByteBuffer& OutgoingMessage::bytes() const {
+  if (encoded_.load(std::memory_order_acquire)) return bytes_;
+  std::lock_guard lock(encode_mutex_);
+  if (!encoded_.load(std::memory_order_relaxed)) {
+    bool own_buffer = false;
+    const grpc::Status status = grpc::SerializationTraits<v1::TrackMessage>::Serialize(message_, &bytes_, &own_buffer);
+    // Serialising an in-memory message only fails beyond protobuf's 2 GiB limit,
+    // which the server's batch and replay limits keep far away.
+    if (!status.ok()) throw std::runtime_error("cannot serialise a TrackMessage: " + status.error_message());
+    encoded_.store(true, std::memory_order_release);
+  }
+  return bytes_;
+}
 
 Outbox::Outbox(OutboxTarget& target, std::size_t max_frames, std::string overflow_message)
     : target_(target), max_frames_(max_frames), overflow_message_(std::move(overflow_message)) {}
@@ -72,7 +90,7 @@ std::size_t Outbox::queued_frames() const {
 }
 
 void Outbox::pump() {
-  const v1::TrackMessage* write = nullptr;
+  const OutgoingMessage* write = nullptr;
   std::optional<grpc::Status> finish;
   {
     std::lock_guard lock(mutex_);
@@ -89,7 +107,7 @@ void Outbox::pump() {
     }
   }
   if (write) {
-    target_.start_write(write);
+    target_.start_write(*write);
   } else if (finish) {
     target_.finish(*finish);
   }

@@ -24,6 +24,7 @@ grpc::Status PhonemeInput::push(const v1::Phoneme& phoneme, std::vector<Segment>
   } catch (const InputError& error) {
     return invalid(error.what());
   }
+  newest_start_us_ = phoneme.start_us();
   if (builder_.end_us() > config_.max_utterance_ms * 1000) {
     return {grpc::StatusCode::RESOURCE_EXHAUSTED,
             std::string(kStreamSource) + ":" + std::to_string(index) + ": the utterance reaches " +

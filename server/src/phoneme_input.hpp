@@ -38,11 +38,15 @@ class PhonemeInput {
   std::size_t count() const { return count_; }
   /// End of the last phoneme accepted (0 before the first).
   std::int64_t end_us() const { return builder_.end_us(); }
+  /// Start of the last phoneme accepted (0 before the first): with phonemes sent
+  /// as they are spoken, how far the producer's utterance clock has got.
+  std::int64_t newest_start_us() const { return newest_start_us_; }
 
  private:
   const ServerConfig& config_;
   SegmentBuilder builder_;
   std::size_t count_ = 0;
+  std::int64_t newest_start_us_ = 0;
 };
 
 }  // namespace lipsync::server

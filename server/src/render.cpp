@@ -70,10 +70,22 @@ grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* co
     admission_.release_render();
     return reactor;
   }
-  // Seconds of solver work for a long utterance: off the reaction (face_workers.hpp).
+  // Seconds of solver work for a long utterance: off the reaction (face_workers.hpp),
+  // admitted against the face's capacity (face_capacity.hpp) for as long as it runs.
+  const v1::AnimationSettings& settings = request->settings();
+  const std::int64_t weight = FaceCapacity::weight_milli(
+      settings.outputs().mesh().has_subdivision() ? static_cast<int>(settings.outputs().mesh().subdivision())
+                                                  : static_cast<int>(kMeshSubdivisionSetting.default_value),
+      settings.fps() == 0 ? static_cast<int>(kFpsSetting.default_value) : static_cast<int>(settings.fps()));
+  if (grpc::Status capacity = face_capacity_.admit(weight); !capacity.ok()) {
+    auto* reactor = unary(context, "Render", [&] { return capacity; });
+    admission_.release_render();
+    return reactor;
+  }
   auto* reactor = context->DefaultReactor();
-  face_workers_.post([this, context, request, response, reactor, mesh_hold] {
+  face_workers_.post([this, context, request, response, reactor, mesh_hold, weight] {
     reactor->Finish(run_unary(context, "Render", [&] { return render(*this, *request, *response); }));
+    face_capacity_.release(weight);
     admission_.release_render();
   });
   return reactor;

@@ -19,6 +19,10 @@
 namespace lipsync::server {
 namespace {
 
+std::size_t face_thread_count(const ServerConfig& config) {
+  return config.face_threads > 0 ? config.face_threads : std::max(1u, std::thread::hardware_concurrency());
+}
+
 FaceWorkers::Priority face_priority(const std::string& name) {
   if (name == "idle") return FaceWorkers::Priority::idle;
   if (name == "low") return FaceWorkers::Priority::low;
@@ -34,7 +38,7 @@ LipSyncService::LipSyncService(const ServerConfig& config, const ModelCatalog& c
       admission_(config.max_streams),
       routing_(config.replica_name, config.listen),
       tenants_(config.api_keys),
-      face_workers_(config.face_threads > 0 ? config.face_threads : std::max(1u, std::thread::hardware_concurrency()),
-                    face_priority(config.face_priority)) {}
+      face_capacity_(config.max_mesh_streams_per_face_thread, face_thread_count(config)),
+      face_workers_(face_thread_count(config), face_priority(config.face_priority)) {}
 
 }  // namespace lipsync::server

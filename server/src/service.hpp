@@ -7,6 +7,7 @@
 
 #include "admission.hpp"
 #include "catalog.hpp"
+#include "face_capacity.hpp"
 #include "face_stream.hpp"
 #include "face_workers.hpp"
 #include "lipsync/server/config.hpp"
@@ -23,7 +24,9 @@
 
 namespace lipsync::server {
 
-class LipSyncService final : public v1::LipSync::CallbackService {
+// Subscribe is a raw method: its reactor writes the bytes a session serialised
+// once for all its subscribers (outbox.hpp); the request is parsed in subscribe.cpp.
+class LipSyncService final : public v1::LipSync::WithRawCallbackMethod_Subscribe<v1::LipSync::CallbackService> {
  public:
   LipSyncService(const ServerConfig& config, const ModelCatalog& catalog);
 
@@ -31,8 +34,8 @@ class LipSyncService final : public v1::LipSync::CallbackService {
       grpc::CallbackServerContext* context) override;
   grpc::ServerUnaryReactor* Render(grpc::CallbackServerContext* context, const v1::RenderRequest* request,
                                    v1::RenderResponse* response) override;
-  grpc::ServerWriteReactor<v1::TrackMessage>* Subscribe(grpc::CallbackServerContext* context,
-                                                        const v1::SubscribeRequest* request) override;
+  grpc::ServerWriteReactor<grpc::ByteBuffer>* Subscribe(grpc::CallbackServerContext* context,
+                                                        const grpc::ByteBuffer* request) override;
   grpc::ServerWriteReactor<v1::SpeakResponse>* Speak(grpc::CallbackServerContext* context,
                                                      const v1::SpeakRequest* request) override;
   grpc::ServerUnaryReactor* ListModels(grpc::CallbackServerContext* context,
@@ -56,6 +59,8 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   SpeechThread& speech_thread() { return speech_thread_; }
   /// API keys, tenants and their quotas (--api-keys; open without).
   Tenants& tenants() { return tenants_; }
+  /// How much mesh work is admitted (--max-mesh-streams-per-face-thread).
+  FaceCapacity& face_capacity() { return face_capacity_; }
 
  private:
   const ServerConfig& config_;
@@ -65,6 +70,7 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   SessionRouting routing_;
   Tenants tenants_;
   FaceLibrary faces_;
+  FaceCapacity face_capacity_;
   // After what its jobs use, so that it is joined before they go.
   SpeechThread speech_thread_;
   // Last, so that it is destroyed first: its destructor runs the jobs still

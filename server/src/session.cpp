@@ -6,9 +6,10 @@ namespace {
 
 /// Bytes of mesh positions in a batch (0 for every stream without the mesh output); O(1).
 std::size_t mesh_bytes(const lipsync::server::Message& batch) {
-  if (!batch->has_frames()) return 0;
-  return static_cast<std::size_t>(batch->frames().mesh_positions_size()) * sizeof(float) +
-         batch->frames().mesh_positions_int16().size();
+  const lipsync::v1::TrackMessage& message = batch->message();
+  if (!message.has_frames()) return 0;
+  return static_cast<std::size_t>(message.frames().mesh_positions_size()) * sizeof(float) +
+         message.frames().mesh_positions_int16().size();
 }
 
 }  // namespace

@@ -4,7 +4,8 @@
 // The producer pushes each message once; the session hands the same immutable
 // message (a shared_ptr) to every subscriber's bounded Outbox and to a replay
 // buffer that keeps the header and the last `replay_frames` frames for late
-// joiners. Pushing never waits: a subscriber whose outbox overflows is ended
+// joiners. Subscribers write the message's bytes, serialised once and shared
+// (outbox.hpp), so a batch is encoded once for any number of subscribers. Pushing never waits: a subscriber whose outbox overflows is ended
 // with RESOURCE_EXHAUSTED by its outbox and dropped from the session, and the
 // producer and the other subscribers go on at full speed.
 //

@@ -142,8 +142,9 @@ class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
     if (auto status = service_.routing().check_metadata(*context_, settings.session()); !status.ok()) return status;
     if (auto status = resolve_settings(settings, service_.catalog(), true, plan_); !status.ok()) return status;
     if (!settings.session().empty()) {
-      auto header = std::make_shared<v1::TrackMessage>();
-      *header->mutable_header() = plan_.header;
+      v1::TrackMessage header_message;
+      *header_message.mutable_header() = plan_.header;
+      const Message header = make_message(std::move(header_message));
       if (auto status = caller_.hold(Quota::sessions, session_hold_); !status.ok()) return status;
       if (auto status = service_.sessions().open(settings.session(), header, session_,
                                                  caller_.session_key(settings.session()));
@@ -229,11 +230,13 @@ class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
     send_frames(track);
     send_audio_until(audio_.samples.size());
 
-    auto summary = std::make_shared<v1::TrackMessage>();
-    encode_summary(frames_sent_, input.count(), input.end_us(), *summary->mutable_summary());
-    if (session_) session_->finish(summary);
     v1::SpeakSummary& speak_summary = *responses_.emplace_back().mutable_summary();
-    *speak_summary.mutable_track() = summary->summary();
+    encode_summary(frames_sent_, input.count(), input.end_us(), *speak_summary.mutable_track());
+    if (session_) {
+      v1::TrackMessage summary;
+      *summary.mutable_summary() = speak_summary.track();
+      session_->finish(make_message(std::move(summary)));
+    }
     speak_summary.set_sample_count(samples_sent_);
     speak_summary.set_audio_duration_us(audio_.duration_us());
     return grpc::Status::OK;
@@ -250,9 +253,9 @@ class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
       encode_frames(plan_, track, begin, end, frames_sent_, batch, encoder_);
       frames_sent_ += end - begin;
       if (session_) {
-        auto message = std::make_shared<v1::TrackMessage>();
-        *message->mutable_frames() = batch;
-        session_->publish(message, end - begin);
+        v1::TrackMessage message;
+        *message.mutable_frames() = batch;
+        session_->publish(make_message(std::move(message)), end - begin);
       }
     }
     track.clear();

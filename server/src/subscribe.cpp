@@ -1,6 +1,8 @@
 // Subscribe: follow a named session's messages (session.hpp) from the
 // beginning (what the session still holds) or from now, through an Outbox
-// with a bounded queue. A subscriber that falls more than
+// with a bounded queue. It is a raw method (service.hpp): it writes each
+// message's bytes, serialised once per session and shared by all its
+// subscribers, and parses its SubscribeRequest itself. A subscriber that falls more than
 // --subscriber-queue-frames behind is cut off with RESOURCE_EXHAUSTED; if it
 // has also stopped reading, so that even that status cannot leave, an alarm
 // cancels the call after --stalled-subscriber-ms. The reactor is local to this
@@ -11,6 +13,7 @@
 #include <string>
 
 #include <grpcpp/alarm.h>
+#include <grpcpp/impl/codegen/proto_utils.h>
 #include <spdlog/spdlog.h>
 
 #include "call_log.hpp"
@@ -20,10 +23,10 @@
 namespace lipsync::server {
 namespace {
 
-class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>, public OutboxTarget {
+class SubscribeReactor final : public grpc::ServerWriteReactor<grpc::ByteBuffer>, public OutboxTarget {
  public:
   SubscribeReactor(LipSyncService& service, grpc::CallbackServerContext* context,
-                   const v1::SubscribeRequest& request)
+                   const v1::SubscribeRequest& request, const grpc::Status& parsed)
       : service_(service),
         context_(context),
         session_name_(request.session()),
@@ -48,6 +51,10 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
         outbox_->close(status);
         return;
       }
+    }
+    if (!parsed.ok()) {
+      outbox_->close(parsed);
+      return;
     }
     if (auto routed = service_.routing().check_metadata(*context_, session_name_); !routed.ok()) {
       outbox_->close(routed);
@@ -82,9 +89,11 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
     delete this;
   }
 
-  void start_write(const v1::TrackMessage* message) override {
-    if (message->has_frames()) frames_sent_ += static_cast<std::uint64_t>(message->frames().t_us_size());
-    StartWrite(message);
+  void start_write(const OutgoingMessage& message) override {
+    if (message.message().has_frames()) {
+      frames_sent_ += static_cast<std::uint64_t>(message.message().frames().t_us_size());
+    }
+    StartWrite(&message.bytes());
   }
   void finish(const grpc::Status& status) override { Finish(status); }
 
@@ -136,9 +145,16 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
 
 }  // namespace
 
-grpc::ServerWriteReactor<v1::TrackMessage>* LipSyncService::Subscribe(grpc::CallbackServerContext* context,
-                                                                      const v1::SubscribeRequest* request) {
-  return new SubscribeReactor(*this, context, *request);
+grpc::ServerWriteReactor<grpc::ByteBuffer>* LipSyncService::Subscribe(grpc::CallbackServerContext* context,
+                                                                      const grpc::ByteBuffer* raw_request) {
+  v1::SubscribeRequest request;
+  grpc::ByteBuffer bytes = *raw_request;  // Deserialize consumes its buffer; this copy only refs the slices
+  const grpc::Status parsed = grpc::SerializationTraits<v1::SubscribeRequest>::Deserialize(&bytes, &request);
+  return new SubscribeReactor(*this, context, request,
+                              parsed.ok() ? grpc::Status::OK
+                                          : grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                                                         "Subscribe: the request is not a SubscribeRequest (" +
+                                                             parsed.error_message() + ")"));
 }
 
 }  // namespace lipsync::server

@@ -7,6 +7,8 @@
 #include <span>
 #include <string>
 
+#include "lipsync/release_delay.hpp"
+
 namespace lipsync::server {
 namespace {
 
@@ -35,6 +37,8 @@ v1::TrackHeader encode_header(const Plan& plan, const v1::AnimationSettings& set
   if (with_session) header.set_session(settings.session());
   if (settings.has_media_clock()) *header.mutable_media_clock() = settings.media_clock();
   header.set_lookahead(static_cast<std::uint32_t>(plan.engine.render.lookahead));
+  // What a stream at this lookahead waits (Render says it too, so that its header equals Animate's).
+  header.set_release_delay_us(read_speech_release_delay_us(plan.engine.render.lookahead));
   if (plan.visemes) {
     header.set_viseme_vocabulary(plan.viseme_vocabulary);
     for (const auto& name : plan.visemes->names()) header.add_viseme_names(name);

@@ -12,6 +12,14 @@
 // and protobuf cost, so `lipsync loadtest --no-verify` against it gives the
 // ceiling lipsyncd is compared with (tools/perf/server_loadtest.sh).
 //
+// Fan-out: an Animate stream whose settings name a session also publishes its
+// messages there, and Subscribe sends a session's messages (all of them from
+// the start, then each as it comes) to any number of streams. As in lipsyncd,
+// each message is serialised once into a grpc::ByteBuffer that every
+// subscriber's write shares (Subscribe is a raw method), so N subscribers cost
+// what N writes of the same bytes cost. A session is forgotten 10 s after its
+// producer ends; an unknown one is NOT_FOUND.
+//
 //   grpc_baseline_server [--listen 127.0.0.1:0]
 //
 // Prints "listening on HOST:PORT" on stdout; SIGINT/SIGTERM stop it.
@@ -21,8 +29,10 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <chrono>
 #include <deque>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -30,6 +40,7 @@
 #include <vector>
 
 #include <grpcpp/grpcpp.h>
+#include <grpcpp/impl/codegen/proto_utils.h>
 
 // The generated base declares sync-API overloads of Animate that the callback
 // override hides on purpose (as in server/src/service.hpp).
@@ -46,15 +57,173 @@ constexpr int kChannels = 16;
 constexpr int kArkit = 52;
 constexpr std::size_t kLookahead = 7;
 constexpr std::int64_t kMaxFramesPerBatch = 512;
+constexpr auto kSessionRetention = std::chrono::seconds(10);
+
+/// The outgoing side of a stream: one write in flight, Finish once nothing is
+/// queued. `Item` is what the stream writes (a typed message or bytes).
+template <class Item, class Reactor>
+class Writer {
+ public:
+  explicit Writer(Reactor& reactor) : reactor_(reactor) {}
+
+  void push(Item item) {
+    {
+      std::lock_guard lock(mutex_);
+      if (status_) return;
+      queue_.push_back(std::move(item));
+    }
+    pump();
+  }
+  void close(const grpc::Status& status) {
+    {
+      std::lock_guard lock(mutex_);
+      if (!status_) status_ = status;
+    }
+    pump();
+  }
+  void abort(const grpc::Status& status) {
+    {
+      std::lock_guard lock(mutex_);
+      queue_.clear();
+      if (!status_) status_ = status;
+    }
+    pump();
+  }
+  void on_write_done(bool ok) {
+    {
+      std::lock_guard lock(mutex_);
+      writing_ = false;
+      if (!ok) {
+        queue_.clear();
+        if (!status_) status_ = grpc::Status(grpc::StatusCode::CANCELLED, "the client went away");
+      }
+    }
+    pump();
+  }
+
+ private:
+  void pump() {
+    bool write = false;
+    bool finish = false;
+    grpc::Status status;
+    {
+      std::lock_guard lock(mutex_);
+      if (writing_ || finish_called_) return;
+      if (!queue_.empty()) {
+        in_flight_ = std::move(queue_.front());
+        queue_.pop_front();
+        writing_ = true;
+        write = true;
+      } else if (status_) {
+        finish_called_ = true;
+        finish = true;
+        status = *status_;
+      }
+    }
+    if (write) {
+      reactor_.StartWrite(pointer(in_flight_));
+    } else if (finish) {
+      reactor_.Finish(status);
+    }
+  }
+  static const grpc::ByteBuffer* pointer(const grpc::ByteBuffer& bytes) { return &bytes; }
+  static const v1::TrackMessage* pointer(const Message& message) { return message.get(); }
+
+  Reactor& reactor_;
+  std::mutex mutex_;
+  std::deque<Item> queue_;
+  Item in_flight_;
+  bool writing_ = false;
+  bool finish_called_ = false;
+  std::optional<grpc::Status> status_;
+};
+
+class SubscribeReactor;
+
+/// One producer's messages, serialised once, and the streams following them.
+struct Session {
+  std::mutex mutex;
+  std::vector<grpc::ByteBuffer> messages;
+  std::vector<SubscribeReactor*> subscribers;
+  std::optional<std::chrono::steady_clock::time_point> ended_at;
+};
+
+class SessionMap {
+ public:
+  std::shared_ptr<Session> open(const std::string& name) {
+    std::lock_guard lock(mutex_);
+    const auto now = std::chrono::steady_clock::now();
+    std::erase_if(sessions_, [&](const auto& entry) {
+      std::lock_guard session_lock(entry.second->mutex);
+      return entry.second->ended_at && now - *entry.second->ended_at > kSessionRetention;
+    });
+    auto session = std::make_shared<Session>();
+    sessions_[name] = session;
+    return session;
+  }
+  std::shared_ptr<Session> find(const std::string& name) {
+    std::lock_guard lock(mutex_);
+    const auto it = sessions_.find(name);
+    return it == sessions_.end() ? nullptr : it->second;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::map<std::string, std::shared_ptr<Session>> sessions_;
+};
+
+class SubscribeReactor final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
+ public:
+  SubscribeReactor(SessionMap& sessions, const grpc::ByteBuffer& raw_request) : writer_(*this) {
+    v1::SubscribeRequest request;
+    grpc::ByteBuffer bytes = raw_request;
+    if (!grpc::SerializationTraits<v1::SubscribeRequest>::Deserialize(&bytes, &request).ok()) {
+      writer_.close(grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "not a SubscribeRequest"));
+      return;
+    }
+    session_ = sessions.find(request.session());
+    if (!session_) {
+      writer_.close(grpc::Status(grpc::StatusCode::NOT_FOUND, "no session '" + request.session() + "'"));
+      return;
+    }
+    std::lock_guard lock(session_->mutex);
+    for (const grpc::ByteBuffer& message : session_->messages) writer_.push(message);
+    if (session_->ended_at) {
+      writer_.close(grpc::Status::OK);
+    } else {
+      session_->subscribers.push_back(this);
+    }
+  }
+
+  /// Called under the session's lock.
+  void push(const grpc::ByteBuffer& message) { writer_.push(message); }
+  void close() { writer_.close(grpc::Status::OK); }
+
+  void OnWriteDone(bool ok) override { writer_.on_write_done(ok); }
+  void OnCancel() override { writer_.abort(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled")); }
+  void OnDone() override {
+    if (session_) {
+      std::lock_guard lock(session_->mutex);
+      std::erase(session_->subscribers, this);
+    }
+    delete this;
+  }
+
+ private:
+  friend class Writer<grpc::ByteBuffer, SubscribeReactor>;
+  Writer<grpc::ByteBuffer, SubscribeReactor> writer_;
+  std::shared_ptr<Session> session_;
+};
 
 class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, v1::TrackMessage> {
  public:
-  AnimateReactor() { StartRead(&request_); }
+  explicit AnimateReactor(SessionMap& sessions) : sessions_(sessions), writer_(*this) { StartRead(&request_); }
 
   void OnReadDone(bool ok) override {
     if (!ok) {
       close(ended_ ? grpc::Status::OK
                    : grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "the client closed the stream before `end`"));
+      end_session();
       return;
     }
     if (request_.has_settings()) {
@@ -72,33 +241,17 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
       summary->mutable_summary()->set_phonemes(starts_.size());
       summary->mutable_summary()->set_duration_us(end_us_);
       push(std::move(summary));
+      end_session();
       ended_ = true;
     }
     StartRead(&request_);
   }
 
-  void OnWriteDone(bool ok) override {
-    {
-      std::lock_guard lock(mutex_);
-      writing_ = false;
-      in_flight_.reset();
-      if (!ok) {
-        queue_.clear();
-        if (!status_) status_ = grpc::Status(grpc::StatusCode::CANCELLED, "the client went away");
-      }
-    }
-    pump();
-  }
-
+  void OnWriteDone(bool ok) override { writer_.on_write_done(ok); }
   void OnCancel() override {
-    {
-      std::lock_guard lock(mutex_);
-      queue_.clear();
-      if (!status_) status_ = grpc::Status(grpc::StatusCode::CANCELLED, "cancelled");
-    }
-    pump();
+    writer_.abort(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
+    end_session();
   }
-
   void OnDone() override { delete this; }
 
  private:
@@ -113,6 +266,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     h.set_fps(fps_);
     h.set_lookahead(kLookahead);
     h.set_session(settings.session());
+    if (!settings.session().empty()) session_ = sessions_.open(settings.session());
     if (channels_) {
       for (int c = 0; c < kChannels; ++c) h.add_channels("channel_" + std::to_string(c));
     }
@@ -147,48 +301,34 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     }
   }
 
+  /// To this stream, and serialised once to the session's subscribers.
   void push(Message message) {
-    {
-      std::lock_guard lock(mutex_);
-      if (status_) return;
-      queue_.push_back(std::move(message));
+    if (session_) {
+      grpc::ByteBuffer bytes;
+      bool own_buffer = false;
+      (void)grpc::SerializationTraits<v1::TrackMessage>::Serialize(*message, &bytes, &own_buffer);
+      std::lock_guard lock(session_->mutex);
+      session_->messages.push_back(bytes);
+      for (SubscribeReactor* subscriber : session_->subscribers) subscriber->push(bytes);
     }
-    pump();
+    writer_.push(std::move(message));
   }
 
-  void close(const grpc::Status& status) {
-    {
-      std::lock_guard lock(mutex_);
-      if (!status_) status_ = status;
-    }
-    pump();
+  void close(const grpc::Status& status) { writer_.close(status); }
+
+  void end_session() {
+    if (!session_) return;
+    std::lock_guard lock(session_->mutex);
+    if (session_->ended_at) return;
+    session_->ended_at = std::chrono::steady_clock::now();
+    for (SubscribeReactor* subscriber : session_->subscribers) subscriber->close();
+    session_->subscribers.clear();
   }
 
-  void pump() {
-    const v1::TrackMessage* write = nullptr;
-    bool finish = false;
-    grpc::Status status;
-    {
-      std::lock_guard lock(mutex_);
-      if (writing_ || finish_called_) return;
-      if (!queue_.empty()) {
-        in_flight_ = std::move(queue_.front());
-        queue_.pop_front();
-        writing_ = true;
-        write = in_flight_.get();
-      } else if (status_) {
-        finish_called_ = true;
-        finish = true;
-        status = *status_;
-      }
-    }
-    if (write) {
-      StartWrite(write);
-    } else if (finish) {
-      Finish(status);
-    }
-  }
-
+  friend class Writer<Message, AnimateReactor>;
+  SessionMap& sessions_;
+  std::shared_ptr<Session> session_;
+  Writer<Message, AnimateReactor> writer_;
   v1::AnimateRequest request_;
   std::uint32_t fps_ = 30;
   bool channels_ = true;
@@ -197,20 +337,19 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   std::vector<std::int64_t> starts_;
   std::int64_t end_us_ = 0;
   std::int64_t next_frame_ = 0;
-
-  std::mutex mutex_;
-  std::deque<Message> queue_;
-  Message in_flight_;
-  bool writing_ = false;
-  bool finish_called_ = false;
-  std::optional<grpc::Status> status_;
 };
 
-class BaselineService final : public v1::LipSync::CallbackService {
+class BaselineService final : public v1::LipSync::WithRawCallbackMethod_Subscribe<v1::LipSync::CallbackService> {
   grpc::ServerBidiReactor<v1::AnimateRequest, v1::TrackMessage>* Animate(
       grpc::CallbackServerContext* /*context*/) override {
-    return new AnimateReactor();
+    return new AnimateReactor(sessions_);
   }
+  grpc::ServerWriteReactor<grpc::ByteBuffer>* Subscribe(grpc::CallbackServerContext* /*context*/,
+                                                        const grpc::ByteBuffer* request) override {
+    return new SubscribeReactor(sessions_, *request);
+  }
+
+  SessionMap sessions_;
 };
 #pragma GCC diagnostic pop
 

@@ -18,6 +18,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -95,6 +96,32 @@ int unused_port() {
   return ntohs(address.sin_port);
 }
 
+/// What `lipsync play` says when it stops: underruns, worst lateness and the playout offset it chose.
+struct PlaySummary {
+  long underruns = -1;
+  std::optional<long> max_lateness_ms;
+  long playout_offset_ms = -1;
+  long release_delay_ms = -1;
+  long max_release_lag_ms = -1;
+  std::string out;  ///< everything play printed
+};
+
+PlaySummary parse_play_summary(const std::string& out) {
+  static const std::regex summary(
+      R"((\d+) underruns, max behind -?\d+ ms, max lateness (-?\d+ ms|-), playout offset (\d+) ms \(release delay )"
+      R"((\d+) ms, max release lag (-?\d+) ms\))");
+  std::smatch match;
+  PlaySummary parsed;
+  parsed.out = out;
+  if (!std::regex_search(out, match, summary)) return parsed;
+  parsed.underruns = std::stol(match[1]);
+  if (match[2] != "-") parsed.max_lateness_ms = std::stol(match[2]);
+  parsed.playout_offset_ms = std::stol(match[3]);
+  parsed.release_delay_ms = std::stol(match[4]);
+  parsed.max_release_lag_ms = std::stol(match[5]);
+  return parsed;
+}
+
 using testing::ChildProcess;
 using testing::RunResult;
 
@@ -157,6 +184,24 @@ class NetworkCliTest : public ::testing::Test {
   static std::string fixture(std::string_view name) { return (kFixtures / name).string(); }
   static const std::string& server() { return *address_; }
 
+  /// `lipsync stream --realtime` of real read speech (flite's timing of a 2 s sentence from
+  /// tests/data/closures) with `stream_options`, followed by `lipsync play`: its summary, after
+  /// checking that both exited 0 and that no frame was late (no underrun, lateness always < 0).
+  PlaySummary play_real_speech_without_late_frames(const std::string& file, const std::string& session,
+                                                   const std::vector<std::string>& stream_options) {
+    std::vector<std::string> stream = {"stream", (fs::path(LIPSYNC_TEST_DATA_DIR) / "closures" / file).string(),
+                                       "--realtime", "--session", session, "--server", server(), "-o", "stream.json"};
+    stream.insert(stream.end(), stream_options.begin(), stream_options.end());
+    auto producer = start(stream, "producer");
+    const RunResult played = run({"play", session, "--wait", "5", "--no-tty", "--server", server()});
+    EXPECT_EQ(producer->wait(), 0) << read_text(capture_ / "producer.err");
+    EXPECT_EQ(played.status, 0) << played.err;
+    const PlaySummary summary = parse_play_summary(played.out);
+    EXPECT_EQ(summary.underruns, 0) << played.out;
+    EXPECT_TRUE(summary.max_lateness_ms.has_value() && *summary.max_lateness_ms < 0) << played.out;
+    return summary;
+  }
+
   static ChildProcess* server_;
   static fs::path* server_dir_;
   static std::string* address_;
@@ -213,6 +258,22 @@ TEST_F(NetworkCliTest, play_prints_a_line_per_update_until_the_session_ends) {
   EXPECT_THAT(played.out, HasSubstr("jaw |"));
   EXPECT_THAT(played.out, HasSubstr("anchored to media clock 'unix'"));
   EXPECT_GT(std::count(played.out.begin(), played.out.end(), '\n'), 10);
+}
+
+TEST_F(NetworkCliTest, play_of_real_speech_streamed_in_real_time_has_no_late_frame_at_the_defaults) {
+  const PlaySummary summary = play_real_speech_without_late_frames("flite_1.psdur", "play-real-speech", {});
+  // The producer's default delay covers the lookahead: played on its media clock, no offset.
+  EXPECT_EQ(summary.playout_offset_ms, 0) << summary.out;
+  // The server really made frames wait for the 7 segments ahead (else nothing was shown).
+  EXPECT_GT(summary.max_release_lag_ms, 300) << summary.out;
+  EXPECT_LE(summary.max_release_lag_ms, summary.release_delay_ms) << summary.out;
+}
+
+TEST_F(NetworkCliTest, play_delays_itself_when_the_producers_playout_delay_is_shorter_than_the_release_delay) {
+  const PlaySummary summary =
+      play_real_speech_without_late_frames("flite_2.psdur", "play-short-delay", {"--playout-delay", "200"});
+  // 200 ms cannot cover a wait of over a second: the player adds the difference.
+  EXPECT_GT(summary.playout_offset_ms, summary.release_delay_ms - 200) << summary.out;
 }
 
 TEST_F(NetworkCliTest, play_stops_after_the_requested_number_of_updates) {

@@ -189,5 +189,88 @@ TEST(PlaybackBuffer, random_streams_interpolate_within_neighbours_and_stay_bound
   EXPECT_GT(buffer.stats().clamped_samples, 0U);
 }
 
+// Playout offset: the producer's input reaches utterance time 0 at clock 0 and
+// its media clock plays utterance time 0 at 1 s; the server says frames may
+// leave up to 1.5 s after the input (release delay), and the buffer allows
+// 0.1 s on top.
+constexpr std::int64_t kAnchorUs = 1'000'000;
+constexpr std::int64_t kReleaseDelayUs = 1'500'000;
+constexpr std::int64_t kMarginUs = 100'000;
+
+PlaybackBuffer released_stream(std::int64_t anchor_us = kAnchorUs) {
+  PlaybackBuffer buffer(1);
+  buffer.anchor(anchor_us);
+  buffer.expect_release_delay(kReleaseDelayUs, kMarginUs);
+  return buffer;
+}
+
+TEST(PlaybackBuffer, plays_late_enough_for_the_servers_release_delay_before_any_frame_is_late) {
+  PlaybackBuffer buffer = released_stream();
+  // The first batch left 1.2 s after the input reached its frame (lag): with the
+  // 1 s anchor it would be 0.2 s late, and later frames up to 0.5 s late.
+  buffer.note_batch(0, 1'200'000, 1'200'000);
+  EXPECT_EQ(buffer.playout_offset_us(), kReleaseDelayUs + kMarginUs - kAnchorUs);
+  ASSERT_TRUE(buffer.push(0, std::array{0.0F}, 1'200'000));
+  buffer.note_batch(33'333, 1'500'000, 1'533'333);
+  ASSERT_TRUE(buffer.push(33'333, std::array{1.0F}, 1'533'333));
+  EXPECT_EQ(buffer.stats().max_lateness_us, 1'533'333 - (kAnchorUs + buffer.playout_offset_us() + 33'333));
+  EXPECT_LT(*buffer.stats().max_lateness_us, 0);
+  std::array<float, 1> out{};
+  EXPECT_EQ(buffer.sample(kAnchorUs + buffer.playout_offset_us() + 33'333, out).state, SampleState::playing);
+  EXPECT_EQ(buffer.stats().underruns, 0U);
+}
+
+TEST(PlaybackBuffer, keeps_the_media_clock_when_the_producers_delay_covers_the_release_delay) {
+  PlaybackBuffer buffer = released_stream(kReleaseDelayUs + 2 * kMarginUs);
+  buffer.note_batch(0, 1'200'000, 1'201'000);
+  EXPECT_EQ(buffer.playout_offset_us(), 0);
+  std::array<float, 1> out{};
+  ASSERT_TRUE(buffer.push(0, std::array{0.0F}, 1'201'000));
+  EXPECT_EQ(buffer.sample(kReleaseDelayUs + 2 * kMarginUs, out).utterance_us, 0);
+}
+
+TEST(PlaybackBuffer, a_lag_beyond_the_release_delay_raises_the_offset_for_the_frames_after_it) {
+  PlaybackBuffer buffer = released_stream();
+  buffer.note_batch(0, 500'000, 500'000);
+  const std::int64_t before = buffer.playout_offset_us();
+  // A pause inside the lookahead window: this batch waited 2 s for its input.
+  buffer.note_batch(1'000'000, 2'000'000, 3'000'000);
+  EXPECT_EQ(buffer.playout_offset_us(), 2'000'000 + kMarginUs - kAnchorUs);
+  EXPECT_GT(buffer.playout_offset_us(), before);
+  EXPECT_EQ(buffer.stats().max_release_lag_us, 2'000'000);
+}
+
+TEST(PlaybackBuffer, a_replayed_batch_does_not_hold_the_offset_once_a_live_one_arrives) {
+  PlaybackBuffer buffer = released_stream();
+  // A late joiner: the first batches are replayed 5 s after they were released.
+  buffer.note_batch(0, 1'000'000, 6'000'000);
+  EXPECT_GT(buffer.playout_offset_us(), 4'000'000);
+  // The first live batch arrives as it leaves the server: the input clock was at 0.
+  buffer.note_batch(4'800'000, 1'000'000, 5'800'000);
+  EXPECT_EQ(buffer.playout_offset_us(), kReleaseDelayUs + kMarginUs - kAnchorUs);
+}
+
+TEST(PlaybackBuffer, samples_before_the_first_frame_do_not_hold_back_a_later_playout_offset) {
+  PlaybackBuffer buffer = released_stream();
+  std::array<float, 1> out{};
+  // The player ticks before anything arrived: the media clock is already at 0.4 s.
+  EXPECT_EQ(buffer.sample(kAnchorUs + 400'000, out).state, SampleState::no_frames);
+  buffer.note_batch(0, 1'200'000, 1'200'000);
+  ASSERT_TRUE(buffer.push(0, std::array{0.5F}, 1'200'000));
+  // With the offset the clock now shows utterance time −0.4 s: the first frame, held, not an underrun.
+  const PlaybackSample sample = buffer.sample(1'200'000, out);
+  EXPECT_EQ(sample.state, SampleState::before_first);
+  EXPECT_FALSE(sample.clamped);
+  EXPECT_EQ(buffer.stats().underruns, 0U);
+}
+
+TEST(PlaybackBuffer, without_a_release_delay_from_the_server_the_offset_stays_zero) {
+  PlaybackBuffer buffer(1);
+  buffer.anchor(kAnchorUs);
+  buffer.note_batch(0, 1'200'000, 1'200'000);
+  EXPECT_EQ(buffer.playout_offset_us(), 0);
+  EXPECT_EQ(buffer.stats().max_release_lag_us, 1'200'000);
+}
+
 }  // namespace
 }  // namespace lipsync::client

@@ -167,9 +167,11 @@ class BalancerTest : public ::testing::Test {
   int holder(const std::string& session) {
     for (std::size_t i = 0; i < addresses_.size(); ++i) {
       if (addresses_[i].empty()) continue;
-      AnimationClient direct(addresses_[i], {.connect_timeout = std::chrono::milliseconds(500),
-                                             .unary_timeout = std::chrono::milliseconds(500),
-                                             .stream_timeout = std::chrono::milliseconds(2000)});
+      client::ClientOptions quick;
+      quick.connect_timeout = std::chrono::milliseconds(500);
+      quick.unary_timeout = std::chrono::milliseconds(500);
+      quick.stream_timeout = std::chrono::milliseconds(2000);
+      AnimationClient direct(addresses_[i], quick);
       Collected got;
       auto call = direct.start_subscribe(session, v1::SubscribeRequest::START_FROM_BEGINNING,
                                          [&got](const v1::TrackMessage& m) { got.add(m); });

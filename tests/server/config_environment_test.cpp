@@ -30,6 +30,7 @@ const std::map<std::string, std::string> kValues = {
     {"--max-sessions", "18"},        {"--max-subscribers-per-session", "19"}, {"--max-phonemes", "20"},
     {"--max-utterance-ms", "21"},    {"--max-message-bytes", "4096"},  {"--replay-frames", "22"},
     {"--subscriber-queue-frames", "23"}, {"--face-threads", "3"},      {"--face-priority", "low"},
+    {"--max-mesh-streams-per-face-thread", "5"}, {"--mesh-max-lag-ms", "1500"},
     {"--stalled-subscriber-ms", "24"}, {"--session-retention-ms", "25"}, {"--log-level", "debug"},
     {"--model", "mine=/m.json"},     {"--replica-name", "pod-7"},     {"--tls-cert", "/etc/lipsyncd/cert.pem"},
     {"--tls-key", "/etc/lipsyncd/key.pem"}, {"--tls-client-ca", "/etc/lipsyncd/clients.pem"},

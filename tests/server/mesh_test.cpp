@@ -307,6 +307,7 @@ TEST_F(MeshTest, ChannelOnlyStreamsCarryNoMeshBytes) {
     *plain.mutable_t_us() = batch.t_us();
     *plain.mutable_kinds() = batch.kinds();
     *plain.mutable_values() = batch.values();
+    plain.set_release_lag_us(batch.release_lag_us());  // every stream's batches say this (not a mesh byte)
     EXPECT_EQ(batch.ByteSizeLong(), plain.ByteSizeLong());
     EXPECT_EQ(batch.mesh_positions_size(), 0);
     EXPECT_TRUE(batch.mesh_positions_int16().empty());
@@ -382,6 +383,9 @@ TEST_F(MeshTest, FaceWorkRunsOffTheReactionsSoChannelStreamsAreNotHeldUp) {
   // stream started after them would wait for it.
   ServerConfig config;
   config.face_threads = 1;
+  // The six streams' whole tracks queue on one thread: under ctest -j2 the last
+  // may start seconds late, which is what this test makes happen, not a failure.
+  config.mesh_max_lag_ms = 60'000;
   start(config);
   const auto long_utterance = utterance(40, 21);
   const auto short_utterance = utterance(10, 22);
@@ -423,6 +427,74 @@ TEST_F(MeshTest, FaceWorkRunsOffTheReactionsSoChannelStreamsAreNotHeldUp) {
   for (std::size_t i = 0; i < kMeshStreams; ++i) {
     ASSERT_TRUE(mesh_status[i].ok()) << mesh_status[i].error_message();
     EXPECT_GT(mesh_finished[i], channel_finished) << "mesh stream " << i << " finished before the channel stream";
+  }
+}
+
+TEST_F(MeshTest, MeshStreamsBeyondTheFaceCapacityAreRefusedNamingTheLimit) {
+  ServerConfig config;
+  config.face_threads = 1;
+  config.max_mesh_streams_per_face_thread = 1;  // one level-1, 30 fps stream
+  start(config);
+  // An admitted mesh stream, held open.
+  grpc::ClientContext held_context;
+  set_deadline(held_context);
+  auto held = stub_->Animate(&held_context);
+  v1::AnimateRequest settings_request;
+  *settings_request.mutable_settings() = mesh_settings(1);
+  ASSERT_TRUE(held->Write(settings_request));
+  v1::TrackMessage header;
+  ASSERT_TRUE(held->Read(&header));
+  ASSERT_TRUE(header.has_header());
+
+  const auto intervals = utterance(5);
+  const Received refused = animate(mesh_settings(1), intervals);
+  EXPECT_EQ(refused.status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_THAT(refused.status.error_message(), HasSubstr("--max-mesh-streams-per-face-thread=1 x 1 face threads"));
+  EXPECT_THAT(refused.status.error_message(), HasSubstr("the face is at capacity"));
+  v1::RenderResponse response;
+  const grpc::Status refused_render = render(mesh_settings(0), intervals, response);
+  EXPECT_EQ(refused_render.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_THAT(refused_render.error_message(), HasSubstr("--max-mesh-streams-per-face-thread=1"));
+  // Streams without the mesh are not held to the face's capacity.
+  const Received channels_only = animate(v1::AnimationSettings{}, intervals);
+  ASSERT_TRUE(channels_only.status.ok()) << channels_only.status.error_message();
+  EXPECT_EQ(channels_only.frames(), reference_track(intervals).frame_count());
+
+  // Once the held stream ends, its share is free again.
+  v1::AnimateRequest end;
+  end.mutable_end();
+  held->Write(end);
+  held->WritesDone();
+  v1::TrackMessage message;
+  while (held->Read(&message)) {
+  }
+  ASSERT_TRUE(held->Finish().ok());
+  EXPECT_TRUE(eventually([&] {
+    v1::RenderResponse later;
+    return render(mesh_settings(1), intervals, later).ok();
+  }));
+}
+
+TEST_F(MeshTest, AMeshStreamThatFallsBehindRealTimeEndsWithDeadlineExceeded) {
+  // Three level-2 faces at 240 fps on one thread need several times the CPU of
+  // real time on any machine: they fall behind and must be told so quickly.
+  ServerConfig config;
+  config.face_threads = 1;
+  config.max_mesh_streams_per_face_thread = 1000;
+  config.mesh_max_lag_ms = 200;
+  start(config);
+  auto settings = mesh_settings(2);
+  settings.set_fps(240);
+  const auto intervals = utterance(40, 31);
+  std::vector<grpc::Status> statuses(3);
+  std::vector<std::thread> streams;
+  for (std::size_t i = 0; i < statuses.size(); ++i) {
+    streams.emplace_back([&, i] { statuses[i] = animate(settings, intervals, intervals.size()).status; });
+  }
+  for (auto& stream : streams) stream.join();
+  for (const grpc::Status& status : statuses) {
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::DEADLINE_EXCEEDED) << status.error_message();
+    EXPECT_THAT(status.error_message(), HasSubstr("behind real time, more than --mesh-max-lag-ms=200"));
   }
 }
 

@@ -26,6 +26,7 @@
 #include "lipsync/error.hpp"
 #include "lipsync/model.hpp"
 #include "lipsync/phone_set.hpp"
+#include "lipsync/release_delay.hpp"
 #include "lipsync/renderer.hpp"
 #include "lipsync/segment.hpp"
 #include "lipsync/server/config.hpp"
@@ -153,6 +154,64 @@ TEST_F(ServerTest, TwentySubscribersReceiveIdenticalFramesEqualToRender) {
     ASSERT_TRUE(received.summary.has_value());
     EXPECT_EQ(received.summary->frames(), expected.t_us.size());
   }
+}
+
+TEST_F(ServerTest, SubscribersGetTheProducersMessagesByteForByteWithTheReleaseDelayAndLags) {
+  // The session serialises each message once and every subscriber writes those
+  // bytes (a raw method): what a subscriber reads must be exactly what the
+  // producer read, message for message.
+  const auto intervals = utterance(60, 5);
+  std::vector<std::string> produced;
+  {
+    grpc::ClientContext context;
+    set_deadline(context);
+    auto stream = stub_->Animate(&context);
+    std::thread reader([&] {
+      v1::TrackMessage message;
+      while (stream->Read(&message)) produced.push_back(message.SerializeAsString());
+    });
+    for (const auto& request : whole(session_settings("bytes"), intervals, 1)) stream->Write(request);
+    stream->WritesDone();
+    reader.join();
+    ASSERT_TRUE(stream->Finish().ok());
+  }
+  ASSERT_GT(produced.size(), 3u);
+  for (int s = 0; s < 3; ++s) {
+    grpc::ClientContext context;
+    set_deadline(context);
+    v1::SubscribeRequest request;
+    request.set_session("bytes");
+    auto reader = stub_->Subscribe(&context, request);
+    std::vector<std::string> followed;
+    v1::TrackMessage message;
+    while (reader->Read(&message)) followed.push_back(message.SerializeAsString());
+    ASSERT_TRUE(reader->Finish().ok());
+    EXPECT_EQ(followed, produced) << "subscriber " << s;
+  }
+  v1::TrackMessage header;
+  ASSERT_TRUE(header.ParseFromString(produced.front()));
+  EXPECT_EQ(header.header().release_delay_us(), read_speech_release_delay_us(7));
+  // Each batch says how far it is behind the newest phoneme; the last one was released by `end`.
+  v1::TrackMessage last;
+  ASSERT_TRUE(last.ParseFromString(produced[produced.size() - 2]));
+  ASSERT_TRUE(last.has_frames());
+  EXPECT_EQ(last.frames().release_lag_us(), intervals.back().end_us - last.frames().t_us(0));
+  for (std::size_t i = 1; i + 1 < produced.size(); ++i) {
+    v1::TrackMessage batch;
+    ASSERT_TRUE(batch.ParseFromString(produced[i]));
+    EXPECT_GE(batch.frames().release_lag_us(), 0) << "batch " << i;
+  }
+}
+
+TEST_F(ServerTest, ARenderStatesTheReleaseDelayOfItsLookaheadButNoLag) {
+  v1::RenderRequest render;
+  for (const auto& interval : utterance(10, 2)) *render.add_phonemes() = to_proto(interval);
+  v1::RenderResponse response;
+  grpc::ClientContext context;
+  set_deadline(context);
+  ASSERT_TRUE(stub_->Render(&context, render, &response).ok());
+  EXPECT_EQ(response.header().release_delay_us(), read_speech_release_delay_us(7));
+  EXPECT_EQ(response.frames().release_lag_us(), 0);
 }
 
 TEST_F(ServerTest, ASlowSubscriberIsCutOffWhileTheOthersFinish) {

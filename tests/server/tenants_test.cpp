@@ -202,6 +202,22 @@ TEST_F(TenantServer, ACallWithoutAKeyOrWithAnUnknownOrMalformedOneIsUnauthentica
   EXPECT_EQ(code_of([&] { client_with(kKeyA).list_models(); }), grpc::StatusCode::OK);
 }
 
+TEST_F(TenantServer, SpeakNeedsAKeyAllowedToSpeakAndPublishesInTheTenantsNamespace) {
+  v1::SpeakRequest request;
+  request.set_text("Papa parked.");
+  std::string message;
+  EXPECT_EQ(code_of([&] { client_with("").speak(request); }, &message), grpc::StatusCode::UNAUTHENTICATED);
+  EXPECT_EQ(code_of([&] { client_with(kKeyViewer).speak(request); }, &message), grpc::StatusCode::PERMISSION_DENIED);
+  EXPECT_THAT(message, HasSubstr("may not call Speak"));
+  request.mutable_settings()->set_session("spoken");
+  EXPECT_EQ(code_of([&] { client_with(kKeyA).speak(request); }), grpc::StatusCode::OK);
+  // Tenant b does not see tenant a's session; tenant a's own viewer key does.
+  EXPECT_EQ(code_of([&] { client_with(kKeyB).subscribe("spoken", v1::SubscribeRequest::START_FROM_BEGINNING); }),
+            grpc::StatusCode::NOT_FOUND);
+  EXPECT_EQ(code_of([&] { client_with(kKeyViewer).subscribe("spoken", v1::SubscribeRequest::START_FROM_BEGINNING); }),
+            grpc::StatusCode::OK);
+}
+
 TEST_F(TenantServer, AKeyLimitedToSomeCallsIsDeniedTheOthers) {
   std::string message;
   EXPECT_EQ(code_of([&] { client_with(kKeyViewer).render({}, phonemes(5)); }, &message),

@@ -7,7 +7,9 @@
 #
 #   tools/perf/server_instructions.sh [BUILD_DIR]    (default build-perf)
 #
-# Environment: PRODUCERS=8, DURATION=20 seconds of load, CONNECTIONS=4.
+# Environment: PRODUCERS=8, DURATION=20 seconds of load, CONNECTIONS=4, SUBSCRIBERS=0 per session
+# (with subscribers, frames counts what producers and subscribers received: a frame sent to a
+# producer and two subscribers counts three times).
 # What a server spends without load (start-up, model loading, DURATION seconds of
 # idling, shutdown) is measured by an idle run of each and subtracted. Prints
 # instructions per frame for each server and their ratio.
@@ -17,6 +19,7 @@ BUILD=${1:-build-perf}
 PRODUCERS=${PRODUCERS:-8}
 DURATION=${DURATION:-20}
 CONNECTIONS=${CONNECTIONS:-4}
+SUBSCRIBERS=${SUBSCRIBERS:-0}
 OUT_DIR=${OUT_DIR:-$(mktemp -d /tmp/server_instructions.XXXXXX)}
 mkdir -p "$OUT_DIR"
 
@@ -48,8 +51,9 @@ measure() {
     local extra=()
     [[ $name == baseline ]] && extra=(--no-verify)
     "$LIPSYNC" loadtest --server "$addr" --connections "$CONNECTIONS" --fast --producers "$PRODUCERS" \
-      --duration "$DURATION" --json "${extra[@]}" >"$tag.json"
-    frames=$(python3 -c 'import json,sys; r=json.load(open(sys.argv[1])); print(r["frames"]["producers"])' "$tag.json")
+      --duration "$DURATION" --subscribers-per-session "$SUBSCRIBERS" --json "${extra[@]}" >"$tag.json"
+    frames=$(python3 -c 'import json,sys; f=json.load(open(sys.argv[1]))["frames"]; print(f["producers"] + f["subscribers"])' \
+      "$tag.json")
   else
     sleep "$DURATION"
   fi

@@ -5,8 +5,9 @@
 #   tools/perf/server_loadtest.sh [BUILD_DIR]      (default build-perf; Release, benchmarks on)
 #
 # Environment (all bounded): SESSIONS="100 200 500 1000 2000" real-time sessions per step,
-# DURATION=10 seconds per step, REPEAT=3 rounds, SUBSCRIBED="500 1000" sessions for the runs with
-# one subscriber per session (lipsyncd only; the baseline has no Subscribe), FAST_PRODUCERS=50
+# DURATION=10 seconds per step, REPEAT=3 rounds, SUBSCRIBERS="0 1 3" subscribers per session (each
+# step is run with each count, against lipsyncd and against the baseline, whose fan-out mode sends
+# the same bytes to every subscriber of a session), FAST_PRODUCERS=50
 # producers for the fast-mode throughput runs, CONNECTIONS=8 HTTP/2 connections, SERVER_CPUS and
 # CLIENT_CPUS (taskset CPU lists, e.g. 0 and 1: the servers on one core, the load generator on the
 # other; unset: no pinning), MESH_SESSIONS="500" real-time sessions of which a share MESH_SHARE=0.01
@@ -18,7 +19,7 @@ set -euo pipefail
 
 BUILD=${1:-build-perf}
 SESSIONS=${SESSIONS:-"100 200 500 1000 2000"}
-SUBSCRIBED=${SUBSCRIBED:-"500 1000"}
+SUBSCRIBERS=${SUBSCRIBERS:-"0 1 3"}
 DURATION=${DURATION:-10}
 REPEAT=${REPEAT:-3}
 FAST_PRODUCERS=${FAST_PRODUCERS:-50}
@@ -103,14 +104,13 @@ PY
 
 for round in $(seq "$REPEAT"); do
   if (( round % 2 )); then order=(lipsyncd baseline); else order=(baseline lipsyncd); fi
-  for n in $SESSIONS; do
-    for name in "${order[@]}"; do
-      one "$name" "r$round-realtime-$n-$name" --realtime --producers "$n" --duration "$DURATION"
+  for m in $SUBSCRIBERS; do
+    for n in $SESSIONS; do
+      for name in "${order[@]}"; do
+        one "$name" "r$round-realtime${m}sub-$n-$name" --realtime --producers "$n" --subscribers-per-session "$m" \
+          --duration "$DURATION"
+      done
     done
-  done
-  for n in $SUBSCRIBED; do
-    one lipsyncd "r$round-subscribed-$n-lipsyncd" --realtime --producers "$n" --subscribers-per-session 1 \
-      --duration "$DURATION"
   done
   for n in $MESH_SESSIONS; do
     one lipsyncd "r$round-mesh-$n-lipsyncd" --realtime --producers "$n" --mesh-share "$MESH_SHARE" \
@@ -130,8 +130,8 @@ for path in sorted(glob.glob(os.path.join(out, "r*-*.json"))):
     rnd, mode, n, name = tag.split("-")
     runs.append(dict(json.load(open(path)), round=int(rnd[1:]), mode=mode, n=int(n), name=name))
 print()
-print("| round | mode | sessions | server | p50 ms | p95 ms | p99 ms | max ms | errors | frames/s | server CPU | client CPU | load avg |")
-print("|---:|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---|")
+print("| round | mode | sessions | server | p50 ms | p95 ms | p99 ms | max ms | subscribers p99 ms | errors | frames/s | server CPU | client CPU | generator CPU (own) | load avg |")
+print("|---:|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|")
 key = lambda r: (r["mode"], r["n"], r["name"], r["round"])
 for r in sorted(runs, key=key):
     if "failed" in r:
@@ -139,9 +139,11 @@ for r in sorted(runs, key=key):
         continue
     lat = r["latency_ms"]["producers"]
     errors = sum(r["errors"].values())
+    sub = r["latency_ms"]["subscribers"]["p99"] if r.get("subscribers_per_session") else float("nan")
     print(f"| {r['round']} | {r['mode']} | {r['n']} | {r['name']} | {lat['p50']:.2f} | {lat['p95']:.2f} | "
-          f"{lat['p99']:.2f} | {lat['max']:.1f} | {errors} | {r['frames']['per_second']:.0f} | "
-          f"{r['server_cpu']:.2f} | {r['client_cpu']:.2f} | {r['load']} |")
+          f"{lat['p99']:.2f} | {lat['max']:.1f} | {sub:.2f} | {errors} | {r['frames']['per_second']:.0f} | "
+          f"{r['server_cpu']:.2f} | {r['client_cpu']:.2f} | {r.get('generator_cpu_cores', float('nan')):.2f} | "
+          f"{r['load']} |")
 print()
 print("Medians over rounds:")
 print("| mode | sessions | server | p50 ms | p99 ms | errors (sum) | frames/s | server CPU | ratio lipsyncd/baseline (frames/s, same round) |")
@@ -162,6 +164,25 @@ for (mode, n, name), rs in sorted(groups.items()):
           f"{med(lambda r: r['latency_ms']['producers']['p99']):.2f} | "
           f"{sum(sum(r['errors'].values()) for r in rs)} | {med(lambda r: r['frames']['per_second']):.0f} | "
           f"{med(lambda r: r['server_cpu']):.2f} | {ratio} |")
+print()
+print("Capacity curve: largest session count whose median p99 (producers, and subscribers when there are any)")
+print("is under 5 ms, and the medians of the p99s at each step (producers / subscribers, ms):")
+print("| mode | server | capacity (sessions) | p99 by step |")
+print("|---|---|---:|---|")
+for mode in sorted({r["mode"] for r in runs if r["mode"].startswith("realtime")}):
+    for name in ("lipsyncd", "baseline"):
+        steps = sorted(n for (m, n, s) in groups if m == mode and s == name)
+        capacity, cells = 0, []
+        for n in steps:
+            rs = groups[(mode, n, name)]
+            prod = statistics.median(r["latency_ms"]["producers"]["p99"] for r in rs)
+            subs = [r["latency_ms"]["subscribers"]["p99"] for r in rs if r.get("subscribers_per_session")]
+            sub = statistics.median(subs) if subs else None
+            worst = max(prod, sub) if sub is not None else prod
+            if worst < 5.0 and all(c[1] for c in cells):
+                capacity = n
+            cells.append((f"{n}: {prod:.2f}" + (f" / {sub:.2f}" if sub is not None else ""), worst < 5.0))
+        print(f"| {mode} | {name} | {capacity} | " + ", ".join(c[0] for c in cells) + " |")
 mesh_runs = [r for r in runs if "by_output" in r and r["by_output"].get("mesh", {}).get("producers")]
 if mesh_runs:
     print()

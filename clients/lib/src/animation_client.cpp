@@ -603,6 +603,7 @@ SpokenTrack AnimationClient::speak(const v1::SpeakRequest& request,
                                    const std::function<void(const v1::SpeakResponse&)>& handler) const {
   grpc::ClientContext context;
   context.set_deadline(deadline_after(options_.stream_timeout));
+  add_api_key(context, options_.api_key);
   add_session_metadata(context, request.settings().session());
   auto reader = stub_->Speak(&context, request);
   SpokenTrack spoken;

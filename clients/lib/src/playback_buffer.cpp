@@ -35,20 +35,45 @@ bool PlaybackBuffer::push(std::int64_t t_us, std::span<const float> values) {
 bool PlaybackBuffer::push(std::int64_t t_us, std::span<const float> values, std::int64_t arrival_clock_us) {
   if (!push(t_us, values)) return false;
   if (utterance_zero_us_) {
-    const std::int64_t lateness_us = arrival_clock_us - (*utterance_zero_us_ + t_us);
+    const std::int64_t lateness_us = arrival_clock_us - (*utterance_zero_us_ + playout_offset_us_ + t_us);
     stats_.last_lateness_us = lateness_us;
     stats_.max_lateness_us = std::max(stats_.max_lateness_us.value_or(lateness_us), lateness_us);
   }
   return true;
 }
 
+void PlaybackBuffer::expect_release_delay(std::int64_t release_delay_us, std::int64_t margin_us) {
+  release_delay_us_ = std::max<std::int64_t>(0, release_delay_us);
+  release_margin_us_ = std::max<std::int64_t>(0, margin_us);
+}
+
+void PlaybackBuffer::note_batch(std::int64_t first_t_us, std::int64_t release_lag_us,
+                                std::int64_t arrival_clock_us) {
+  stats_.max_release_lag_us = std::max(stats_.max_release_lag_us, release_lag_us);
+  if (!utterance_zero_us_ || release_delay_us_ == 0) return;
+  // When the producer's input was at utterance time 0, on this clock: the batch
+  // left `release_lag_us` after the input reached first_t_us + lag, and the
+  // network only adds to that, so the earliest estimate is the best one (a
+  // replayed batch arrives late and estimates late; live ones correct it).
+  const std::int64_t input_zero_us = arrival_clock_us - first_t_us - release_lag_us;
+  input_zero_us_ = std::min(input_zero_us_.value_or(input_zero_us), input_zero_us);
+  const std::int64_t wait_us = std::max(release_delay_us_, stats_.max_release_lag_us);
+  playout_offset_us_ = std::max<std::int64_t>(0, *input_zero_us_ + wait_us + release_margin_us_ - *utterance_zero_us_);
+}
+
 PlaybackSample PlaybackBuffer::sample(std::int64_t clock_us, std::span<float> out) {
-  return sample_utterance(clock_us - utterance_zero_us_.value_or(clock_us), out);
+  return sample_utterance(clock_us - utterance_zero_us_.value_or(clock_us) - playout_offset_us_, out);
 }
 
 PlaybackSample PlaybackBuffer::sample_utterance(std::int64_t utterance_us, std::span<float> out) {
   PlaybackSample result;
   ++stats_.samples;
+  if (times_us_.empty() && !last_sample_us_) {
+    // Nothing shown yet, so nothing to stay ahead of: the playout offset may
+    // still move the play position back before the first frame arrives.
+    result.utterance_us = utterance_us;
+    return result;
+  }
   if (last_sample_us_ && utterance_us < *last_sample_us_) {
     utterance_us = *last_sample_us_;
     result.clamped = true;

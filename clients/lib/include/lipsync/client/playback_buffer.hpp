@@ -16,10 +16,22 @@
 //     arrival time records lateness = arrival − (utterance_zero_us + t_us).
 //   - never backwards: a sample earlier than the previous one is clamped to
 //     the previous one (and counted), so a clock that steps back never makes
-//     the mouth replay.
+//     the mouth replay. Samples taken before any frame arrived showed nothing
+//     and do not count as "previous".
 //   - bounded memory: frames older than the one at or before the last sample
 //     are dropped, and at most `capacity_frames` frames are held (the oldest
 //     goes first, counted as dropped).
+//   - playout offset: the buffer may play later than the anchor says, by
+//     playout_offset_us, so that frames that can only leave the server after
+//     their lookahead arrive before they are due. It is picked from what the
+//     server says (the header's release delay: the lookahead's worst wait on
+//     read speech; each batch's release lag: how far behind the producer's
+//     newest phoneme it left): the producer's input clock is estimated from
+//     each batch (arrival − t − lag, the earliest such reading), and the offset
+//     is whatever makes  input clock + max(release delay, largest lag seen) +
+//     margin  no later than the play time. With a producer whose playout delay
+//     already covers that (lipsync stream's default), the offset stays 0 and the
+//     frames play exactly on the media clock.
 #pragma once
 
 #include <cstddef>
@@ -56,11 +68,14 @@ struct PlaybackStats {
   std::optional<std::int64_t> min_lead_us;       ///< smallest lead_us over playing samples, µs
   std::optional<std::int64_t> last_lateness_us;  ///< arrival − play time of the newest timed push, µs
   std::optional<std::int64_t> max_lateness_us;   ///< largest such lateness, µs
+  std::int64_t max_release_lag_us = 0;           ///< largest release lag a batch reported, µs
 };
 
 class PlaybackBuffer {
  public:
   static constexpr std::size_t kDefaultCapacityFrames = 1 << 14;
+  /// Network and scheduling allowance on top of the server's release delay, µs.
+  static constexpr std::int64_t kDefaultReleaseMarginUs = 100'000;
 
   /// `channel_count` values per frame (> 0); at most `capacity_frames` (> 1) frames held.
   /// Throws std::invalid_argument otherwise.
@@ -75,15 +90,28 @@ class PlaybackBuffer {
   /// when t_us is not after the newest frame or `values` has the wrong size.
   bool push(std::int64_t t_us, std::span<const float> values);
   /// Same, and records how late the frame arrived for its play time when anchored:
-  /// lateness = arrival_clock_us − (utterance_zero_us + t_us).
+  /// lateness = arrival_clock_us − (utterance_zero_us + playout_offset_us + t_us).
   bool push(std::int64_t t_us, std::span<const float> values, std::int64_t arrival_clock_us);
+
+  /// How long after the producer's input a frame may leave the server (the
+  /// header's release_delay_us, µs; 0: the server does not say, no adaptation).
+  /// `margin_us` is added for the network and scheduling.
+  void expect_release_delay(std::int64_t release_delay_us, std::int64_t margin_us = kDefaultReleaseMarginUs);
+  /// A batch whose first frame is at `first_t_us` arrived at `arrival_clock_us`,
+  /// `release_lag_us` behind the producer's newest phoneme: raises or lowers the
+  /// playout offset (see the top of this file). Call it before pushing the
+  /// batch's frames. No effect before anchor() or without a release delay.
+  void note_batch(std::int64_t first_t_us, std::int64_t release_lag_us, std::int64_t arrival_clock_us);
+  /// How much later than the anchor frames play, µs (≥ 0).
+  std::int64_t playout_offset_us() const { return playout_offset_us_; }
 
   /// No more frames will come: sampling past the last frame is `ended`, not an underrun.
   void finish() { finished_ = true; }
   bool finished() const { return finished_; }
 
   /// The frame for clock reading `clock_us` (requires anchored(); utterance time 0
-  /// otherwise) written to `out` (channel_count values).
+  /// otherwise), i.e. utterance time clock_us − utterance_zero_us − playout_offset_us,
+  /// written to `out` (channel_count values).
   PlaybackSample sample(std::int64_t clock_us, std::span<float> out);
   /// The frame for utterance time `utterance_us`, written to `out`.
   PlaybackSample sample_utterance(std::int64_t utterance_us, std::span<float> out);
@@ -102,6 +130,10 @@ class PlaybackBuffer {
   std::deque<std::int64_t> times_us_;
   std::deque<float> values_;  // held_frames() × channel_count_, frame-major
   std::optional<std::int64_t> last_sample_us_;
+  std::int64_t release_delay_us_ = 0;
+  std::int64_t release_margin_us_ = 0;
+  std::optional<std::int64_t> input_zero_us_;  // earliest estimate of the producer's utterance-0 clock reading
+  std::int64_t playout_offset_us_ = 0;
   bool finished_ = false;
   PlaybackStats stats_;
 };
