@@ -25,6 +25,9 @@ packages=(
   python3 python3-grpcio python3-protobuf python3-venv python3-pip python3-yaml
   # the install test (pkg-config consumer) and the multi-replica test (nginx as the balancer)
   pkg-config nginx
+  # the browser viewer's test: headless Chromium (WebGL through SwiftShader) driven over the
+  # DevTools protocol from /usr/bin/python3 with websocket-client
+  chromium python3-websocket
 )
 
 missing=()
