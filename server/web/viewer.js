@@ -22,10 +22,16 @@
 // Its state is on window.lipsyncViewer and in the elements #frame-time (µs), #viseme and #drift.
 "use strict";
 
-const kResyncUs = 150000;       // audio further than this from the anchor is seeked
-const kRateGainPerSecond = 2;   // playback-rate trim per second of drift
-const kMaxRateTrim = 0.1;
-const kSettleAfterSeekMs = 250; // drift is not measured while a seek or a start settles
+const kResyncUs = 100000;       // locked audio further than this from the anchor is seeked
+const kSeekUnlockedUs = 60000;  // a started or seeked audio further than this is seeked again
+const kLockUs = 30000;          // ... and locked after kLockSamples measurements in a row within this
+const kLockSamples = 5;
+const kMaxLeadUs = 500000;
+const kSteerIntervalMs = 20;
+const kRetryNotFoundMs = 250;   // a session not (yet) there is asked for again this often
+const kRateGainPerSecond = 4;   // playback-rate trim per second of drift
+const kMaxRateTrim = 0.15;
+const kSettleAfterStartMs = 60; // after a start or seek, drift is measured once the audio runs again, and this long after
 
 // Mesh parts (lipsync.v1.MeshPart) and their colours, linear-ish RGB 0..1.
 const kPartColours = [
@@ -37,6 +43,7 @@ const kPartColours = [
   [0.85, 0.30, 0.40],  // tongue (flat)
 ];
 const kLipColour = [0.76, 0.42, 0.44];
+const kNotFoundCloseCode = 4005;  // 4000 + gRPC NOT_FOUND
 const kLitParts = new Set([0, 1]);
 /// What an open mouth shows on a screenshot (8-bit sRGB as drawn): cavity, teeth, tongue.
 const kOpenMouthColours = [2, 3, 5].map((p) => kPartColours[p].map((c) => Math.round(c * 255)));
@@ -53,6 +60,7 @@ const elements = Object.fromEntries(
 
 const viewer = {
   connected: false,
+  waiting: false,        // the session does not exist yet: the page asks again every kRetryNotFoundMs
   session: params.get("session") || null,
   mode: null,            // "mesh", "blendshapes" or "rest" (no face data in the stream)
   clock: null,           // "unix" (the anchor's) or "arrival"
@@ -62,9 +70,12 @@ const viewer = {
   frameIndex: null,
   viseme: null,
   drift: null,           // µs: audio position − anchor position (null: no audio playing)
-  maxAbsDrift: null,     // µs, over the measurements so far
+  locked: false,         // the audio reached the anchor (|drift| < kLockUs) since its last seek
+  lockedAtUs: null,      // utterance time when it did
+  maxAbsDrift: null,     // µs, over the measurements while locked
   driftSamples: 0,
-  resyncs: 0,
+  lockedSamples: 0,      // measurements while locked
+  resyncs: 0,            // seeks after the start (the start's own lag, or a drift beyond kResyncUs)
   mouthOpen: null,       // mm between the inner lips (landmarks 13 and 14) on screen
   mouthRect: null,       // {x, y, width, height}: the mouth region in CSS pixels of the page
   openMouthColours: kOpenMouthColours,
@@ -78,7 +89,7 @@ const viewer = {
   audioError: null,
   held: null,
   /// Freezes the picture at utterance time `tUs` (for screenshots and people), audio paused.
-  hold(tUs) { this.held = tUs; audio.pause(); },
+  hold(tUs) { this.held = tUs; this.drift = null; audio.pause(); },
   /// Back to following the clock.
   release() { this.held = null; },
 };
@@ -326,7 +337,11 @@ function setStatus(text, isError) {
 
 // ---------------------------------------------------------------- audio slaved to the anchor
 
-let audioSettleUntil = 0;
+// After a start or a seek: the position it aimed at; drift is measured again only once the audio
+// has moved past it (its pipeline runs again) and kSettleAfterStartMs more.
+let audioRestart = null;  // {fromS, runningSinceMs}
+let audioInBand = 0;      // consecutive measurements within kLockUs while not locked
+let audioLeadUs = 0;  // how far ahead of the anchor a seek aims (the pipeline's restart lag)
 let audioStarting = false;
 
 function steerAudio(nowUs) {
@@ -338,29 +353,59 @@ function steerAudio(nowUs) {
     return;
   }
   if (audio.paused) {
-    if (audioStarting) return;
+    if (audioStarting || audio.ended) return;
     audioStarting = true;
-    audio.currentTime = nowUs / 1e6;
+    viewer.locked = false;
+    audioInBand = 0;
+    audio.currentTime = (nowUs + audioLeadUs) / 1e6;
+    audioRestart = { fromS: audio.currentTime, runningSinceMs: null };
     audio.playbackRate = 1;
     audio.play()
       .catch((e) => { viewer.audioError = e.message; setStatus("audio: " + e.message + " (click the page to allow it)", true); })
-      .finally(() => { audioStarting = false; audioSettleUntil = performance.now() + kSettleAfterSeekMs; });
+      .finally(() => { audioStarting = false; });
     return;
   }
   viewer.audioPlaying = true;
-  if (performance.now() < audioSettleUntil) return;
-  const drift = Math.round(audio.currentTime * 1e6 - nowUs);
-  if (Math.abs(drift) > kResyncUs) {
-    audio.currentTime = nowUs / 1e6;
-    audioSettleUntil = performance.now() + kSettleAfterSeekMs;
-    viewer.resyncs += 1;
-    return;
+  if (audioRestart) {
+    if (audio.seeking || audio.currentTime <= audioRestart.fromS) return;
+    audioRestart.runningSinceMs ??= performance.now();
+    if (performance.now() - audioRestart.runningSinceMs < kSettleAfterStartMs) return;
+    audioRestart = null;
   }
+  const drift = Math.round(audio.currentTime * 1e6 - nowUs);
   viewer.drift = drift;
-  viewer.maxAbsDrift = Math.max(viewer.maxAbsDrift ?? 0, Math.abs(drift));
   viewer.driftSamples += 1;
   const trim = Math.max(-kMaxRateTrim, Math.min(kMaxRateTrim, (drift / 1e6) * kRateGainPerSecond));
   audio.playbackRate = 1 - trim;
+  if (viewer.locked) {
+    if (Math.abs(drift) > kResyncUs) {
+      seekAudio(nowUs, drift);
+      return;
+    }
+    viewer.maxAbsDrift = Math.max(viewer.maxAbsDrift ?? 0, Math.abs(drift));
+    viewer.lockedSamples += 1;
+    return;
+  }
+  if (Math.abs(drift) > kSeekUnlockedUs) {
+    seekAudio(nowUs, drift);
+    return;
+  }
+  audioInBand = Math.abs(drift) < kLockUs ? audioInBand + 1 : 0;
+  if (audioInBand >= kLockSamples) {
+    viewer.locked = true;
+    viewer.lockedAtUs = nowUs;
+  }
+}
+
+/// A start or a seek costs the media pipeline a restart, which the audio spends behind the anchor:
+/// seek ahead by the lag measured after the last one, so that it lands on the anchor.
+function seekAudio(nowUs, drift) {
+  audioLeadUs = Math.max(0, Math.min(kMaxLeadUs, audioLeadUs - drift));
+  audio.currentTime = (nowUs + audioLeadUs) / 1e6;
+  audioRestart = { fromS: audio.currentTime, runningSinceMs: null };
+  viewer.resyncs += 1;
+  viewer.locked = false;
+  audioInBand = 0;
 }
 
 // ---------------------------------------------------------------- the loop
@@ -371,6 +416,9 @@ function utteranceNowUs() {
   return Math.round((performance.timeOrigin + performance.now()) * 1000 - viewer.utteranceZeroUs);
 }
 
+let drawn = { geometry: null, frameIndex: undefined };
+
+/// Every animation frame: the frame for the current utterance time, drawn when it changed.
 function tick() {
   const now = utteranceNowUs();
   viewer.utteranceTime = now;
@@ -378,17 +426,26 @@ function tick() {
     const index = now === null || now < 0 ? null : frameAt(now);
     viewer.frameIndex = index;
     const frame = index === null ? null : track.frames[index];
-    pose(frame);
-    draw();
+    if (drawn.geometry !== geometry || drawn.frameIndex !== index) {
+      pose(frame);
+      draw();
+      drawn = { geometry, frameIndex: index };
+    }
     showReadouts(frame);
-    steerAudio(now);
   }
   requestAnimationFrame(tick);
 }
 
+// The audio is steered on a timer of its own: a page that draws slowly (software WebGL on a busy
+// machine) still measures and corrects its drift every kSteerIntervalMs.
+setInterval(() => { if (track.header) steerAudio(utteranceNowUs()); }, kSteerIntervalMs);
+
 // ---------------------------------------------------------------- the WebSocket
 
 function onHeader(header) {
+  viewer.waiting = false;
+  if (viewer.audio && audio.ended) audio.currentTime = 0;  // a new track: the audio may play again
+  setStatus("following " + header.session);
   track.header = header;
   track.frames = [];
   track.summary = null;
@@ -421,10 +478,11 @@ function connect(session) {
   socket.binaryType = "arraybuffer";
   elements.session.textContent = session;
   setStatus("connecting to " + session);
-  socket.onopen = () => { viewer.connected = true; setStatus("following " + session); };
+  socket.onopen = () => { viewer.connected = true; };
   socket.onmessage = (event) => {
     if (typeof event.data === "string") {  // the error before the close: {"code", "message"}
       const error = JSON.parse(event.data);
+      if (error.code === "NOT_FOUND" && !track.header) return;  // waited for (onclose)
       viewer.error = error.code + ": " + error.message;
       setStatus(viewer.error, true);
       return;
@@ -442,6 +500,15 @@ function connect(session) {
     viewer.connected = false;
     viewer.closeCode = event.code;
     viewer.closeReason = event.reason;
+    if (event.code === kNotFoundCloseCode && !track.header) {
+      // Opened before its producer: wait for the session to start.
+      viewer.waiting = true;
+      viewer.error = null;
+      setStatus("waiting for session " + session + " to start");
+      setTimeout(() => connect(session), kRetryNotFoundMs);
+      return;
+    }
+    viewer.waiting = false;
     if (event.code !== 1000 && !viewer.error) {
       viewer.error = "closed (" + event.code + ")" + (event.reason ? ": " + event.reason : "");
       setStatus(viewer.error, true);

