@@ -7,11 +7,13 @@
 //   utterance_zero_us + t, so every viewer of a session shows the same frame at the same moment.
 //   With another clock, or none, the page starts utterance time 0 when the header arrives.
 // - Audio. An audio file or URL (?audio=URL, or chosen on the page) plays slaved to that clock: it
-//   starts at utterance time 0 (or seeks there when the page joins late), its position is compared
-//   with the anchor's every animation frame (the drift, shown in #drift), and it is steered back:
-//   the playback rate is trimmed by up to 10 % in proportion to the drift, and a drift beyond
-//   kResyncUs is cut by a seek. The face follows the anchor, not the audio, so that a stalled audio
-//   element never freezes the face.
+//   starts at utterance time 0 (or at the current time when the page joins late), and every
+//   kSteerIntervalMs its position is compared with the anchor's (the drift, shown in #drift) and
+//   steered: the playback rate is trimmed in proportion to the drift; a start or seek whose
+//   pipeline restart left the audio more than kSeekUnlockedUs behind is seeked again ahead by the
+//   lag measured; kLockSamples measurements in a row within kLockUs lock it, and a locked audio
+//   is seeked only beyond kResyncUs. The face follows the anchor, not the audio, so that a stalled
+//   audio element never freezes the face.
 // - The face. With the mesh output (the header carries a MeshTopology) the page draws the server's
 //   simulated vertices. Otherwise it poses the viewer's face (/face.json, data/face/
 //   viewer_face.json: the physics face fitted as ARKit blendshapes by tools/face/make_viewer_face)
