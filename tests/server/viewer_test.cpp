@@ -115,6 +115,17 @@ class ViewerTest : public LiveServerTest {
     return reply;
   }
 
+  /// An Animate stream that has opened session `name` (its header is read) and sent no phoneme yet.
+  std::unique_ptr<grpc::ClientReaderWriter<v1::AnimateRequest, v1::TrackMessage>> open_session(
+      grpc::ClientContext& context, const std::string& name) {
+    set_deadline(context);
+    auto producer = stub_->Animate(&context);
+    EXPECT_TRUE(producer->Write(settings_request(papa_settings(name))));
+    v1::TrackMessage header;
+    EXPECT_TRUE(producer->Read(&header));
+    return producer;
+  }
+
   /// A finished session named `session`: flite's "Papa ..." through Animate, in chunks of 3.
   void produce_papa(const std::string& session) {
     const Received produced = animate(*stub_, whole(papa_settings(session), flite_papa(), 3));
@@ -155,11 +166,7 @@ TEST_F(ViewerTest, websocket_follower_receives_the_same_messages_as_a_grpc_subsc
 
 TEST_F(ViewerTest, websocket_follower_of_a_live_session_gets_frames_as_they_are_produced) {
   grpc::ClientContext context;
-  set_deadline(context);
-  auto producer = stub_->Animate(&context);
-  ASSERT_TRUE(producer->Write(settings_request(papa_settings("live"))));
-  v1::TrackMessage header;
-  ASSERT_TRUE(producer->Read(&header));  // the session is open
+  auto producer = open_session(context, "live");
   WebSocketReply reply;
   std::thread follower([&] { reply = follow("/ws?session=live&start=beginning"); });
   for (auto& chunk : chunked(flite_papa(), 4)) ASSERT_TRUE(producer->Write(chunk));
@@ -274,11 +281,7 @@ TEST_F(ViewerTest, quick_try_reports_bad_text_bad_parameters_and_taken_names) {
 
   // A live producer holds the name: ALREADY_EXISTS is 409.
   grpc::ClientContext context;
-  set_deadline(context);
-  auto producer = stub_->Animate(&context);
-  ASSERT_TRUE(producer->Write(settings_request(papa_settings("taken"))));
-  v1::TrackMessage header;
-  ASSERT_TRUE(producer->Read(&header));
+  auto producer = open_session(context, "taken");
   reply = request(http::verb::post, "/sessions?session=taken", "pau:0.1 p:0.2\n");
   EXPECT_EQ(reply.status, 409u);
   EXPECT_EQ(nlohmann::json::parse(reply.body)["code"], "ALREADY_EXISTS");
@@ -287,11 +290,7 @@ TEST_F(ViewerTest, quick_try_reports_bad_text_bad_parameters_and_taken_names) {
 
 TEST_F(ViewerTest, follower_hears_aborted_when_the_producer_goes_away) {
   grpc::ClientContext context;
-  set_deadline(context);
-  auto producer = stub_->Animate(&context);
-  ASSERT_TRUE(producer->Write(settings_request(papa_settings("waiting"))));
-  v1::TrackMessage header;
-  ASSERT_TRUE(producer->Read(&header));
+  auto producer = open_session(context, "waiting");
   WebSocketReply reply;
   std::thread follower([&] { reply = follow("/ws?session=waiting"); });
   ASSERT_TRUE(eventually([&] { return server_->active_streams() == 2; }));  // producer + the follower's Subscribe
@@ -305,11 +304,7 @@ TEST_F(ViewerTest, follower_hears_aborted_when_the_producer_goes_away) {
 
 TEST_F(ViewerTest, shutdown_ends_a_waiting_follower_with_going_away) {
   grpc::ClientContext context;
-  set_deadline(context);
-  auto producer = stub_->Animate(&context);
-  ASSERT_TRUE(producer->Write(settings_request(papa_settings("waiting"))));
-  v1::TrackMessage header;
-  ASSERT_TRUE(producer->Read(&header));
+  auto producer = open_session(context, "waiting");
   WebSocketReply reply;
   std::thread follower([&] { reply = follow("/ws?session=waiting"); });
   ASSERT_TRUE(eventually([&] { return server_->active_streams() == 2; }));
