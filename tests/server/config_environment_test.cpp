@@ -32,6 +32,7 @@ const std::map<std::string, std::string> kValues = {
     {"--subscriber-queue-frames", "23"}, {"--face-threads", "3"},      {"--face-priority", "low"},
     {"--stalled-subscriber-ms", "24"}, {"--session-retention-ms", "25"}, {"--log-level", "debug"},
     {"--model", "mine=/m.json"},     {"--replica-name", "pod-7"},
+    {"--http-listen", "127.0.0.1:6002"},
 };
 
 std::vector<std::string> flags_in_help() {
