@@ -10,11 +10,13 @@ The page /view?session=NAME&audio=URL follows the session and plays the audio ag
 the test samples window.lipsyncViewer while it plays and checks:
 
   * the page connected, received the whole track, showed frames and visemes;
-  * the audio drift it measured stays under one frame (1/30 s) once playing;
+  * the audio locks onto the anchor (within 1.5 s of utterance time) and the drift the page
+    measures from then on stays under one frame (1/30 s);
   * held at the /p/ closure of "Papa" and in the /aa/ after it, screenshots of the mouth region
     show a closed and an open mouth: pixels of the open-mouth colours (cavity, teeth, tongue,
     drawn flat by the page) are counted on the PNG;
-  * the same with the server's simulated mesh (mode "mesh").
+  * the same with the server's simulated mesh (mode "mesh");
+  * phonemes pasted into the page's quick-try box start a session that the page then follows.
 
 Screenshots of the page (face, readouts, bars) are written to $LIPSYNC_VIEWER_SCREENSHOTS when it is set (the
 pictures in docs/images/ come from there).
