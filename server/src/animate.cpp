@@ -53,7 +53,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
  public:
   AnimateReactor(LipSyncService& service, grpc::CallbackServerContext* context)
       : service_(service), context_(context), outbox_(*this), started_(Clock::now()) {
-    const grpc::Status admission = service_.admission().admit_stream();
+    const grpc::Status admission = service_.admission().admit_stream(context_->peer());
     if (!admission.ok()) {
       outbox_.close(admission);
       return;

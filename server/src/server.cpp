@@ -23,6 +23,12 @@
 #include "service.hpp"
 
 namespace lipsync::server {
+namespace {
+
+/// How long connections may take to flush and close after GOAWAY at the end of a drain.
+constexpr auto kConnectionGrace = std::chrono::milliseconds(50);
+
+}  // namespace
 
 struct Server::Impl {
   explicit Impl(ServerConfig config_in)
@@ -50,7 +56,7 @@ Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(con
   impl_->server = builder.BuildAndStart();
   if (!impl_->server) throw std::runtime_error("cannot start the gRPC server on " + impl_->config.listen);
   impl_->service.routing().set_bound_address(address());
-  impl_->listener->start(*impl_->server);
+  impl_->listener->start(*impl_->server, impl_->service.admission().connections());
   if (!impl_->config.http_listen.empty()) {
     impl_->viewer = std::make_unique<HttpViewer>(impl_->config.http_listen,
                                                  impl_->server->InProcessChannel(grpc::ChannelArguments()),
@@ -79,13 +85,23 @@ void Server::shutdown(std::chrono::milliseconds drain) {
     // gRPC 1.51 close each connection right after its last stream, racing that
     // stream's final frames (a balancer then reports the finished stream as reset).
     impl_->listener->close();
+    spdlog::info("listener closed: new connections are refused");
     if (auto* health = impl_->server->GetHealthCheckService()) health->Shutdown();
-    impl_->service.admission().begin_drain();
+    Admission& admission = impl_->service.admission();
+    admission.begin_drain();
     const auto deadline = std::chrono::steady_clock::now() + drain;
-    while (impl_->service.admission().calls_in_progress() > 0 && std::chrono::steady_clock::now() < deadline) {
+    // Also wait for the first call of a connection accepted just now (admission.hpp).
+    while ((admission.calls_in_progress() > 0 || admission.awaiting_first_calls()) &&
+           std::chrono::steady_clock::now() < deadline) {
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
     }
-    impl_->server->Shutdown(std::chrono::system_clock::now());
+    // GOAWAY only now, with no call left. A shutdown deadline already past would
+    // cut every connection at once, racing the final frames a connection may still
+    // be flushing (behind nginx: the last subscriber of a drained session got
+    // RST_STREAM INTERNAL_ERROR now and then). With the grace, a connection closes
+    // once its peer has it all (nginx closes an upstream connection after its
+    // response); only idle client connections still open are cut at its end.
+    impl_->server->Shutdown(std::chrono::system_clock::now() + kConnectionGrace);
     impl_->server->Wait();
   });
 }
