@@ -1,7 +1,8 @@
 # Install rules: `cmake --install build --prefix DIR` puts everything under DIR.
 #
 #   bin/lipsyncd, bin/lipsync                      component server (Debian package lipsyncd)
-#   share/lipsync/data/, share/doc/lipsyncd/       component server
+#   share/lipsync/data/, share/lipsync/web/,
+#   share/doc/lipsyncd/                            component server
 #   lib/systemd/system/lipsyncd.service,
 #   etc/lipsyncd/lipsyncd.json (/etc with prefix /usr)  component server
 #   include/lipsync/..., lib/liblipsync_*.a,
@@ -30,6 +31,8 @@ if(LIPSYNC_BUILD_SERVER)
   install(TARGETS lipsyncd RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT server)
   install(FILES deploy/systemd/lipsyncd.service DESTINATION lib/systemd/system COMPONENT server)
   install(FILES deploy/systemd/lipsyncd.json DESTINATION ${LIPSYNC_CONFIG_INSTALL_DIR} COMPONENT server)
+  # The browser viewer's page (lipsyncd serves its embedded copy; these are for reading and reuse).
+  install(DIRECTORY server/web/ DESTINATION ${CMAKE_INSTALL_DATADIR}/lipsync/web COMPONENT server)
 endif()
 # The binaries embed the model, the phone sets and the face; the files are installed as the
 # starting point of models of one's own (--model NAME=FILE) and for their licences.

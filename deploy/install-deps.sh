@@ -28,6 +28,9 @@ packages=(
   # TLS and API keys: libcrypto (lipsyncd checks its TLS files and hashes API keys with SHA-256);
   # the openssl command makes the test certificates (tests/support/make_test_certs.sh)
   libssl-dev openssl
+  # the browser viewer's test: headless Chromium (WebGL through SwiftShader) driven over the
+  # DevTools protocol from /usr/bin/python3 with websocket-client
+  chromium python3-websocket
 )
 
 missing=()

@@ -45,6 +45,16 @@ std::size_t parse_count(const Setting& setting, std::size_t min) {
       parse_integer(setting, static_cast<std::int64_t>(min), std::numeric_limits<std::int32_t>::max()));
 }
 
+/// HOST:PORT with a port from 0 to 65535.
+std::string parse_host_port(const Setting& setting) {
+  const auto colon = setting.value.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == setting.value.size()) {
+    throw ConfigError(setting.name + ": expected HOST:PORT, got '" + setting.value + "'");
+  }
+  parse_integer({setting.name, setting.value.substr(colon + 1)}, 0, 65535);
+  return setting.value;
+}
+
 struct Option {
   std::string flag;
   std::string value_hint;
@@ -56,15 +66,12 @@ struct Option {
 const std::vector<Option>& options() {
   static const std::vector<Option> table = {
       {"--listen", "HOST:PORT", "address to listen on; port 0 picks a free port",
-       [](ServerConfig& c, const Setting& s) {
-         const auto colon = s.value.rfind(':');
-         if (colon == std::string::npos || colon == 0 || colon + 1 == s.value.size()) {
-           throw ConfigError(s.name + ": expected HOST:PORT, got '" + s.value + "'");
-         }
-         parse_integer({s.name, s.value.substr(colon + 1)}, 0, 65535);
-         c.listen = s.value;
-       },
+       [](ServerConfig& c, const Setting& s) { c.listen = parse_host_port(s); },
        [](const ServerConfig& c) { return c.listen; }},
+      {"--http-listen", "HOST:PORT",
+       "serve the browser viewer (HTTP, WebSocket) on this address; port 0 picks a free port",
+       [](ServerConfig& c, const Setting& s) { c.http_listen = parse_host_port(s); },
+       [](const ServerConfig& c) { return c.http_listen.empty() ? std::string("off") : c.http_listen; }},
       {"--drain-deadline-ms", "MS", "on SIGTERM/SIGINT, time running streams get to finish",
        [](ServerConfig& c, const Setting& s) { c.drain_deadline_ms = parse_integer(s, 0, 3'600'000); },
        [](const ServerConfig& c) { return std::to_string(c.drain_deadline_ms); }},

@@ -2,7 +2,8 @@
 //
 // Reads the configuration from flags, LIPSYNCD_* variables and --config (exit 2
 // on a bad setting, 1 on a bad model file or an address it cannot bind), starts
-// the server, prints "lipsyncd listening on HOST:PORT" on stdout, and waits for
+// the server, prints "lipsyncd listening on HOST:PORT" on stdout (and, with --http-listen,
+// "lipsyncd viewer on http://HOST:PORT/view"), and waits for
 // SIGTERM, SIGINT or SIGHUP in sigwait (the signals are blocked in every
 // thread, so no handler runs in an arbitrary thread). SIGHUP re-reads the
 // configuration (systemd's ExecReload): the log level applies at once, other
@@ -94,6 +95,10 @@ int main(int argc, char** argv) {
     return 1;
   }
   std::cout << "lipsyncd listening on " << server->address() << std::endl;
+  if (const std::string viewer = server->http_address(); !viewer.empty()) {
+    std::cout << "lipsyncd viewer on http://" << viewer << "/view" << std::endl;
+    spdlog::info("browser viewer on http://{}/view", viewer);
+  }
   spdlog::info("listening on {}", server->address());
 
   int signal_number = 0;

@@ -24,6 +24,7 @@
 #include <spdlog/spdlog.h>
 
 #include "catalog.hpp"
+#include "http_viewer.hpp"
 #include "listener.hpp"
 #include "service.hpp"
 #include "tls.hpp"
@@ -46,6 +47,7 @@ struct Server::Impl {
   std::unique_ptr<Listener> listener;  // plaintext only: with TLS gRPC listens
   std::unique_ptr<TlsCredentials> tls;
   std::unique_ptr<grpc::Server> server;
+  std::unique_ptr<HttpViewer> viewer;  // --http-listen: follows sessions through the in-process channel
   int port = 0;
   std::once_flag shutdown_once;
 };
@@ -77,6 +79,11 @@ Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(con
                                                         impl_->config.tls_client_ca + ")")
                                            : std::string("plaintext (no --tls-cert)"));
   spdlog::info("callers: {}", impl_->service.tenants().describe());
+  if (!impl_->config.http_listen.empty()) {
+    impl_->viewer = std::make_unique<HttpViewer>(impl_->config.http_listen,
+                                                 impl_->server->InProcessChannel(grpc::ChannelArguments()),
+                                                 impl_->catalog);
+  }
 }
 
 Server::~Server() { shutdown(std::chrono::milliseconds(0)); }
@@ -88,8 +95,12 @@ std::string Server::address() const {
   return listen.substr(0, listen.rfind(':')) + ":" + std::to_string(impl_->port);
 }
 
+std::string Server::http_address() const { return impl_->viewer ? impl_->viewer->address() : std::string(); }
+
 void Server::shutdown(std::chrono::milliseconds drain) {
   std::call_once(impl_->shutdown_once, [&] {
+    // The viewer's followers are Subscribe calls of its own: end them (WebSocket 1001) first.
+    if (impl_->viewer) impl_->viewer->close();
     // No new connections from now on; calls that still arrive on open connections
     // are refused with UNAVAILABLE; running calls get `drain` to finish. Only then
     // is gRPC shut down (GOAWAY, the rest cancelled): sent earlier, GOAWAY makes

@@ -35,6 +35,7 @@ const std::map<std::string, std::string> kValues = {
     {"--model", "mine=/m.json"},     {"--replica-name", "pod-7"},     {"--tls-cert", "/etc/lipsyncd/cert.pem"},
     {"--tls-key", "/etc/lipsyncd/key.pem"}, {"--tls-client-ca", "/etc/lipsyncd/clients.pem"},
     {"--api-keys", "/etc/lipsyncd/keys.json"},
+    {"--http-listen", "127.0.0.1:6002"},
 };
 
 std::vector<std::string> flags_in_help() {

@@ -34,6 +34,8 @@ struct ModelFile {
 
 struct ServerConfig {
   std::string listen = "127.0.0.1:50051";  ///< host:port; port 0 picks a free one
+  /// host:port of the browser viewer (HTTP and WebSocket, docs/viewer.md); "" = off.
+  std::string http_listen;
   std::int64_t drain_deadline_ms = 5000;   ///< on SIGTERM: time running streams get to finish
 
   // Admission limits (RESOURCE_EXHAUSTED beyond them).

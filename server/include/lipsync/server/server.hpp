@@ -27,6 +27,8 @@ class Server {
   int port() const;
   /// "host:port" with the bound port.
   std::string address() const;
+  /// The browser viewer's "host:port" with its bound port (--http-listen); "" when it is off.
+  std::string http_address() const;
 
   /// Refuses new calls (UNAVAILABLE), lets running calls finish for up to
   /// `drain`, then cancels the rest and waits until every call has ended.

@@ -1,0 +1,430 @@
+#include "http_viewer.hpp"
+
+#include <sys/socket.h>
+
+#include <chrono>
+#include <stdexcept>
+#include <thread>
+
+#include <boost/asio/ip/address.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
+#include <grpcpp/grpcpp.h>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include "call_log.hpp"
+#include "lipsync/error.hpp"
+#include "lipsync/v1/lipsync.grpc.pb.h"
+#include "quick_try.hpp"
+#include "web_assets.hpp"
+
+namespace lipsync::server {
+namespace {
+
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace websocket = beast::websocket;
+using tcp = boost::asio::ip::tcp;
+using Request = http::request<http::string_body>;
+using Response = http::response<http::string_body>;
+
+constexpr std::size_t kMaxBodyBytes = 4 * 1024 * 1024;  // pasted phoneme text
+/// A WebSocket close reason is at most 123 bytes (RFC 6455, 5.5: 125 with the 2-byte code).
+constexpr std::size_t kMaxCloseReasonBytes = 123;
+/// Close codes 4000-4999 are for applications: ours is 4000 + the gRPC status code.
+constexpr std::uint16_t kGrpcCloseCodeBase = 4000;
+
+Response text_response(const Request& request, http::status status, std::string body,
+                       std::string_view content_type = "text/plain; charset=utf-8") {
+  Response response(status, request.version());
+  response.set(http::field::server, "lipsyncd");
+  response.set(http::field::content_type, beast::string_view(content_type.data(), content_type.size()));
+  response.set(http::field::cache_control, "no-store");
+  response.keep_alive(request.keep_alive());
+  response.body() = std::move(body);
+  response.prepare_payload();
+  return response;
+}
+
+/// The HTTP status that tells a browser what a gRPC status means.
+http::status http_status(grpc::StatusCode code) {
+  switch (code) {
+    case grpc::StatusCode::OK: return http::status::ok;
+    case grpc::StatusCode::INVALID_ARGUMENT: return http::status::bad_request;
+    case grpc::StatusCode::NOT_FOUND: return http::status::not_found;
+    case grpc::StatusCode::ALREADY_EXISTS: return http::status::conflict;
+    case grpc::StatusCode::RESOURCE_EXHAUSTED: return http::status::too_many_requests;
+    case grpc::StatusCode::UNAVAILABLE: return http::status::service_unavailable;
+    default: return http::status::internal_server_error;
+  }
+}
+
+/// "NOT_FOUND": the code's name alone (status_name adds the message).
+std::string code_name(grpc::StatusCode code) {
+  const std::string name = status_name(grpc::Status(code, "-"));
+  return name.substr(0, name.find(' '));
+}
+
+std::string error_json(const std::string& code, const std::string& message) {
+  return nlohmann::json{{"code", code}, {"message", message}}.dump();
+}
+
+std::string truncated_reason(const std::string& message) {
+  if (message.size() <= kMaxCloseReasonBytes) return message;
+  std::size_t cut = kMaxCloseReasonBytes - 3;
+  while (cut > 0 && (static_cast<unsigned char>(message[cut]) & 0xC0) == 0x80) --cut;  // not inside a UTF-8 character
+  return message.substr(0, cut) + "...";
+}
+
+std::int64_t unix_now_us() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+tcp::endpoint resolve(boost::asio::io_context& io, const std::string& host_port, std::string& host) {
+  const auto colon = host_port.rfind(':');
+  if (colon == std::string::npos) throw std::runtime_error("--http-listen: expected HOST:PORT, got '" + host_port + "'");
+  host = host_port.substr(0, colon);
+  std::string name = host;
+  if (name.size() > 1 && name.front() == '[' && name.back() == ']') name = name.substr(1, name.size() - 2);
+  tcp::resolver resolver(io);
+  beast::error_code error;
+  const auto results = resolver.resolve(name, host_port.substr(colon + 1), tcp::resolver::passive, error);
+  if (error || results.empty()) {
+    throw std::runtime_error("--http-listen: cannot resolve '" + host_port + "': " + error.message());
+  }
+  return results.begin()->endpoint();
+}
+
+}  // namespace
+
+struct HttpViewer::Connection {
+  explicit Connection(tcp::socket socket_in) : socket(std::move(socket_in)) {}
+
+  tcp::socket socket;
+  std::thread thread;
+  std::atomic<bool> done{false};
+  std::mutex call_mutex;
+  grpc::ClientContext* call = nullptr;  ///< the follower's or quick try's call, cancelled by close()
+};
+
+namespace {
+
+/// Registers `context` as the connection's running call (so close() can cancel it) for the
+/// lifetime of this object; `admitted` is false when the viewer is already closing.
+class CallRegistration {
+ public:
+  CallRegistration(std::mutex& mutex, grpc::ClientContext*& slot, grpc::ClientContext& context,
+                   const std::atomic<bool>& closing)
+      : mutex_(mutex), slot_(slot) {
+    std::lock_guard lock(mutex_);
+    admitted = !closing;
+    if (admitted) slot_ = &context;
+  }
+  ~CallRegistration() {
+    std::lock_guard lock(mutex_);
+    slot_ = nullptr;
+  }
+  CallRegistration(const CallRegistration&) = delete;
+  CallRegistration& operator=(const CallRegistration&) = delete;
+
+  bool admitted = false;
+
+ private:
+  std::mutex& mutex_;
+  grpc::ClientContext*& slot_;
+};
+
+/// The caller's API key on the in-process call (docs/viewer.md): the request's own
+/// `Authorization` header, else `?key=` (a browser's WebSocket cannot set headers).
+void forward_api_key(const Request& request, const QueryParameters& query, grpc::ClientContext& context) {
+  if (const auto header = request.find(http::field::authorization); header != request.end()) {
+    context.AddMetadata("authorization", std::string(header->value()));
+  } else if (const auto key = query.find("key"); key != query.end() && !key->second.empty()) {
+    context.AddMetadata("authorization", "Bearer " + key->second);
+  }
+}
+
+/// GET /ws: the session's messages, one binary WebSocket message each, through a Subscribe call.
+void follow_session(websocket::stream<tcp::socket&>& ws, v1::LipSync::Stub& stub, const QueryParameters& query,
+                    grpc::ClientContext& context, const std::atomic<bool>& closing) {
+  const auto close_with = [&](grpc::StatusCode code, const std::string& message) {
+    beast::error_code ignored;
+    ws.text(true);
+    ws.write(boost::asio::buffer(error_json(code_name(code), message)), ignored);
+    websocket::close_reason reason(truncated_reason(message));
+    reason.code = static_cast<std::uint16_t>(kGrpcCloseCodeBase + code);
+    ws.close(reason, ignored);
+  };
+  const auto session = query.find("session");
+  if (session == query.end() || session->second.empty()) {
+    close_with(grpc::StatusCode::INVALID_ARGUMENT, "the WebSocket needs a session: /ws?session=NAME");
+    return;
+  }
+  const auto start = query.find("start");
+  v1::SubscribeRequest request;
+  request.set_session(session->second);
+  if (start == query.end() || start->second == "beginning") {
+    request.set_start(v1::SubscribeRequest::START_FROM_BEGINNING);
+  } else if (start->second == "now") {
+    request.set_start(v1::SubscribeRequest::START_FROM_NOW);
+  } else {
+    close_with(grpc::StatusCode::INVALID_ARGUMENT, "start: expected 'beginning' or 'now', got '" + start->second + "'");
+    return;
+  }
+
+  ws.binary(true);
+  auto reader = stub.Subscribe(&context, request);
+  v1::TrackMessage message;
+  std::string bytes;
+  bool client_gone = false;
+  while (reader->Read(&message)) {
+    if (client_gone) continue;  // draining after the cancel
+    message.SerializeToString(&bytes);
+    beast::error_code error;
+    ws.write(boost::asio::buffer(bytes), error);
+    if (error) {
+      client_gone = true;
+      context.TryCancel();
+    }
+  }
+  const grpc::Status status = reader->Finish();
+  if (client_gone) return;
+  beast::error_code ignored;
+  if (status.ok()) {
+    ws.close(websocket::close_reason(websocket::close_code::normal, "OK"), ignored);
+  } else if (closing) {
+    ws.close(websocket::close_reason(websocket::close_code::going_away, "lipsyncd is shutting down"), ignored);
+  } else {
+    close_with(status.error_code(), status.error_message());
+  }
+}
+
+/// POST /sessions: one Animate call with the pasted text; answers once the session is complete.
+Response quick_try(const Request& request, v1::LipSync::Stub& stub, const QuickTry& plan, grpc::ClientContext& context) {
+  auto stream = stub.Animate(&context);
+  std::uint64_t frames = 0;
+  std::thread reader([&] {
+    v1::TrackMessage message;
+    while (stream->Read(&message)) {
+      if (message.has_summary()) frames = message.summary().frames();
+    }
+  });
+  v1::AnimateRequest message;
+  *message.mutable_settings() = plan.settings;
+  stream->Write(message);
+  message.Clear();
+  for (const v1::Phoneme& phoneme : plan.phonemes) *message.mutable_phonemes()->add_phonemes() = phoneme;
+  stream->Write(message);
+  message.Clear();
+  message.mutable_end();
+  stream->Write(message);
+  stream->WritesDone();
+  reader.join();
+  const grpc::Status status = stream->Finish();
+  if (!status.ok()) {
+    return text_response(request, http_status(status.error_code()),
+                         error_json(code_name(status.error_code()), status.error_message()), "application/json");
+  }
+  const std::string& session = plan.settings.session();
+  const nlohmann::json body = {{"session", session},
+                               {"phonemes", plan.phonemes.size()},
+                               {"frames", frames},
+                               {"utterance_zero_us", plan.settings.media_clock().utterance_zero_us()},
+                               {"view", "/view?session=" + session}};
+  return text_response(request, http::status::ok, body.dump(), "application/json");
+}
+
+Response serve_asset(const Request& request, const std::string& path) {
+  const std::string wanted = path == "/" ? "/view" : path;
+  for (const WebAsset& asset : web_assets()) {
+    if (asset.path != wanted) continue;
+    if (request.method() != http::verb::get && request.method() != http::verb::head) {
+      Response response = text_response(request, http::status::method_not_allowed, path + ": only GET\n");
+      response.set(http::field::allow, "GET, HEAD");
+      return response;
+    }
+    Response response = text_response(request, http::status::ok, std::string(asset.body), asset.content_type);
+    if (request.method() == http::verb::head) response.body().clear();
+    return response;
+  }
+  return text_response(request, http::status::not_found,
+                       "lipsyncd: no such page: " + path + " (the viewer is at /view?session=NAME)\n");
+}
+
+}  // namespace
+
+HttpViewer::HttpViewer(const std::string& host_port, std::shared_ptr<grpc::Channel> service,
+                       const ModelCatalog& catalog)
+    : service_(std::move(service)), catalog_(catalog), acceptor_(io_) {
+  const tcp::endpoint endpoint = resolve(io_, host_port, host_);
+  beast::error_code error;
+  acceptor_.open(endpoint.protocol(), error);
+  if (!error) acceptor_.set_option(boost::asio::socket_base::reuse_address(true), error);
+  if (!error) acceptor_.bind(endpoint, error);
+  if (!error) acceptor_.listen(boost::asio::socket_base::max_listen_connections, error);
+  if (error) throw std::runtime_error("--http-listen: cannot listen on " + host_port + ": " + error.message());
+  port_ = acceptor_.local_endpoint().port();
+  accept_thread_ = std::thread([this] { accept_loop(); });
+}
+
+HttpViewer::~HttpViewer() { close(); }
+
+int HttpViewer::port() const { return port_; }
+
+std::string HttpViewer::address() const { return host_ + ":" + std::to_string(port_); }
+
+void HttpViewer::accept_loop() {
+  while (!closing_) {
+    tcp::socket socket(io_);
+    beast::error_code error;
+    acceptor_.accept(socket, error);
+    if (closing_) break;
+    if (error) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));  // e.g. out of descriptors: retry
+      continue;
+    }
+    std::lock_guard lock(mutex_);
+    reap_finished_locked();
+    auto& connection = *connections_.emplace_back(std::make_unique<Connection>(std::move(socket)));
+    connection.thread = std::thread([this, &connection] {
+      serve(connection);
+      connection.done = true;
+    });
+  }
+}
+
+void HttpViewer::reap_finished_locked() {
+  for (auto it = connections_.begin(); it != connections_.end();) {
+    if ((*it)->done) {
+      (*it)->thread.join();
+      it = connections_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+}
+
+void HttpViewer::serve(Connection& connection) {
+  beast::flat_buffer buffer;
+  auto stub = v1::LipSync::NewStub(service_);
+  for (;;) {
+    http::request_parser<http::string_body> parser;
+    parser.body_limit(kMaxBodyBytes);
+    beast::error_code error;
+    http::read(connection.socket, buffer, parser, error);
+    if (error == http::error::body_limit) {
+      Request too_large;
+      auto response = text_response(too_large, http::status::payload_too_large,
+                                    "the body is larger than " + std::to_string(kMaxBodyBytes) + " bytes\n");
+      response.keep_alive(false);
+      http::write(connection.socket, response, error);
+      break;
+    }
+    if (error) break;  // the peer closed, or not HTTP
+    Request request = parser.release();
+    QueryParameters query;
+    std::string path;
+    try {
+      const beast::string_view target = request.target();
+      path = split_request_target(std::string_view(target.data(), target.size()), query);
+    } catch (const std::invalid_argument& bad) {
+      http::write(connection.socket, text_response(request, http::status::bad_request, std::string(bad.what()) + "\n"),
+                  error);
+      break;
+    }
+
+    if (path == "/ws") {
+      if (!websocket::is_upgrade(request)) {
+        http::write(connection.socket,
+                    text_response(request, http::status::upgrade_required, "/ws is a WebSocket: open it as one\n"),
+                    error);
+        if (error) break;
+        continue;
+      }
+      websocket::stream<tcp::socket&> ws(connection.socket);
+      ws.set_option(websocket::stream_base::decorator(
+          [](websocket::response_type& response) { response.set(http::field::server, "lipsyncd"); }));
+      ws.accept(request, error);
+      if (error) break;
+      grpc::ClientContext context;
+      forward_api_key(request, query, context);
+      CallRegistration registration(connection.call_mutex, connection.call, context, closing_);
+      if (!registration.admitted) {
+        ws.close(websocket::close_reason(websocket::close_code::going_away, "lipsyncd is shutting down"), error);
+        break;
+      }
+      const auto started = std::chrono::steady_clock::now();
+      follow_session(ws, *stub, query, context, closing_);
+      spdlog::info("viewer WebSocket end peer={} session='{}' duration_ms={}",
+                   connection.socket.remote_endpoint(error).address().to_string(),
+                   query.count("session") ? query.at("session") : "",
+                   std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - started)
+                       .count());
+      break;
+    }
+
+    Response response;
+    if (path == "/sessions") {
+      if (request.method() != http::verb::post) {
+        response = text_response(request, http::status::method_not_allowed, "/sessions: only POST (the phoneme text)\n");
+        response.set(http::field::allow, "POST");
+      } else {
+        try {
+          const QuickTry plan = plan_quick_try(query, request.body(), catalog_, unix_now_us());
+          grpc::ClientContext context;
+          forward_api_key(request, query, context);
+          CallRegistration registration(connection.call_mutex, connection.call, context, closing_);
+          response = registration.admitted
+                         ? quick_try(request, *stub, plan, context)
+                         : text_response(request, http::status::service_unavailable,
+                                         error_json("UNAVAILABLE", "lipsyncd is shutting down"), "application/json");
+        } catch (const InputError& bad) {
+          response = text_response(request, http::status::bad_request, error_json("INVALID_ARGUMENT", bad.what()),
+                                   "application/json");
+        } catch (const QuickTryError& bad) {
+          response = text_response(request, http::status::bad_request, error_json("INVALID_ARGUMENT", bad.what()),
+                                   "application/json");
+        }
+      }
+    } else {
+      response = serve_asset(request, path);
+    }
+    http::write(connection.socket, response, error);
+    if (error || !response.keep_alive()) break;
+  }
+  beast::error_code ignored;
+  connection.socket.shutdown(tcp::socket::shutdown_both, ignored);
+}
+
+void HttpViewer::close() {
+  if (closing_.exchange(true)) return;
+  // Wake the blocking accept (shutdown is safe from another thread; close is not).
+  ::shutdown(acceptor_.native_handle(), SHUT_RDWR);
+  if (accept_thread_.joinable()) accept_thread_.join();
+  std::lock_guard lock(mutex_);
+  // Running calls first: their followers then say "going away" on their own.
+  for (auto& connection : connections_) {
+    std::lock_guard call_lock(connection->call_mutex);
+    if (connection->call) connection->call->TryCancel();
+  }
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(1);
+  for (auto& connection : connections_) {
+    while (!connection->done && std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  }
+  // Then every connection still open (idle keep-alive, or a peer that does not read).
+  for (auto& connection : connections_) {
+    if (!connection->done) ::shutdown(connection->socket.native_handle(), SHUT_RDWR);
+  }
+  for (auto& connection : connections_) connection->thread.join();
+  connections_.clear();
+  beast::error_code ignored;
+  acceptor_.close(ignored);
+}
+
+}  // namespace lipsync::server

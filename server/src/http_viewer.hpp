@@ -1,0 +1,76 @@
+// The browser viewer: an optional HTTP port (--http-listen) that serves a single-page face viewer
+// (server/web/, embedded at build time) and a WebSocket that follows a session.
+//
+// Routes (docs/viewer.md):
+//   GET  /  and  /view            the page (query: session, audio, start)
+//   GET  /viewer.js, /viewer.css  its script and style; /face.json: the viewer's face (data/face/)
+//   GET  /ws?session=NAME[&start=now]   WebSocket: every TrackMessage of the session, serialised,
+//                                       one binary message each (header, batches, summary); then a
+//                                       close with 1000 and "OK", or a text message
+//                                       {"code":"NOT_FOUND","message":"..."} and close code
+//                                       4000 + the gRPC status code with the message as reason
+//   POST /sessions?session=NAME&...     body: phoneme text in any format the CLI reads; the
+//                                       server animates it as a session (a quick try)
+//
+// Nothing here duplicates the service: a follower is a Subscribe call and a quick try is an
+// Animate call, both made over the gRPC server's in-process channel, so admission, limits,
+// routing, replay and the media-clock anchor are exactly those of a gRPC client. Each HTTP
+// connection is served by its own thread with Beast's synchronous API: a viewer is for a few
+// people watching, not for fan-out at scale (that is Subscribe's job).
+#pragma once
+
+#include <atomic>
+#include <list>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include <boost/asio/ip/tcp.hpp>
+
+namespace grpc {
+class Channel;
+class ClientContext;
+}  // namespace grpc
+
+namespace lipsync::server {
+
+class ModelCatalog;
+
+class HttpViewer {
+ public:
+  /// Binds `host_port` (port 0 picks a free one) and starts accepting. `service` is a channel to
+  /// the LipSync service (the gRPC server's in-process channel); `catalog` chooses the phone set of
+  /// pasted text. Throws std::runtime_error saying why it cannot listen.
+  HttpViewer(const std::string& host_port, std::shared_ptr<grpc::Channel> service, const ModelCatalog& catalog);
+  ~HttpViewer();
+  HttpViewer(const HttpViewer&) = delete;
+  HttpViewer& operator=(const HttpViewer&) = delete;
+
+  /// "host:port" with the bound port.
+  std::string address() const;
+  int port() const;
+
+  /// Stops accepting, cancels every follower and quick try (their WebSockets get 1001 "going
+  /// away"), closes the connections and waits for their threads. Idempotent.
+  void close();
+
+ private:
+  struct Connection;
+  void accept_loop();
+  void serve(Connection& connection);
+  void reap_finished_locked();
+
+  std::string host_;
+  std::shared_ptr<grpc::Channel> service_;
+  const ModelCatalog& catalog_;
+  boost::asio::io_context io_;
+  boost::asio::ip::tcp::acceptor acceptor_;
+  int port_ = 0;
+  std::atomic<bool> closing_{false};
+  std::mutex mutex_;
+  std::list<std::unique_ptr<Connection>> connections_;
+  std::thread accept_thread_;
+};
+
+}  // namespace lipsync::server

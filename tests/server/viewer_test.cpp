@@ -1,0 +1,331 @@
+// The browser viewer's HTTP port without a browser: a real lipsyncd (in-process, --http-listen on
+// 127.0.0.1:0) and real clients over real sockets (Beast's HTTP and WebSocket clients, gRPC).
+// A WebSocket follower receives exactly the messages a gRPC Subscribe receives, byte for byte; bad
+// requests get a status or close reason that names what was wrong; the page, its scripts and its
+// face are served; a quick try animates pasted text as a session equal to a Render of it.
+// The page itself, in Chromium, is tests/server/viewer_browser_test.py.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <boost/asio/connect.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
+#include <nlohmann/json.hpp>
+
+#include "lipsync/formats.hpp"
+#include "../support/server_harness.hpp"
+
+namespace lipsync::server {
+namespace {
+
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace websocket = beast::websocket;
+using tcp = boost::asio::ip::tcp;
+using namespace harness;
+
+std::string read_fixture(const std::string& relative) {
+  std::ifstream file(std::string(LIPSYNC_TEST_DATA_DIR) + "/" + relative, std::ios::binary);
+  std::ostringstream text;
+  text << file.rdbuf();
+  return text.str();
+}
+
+/// flite's own timings of "Papa bought five more big maps." (radio phone set).
+std::vector<LabeledInterval> flite_papa() {
+  const std::string text = read_fixture("closures/flite_1.psdur");
+  return parse_utterance(text, InputFormat::flite, "flite_1.psdur").intervals;
+}
+
+v1::AnimationSettings papa_settings(const std::string& session) {
+  v1::AnimationSettings settings;
+  settings.set_phone_set("radio");
+  settings.set_session(session);
+  settings.mutable_outputs()->mutable_visemes()->set_enabled(true);
+  settings.mutable_media_clock()->set_clock("unix");
+  settings.mutable_media_clock()->set_utterance_zero_us(1'700'000'000'000'000);
+  return settings;
+}
+
+struct HttpReply {
+  unsigned status = 0;
+  std::string content_type;
+  std::string body;
+};
+
+/// What a WebSocket follower received: its binary messages, text messages and the close.
+struct WebSocketReply {
+  std::vector<std::string> binary;
+  std::vector<std::string> text;
+  websocket::close_reason close;
+};
+
+class ViewerTest : public LiveServerTest {
+ protected:
+  void SetUp() override {
+    ServerConfig config;
+    config.http_listen = "127.0.0.1:0";
+    config.session_retention_ms = 60'000;
+    start(config);
+    const std::string address = server_->http_address();
+    http_host_ = address.substr(0, address.rfind(':'));
+    http_port_ = address.substr(address.rfind(':') + 1);
+  }
+
+  tcp::socket connect_http() {
+    tcp::resolver resolver(io_);
+    tcp::socket socket(io_);
+    boost::asio::connect(socket, resolver.resolve(http_host_, http_port_));
+    return socket;
+  }
+
+  HttpReply request(http::verb verb, const std::string& target, const std::string& body = "") {
+    tcp::socket socket = connect_http();
+    http::request<http::string_body> req(verb, target, 11);
+    req.set(http::field::host, http_host_);
+    req.body() = body;
+    req.prepare_payload();
+    http::write(socket, req);
+    beast::flat_buffer buffer;
+    http::response<http::string_body> response;
+    http::read(socket, buffer, response);
+    return {response.result_int(), std::string(response[http::field::content_type]), response.body()};
+  }
+
+  WebSocketReply follow(const std::string& target) {
+    websocket::stream<tcp::socket> ws(connect_http());
+    ws.handshake(http_host_, target);
+    WebSocketReply reply;
+    for (;;) {
+      beast::flat_buffer buffer;
+      beast::error_code error;
+      ws.read(buffer, error);
+      if (error == websocket::error::closed) break;
+      if (error) throw beast::system_error(error);
+      (ws.got_binary() ? reply.binary : reply.text).push_back(beast::buffers_to_string(buffer.data()));
+    }
+    reply.close = ws.reason();
+    return reply;
+  }
+
+  /// An Animate stream that has opened session `name` (its header is read) and sent no phoneme yet.
+  std::unique_ptr<grpc::ClientReaderWriter<v1::AnimateRequest, v1::TrackMessage>> open_session(
+      grpc::ClientContext& context, const std::string& name) {
+    set_deadline(context);
+    auto producer = stub_->Animate(&context);
+    EXPECT_TRUE(producer->Write(settings_request(papa_settings(name))));
+    v1::TrackMessage header;
+    EXPECT_TRUE(producer->Read(&header));
+    return producer;
+  }
+
+  /// A finished session named `session`: flite's "Papa ..." through Animate, in chunks of 3.
+  void produce_papa(const std::string& session) {
+    const Received produced = animate(*stub_, whole(papa_settings(session), flite_papa(), 3));
+    ASSERT_TRUE(produced.status.ok()) << produced.status.error_message();
+  }
+
+  boost::asio::io_context io_;
+  std::string http_host_, http_port_;
+};
+
+TEST_F(ViewerTest, websocket_follower_receives_the_same_messages_as_a_grpc_subscriber) {
+  produce_papa("papa");
+  grpc::ClientContext context;
+  set_deadline(context);
+  v1::SubscribeRequest subscribe;
+  subscribe.set_session("papa");
+  auto reader = stub_->Subscribe(&context, subscribe);
+  std::vector<std::string> expected;
+  v1::TrackMessage message;
+  while (reader->Read(&message)) expected.push_back(message.SerializeAsString());
+  ASSERT_TRUE(reader->Finish().ok());
+
+  const WebSocketReply reply = follow("/ws?session=papa");
+  EXPECT_EQ(reply.close.code, websocket::close_code::normal);
+  EXPECT_TRUE(reply.text.empty());
+  ASSERT_GE(reply.binary.size(), 3u);  // header, batches, summary
+  EXPECT_EQ(reply.binary, expected);
+  v1::TrackMessage first, last;
+  ASSERT_TRUE(first.ParseFromString(reply.binary.front()));
+  ASSERT_TRUE(last.ParseFromString(reply.binary.back()));
+  ASSERT_TRUE(first.has_header());
+  EXPECT_EQ(first.header().session(), "papa");
+  EXPECT_EQ(first.header().media_clock().clock(), "unix");
+  EXPECT_EQ(first.header().media_clock().utterance_zero_us(), 1'700'000'000'000'000);
+  EXPECT_THAT(first.header().viseme_names(), ::testing::Contains("PP"));
+  EXPECT_TRUE(last.has_summary());
+}
+
+TEST_F(ViewerTest, websocket_follower_of_a_live_session_gets_frames_as_they_are_produced) {
+  grpc::ClientContext context;
+  auto producer = open_session(context, "live");
+  WebSocketReply reply;
+  std::thread follower([&] { reply = follow("/ws?session=live&start=beginning"); });
+  for (auto& chunk : chunked(flite_papa(), 4)) ASSERT_TRUE(producer->Write(chunk));
+  ASSERT_TRUE(producer->Write(end_request()));
+  producer->WritesDone();
+  v1::TrackMessage message;
+  while (producer->Read(&message)) {
+  }
+  ASSERT_TRUE(producer->Finish().ok());
+  follower.join();
+
+  Received followed;
+  for (const std::string& bytes : reply.binary) {
+    v1::TrackMessage received;
+    ASSERT_TRUE(received.ParseFromString(bytes));
+    take(followed, received);
+  }
+  const Received rendered = subscribe_all(*stub_, "live");
+  ASSERT_TRUE(followed.header && followed.summary);
+  EXPECT_EQ(followed.frames.t_us, rendered.frames.t_us);
+  EXPECT_EQ(followed.frames.arkit, rendered.frames.arkit);
+  EXPECT_EQ(reply.close.code, websocket::close_code::normal);
+}
+
+TEST_F(ViewerTest, unknown_session_closes_the_websocket_with_not_found_naming_the_session) {
+  const WebSocketReply reply = follow("/ws?session=nobody-here");
+  EXPECT_TRUE(reply.binary.empty());
+  ASSERT_EQ(reply.text.size(), 1u);
+  const auto error = nlohmann::json::parse(reply.text.front());
+  EXPECT_EQ(error["code"], "NOT_FOUND");
+  EXPECT_THAT(error["message"].get<std::string>(), ::testing::HasSubstr("'nobody-here'"));
+  EXPECT_EQ(reply.close.code, 4000 + grpc::StatusCode::NOT_FOUND);
+  EXPECT_THAT(std::string(reply.close.reason.c_str()), ::testing::HasSubstr("nobody-here"));
+  EXPECT_LE(reply.close.reason.size(), 123u);
+}
+
+TEST_F(ViewerTest, websocket_without_a_session_or_with_a_bad_start_is_invalid_argument) {
+  WebSocketReply reply = follow("/ws");
+  EXPECT_EQ(reply.close.code, 4000 + grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(std::string(reply.close.reason.c_str()), ::testing::HasSubstr("session=NAME"));
+  reply = follow("/ws?session=x&start=yesterday");
+  EXPECT_EQ(reply.close.code, 4000 + grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(std::string(reply.close.reason.c_str()), ::testing::HasSubstr("'yesterday'"));
+}
+
+TEST_F(ViewerTest, unknown_path_is_404_naming_it_and_ws_without_upgrade_is_426) {
+  const HttpReply missing = request(http::verb::get, "/no/such/thing");
+  EXPECT_EQ(missing.status, 404u);
+  EXPECT_THAT(missing.body, ::testing::HasSubstr("/no/such/thing"));
+  EXPECT_EQ(request(http::verb::get, "/ws?session=x").status, 426u);
+  EXPECT_EQ(request(http::verb::post, "/viewer.js").status, 405u);
+  EXPECT_EQ(request(http::verb::get, "/sessions").status, 405u);
+}
+
+TEST_F(ViewerTest, page_scripts_and_face_are_served_from_the_binary) {
+  const HttpReply page = request(http::verb::get, "/view?session=demo&audio=speech.wav");
+  EXPECT_EQ(page.status, 200u);
+  EXPECT_THAT(page.content_type, ::testing::StartsWith("text/html"));
+  for (const char* id : {"id=\"frame-time\"", "id=\"viseme\"", "id=\"drift\"", "/viewer.js"}) {
+    EXPECT_THAT(page.body, ::testing::HasSubstr(id));
+  }
+  EXPECT_EQ(request(http::verb::get, "/").body, page.body);
+  EXPECT_THAT(request(http::verb::get, "/viewer.js").body, ::testing::HasSubstr("window.lipsyncViewer"));
+  EXPECT_THAT(request(http::verb::get, "/track_decoder.js").body, ::testing::HasSubstr("decodeTrackMessage"));
+  const HttpReply face = request(http::verb::get, "/face.json");
+  EXPECT_EQ(face.content_type, "application/json");
+  const auto json = nlohmann::json::parse(face.body);
+  EXPECT_EQ(json["format"], "lipsync-viewer-face 1");
+  EXPECT_EQ(json["rest_um"].size(), 3 * json["vertex_count"].get<std::size_t>());
+  EXPECT_FALSE(json["blendshapes"].empty());
+}
+
+TEST_F(ViewerTest, quick_try_animates_pasted_text_as_a_session_equal_to_a_render) {
+  const std::string text = read_fixture("closures/flite_1.psdur");
+  const HttpReply reply = request(http::verb::post, "/sessions?session=pasted&fps=60", text);
+  ASSERT_EQ(reply.status, 200u) << reply.body;
+  const auto answer = nlohmann::json::parse(reply.body);
+  EXPECT_EQ(answer["session"], "pasted");
+  EXPECT_EQ(answer["phonemes"], flite_papa().size());
+  EXPECT_EQ(answer["view"], "/view?session=pasted");
+
+  const Received followed = subscribe_all(*stub_, "pasted");
+  ASSERT_TRUE(followed.status.ok()) << followed.status.error_message();
+  EXPECT_EQ(followed.header->media_clock().clock(), "unix");
+  EXPECT_EQ(followed.header->media_clock().utterance_zero_us(), answer["utterance_zero_us"].get<std::int64_t>());
+  EXPECT_EQ(followed.header->fps(), 60u);
+  EXPECT_EQ(answer["frames"], followed.frames.t_us.size());
+
+  grpc::ClientContext context;
+  set_deadline(context);
+  v1::RenderRequest render;
+  *render.mutable_settings() = papa_settings("");
+  render.mutable_settings()->set_fps(60);
+  for (const auto& interval : flite_papa()) *render.add_phonemes() = to_proto(interval);
+  v1::RenderResponse rendered;
+  ASSERT_TRUE(stub_->Render(&context, render, &rendered).ok());
+  EXPECT_THAT(followed.frames.t_us, ::testing::ElementsAreArray(rendered.frames().t_us()));
+  EXPECT_THAT(followed.frames.values, ::testing::ElementsAreArray(rendered.frames().values()));
+}
+
+TEST_F(ViewerTest, quick_try_reports_bad_text_bad_parameters_and_taken_names) {
+  HttpReply reply = request(http::verb::post, "/sessions?session=bad", "pau:0.1 p:0.05 aa:0.3\n");
+  EXPECT_EQ(reply.status, 400u);
+  EXPECT_THAT(nlohmann::json::parse(reply.body)["message"].get<std::string>(),
+              ::testing::StartsWith("pasted text:"));
+  reply = request(http::verb::post, "/sessions?fps=1000", "pau:0.1 p:0.2\n");
+  EXPECT_EQ(reply.status, 400u);
+  EXPECT_THAT(reply.body, ::testing::HasSubstr("fps: expected an integer from 1 to 240, got '1000'"));
+  reply = request(http::verb::post, "/sessions?phone_set=klingon", "pau:0.1 p:0.2\n");
+  EXPECT_EQ(reply.status, 400u);
+  EXPECT_THAT(reply.body, ::testing::HasSubstr("klingon"));
+
+  // A live producer holds the name: ALREADY_EXISTS is 409.
+  grpc::ClientContext context;
+  auto producer = open_session(context, "taken");
+  reply = request(http::verb::post, "/sessions?session=taken", "pau:0.1 p:0.2\n");
+  EXPECT_EQ(reply.status, 409u);
+  EXPECT_EQ(nlohmann::json::parse(reply.body)["code"], "ALREADY_EXISTS");
+  context.TryCancel();
+}
+
+TEST_F(ViewerTest, follower_hears_aborted_when_the_producer_goes_away) {
+  grpc::ClientContext context;
+  auto producer = open_session(context, "waiting");
+  WebSocketReply reply;
+  std::thread follower([&] { reply = follow("/ws?session=waiting"); });
+  ASSERT_TRUE(eventually([&] { return server_->active_streams() == 2; }));  // producer + the follower's Subscribe
+  context.TryCancel();
+  producer->Finish();
+  follower.join();
+  EXPECT_EQ(reply.binary.size(), 1u);  // the header
+  EXPECT_EQ(reply.close.code, 4000 + grpc::StatusCode::ABORTED);
+  EXPECT_THAT(std::string(reply.close.reason.c_str()), ::testing::HasSubstr("producer"));
+}
+
+TEST_F(ViewerTest, shutdown_ends_a_waiting_follower_with_going_away) {
+  grpc::ClientContext context;
+  auto producer = open_session(context, "waiting");
+  WebSocketReply reply;
+  std::thread follower([&] { reply = follow("/ws?session=waiting"); });
+  ASSERT_TRUE(eventually([&] { return server_->active_streams() == 2; }));
+  server_->shutdown(std::chrono::milliseconds(0));
+  follower.join();
+  producer->Finish();
+  EXPECT_EQ(reply.close.code, websocket::close_code::going_away);
+  EXPECT_THAT(std::string(reply.close.reason.c_str()), ::testing::HasSubstr("shutting down"));
+}
+
+TEST(ViewerConfig, http_listen_is_off_by_default_and_read_from_flag_and_environment) {
+  EXPECT_EQ(parse_command_line({}).config.http_listen, "");
+  EXPECT_EQ(parse_command_line({"--http-listen", "127.0.0.1:8080"}).config.http_listen, "127.0.0.1:8080");
+  const Environment environment = [](const std::string& name) -> std::optional<std::string> {
+    if (name == "LIPSYNCD_HTTP_LISTEN") return "0.0.0.0:0";
+    return std::nullopt;
+  };
+  EXPECT_EQ(parse_command_line({}, environment).config.http_listen, "0.0.0.0:0");
+  EXPECT_THROW(parse_command_line({"--http-listen", "8080"}), ConfigError);
+  EXPECT_THAT(help_text(), ::testing::HasSubstr("--http-listen"));
+}
+
+}  // namespace
+}  // namespace lipsync::server
