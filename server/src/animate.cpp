@@ -31,6 +31,8 @@
 #include <spdlog/spdlog.h>
 
 #include "call_log.hpp"
+#include "live_streams.hpp"
+#include "lipsync/excerpt.hpp"
 #include "lipsync/renderer.hpp"
 #include "outbox.hpp"
 #include "phoneme_input.hpp"
@@ -49,17 +51,18 @@ constexpr std::size_t kReadPauseFrames = 4096;
 constexpr std::size_t kReadResumeFrames = 1024;
 
 class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, v1::TrackMessage>,
-                             public OutboxTarget {
+                             public OutboxTarget,
+                             public AbortableStream {
  public:
   AnimateReactor(LipSyncService& service, grpc::CallbackServerContext* context)
-      : service_(service), context_(context), outbox_(*this), started_(Clock::now()) {
+      : service_(service), context_(context), outbox_(*this), log_("Animate", *context) {
     const grpc::Status admission = service_.admission().admit_stream();
     if (!admission.ok()) {
       outbox_.close(admission);
       return;
     }
     admitted_ = true;
-    spdlog::info("Animate start peer={}", context_->peer());
+    service_.live_streams().add(*this);
     StartRead(&request_);
   }
 
@@ -68,8 +71,10 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
       if (phase_ == Phase::ended) {
         in_order([this] { outbox_.close(grpc::Status::OK); });
       } else {
-        fail(invalid("the client closed the stream before `end` (after " + std::to_string(phonemes()) +
-                     " phonemes)"),
+        // gRPC ends the reads the same way when the client closes its side and when a
+        // message cannot be decoded as an AnimateRequest; a cancel is told apart in OnDone.
+        fail(invalid("the request stream ended before `end` after " + std::to_string(phonemes()) +
+                     " phonemes: the client closed its side, or sent a message that is not an AnimateRequest"),
              "producer disconnected before the end of the utterance");
       }
       return;
@@ -102,21 +107,17 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   }
 
   void OnCancel() override {
+    cancelled_ = true;
     stopped_ = true;
     outbox_.abort(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
     fail_session("producer disconnected: the stream was cancelled");
   }
 
   void OnDone() override {
-    const auto status = outbox_.final_status().value_or(grpc::Status::OK);
-    if (admitted_) {
-      spdlog::info("Animate end peer={} session='{}' phonemes={} frames={} duration_ms={:.1f} status={}",
-                   context_->peer(), session_name_, phonemes(), frames_sent_, elapsed_ms(started_),
-                   status_name(status));
-      service_.admission().release_stream();
-    } else {
-      spdlog::warn("Animate refused peer={} status={}", context_->peer(), status_name(status));
-    }
+    if (admitted_) service_.live_streams().remove(*this);
+    const auto status = cancelled_ ? cancelled_status() : outbox_.final_status().value_or(grpc::Status::OK);
+    log_.ended(status, {{"phonemes", static_cast<std::uint64_t>(phonemes())}, {"frames", frames_sent_.load()}});
+    if (admitted_) service_.admission().release_stream();
     stopped_ = true;
     if (lane_) {
       lane_->retire([this] { delete this; });  // after the face jobs still queued
@@ -127,6 +128,12 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
 
   void start_write(const v1::TrackMessage* message) override { StartWrite(message); }
   void finish(const grpc::Status& status) override { Finish(status); }
+
+  void abort_stream(const grpc::Status& status) override {
+    stopped_ = true;
+    outbox_.abort(status);
+    fail_session("the server shut down: " + status.error_message());
+  }
 
  private:
   enum class Phase { awaiting_settings, streaming, ended };
@@ -144,8 +151,8 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
       case Phase::ended:
         if (request.has_phonemes() && request.phonemes().phonemes_size() > 0) {
           const auto& phoneme = request.phonemes().phonemes(0);
-          return invalid(std::string(kStreamSource) + ":" + std::to_string(phonemes() + 1) + ": phoneme '" +
-                         phoneme.label() + "': received after `end`");
+          return invalid(std::string(kStreamSource) + ":" + std::to_string(phonemes() + 1) + ": phoneme " +
+                         excerpt(phoneme.label()) + ": received after `end`");
         }
         return invalid("message received after `end` (the utterance had " + std::to_string(phonemes()) +
                        " phonemes)");
@@ -154,6 +161,8 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   }
 
   grpc::Status start(const v1::AnimationSettings& settings) {
+    log_.set_session(settings.session());
+    log_.started_line();
     if (auto status = service_.routing().check_metadata(*context_, settings.session()); !status.ok()) return status;
     if (auto status = resolve_settings(settings, service_.catalog(), true, plan_); !status.ok()) return status;
     if (auto status = prepare_face(plan_, service_.faces(), face_setup_); !status.ok()) return status;
@@ -166,7 +175,6 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
       }
       std::lock_guard lock(session_mutex_);
       session_ = std::move(session);
-      session_name_ = settings.session();
     }
     input_.emplace(plan_, service_.config());
     renderer_.emplace(plan_.model->tables, plan_.engine.render);
@@ -280,8 +288,9 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   LipSyncService& service_;
   grpc::CallbackServerContext* context_;
   Outbox outbox_;
-  const Clock::time_point started_;
+  CallLog log_;
   bool admitted_ = false;
+  std::atomic<bool> cancelled_ = false;  // OnCancel came: the client got CANCELLED (or gRPC's own status)
   Phase phase_ = Phase::awaiting_settings;
   v1::AnimateRequest request_;
   Plan plan_;
@@ -303,7 +312,6 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   bool read_paused_ = false;
   std::mutex session_mutex_;
   std::shared_ptr<Session> session_;
-  std::string session_name_;
 };
 
 }  // namespace

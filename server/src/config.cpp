@@ -45,6 +45,24 @@ std::size_t parse_count(const Setting& setting, std::size_t min) {
       parse_integer(setting, static_cast<std::int64_t>(min), std::numeric_limits<std::int32_t>::max()));
 }
 
+/// HOST:PORT with a port 0..65535; throws ConfigError naming the setting.
+std::string parse_host_port(const Setting& s) {
+  const auto colon = s.value.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == s.value.size()) {
+    throw ConfigError(s.name + ": expected HOST:PORT, got '" + s.value + "'");
+  }
+  parse_integer({s.name, s.value.substr(colon + 1)}, 0, 65535);
+  return s.value;
+}
+
+/// One of `choices`; throws ConfigError listing them.
+std::string parse_choice(const Setting& s, const std::vector<std::string>& choices) {
+  if (std::find(choices.begin(), choices.end(), s.value) != choices.end()) return s.value;
+  std::string listed;
+  for (const auto& choice : choices) listed += (listed.empty() ? "" : ", ") + choice;
+  throw ConfigError(s.name + ": unknown value '" + s.value + "' (" + listed + ")");
+}
+
 struct Option {
   std::string flag;
   std::string value_hint;
@@ -56,14 +74,7 @@ struct Option {
 const std::vector<Option>& options() {
   static const std::vector<Option> table = {
       {"--listen", "HOST:PORT", "address to listen on; port 0 picks a free port",
-       [](ServerConfig& c, const Setting& s) {
-         const auto colon = s.value.rfind(':');
-         if (colon == std::string::npos || colon == 0 || colon + 1 == s.value.size()) {
-           throw ConfigError(s.name + ": expected HOST:PORT, got '" + s.value + "'");
-         }
-         parse_integer({s.name, s.value.substr(colon + 1)}, 0, 65535);
-         c.listen = s.value;
-       },
+       [](ServerConfig& c, const Setting& s) { c.listen = parse_host_port(s); },
        [](const ServerConfig& c) { return c.listen; }},
       {"--drain-deadline-ms", "MS", "on SIGTERM/SIGINT, time running streams get to finish",
        [](ServerConfig& c, const Setting& s) { c.drain_deadline_ms = parse_integer(s, 0, 3'600'000); },
@@ -122,6 +133,12 @@ const std::vector<Option>& options() {
          c.log_level = s.value;
        },
        [](const ServerConfig& c) { return c.log_level; }},
+      {"--log-format", "FORMAT", "text (spdlog lines) or json (one object per line)",
+       [](ServerConfig& c, const Setting& s) { c.log_format = parse_choice(s, {"text", "json"}); },
+       [](const ServerConfig& c) { return c.log_format; }},
+      {"--metrics-listen", "HOST:PORT", "serve Prometheus metrics over HTTP at /metrics here (\"\" = off)",
+       [](ServerConfig& c, const Setting& s) { c.metrics_listen = s.value.empty() ? "" : parse_host_port(s); },
+       [](const ServerConfig& c) { return c.metrics_listen.empty() ? std::string("off") : c.metrics_listen; }},
       {"--model", "NAME=FILE", "load an extra articulation model (repeatable)",
        [](ServerConfig& c, const Setting& s) {
          const auto eq = s.value.find('=');

@@ -54,18 +54,16 @@ grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* co
   if (grpc::Status admission = admission_.admit_render(); !admission.ok()) {
     return unary(context, "Render", [&] { return admission; });
   }
+  // Counted out when the call is done (the response has left), not at Finish: a drain
+  // must not take a Render whose response is still on its way for a finished one.
+  auto* call = new UnaryCall("Render", *context, [this](const grpc::Status&) { admission_.release_render(); });
   if (!wants_mesh(request->settings())) {
-    auto* reactor = unary(context, "Render", [&] { return render(*this, *request, *response); });
-    admission_.release_render();
-    return reactor;
+    call->run([&] { return render(*this, *request, *response); });
+    return call;
   }
   // Seconds of solver work for a long utterance: off the reaction (face_workers.hpp).
-  auto* reactor = context->DefaultReactor();
-  face_workers_.post([this, context, request, response, reactor] {
-    reactor->Finish(run_unary(context, "Render", [&] { return render(*this, *request, *response); }));
-    admission_.release_render();
-  });
-  return reactor;
+  face_workers_.post([this, call, request, response] { call->run([&] { return render(*this, *request, *response); }); });
+  return call;
 }
 
 }  // namespace lipsync::server

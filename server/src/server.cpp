@@ -17,6 +17,7 @@
 #include <grpcpp/health_check_service_interface.h>
 #include <spdlog/spdlog.h>
 
+#include "call_log.hpp"
 #include "catalog.hpp"
 #include "listener.hpp"
 #include "service.hpp"
@@ -26,6 +27,8 @@ namespace {
 
 /// How long connections may take to flush and close after GOAWAY at the end of a drain.
 constexpr auto kConnectionGrace = std::chrono::milliseconds(50);
+// Streams aborted at the drain deadline get this long to send their ABORTED.
+constexpr auto kAbortedGrace = std::chrono::milliseconds(200);
 
 }  // namespace
 
@@ -40,10 +43,21 @@ struct Server::Impl {
   std::unique_ptr<grpc::Server> server;
   int port = 0;
   std::once_flag shutdown_once;
+
+  /// Waits until no call is in progress, for at most `limit`; true if none is.
+  bool wait_for_calls(std::chrono::milliseconds limit) {
+    const auto deadline = std::chrono::steady_clock::now() + limit;
+    while (service.admission().calls_in_progress() > 0) {
+      if (std::chrono::steady_clock::now() >= deadline) return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    return true;
+  }
 };
 
 Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(config))) {
   spdlog::set_level(spdlog::level::from_str(impl_->config.log_level));
+  set_log_format(impl_->config.log_format == "json" ? LogFormat::json : LogFormat::text);
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   impl_->listener = std::make_unique<Listener>(impl_->config.listen);  // throws: cannot listen
@@ -76,9 +90,20 @@ void Server::shutdown(std::chrono::milliseconds drain) {
     impl_->listener->close();
     if (auto* health = impl_->server->GetHealthCheckService()) health->Shutdown();
     impl_->service.admission().begin_drain();
-    const auto deadline = std::chrono::steady_clock::now() + drain;
-    while (impl_->service.admission().calls_in_progress() > 0 && std::chrono::steady_clock::now() < deadline) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    if (!impl_->wait_for_calls(drain)) {
+      // Past the deadline: the streams still running end with ABORTED, as documented, and
+      // get a moment to send it (a client that stopped reading never takes it: gRPC's
+      // Shutdown below cancels those).
+      const std::size_t aborted = impl_->service.live_streams().abort_all(
+          {grpc::StatusCode::ABORTED, "the server is shutting down: the drain deadline (--drain-deadline-ms=" +
+                                          std::to_string(drain.count()) + ") has passed"});
+      spdlog::info("drain deadline passed: {} streams aborted", aborted);
+      impl_->wait_for_calls(kAbortedGrace);
+    }
+    // The face threads must not need CPU time nobody else wants to end (face_workers.hpp).
+    if (!impl_->service.face_workers().restore_normal_priority()) {
+      spdlog::info("the face threads keep their low priority (no CAP_SYS_NICE, RLIMIT_NICE below 20): on a busy "
+                   "machine the process may take a while to end");
     }
     // GOAWAY only now, with no call left. A shutdown deadline already past would
     // cut every connection at once, racing the final frames a connection may still

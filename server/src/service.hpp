@@ -9,6 +9,7 @@
 #include "catalog.hpp"
 #include "face_stream.hpp"
 #include "face_workers.hpp"
+#include "live_streams.hpp"
 #include "lipsync/server/config.hpp"
 #include "session.hpp"
 #include "session_routing.hpp"
@@ -46,6 +47,8 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   SessionRouting& routing() { return routing_; }
   /// Meshes and rigs shared by the streams that ask for the mesh output (built lazily).
   FaceLibrary& faces() { return faces_; }
+  /// The streams running now (aborted with ABORTED at the drain deadline).
+  LiveStreams& live_streams() { return live_streams_; }
   /// The low-priority threads the face runs on.
   FaceWorkers& face_workers() { return face_workers_; }
 
@@ -56,6 +59,7 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   Admission admission_;
   SessionRouting routing_;
   FaceLibrary faces_;
+  LiveStreams live_streams_;
   // Last, so that it is destroyed first: its destructor runs the jobs still
   // queued, which use the members above.
   FaceWorkers face_workers_;

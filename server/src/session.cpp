@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "lipsync/excerpt.hpp"
+
 namespace {
 
 /// Bytes of mesh positions in a batch (0 for every stream without the mesh output); O(1).
@@ -60,7 +62,7 @@ void Session::end_locked(State state) {
 }
 
 grpc::Status Session::aborted_status_locked() const {
-  return {grpc::StatusCode::ABORTED, "session '" + name_ + "': " + failure_};
+  return {grpc::StatusCode::ABORTED, "session " + excerpt(name_) + ": " + failure_};
 }
 
 grpc::Status Session::attach(const std::shared_ptr<Outbox>& outbox, bool from_beginning,
@@ -69,7 +71,7 @@ grpc::Status Session::attach(const std::shared_ptr<Outbox>& outbox, bool from_be
   if (state_ == State::failed) return aborted_status_locked();
   if (state_ == State::live && subscribers_.size() >= max_subscribers) {
     return {grpc::StatusCode::RESOURCE_EXHAUSTED,
-            "session '" + name_ + "' already has " + std::to_string(subscribers_.size()) +
+            "session " + excerpt(name_) + " already has " + std::to_string(subscribers_.size()) +
                 " subscribers (--max-subscribers-per-session=" + std::to_string(max_subscribers) + ")"};
   }
   // The replay does not count toward the subscriber's bound: it is shared and
@@ -123,7 +125,7 @@ grpc::Status SessionRegistry::open(const std::string& name, const Message& heade
   if (const auto it = sessions_.find(name); it != sessions_.end()) {
     if (it->second->live()) {
       return {grpc::StatusCode::ALREADY_EXISTS,
-              "session '" + name + "' already has a live producer"};
+              "session " + excerpt(name) + " already has a live producer"};
     }
     sessions_.erase(it);
   }

@@ -5,6 +5,7 @@
 // has also stopped reading, so that even that status cannot leave, an alarm
 // cancels the call after --stalled-subscriber-ms. The reactor is local to this
 // file and made by LipSyncService::Subscribe at its end.
+#include <atomic>
 #include <chrono>
 #include <memory>
 #include <mutex>
@@ -14,20 +15,23 @@
 #include <spdlog/spdlog.h>
 
 #include "call_log.hpp"
+#include "live_streams.hpp"
 #include "outbox.hpp"
 #include "service.hpp"
 
 namespace lipsync::server {
 namespace {
 
-class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>, public OutboxTarget {
+class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>,
+                               public OutboxTarget,
+                               public AbortableStream {
  public:
   SubscribeReactor(LipSyncService& service, grpc::CallbackServerContext* context,
                    const v1::SubscribeRequest& request)
       : service_(service),
         context_(context),
         session_name_(request.session()),
-        started_(Clock::now()),
+        log_("Subscribe", *context),
         outbox_(std::make_shared<Outbox>(
             *this, service.config().subscriber_queue_frames,
             "subscriber fell behind: more than " + std::to_string(service.config().subscriber_queue_frames) +
@@ -39,6 +43,9 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
       return;
     }
     admitted_ = true;
+    service_.live_streams().add(*this);
+    log_.set_session(session_name_);
+    log_.started_line({{"start", v1::SubscribeRequest::Start_Name(request.start())}});
     if (auto routed = service_.routing().check_metadata(*context_, session_name_); !routed.ok()) {
       outbox_->close(routed);
       return;
@@ -55,19 +62,19 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
   }
 
   void OnWriteDone(bool ok) override { outbox_->on_write_done(ok); }
-  void OnCancel() override { outbox_->abort(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled")); }
+  void OnCancel() override {
+    cancelled_ = true;
+    outbox_->abort(cancelled_status());
+  }
+  void abort_stream(const grpc::Status& status) override { outbox_->abort(status); }
 
   void OnDone() override {
+    if (admitted_) service_.live_streams().remove(*this);
     stall_guard_->release();
     if (session_) session_->detach(outbox_.get());
-    const auto status = outbox_->final_status().value_or(grpc::Status::OK);
-    if (admitted_) {
-      spdlog::info("Subscribe end peer={} session='{}' frames={} duration_ms={:.1f} status={}", context_->peer(),
-                   session_name_, frames_sent_, elapsed_ms(started_), status_name(status));
-      service_.admission().release_stream();
-    } else {
-      spdlog::warn("Subscribe refused peer={} status={}", context_->peer(), status_name(status));
-    }
+    const auto status = cancelled_ ? cancelled_status() : outbox_->final_status().value_or(grpc::Status::OK);
+    log_.ended(status, {{"frames", frames_sent_}});
+    if (admitted_) service_.admission().release_stream();
     delete this;
   }
 
@@ -92,11 +99,11 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
   /// Lets the alarm cancel the call only while the reactor still exists.
   class StallGuard {
    public:
-    explicit StallGuard(grpc::CallbackServerContext* context) : context_(context) {}
+    StallGuard(grpc::CallbackServerContext* context, const CallLog& log) : context_(context), log_(log) {}
     void cancel() {
       std::lock_guard lock(mutex_);
       if (!context_) return;
-      spdlog::warn("Subscribe cancelled peer={}: it stopped reading after it was cut off", context_->peer());
+      log_.line(spdlog::level::warn, "stalled", "cancelled: it stopped reading after it was cut off");
       context_->TryCancel();
     }
     void release() {
@@ -107,17 +114,19 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
    private:
     std::mutex mutex_;
     grpc::CallbackServerContext* context_;
+    const CallLog& log_;  // the reactor's: used only while context_ is set
   };
 
   LipSyncService& service_;
   grpc::CallbackServerContext* context_;
   const std::string session_name_;
-  const Clock::time_point started_;
+  CallLog log_;
+  std::atomic<bool> cancelled_ = false;
   std::shared_ptr<Outbox> outbox_;
   std::shared_ptr<Session> session_;
   bool admitted_ = false;
   std::uint64_t frames_sent_ = 0;
-  std::shared_ptr<StallGuard> stall_guard_ = std::make_shared<StallGuard>(context_);
+  std::shared_ptr<StallGuard> stall_guard_ = std::make_shared<StallGuard>(context_, log_);
   grpc::Alarm stall_alarm_;
 };
 

@@ -60,6 +60,9 @@ struct ServerConfig {
   std::string face_priority = "idle";
 
   std::string log_level = "info";  ///< trace, debug, info, warn, error, off
+  std::string log_format = "text";  ///< text or json (one object per line)
+  /// host:port of the Prometheus endpoint (GET /metrics); "" = none. Port 0 picks a free one.
+  std::string metrics_listen;
   std::vector<ModelFile> models;   ///< extra models beside the built-in one
   /// How this replica names itself in errors about sessions it does not hold (a balancer
   /// misrouting shows in one look); "" = "<host name> (<listen address>)".
