@@ -55,7 +55,12 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
                              public AbortableStream {
  public:
   AnimateReactor(LipSyncService& service, grpc::CallbackServerContext* context)
-      : service_(service), context_(context), outbox_(*this), log_("Animate", *context) {
+      : service_(service),
+        context_(context),
+        outbox_(*this),
+        log_("Animate", *context, &service.metrics()),
+        frames_counter_(service.metrics().frames_sent.with({"Animate"})),
+        messages_counter_(service.metrics().messages_sent.with({"Animate"})) {
     const grpc::Status admission = service_.admission().admit_stream();
     if (!admission.ok()) {
       outbox_.close(admission);
@@ -63,6 +68,8 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     }
     admitted_ = true;
     service_.live_streams().add(*this);
+    ++service_.metrics().open_animate;
+    outbox_.measure(service_.metrics().write_latency, service_.metrics().queued_messages);
     StartRead(&request_);
   }
 
@@ -117,7 +124,10 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     if (admitted_) service_.live_streams().remove(*this);
     const auto status = cancelled_ ? cancelled_status() : outbox_.final_status().value_or(grpc::Status::OK);
     log_.ended(status, {{"phonemes", static_cast<std::uint64_t>(phonemes())}, {"frames", frames_sent_.load()}});
-    if (admitted_) service_.admission().release_stream();
+    if (admitted_) {
+      --service_.metrics().open_animate;
+      service_.admission().release_stream();
+    }
     stopped_ = true;
     if (lane_) {
       lane_->retire([this] { delete this; });  // after the face jobs still queued
@@ -126,7 +136,11 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     }
   }
 
-  void start_write(const v1::TrackMessage* message) override { StartWrite(message); }
+  void start_write(const v1::TrackMessage* message) override {
+    messages_counter_.add();
+    if (message->has_frames()) frames_counter_.add(static_cast<std::uint64_t>(message->frames().t_us_size()));
+    StartWrite(message);
+  }
   void finish(const grpc::Status& status) override { Finish(status); }
 
   void abort_stream(const grpc::Status& status) override {
@@ -197,6 +211,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   }
 
   grpc::Status add_phonemes(const v1::PhonemeChunk& chunk) {
+    service_.metrics().phonemes_received.add(static_cast<std::uint64_t>(chunk.phonemes_size()));
     for (const v1::Phoneme& phoneme : chunk.phonemes()) {
       if (auto status = input_->push(phoneme, segments_); !status.ok()) return status;
       for (const Segment& segment : segments_) renderer_->push(segment, track_);
@@ -251,7 +266,9 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
       const std::size_t end = std::min(track.frame_count(), begin + per_batch);
       auto message = std::make_shared<v1::TrackMessage>();
       encoder_.face = face_.get();
+      const auto encoding = Clock::now();
       encode_frames(plan_, track, begin, end, frames_sent_, *message->mutable_frames(), encoder_);
+      if (face_) service_.metrics().face_solver.observe_us(microseconds_since(encoding));
       frames_sent_ += end - begin;
       // The session first: once the producer has seen a batch, subscribers can see it too.
       if (auto session = current_session()) session->publish(message, end - begin);
@@ -289,6 +306,8 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   grpc::CallbackServerContext* context_;
   Outbox outbox_;
   CallLog log_;
+  Counter& frames_counter_;
+  Counter& messages_counter_;
   bool admitted_ = false;
   std::atomic<bool> cancelled_ = false;  // OnCancel came: the client got CANCELLED (or gRPC's own status)
   Phase phase_ = Phase::awaiting_settings;

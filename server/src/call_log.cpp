@@ -18,6 +18,7 @@
 
 #include "lipsync/excerpt.hpp"
 #include "listener.hpp"
+#include "metrics.hpp"
 
 namespace lipsync::server {
 namespace {
@@ -108,8 +109,8 @@ grpc::Status cancelled_status() {
           "cancelled: by the client, by its deadline, or by gRPC (e.g. a message over --max-message-bytes)"};
 }
 
-CallLog::CallLog(const char* method, grpc::CallbackServerContext& context)
-    : method_(method), peer_(resolved_peer(context.peer())), started_(Clock::now()) {}
+CallLog::CallLog(const char* method, grpc::CallbackServerContext& context, ServerMetrics* metrics)
+    : method_(method), metrics_(metrics), peer_(resolved_peer(context.peer())), started_(Clock::now()) {}
 
 void CallLog::started_line(std::initializer_list<LogField> fields) const {
   write(spdlog::level::info, "start", nullptr, {}, fields);
@@ -117,6 +118,11 @@ void CallLog::started_line(std::initializer_list<LogField> fields) const {
 
 void CallLog::ended(const grpc::Status& status, std::initializer_list<LogField> fields) const {
   write(spdlog::level::info, "end", &status, {}, fields);
+  if (metrics_) {
+    const LabelValues labels = {method_, code_name(status.error_code()), tenant_};
+    metrics_->calls.with(labels).add();
+    if (!status.ok() && status.error_code() != grpc::StatusCode::CANCELLED) metrics_->refusals.with(labels).add();
+  }
 }
 
 void CallLog::line(spdlog::level::level_enum level, std::string_view event, std::string_view message) const {
@@ -126,8 +132,7 @@ void CallLog::line(spdlog::level::level_enum level, std::string_view event, std:
 void CallLog::write(spdlog::level::level_enum level, std::string_view event, const grpc::Status* status,
                     std::string_view message, std::initializer_list<LogField> fields) const {
   if (!spdlog::should_log(level)) return;
-  const auto duration_us =
-      std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - started_).count();
+  const auto duration_us = microseconds_since(started_);
   std::string line;
   if (g_format == LogFormat::json) {
     line += kJsonMembers;

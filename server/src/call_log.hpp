@@ -22,9 +22,15 @@
 
 namespace lipsync::server {
 
+struct ServerMetrics;
 using Clock = std::chrono::steady_clock;
 
 enum class LogFormat { text, json };
+
+/// Whole microseconds since `since`.
+inline std::int64_t microseconds_since(Clock::time_point since) {
+  return std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - since).count();
+}
 
 /// Sets the format of the default logger's lines (call once the logger exists).
 void set_log_format(LogFormat format);
@@ -55,7 +61,8 @@ struct LogField {
 /// then (gRPC no longer knows it once the call is over).
 class CallLog {
  public:
-  CallLog(const char* method, grpc::CallbackServerContext& context);
+  /// With `metrics`, the access line also counts the call (lipsyncd_calls_total, _refusals_total).
+  CallLog(const char* method, grpc::CallbackServerContext& context, ServerMetrics* metrics = nullptr);
 
   void set_session(std::string session) { session_ = std::move(session); }
   const std::string& session() const { return session_; }
@@ -75,6 +82,7 @@ class CallLog {
              std::string_view message, std::initializer_list<LogField> fields) const;
 
   const char* method_;
+  ServerMetrics* metrics_;
   std::string peer_;
   std::string session_;
   std::string tenant_;  // empty until tenants exist

@@ -89,6 +89,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   std::cout << "lipsyncd listening on " << server->address() << std::endl;
+  if (!config.metrics_listen.empty()) std::cout << "lipsyncd metrics on " << server->metrics_address() << std::endl;
   spdlog::info("listening on {}", server->address());
 
   int signal_number = 0;

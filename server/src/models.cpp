@@ -32,7 +32,7 @@ grpc::ServerUnaryReactor* LipSyncService::ListModels(grpc::CallbackServerContext
   return unary(context, "ListModels", [&] {
     for (const auto& entry : catalog_.entries()) describe(*entry, *response->add_models());
     return grpc::Status::OK;
-  });
+  }, &metrics_);
 }
 
 grpc::ServerUnaryReactor* LipSyncService::GetModel(grpc::CallbackServerContext* context,
@@ -45,7 +45,7 @@ grpc::ServerUnaryReactor* LipSyncService::GetModel(grpc::CallbackServerContext* 
     }
     describe(*entry, *response);
     return grpc::Status::OK;
-  });
+  }, &metrics_);
 }
 
 }  // namespace lipsync::server

@@ -41,7 +41,12 @@ grpc::Status render(LipSyncService& service, const v1::RenderRequest& request, v
   StreamEncoder encoder{.face = face_stream.get(), .viseme_detector = {}};
   const Track track = render_track(plan.model->tables, segments, plan.engine.render);
   *response.mutable_header() = plan.header;
+  const auto encoding = Clock::now();
   encode_frames(plan, track, 0, track.frame_count(), 0, *response.mutable_frames(), encoder);
+  if (face_stream) service.metrics().face_solver.observe_us(microseconds_since(encoding));
+  service.metrics().phonemes_received.add(static_cast<std::uint64_t>(request.phonemes_size()));
+  service.metrics().frames_sent.with({"Render"}).add(track.frame_count());
+  service.metrics().messages_sent.with({"Render"}).add();
   encode_summary(track.frame_count(), static_cast<std::uint64_t>(request.phonemes_size()), input.end_us(),
                  *response.mutable_summary());
   return grpc::Status::OK;
@@ -52,11 +57,12 @@ grpc::Status render(LipSyncService& service, const v1::RenderRequest& request, v
 grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* context,
                                                  const v1::RenderRequest* request, v1::RenderResponse* response) {
   if (grpc::Status admission = admission_.admit_render(); !admission.ok()) {
-    return unary(context, "Render", [&] { return admission; });
+    return unary(context, "Render", [&] { return admission; }, &metrics_);
   }
   // Counted out when the call is done (the response has left), not at Finish: a drain
   // must not take a Render whose response is still on its way for a finished one.
-  auto* call = new UnaryCall("Render", *context, [this](const grpc::Status&) { admission_.release_render(); });
+  auto* call = new UnaryCall(
+      "Render", *context, [this](const grpc::Status&) { admission_.release_render(); }, &metrics_);
   if (!wants_mesh(request->settings())) {
     call->run([&] { return render(*this, *request, *response); });
     return call;

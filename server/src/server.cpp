@@ -20,6 +20,7 @@
 #include "call_log.hpp"
 #include "catalog.hpp"
 #include "listener.hpp"
+#include "metrics_http.hpp"
 #include "service.hpp"
 
 namespace lipsync::server {
@@ -41,6 +42,7 @@ struct Server::Impl {
   LipSyncService service;
   std::unique_ptr<Listener> listener;
   std::unique_ptr<grpc::Server> server;
+  std::unique_ptr<MetricsEndpoint> metrics;  // --metrics-listen
   int port = 0;
   std::once_flag shutdown_once;
 
@@ -69,7 +71,13 @@ Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(con
   if (!impl_->server) throw std::runtime_error("cannot start the gRPC server on " + impl_->config.listen);
   impl_->service.routing().set_bound_address(address());
   impl_->listener->start(*impl_->server);
+  if (!impl_->config.metrics_listen.empty()) {
+    impl_->metrics = std::make_unique<MetricsEndpoint>(
+        impl_->config.metrics_listen, [&registry = impl_->service.metrics_registry()] { return registry.exposition(); });
+  }
 }
+
+std::string Server::metrics_address() const { return impl_->metrics ? impl_->metrics->address() : std::string(); }
 
 Server::~Server() { shutdown(std::chrono::milliseconds(0)); }
 

@@ -10,6 +10,7 @@
 #include "face_stream.hpp"
 #include "face_workers.hpp"
 #include "live_streams.hpp"
+#include "metrics.hpp"
 #include "lipsync/server/config.hpp"
 #include "session.hpp"
 #include "session_routing.hpp"
@@ -47,14 +48,21 @@ class LipSyncService final : public v1::LipSync::CallbackService {
   SessionRouting& routing() { return routing_; }
   /// Meshes and rigs shared by the streams that ask for the mesh output (built lazily).
   FaceLibrary& faces() { return faces_; }
+  /// The metrics every call adds to (metrics.hpp), and their registry (GET /metrics).
+  ServerMetrics& metrics() { return metrics_; }
+  MetricsRegistry& metrics_registry() { return metrics_registry_; }
   /// The streams running now (aborted with ABORTED at the drain deadline).
   LiveStreams& live_streams() { return live_streams_; }
   /// The low-priority threads the face runs on.
   FaceWorkers& face_workers() { return face_workers_; }
 
  private:
+  void register_gauges();
+
   const ServerConfig& config_;
   const ModelCatalog& catalog_;
+  MetricsRegistry metrics_registry_;
+  ServerMetrics metrics_{metrics_registry_};
   SessionRegistry sessions_;
   Admission admission_;
   SessionRouting routing_;

@@ -152,4 +152,15 @@ std::size_t SessionRegistry::size() {
   return sessions_.size();
 }
 
+SessionRegistry::Counts SessionRegistry::counts() {
+  std::lock_guard lock(mutex_);
+  sweep_locked();
+  Counts counts;
+  for (const auto& [name, session] : sessions_) {
+    ++(session->live() ? counts.live : counts.ended);
+    counts.subscribers += session->subscriber_count();
+  }
+  return counts;
+}
+
 }  // namespace lipsync::server

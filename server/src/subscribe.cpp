@@ -31,7 +31,9 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
       : service_(service),
         context_(context),
         session_name_(request.session()),
-        log_("Subscribe", *context),
+        log_("Subscribe", *context, &service.metrics()),
+        frames_counter_(service.metrics().frames_sent.with({"Subscribe"})),
+        messages_counter_(service.metrics().messages_sent.with({"Subscribe"})),
         outbox_(std::make_shared<Outbox>(
             *this, service.config().subscriber_queue_frames,
             "subscriber fell behind: more than " + std::to_string(service.config().subscriber_queue_frames) +
@@ -44,6 +46,8 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
     }
     admitted_ = true;
     service_.live_streams().add(*this);
+    ++service_.metrics().open_subscribe;
+    outbox_->measure(service_.metrics().write_latency, service_.metrics().queued_messages);
     log_.set_session(session_name_);
     log_.started_line({{"start", v1::SubscribeRequest::Start_Name(request.start())}});
     if (auto routed = service_.routing().check_metadata(*context_, session_name_); !routed.ok()) {
@@ -74,12 +78,19 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
     if (session_) session_->detach(outbox_.get());
     const auto status = cancelled_ ? cancelled_status() : outbox_->final_status().value_or(grpc::Status::OK);
     log_.ended(status, {{"frames", frames_sent_}});
-    if (admitted_) service_.admission().release_stream();
+    if (admitted_) {
+      --service_.metrics().open_subscribe;
+      service_.admission().release_stream();
+    }
     delete this;
   }
 
   void start_write(const v1::TrackMessage* message) override {
-    if (message->has_frames()) frames_sent_ += static_cast<std::uint64_t>(message->frames().t_us_size());
+    messages_counter_.add();
+    if (message->has_frames()) {
+      frames_sent_ += static_cast<std::uint64_t>(message->frames().t_us_size());
+      frames_counter_.add(static_cast<std::uint64_t>(message->frames().t_us_size()));
+    }
     StartWrite(message);
   }
   void finish(const grpc::Status& status) override { Finish(status); }
@@ -121,6 +132,8 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
   grpc::CallbackServerContext* context_;
   const std::string session_name_;
   CallLog log_;
+  Counter& frames_counter_;
+  Counter& messages_counter_;
   std::atomic<bool> cancelled_ = false;
   std::shared_ptr<Outbox> outbox_;
   std::shared_ptr<Session> session_;

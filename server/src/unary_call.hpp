@@ -31,8 +31,9 @@ grpc::Status run_guarded(Function&& function) {
 class UnaryCall final : public grpc::ServerUnaryReactor {
  public:
   /// `on_done` runs once the call is done (after the access line), on a gRPC thread.
-  UnaryCall(const char* method, grpc::CallbackServerContext& context, std::function<void(const grpc::Status&)> on_done = {})
-      : log_(method, context), on_done_(std::move(on_done)) {}
+  UnaryCall(const char* method, grpc::CallbackServerContext& context,
+            std::function<void(const grpc::Status&)> on_done = {}, ServerMetrics* metrics = nullptr)
+      : log_(method, context, metrics), on_done_(std::move(on_done)) {}
 
   /// Runs `function` (may be called on any thread) and finishes the call with its status.
   template <class Function>
@@ -58,8 +59,9 @@ class UnaryCall final : public grpc::ServerUnaryReactor {
 
 /// Runs `function` now and finishes the call with its status.
 template <class Function>
-grpc::ServerUnaryReactor* unary(grpc::CallbackServerContext* context, const char* method, Function&& function) {
-  auto* call = new UnaryCall(method, *context);
+grpc::ServerUnaryReactor* unary(grpc::CallbackServerContext* context, const char* method, Function&& function,
+                                ServerMetrics* metrics = nullptr) {
+  auto* call = new UnaryCall(method, *context, {}, metrics);
   call->run(std::forward<Function>(function));
   return call;
 }

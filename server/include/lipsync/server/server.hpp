@@ -26,6 +26,8 @@ class Server {
   int port() const;
   /// "host:port" with the bound port.
   std::string address() const;
+  /// "host:port" of the Prometheus endpoint (--metrics-listen), "" when there is none.
+  std::string metrics_address() const;
 
   /// Refuses new calls (UNAVAILABLE), lets running calls finish for up to
   /// `drain`, then cancels the rest and waits until every call has ended.
