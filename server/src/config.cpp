@@ -97,6 +97,11 @@ const std::vector<Option>& options() {
       {"--max-message-bytes", "BYTES", "largest request message",
        [](ServerConfig& c, const Setting& s) { c.max_message_bytes = parse_count(s, 1024); },
        [](const ServerConfig& c) { return std::to_string(c.max_message_bytes); }},
+      {"--transport-memory-bytes", "BYTES", "gRPC's memory quota for all connections' buffers (0: none)",
+       [](ServerConfig& c, const Setting& s) {
+         c.transport_memory_bytes = static_cast<std::size_t>(parse_integer(s, 0, std::int64_t{1} << 40));
+       },
+       [](const ServerConfig& c) { return std::to_string(c.transport_memory_bytes); }},
       {"--replay-frames", "N", "frames a session keeps for subscribers that start from the beginning",
        [](ServerConfig& c, const Setting& s) { c.replay_frames = parse_count(s, 0); },
        [](const ServerConfig& c) { return std::to_string(c.replay_frames); }},

@@ -66,6 +66,11 @@ Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(con
   impl_->port = impl_->listener->port();
   grpc::ServerBuilder builder;
   builder.SetMaxReceiveMessageSize(static_cast<int>(impl_->config.max_message_bytes));
+  if (impl_->config.transport_memory_bytes > 0) {
+    grpc::ResourceQuota quota("lipsyncd");
+    quota.Resize(impl_->config.transport_memory_bytes);
+    builder.SetResourceQuota(quota);
+  }
   builder.RegisterService(&impl_->service);
   impl_->server = builder.BuildAndStart();
   if (!impl_->server) throw std::runtime_error("cannot start the gRPC server on " + impl_->config.listen);
