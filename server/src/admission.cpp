@@ -7,19 +7,34 @@
 
 namespace lipsync::server {
 
-grpc::Status Admission::admit_call() {
+grpc::Status Admission::admit_call(std::string_view peer) {
   ++calls_in_progress_;
+  const auto first_call_of_connection_accepted_at = connections_.first_call(peer);
   if (draining_) {
-    --calls_in_progress_;
-    return {grpc::StatusCode::UNAVAILABLE, "the server is shutting down"};
+    const bool balancer_session_on_its_way =
+        first_call_of_connection_accepted_at &&
+        *first_call_of_connection_accepted_at >= drain_started_.load() - kFirstCallWindow;
+    if (!balancer_session_on_its_way) {
+      --calls_in_progress_;
+      return {grpc::StatusCode::UNAVAILABLE, "the server is shutting down"};
+    }
   }
   return grpc::Status::OK;
 }
 
-grpc::Status Admission::admit_render() { return admit_call(); }
+void Admission::begin_drain() {
+  drain_started_ = ConnectionLedger::Clock::now();
+  draining_ = true;
+}
 
-grpc::Status Admission::admit_stream() {
-  if (grpc::Status status = admit_call(); !status.ok()) return status;
+bool Admission::awaiting_first_calls() const {
+  return connections_.awaiting_first_call(ConnectionLedger::Clock::now() - kFirstCallWindow);
+}
+
+grpc::Status Admission::admit_render(std::string_view peer) { return admit_call(peer); }
+
+grpc::Status Admission::admit_stream(std::string_view peer) {
+  if (grpc::Status status = admit_call(peer); !status.ok()) return status;
   std::size_t open = active_streams_.load();
   do {
     if (open >= max_streams_) {

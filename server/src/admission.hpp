@@ -1,15 +1,22 @@
 // Admission control: which calls the server takes on. Animate and Subscribe
 // streams count against --max-streams (RESOURCE_EXHAUSTED beyond it); every
 // Animate, Subscribe and Render call counts as "in progress" so that a drain
-// (SIGTERM) can wait for them; once draining, new calls get UNAVAILABLE. The
-// callback thread pool cannot be tuned in gRPC 1.51, so these counts are the
-// server's only limit. Lock-free: every call start and end passes here.
+// (SIGTERM) can wait for them; once draining, new calls get UNAVAILABLE, except
+// the first call of a connection accepted just before or while the listener
+// closed (connection_ledger.hpp: a balancer's new session already on its way).
+// The callback thread pool cannot be tuned in gRPC 1.51, so these counts are
+// the server's only limit. The counts are lock-free; the ledger takes a mutex
+// once per call start.
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <cstddef>
+#include <string_view>
 
 #include <grpcpp/support/status.h>
+
+#include "connection_ledger.hpp"
 
 namespace lipsync::server {
 
@@ -17,18 +24,28 @@ class Admission {
  public:
   explicit Admission(std::size_t max_streams) : max_streams_(max_streams) {}
 
-  /// Counts a new stream in, or says which limit it is over (or that the server is draining).
-  grpc::Status admit_stream();
+  /// How long before the drain, or after its own acceptance, a connection's first call
+  /// is still taken during a drain.
+  static constexpr std::chrono::milliseconds kFirstCallWindow{500};
+
+  /// Counts a new stream from `peer` (gRPC's peer name) in, or says which limit it is
+  /// over (or that the server is draining).
+  grpc::Status admit_stream(std::string_view peer);
   void release_stream() {
     --active_streams_;
     --calls_in_progress_;
   }
   /// Render calls: counted for the drain only (they are not streams).
-  grpc::Status admit_render();
+  grpc::Status admit_render(std::string_view peer);
   void release_render() { --calls_in_progress_; }
 
-  /// From now on new calls are refused with UNAVAILABLE.
-  void begin_drain() { draining_ = true; }
+  /// From now on new calls are refused with UNAVAILABLE (but for first calls, above).
+  void begin_drain();
+  /// During a drain: whether a connection accepted within kFirstCallWindow has not
+  /// sent its first call yet (the drain waits for it).
+  bool awaiting_first_calls() const;
+  /// The listener's connections, for the listener to record what it accepts.
+  ConnectionLedger& connections() { return connections_; }
   /// Animate and Subscribe streams open.
   std::size_t active_streams() const { return active_streams_.load(); }
   /// Animate, Subscribe and Render calls running.
@@ -36,12 +53,14 @@ class Admission {
 
  private:
   /// Counts a call in unless the server is draining.
-  grpc::Status admit_call();
+  grpc::Status admit_call(std::string_view peer);
 
   const std::size_t max_streams_;
   std::atomic<std::size_t> active_streams_{0};
   std::atomic<std::size_t> calls_in_progress_{0};
   std::atomic<bool> draining_{false};
+  std::atomic<ConnectionLedger::Clock::time_point> drain_started_{ConnectionLedger::Clock::time_point::max()};
+  ConnectionLedger connections_;
 };
 
 }  // namespace lipsync::server

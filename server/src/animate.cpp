@@ -61,7 +61,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
         log_("Animate", *context, &service.metrics()),
         frames_counter_(service.metrics().frames_sent.with({"Animate"})),
         messages_counter_(service.metrics().messages_sent.with({"Animate"})) {
-    const grpc::Status admission = service_.admission().admit_stream();
+    const grpc::Status admission = service_.admission().admit_stream(context_->peer());
     if (!admission.ok()) {
       outbox_.close(admission);
       return;

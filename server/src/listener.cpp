@@ -1,6 +1,7 @@
 #include "listener.hpp"
 
 #include <arpa/inet.h>
+#include <fcntl.h>
 #include <netdb.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
@@ -16,6 +17,8 @@
 #include <grpcpp/server.h>
 #include <grpcpp/server_posix.h>
 #include <spdlog/spdlog.h>
+
+#include "connection_ledger.hpp"
 
 namespace lipsync::server {
 namespace {
@@ -104,8 +107,10 @@ Listener::~Listener() {
   if (wake_fd_ >= 0) ::close(wake_fd_);
 }
 
-void Listener::start(grpc::Server& server) {
-  acceptor_ = std::thread([this, &server] {
+void Listener::start(grpc::Server& server, ConnectionLedger& connections) {
+  server_ = &server;
+  connections_ = &connections;
+  acceptor_ = std::thread([this] {
     std::vector<pollfd> polled;
     for (const int fd : sockets_) polled.push_back({fd, POLLIN, 0});
     polled.push_back({wake_fd_, POLLIN, 0});
@@ -113,26 +118,33 @@ void Listener::start(grpc::Server& server) {
       if (::poll(polled.data(), polled.size(), -1) < 0 && errno != EINTR) return;
       if (polled.back().revents != 0) return;  // close()
       for (std::size_t i = 0; i + 1 < polled.size(); ++i) {
-        if ((polled[i].revents & POLLIN) == 0) continue;
-        sockaddr_storage peer{};
-        socklen_t peer_size = sizeof(peer);
-        const int connection = ::accept4(polled[i].fd, reinterpret_cast<sockaddr*>(&peer), &peer_size,
-                                         SOCK_NONBLOCK | SOCK_CLOEXEC);
-        if (connection < 0) {
-          if (errno != EAGAIN && errno != EINTR && errno != ECONNABORTED) {
-            spdlog::warn("accept failed: {}", std::strerror(errno));
-            std::this_thread::sleep_for(std::chrono::milliseconds(10));  // e.g. out of file descriptors
-          }
-          continue;
-        }
-        const int on = 1;
-        ::setsockopt(connection, IPPROTO_TCP, TCP_NODELAY, &on, sizeof(on));
-        // gRPC names such a connection's peer "fd:N" in the call logs: this line says who it is.
-        spdlog::debug("connection fd:{} from {}", connection, peer_name(peer));
-        grpc::AddInsecureChannelFromFd(&server, connection);
+        if ((polled[i].revents & POLLIN) != 0) accept_one(polled[i].fd);
       }
     }
   });
+}
+
+bool Listener::accept_one(int socket) {
+  sockaddr_storage peer{};
+  socklen_t peer_size = sizeof(peer);
+  const int connection =
+      ::accept4(socket, reinterpret_cast<sockaddr*>(&peer), &peer_size, SOCK_NONBLOCK | SOCK_CLOEXEC);
+  if (connection < 0) {
+    const int error = errno;
+    if (error == EINTR || error == ECONNABORTED) return true;  // others may still be waiting
+    if (error != EAGAIN && error != EWOULDBLOCK) {
+      spdlog::warn("accept failed: {}", std::strerror(error));
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));  // e.g. out of file descriptors
+    }
+    return false;
+  }
+  const int on = 1;
+  ::setsockopt(connection, IPPROTO_TCP, TCP_NODELAY, &on, sizeof(on));
+  // gRPC names such a connection's peer "fd:N" in the call logs: this line says who it is.
+  spdlog::debug("connection fd:{} from {}", connection, peer_name(peer));
+  connections_->accepted(connection, std::chrono::steady_clock::now());
+  grpc::AddInsecureChannelFromFd(server_, connection);
+  return true;
 }
 
 void Listener::close() {
@@ -140,6 +152,13 @@ void Listener::close() {
     const std::uint64_t one = 1;
     [[maybe_unused]] const auto written = ::write(wake_fd_, &one, sizeof(one));
     acceptor_.join();
+    // Closing a listening socket resets the connections in its backlog, which their
+    // clients (a balancer) already count as connected: take them in first.
+    for (const int fd : sockets_) {
+      ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) | O_NONBLOCK);
+      while (accept_one(fd)) {
+      }
+    }
   }
   for (const int fd : sockets_) ::close(fd);
   sockets_.clear();

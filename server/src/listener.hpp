@@ -9,6 +9,8 @@
 // finished on the server reached the client as RST_STREAM INTERNAL_ERROR
 // ("upstream prematurely closed connection"). With the listener closed first,
 // a balancer's new connection is refused and goes to another replica.
+// Connections the kernel completed before the close (the accept backlog) are
+// accepted and handed over, not reset: their client believes it connected.
 #pragma once
 
 #include <memory>
@@ -21,6 +23,8 @@ class Server;
 }
 
 namespace lipsync::server {
+
+class ConnectionLedger;
 
 /// The address of the client connected on `fd` ("ipv4:10.0.0.7:51234"), "fd:N" if it is gone.
 /// gRPC names the peer of a connection handed to it by fd "fd:N"; the call logs name it by this.
@@ -39,13 +43,19 @@ class Listener {
   /// The port bound (the one picked when asked for port 0).
   int port() const { return port_; }
 
-  /// Accepts connections on a thread of its own and hands them to `server`.
-  void start(grpc::Server& server);
-  /// Stops accepting and closes the listening sockets (new connections are refused).
-  /// Idempotent.
+  /// Accepts connections on a thread of its own and hands them to `server`, recording
+  /// each in `connections`.
+  void start(grpc::Server& server, ConnectionLedger& connections);
+  /// Stops accepting and closes the listening sockets (new connections are refused);
+  /// connections already completed by the kernel are handed over first. Idempotent.
   void close();
 
  private:
+  /// Accepts one connection from `socket` and hands it over; false when none is waiting.
+  bool accept_one(int socket);
+
+  grpc::Server* server_ = nullptr;
+  ConnectionLedger* connections_ = nullptr;
   std::vector<int> sockets_;
   int wake_fd_ = -1;  // an eventfd that wakes the accepting thread to stop
   int port_ = 0;

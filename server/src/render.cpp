@@ -56,7 +56,7 @@ grpc::Status render(LipSyncService& service, const v1::RenderRequest& request, v
 
 grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* context,
                                                  const v1::RenderRequest* request, v1::RenderResponse* response) {
-  if (grpc::Status admission = admission_.admit_render(); !admission.ok()) {
+  if (grpc::Status admission = admission_.admit_render(context->peer()); !admission.ok()) {
     return unary(context, "Render", [&] { return admission; }, &metrics_);
   }
   // Counted out when the call is done (the response has left), not at Finish: a drain

@@ -46,10 +46,11 @@ struct Server::Impl {
   int port = 0;
   std::once_flag shutdown_once;
 
-  /// Waits until no call is in progress, for at most `limit`; true if none is.
+  /// Waits until no call is in progress (nor the first call of a connection accepted just
+  /// now: admission.hpp), for at most `limit`; true if none is.
   bool wait_for_calls(std::chrono::milliseconds limit) {
     const auto deadline = std::chrono::steady_clock::now() + limit;
-    while (service.admission().calls_in_progress() > 0) {
+    while (service.admission().calls_in_progress() > 0 || service.admission().awaiting_first_calls()) {
       if (std::chrono::steady_clock::now() >= deadline) return false;
       std::this_thread::sleep_for(std::chrono::milliseconds(2));
     }
@@ -75,7 +76,7 @@ Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(con
   impl_->server = builder.BuildAndStart();
   if (!impl_->server) throw std::runtime_error("cannot start the gRPC server on " + impl_->config.listen);
   impl_->service.routing().set_bound_address(address());
-  impl_->listener->start(*impl_->server);
+  impl_->listener->start(*impl_->server, impl_->service.admission().connections());
   if (!impl_->config.metrics_listen.empty()) {
     impl_->metrics = std::make_unique<MetricsEndpoint>(
         impl_->config.metrics_listen, [&registry = impl_->service.metrics_registry()] { return registry.exposition(); });
@@ -101,6 +102,7 @@ void Server::shutdown(std::chrono::milliseconds drain) {
     // gRPC 1.51 close each connection right after its last stream, racing that
     // stream's final frames (a balancer then reports the finished stream as reset).
     impl_->listener->close();
+    spdlog::info("listener closed: new connections are refused");
     if (auto* health = impl_->server->GetHealthCheckService()) health->Shutdown();
     impl_->service.admission().begin_drain();
     if (!impl_->wait_for_calls(drain)) {

@@ -39,7 +39,7 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<v1::TrackMessage>
             "subscriber fell behind: more than " + std::to_string(service.config().subscriber_queue_frames) +
                 " frames waiting (--subscriber-queue-frames=" +
                 std::to_string(service.config().subscriber_queue_frames) + ")")) {
-    const grpc::Status admission = service_.admission().admit_stream();
+    const grpc::Status admission = service_.admission().admit_stream(context_->peer());
     if (!admission.ok()) {
       outbox_->close(admission);
       return;

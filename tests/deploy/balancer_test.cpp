@@ -255,7 +255,8 @@ TEST_F(BalancerTest, ATerminatedReplicaDrainsItsStreamsWhileNewSessionsSucceedEl
   const int draining = busiest(held);
   ASSERT_GE(draining, 0);
   replicas_[draining]->terminate();
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));  // the drain has begun
+  ASSERT_TRUE(testing::wait_for_text(dir_ / ("replica" + std::to_string(draining) + ".err"), "listener closed"))
+      << "the drain has not begun";
   auto during = open("during-drain-", 20, 500);  // some of these hash to the draining replica
   for (auto& session : during) session->finish();
   for (auto& session : during) EXPECT_EQ(session->check(), "");

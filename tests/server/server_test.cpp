@@ -19,6 +19,7 @@
 #include <netinet/in.h>
 #include <sys/socket.h>
 
+#include <grpcpp/create_channel_posix.h>
 #include <grpcpp/generic/generic_stub.h>
 #include <grpcpp/grpcpp.h>
 
@@ -618,24 +619,38 @@ TEST(LipsyncdBinary, SigtermExitsAtOnceWhenNoCallIsRunningThoughClientsStayConne
   EXPECT_EQ(child.wait_for(std::chrono::seconds(20)), std::optional<int>(0));
 }
 
-bool accepts_connections(int port) {
+/// A TCP connection to 127.0.0.1:`port` (-1 when refused).
+int connect_tcp(int port) {
   const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
   sockaddr_in address{};
   address.sin_family = AF_INET;
   address.sin_port = htons(static_cast<std::uint16_t>(port));
   address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  const bool connected = ::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)) == 0;
-  ::close(fd);
-  return connected;
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+/// A server on a free loopback port that logs warnings only.
+ServerConfig quiet_loopback_config() {
+  ServerConfig config;
+  config.listen = "127.0.0.1:0";
+  config.log_level = "warn";
+  return config;
+}
+
+bool accepts_connections(int port) {
+  const int fd = connect_tcp(port);
+  if (fd >= 0) ::close(fd);
+  return fd >= 0;
 }
 
 // The drain closes the listener (and sends GOAWAY), so a balancer's new connection is refused and
 // goes to another replica, while the streams already running finish.
 TEST(ServerDrain, TheListenerClosesAndNewCallsAreRefusedWhileRunningStreamsFinish) {
-  ServerConfig config;
-  config.listen = "127.0.0.1:0";
-  config.log_level = "warn";
-  Server server(config);
+  Server server(quiet_loopback_config());
   auto stub = v1::LipSync::NewStub(connect(server.address()));
   Producer running(*stub, {});  // keeps the drain waiting
   ASSERT_TRUE(accepts_connections(server.port()));
@@ -653,6 +668,30 @@ TEST(ServerDrain, TheListenerClosesAndNewCallsAreRefusedWhileRunningStreamsFinis
   running.write(end_request());
   const Received finished = running.finish();  // the running stream still completes
   EXPECT_TRUE(finished.status.ok()) << finished.status.error_message();
+  drain.join();
+}
+
+// nginx opens one upstream connection per call and sends the call right after connecting. A
+// connection the kernel completed just before the listener closed (in the accept backlog, or just
+// accepted) is one the balancer counts as connected, so its call must be served, not refused or
+// reset: the balancer would not retry it elsewhere. A second call on it is refused as on any
+// connection that was open before the drain.
+TEST(ServerDrain, TheFirstCallOfAConnectionCompletedAsTheListenerClosesIsServed) {
+  Server server(quiet_loopback_config());
+  auto stub = v1::LipSync::NewStub(connect(server.address()));
+  Producer running(*stub, {});  // keeps the drain waiting
+  const int just_connected = connect_tcp(server.port());
+  ASSERT_GE(just_connected, 0);
+  std::thread drain([&] { server.shutdown(std::chrono::milliseconds(60'000)); });
+  ASSERT_TRUE(eventually([&] { return !accepts_connections(server.port()); }));
+  auto late = v1::LipSync::NewStub(grpc::CreateInsecureChannelFromFd("late", just_connected));
+  const auto intervals = utterance(8, 6);
+  const Received first = animate(*late, whole({}, intervals, 4));
+  ASSERT_TRUE(first.status.ok()) << first.status.error_message();
+  expect_same(first.frames, reference_frames(intervals));
+  EXPECT_EQ(animate(*late, whole({}, intervals, 4)).status.error_code(), grpc::StatusCode::UNAVAILABLE);
+  running.write(end_request());
+  EXPECT_TRUE(running.finish().status.ok());
   drain.join();
 }
 

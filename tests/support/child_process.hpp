@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -113,6 +114,17 @@ inline std::string wait_for_listening_address(const std::filesystem::path& out) 
     ::usleep(20'000);
   }
   return "";
+}
+
+/// Whether `text` appears in the file `path` within `timeout` (polled every 20 ms).
+inline bool wait_for_text(const std::filesystem::path& path, std::string_view text,
+                          std::chrono::milliseconds timeout = std::chrono::seconds(10)) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (read_text(path).find(text) == std::string::npos) {
+    if (std::chrono::steady_clock::now() >= deadline) return false;
+    ::usleep(20'000);
+  }
+  return true;
 }
 
 /// Runs `argv` (argv[0] a path to the program) in `cwd` and waits for it;
