@@ -53,7 +53,7 @@ def animate(stub, settings, chunks, cancel_after=None, timeout=30):
         yield pb.AnimateRequest(settings=settings)
         for chunk in chunks:
             yield pb.AnimateRequest(phonemes=pb.PhonemeChunk(phonemes=chunk))
-        yield pb.AnimateRequest(end=pb.End())
+        yield pb.AnimateRequest(end=pb.EndOfUtterance())
     call = stub.Animate(requests(), timeout=timeout)
     try:
         for i, _ in enumerate(call):
@@ -85,8 +85,9 @@ def staller(stub, n):
     name = "stall-%d-%d" % (threading.get_ident(), n)
     produced = threading.Thread(target=lambda: note(
         "stall-producer", animate(stub, pb.AnimationSettings(session=name), [phonemes(400, n)]), {"OK"}))
-    call = stub.Subscribe(pb.SubscribeRequest(session=name, start=pb.SubscribeRequest.START_FROM_NOW), timeout=30)
     produced.start()
+    time.sleep(0.2)  # the producer has opened the session
+    call = stub.Subscribe(pb.SubscribeRequest(session=name), timeout=30)
     try:
         next(call)
         time.sleep(2.0)  # not reading: the server cuts it off, then cancels it
