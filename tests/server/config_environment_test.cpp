@@ -32,6 +32,7 @@ const std::map<std::string, std::string> kValues = {
     {"--subscriber-queue-frames", "23"}, {"--face-threads", "3"},      {"--face-priority", "low"},
     {"--stalled-subscriber-ms", "24"}, {"--session-retention-ms", "25"}, {"--log-level", "debug"},
     {"--model", "mine=/m.json"},     {"--replica-name", "pod-7"},
+    {"--log-format", "json"},        {"--metrics-listen", "127.0.0.1:9464"}, {"--transport-memory-bytes", "1048576"},
 };
 
 std::vector<std::string> flags_in_help() {
