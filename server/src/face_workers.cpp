@@ -44,10 +44,7 @@ FaceWorkers::FaceWorkers(std::size_t threads, Priority priority)
   prioritised_.wait();
 }
 
-FaceWorkers::~FaceWorkers() {
-  restore_normal_priority();
-  pool_.join();
-}
+FaceWorkers::~FaceWorkers() { pool_.join(); }
 
 bool FaceWorkers::restore_normal_priority() {
   std::lock_guard lock(thread_ids_mutex_);

@@ -29,7 +29,7 @@ namespace {
 /// How long connections may take to flush and close after GOAWAY at the end of a drain.
 constexpr auto kConnectionGrace = std::chrono::milliseconds(50);
 // Streams aborted at the drain deadline get this long to send their ABORTED.
-constexpr auto kAbortedGrace = std::chrono::milliseconds(200);
+constexpr auto kAbortedGrace = std::chrono::milliseconds(1000);
 
 }  // namespace
 
