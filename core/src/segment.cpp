@@ -6,13 +6,12 @@
 #include <cmath>
 
 #include "lipsync/error.hpp"
+#include "lipsync/excerpt.hpp"
 #include "lipsync/phone_set.hpp"
 #include "lipsync/time.hpp"
 
 namespace lipsync {
 namespace {
-
-std::string quoted(std::string_view label) { return "'" + std::string(label) + "'"; }
 
 std::string seconds(std::int64_t time_us) { return format_seconds(time_us) + " s"; }
 
@@ -26,7 +25,7 @@ SegmentBuilder::SegmentBuilder(const ArticulationModel& model, const PhoneSet& p
 
 void SegmentBuilder::push(const LabeledInterval& interval, std::vector<Segment>& out) {
   const auto fail = [&](const std::string& message) {
-    throw InputError(source_, interval.line, "phoneme " + quoted(interval.label) + ": " + message);
+    throw InputError(source_, interval.line, "phoneme " + excerpt(interval.label) + ": " + message);
   };
   if (interval.start_us < 0) fail("start time " + seconds(interval.start_us) + " is negative");
   if (interval.end_us > kMaxTimeUs || interval.start_us > kMaxTimeUs) {

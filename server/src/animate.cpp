@@ -34,6 +34,8 @@
 #include <spdlog/spdlog.h>
 
 #include "call_log.hpp"
+#include "live_streams.hpp"
+#include "lipsync/excerpt.hpp"
 #include "lipsync/renderer.hpp"
 #include "outbox.hpp"
 #include "phoneme_input.hpp"
@@ -52,17 +54,25 @@ constexpr std::size_t kReadPauseFrames = 4096;
 constexpr std::size_t kReadResumeFrames = 1024;
 
 class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, v1::TrackMessage>,
-                             public OutboxTarget {
+                             public OutboxTarget,
+                             public AbortableStream {
  public:
   AnimateReactor(LipSyncService& service, grpc::CallbackServerContext* context)
-      : service_(service), context_(context), outbox_(*this), started_(Clock::now()) {
+      : service_(service),
+        context_(context),
+        outbox_(*this),
+        log_("Animate", *context, &service.metrics()),
+        frames_counter_(service.metrics().frames_sent.with({"Animate"})),
+        messages_counter_(service.metrics().messages_sent.with({"Animate"})) {
     const grpc::Status admission = service_.admission().admit_stream(context_->peer());
     if (!admission.ok()) {
       outbox_.close(admission);
       return;
     }
     admitted_ = true;
-    spdlog::info("Animate start peer={}", context_->peer());
+    service_.live_streams().add(*this);
+    ++service_.metrics().open_animate;
+    outbox_.measure(service_.metrics().write_latency, service_.metrics().queued_messages);
     if (auto status = service_.tenants().authenticate(*context_, "Animate", caller_); !status.ok()) {
       outbox_.close(status);
       return;
@@ -79,8 +89,10 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
       if (phase_ == Phase::ended) {
         in_order([this] { outbox_.close(grpc::Status::OK); });
       } else {
-        fail(invalid("the client closed the stream before `end` (after " + std::to_string(phonemes()) +
-                     " phonemes)"),
+        // gRPC ends the reads the same way when the client closes its side and when a
+        // message cannot be decoded as an AnimateRequest; a cancel is told apart in OnDone.
+        fail(invalid("the request stream ended before `end` after " + std::to_string(phonemes()) +
+                     " phonemes: the client closed its side, or sent a message that is not an AnimateRequest"),
              "producer disconnected before the end of the utterance");
       }
       return;
@@ -113,20 +125,19 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   }
 
   void OnCancel() override {
+    cancelled_ = true;
     stopped_ = true;
     outbox_.abort(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
     fail_session("producer disconnected: the stream was cancelled");
   }
 
   void OnDone() override {
-    const auto status = outbox_.final_status().value_or(grpc::Status::OK);
+    if (admitted_) service_.live_streams().remove(*this);
+    const auto status = cancelled_ ? cancelled_status() : outbox_.final_status().value_or(grpc::Status::OK);
+    log_.ended(status, {{"phonemes", static_cast<std::uint64_t>(phonemes())}, {"frames", frames_sent_.load()}});
     if (admitted_) {
-      spdlog::info("Animate end peer={} session='{}' phonemes={} frames={} duration_ms={:.1f} status={}",
-                   context_->peer(), session_name_, phonemes(), frames_sent_, elapsed_ms(started_),
-                   status_name(status));
+      --service_.metrics().open_animate;
       service_.admission().release_stream();
-    } else {
-      spdlog::warn("Animate refused peer={} status={}", context_->peer(), status_name(status));
     }
     stopped_ = true;
     if (mesh_weight_milli_ > 0) service_.face_capacity().release(mesh_weight_milli_);
@@ -137,8 +148,20 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     }
   }
 
-  void start_write(const OutgoingMessage& message) override { StartWrite(&message.message()); }
+  void start_write(const OutgoingMessage& message) override {
+    messages_counter_.add();
+    if (message.message().has_frames()) {
+      frames_counter_.add(static_cast<std::uint64_t>(message.message().frames().t_us_size()));
+    }
+    StartWrite(&message.message());
+  }
   void finish(const grpc::Status& status) override { Finish(status); }
+
+  void abort_stream(const grpc::Status& status) override {
+    stopped_ = true;
+    outbox_.abort(status);
+    fail_session("the server shut down: " + status.error_message());
+  }
 
  private:
   enum class Phase { awaiting_settings, streaming, ended };
@@ -156,8 +179,8 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
       case Phase::ended:
         if (request.has_phonemes() && request.phonemes().phonemes_size() > 0) {
           const auto& phoneme = request.phonemes().phonemes(0);
-          return invalid(std::string(kStreamSource) + ":" + std::to_string(phonemes() + 1) + ": phoneme '" +
-                         phoneme.label() + "': received after `end`");
+          return invalid(std::string(kStreamSource) + ":" + std::to_string(phonemes() + 1) + ": phoneme " +
+                         excerpt(phoneme.label()) + ": received after `end`");
         }
         return invalid("message received after `end` (the utterance had " + std::to_string(phonemes()) +
                        " phonemes)");
@@ -166,6 +189,8 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   }
 
   grpc::Status start(const v1::AnimationSettings& settings) {
+    log_.set_session(settings.session());
+    log_.started_line();
     if (auto status = service_.routing().check_metadata(*context_, settings.session()); !status.ok()) return status;
     if (auto status = resolve_settings(settings, service_.catalog(), true, plan_); !status.ok()) return status;
     if (auto status = prepare_face(plan_, service_.faces(), face_setup_); !status.ok()) return status;
@@ -189,7 +214,6 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
       }
       std::lock_guard lock(session_mutex_);
       session_ = std::move(session);
-      session_name_ = settings.session();
     }
     input_.emplace(plan_, service_.config());
     renderer_.emplace(plan_.model->tables, plan_.engine.render);
@@ -215,6 +239,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     if (auto status = caller_.take_phonemes(static_cast<std::size_t>(chunk.phonemes_size())); !status.ok()) {
       return status;
     }
+    service_.metrics().phonemes_received.add(static_cast<std::uint64_t>(chunk.phonemes_size()));
     for (const v1::Phoneme& phoneme : chunk.phonemes()) {
       if (auto status = input_->push(phoneme, segments_); !status.ok()) return status;
       for (const Segment& segment : segments_) renderer_->push(segment, track_);
@@ -281,7 +306,9 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
       }
       v1::TrackMessage batch;
       encoder_.face = face_.get();
+      const auto encoding = Clock::now();
       encode_frames(plan_, track, begin, end, frames_sent_, *batch.mutable_frames(), encoder_);
+      if (face_) service_.metrics().face_solver.observe_us(microseconds_since(encoding));
       batch.mutable_frames()->set_release_lag_us(input_us - track.t_us[begin]);
       const Message message = make_message(std::move(batch));
       frames_sent_ += end - begin;
@@ -322,8 +349,11 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   Caller caller_;  // the tenant; its quotas are held until the reactor is deleted
   QuotaHold stream_hold_, session_hold_, mesh_hold_;
   Outbox outbox_;
-  const Clock::time_point started_;
+  CallLog log_;
+  Counter& frames_counter_;
+  Counter& messages_counter_;
   bool admitted_ = false;
+  std::atomic<bool> cancelled_ = false;  // OnCancel came: the client got CANCELLED (or gRPC's own status)
   Phase phase_ = Phase::awaiting_settings;
   v1::AnimateRequest request_;
   Plan plan_;
@@ -347,7 +377,6 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   bool read_paused_ = false;
   std::mutex session_mutex_;
   std::shared_ptr<Session> session_;
-  std::string session_name_;
 };
 
 }  // namespace

@@ -45,14 +45,22 @@ std::size_t parse_count(const Setting& setting, std::size_t min) {
       parse_integer(setting, static_cast<std::int64_t>(min), std::numeric_limits<std::int32_t>::max()));
 }
 
-/// HOST:PORT with a port from 0 to 65535.
-std::string parse_host_port(const Setting& setting) {
-  const auto colon = setting.value.rfind(':');
-  if (colon == std::string::npos || colon == 0 || colon + 1 == setting.value.size()) {
-    throw ConfigError(setting.name + ": expected HOST:PORT, got '" + setting.value + "'");
+/// HOST:PORT with a port 0..65535; throws ConfigError naming the setting.
+std::string parse_host_port(const Setting& s) {
+  const auto colon = s.value.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == s.value.size()) {
+    throw ConfigError(s.name + ": expected HOST:PORT, got '" + s.value + "'");
   }
-  parse_integer({setting.name, setting.value.substr(colon + 1)}, 0, 65535);
-  return setting.value;
+  parse_integer({s.name, s.value.substr(colon + 1)}, 0, 65535);
+  return s.value;
+}
+
+/// One of `choices`; throws ConfigError listing them.
+std::string parse_choice(const Setting& s, const std::vector<std::string>& choices) {
+  if (std::find(choices.begin(), choices.end(), s.value) != choices.end()) return s.value;
+  std::string listed;
+  for (const auto& choice : choices) listed += (listed.empty() ? "" : ", ") + choice;
+  throw ConfigError(s.name + ": unknown value '" + s.value + "' (" + listed + ")");
 }
 
 struct Option {
@@ -93,6 +101,11 @@ const std::vector<Option>& options() {
       {"--max-message-bytes", "BYTES", "largest request message",
        [](ServerConfig& c, const Setting& s) { c.max_message_bytes = parse_count(s, 1024); },
        [](const ServerConfig& c) { return std::to_string(c.max_message_bytes); }},
+      {"--transport-memory-bytes", "BYTES", "gRPC's memory quota for all connections' buffers (0: none)",
+       [](ServerConfig& c, const Setting& s) {
+         c.transport_memory_bytes = static_cast<std::size_t>(parse_integer(s, 0, std::int64_t{1} << 40));
+       },
+       [](const ServerConfig& c) { return std::to_string(c.transport_memory_bytes); }},
       {"--replay-frames", "N", "frames a session keeps for subscribers that start from the beginning",
        [](ServerConfig& c, const Setting& s) { c.replay_frames = parse_count(s, 0); },
        [](const ServerConfig& c) { return std::to_string(c.replay_frames); }},
@@ -139,6 +152,12 @@ const std::vector<Option>& options() {
          c.log_level = s.value;
        },
        [](const ServerConfig& c) { return c.log_level; }},
+      {"--log-format", "FORMAT", "text (spdlog lines) or json (one object per line)",
+       [](ServerConfig& c, const Setting& s) { c.log_format = parse_choice(s, {"text", "json"}); },
+       [](const ServerConfig& c) { return c.log_format; }},
+      {"--metrics-listen", "HOST:PORT", "serve Prometheus metrics over HTTP at /metrics here (\"\" = off)",
+       [](ServerConfig& c, const Setting& s) { c.metrics_listen = s.value.empty() ? "" : parse_host_port(s); },
+       [](const ServerConfig& c) { return c.metrics_listen.empty() ? std::string("off") : c.metrics_listen; }},
       {"--model", "NAME=FILE", "load an extra articulation model (repeatable)",
        [](ServerConfig& c, const Setting& s) {
          const auto eq = s.value.find('=');

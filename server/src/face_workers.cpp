@@ -33,6 +33,10 @@ FaceWorkers::FaceWorkers(std::size_t threads, Priority priority)
     : prioritised_(static_cast<std::ptrdiff_t>(threads)), pool_(threads) {
   for (std::size_t i = 0; i < threads; ++i) {
     boost::asio::post(pool_, [this, priority] {
+      {
+        std::lock_guard lock(thread_ids_mutex_);
+        thread_ids_.push_back(static_cast<pid_t>(::syscall(SYS_gettid)));
+      }
       lower_this_thread(priority);
       prioritised_.arrive_and_wait();
     });
@@ -41,6 +45,17 @@ FaceWorkers::FaceWorkers(std::size_t threads, Priority priority)
 }
 
 FaceWorkers::~FaceWorkers() { pool_.join(); }
+
+bool FaceWorkers::restore_normal_priority() {
+  std::lock_guard lock(thread_ids_mutex_);
+  bool restored = true;
+  for (const pid_t thread : thread_ids_) {
+    const sched_param param{};
+    restored = ::sched_setscheduler(thread, SCHED_OTHER, &param) == 0 && restored;
+    restored = ::setpriority(PRIO_PROCESS, static_cast<id_t>(thread), 0) == 0 && restored;
+  }
+  return restored;
+}
 
 void FaceWorkers::post(std::function<void()> job) { boost::asio::post(pool_, std::move(job)); }
 

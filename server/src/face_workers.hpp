@@ -11,6 +11,13 @@
 // round. Each pool thread lowers its own priority first thing, before it runs
 // any job.
 //
+// A thread at SCHED_IDLE needs CPU time to end as much as to work: on a busy
+// machine the process could not exit (the kernel waits for every thread to die)
+// for seconds after a mesh call had used the pool. So a shutdown gives the
+// threads their normal priority back first (restore_normal_priority); that
+// takes CAP_SYS_NICE or an RLIMIT_NICE of at least 20 (systemd: LimitNICE=+0),
+// which lipsyncd raises its soft limit toward at start.
+//
 // A FaceLane is one stream's strand on the pool: its jobs run in the order
 // they were posted, one at a time (frames must leave in order); different
 // lanes run in parallel on the pool's threads. `retire` queues a last job
@@ -21,6 +28,10 @@
 #include <cstddef>
 #include <functional>
 #include <latch>
+#include <mutex>
+#include <vector>
+
+#include <sys/types.h>
 
 #include <boost/asio/strand.hpp>
 #include <boost/asio/thread_pool.hpp>
@@ -40,12 +51,18 @@ class FaceWorkers {
   FaceWorkers(const FaceWorkers&) = delete;
   FaceWorkers& operator=(const FaceWorkers&) = delete;
 
+  /// Puts every thread back at the normal priority (SCHED_OTHER, nice 0), so that a shutdown
+  /// never waits for CPU time no other thread wants. False if the system does not allow it.
+  bool restore_normal_priority();
+
   /// Runs `job` on one of the threads.
   void post(std::function<void()> job);
   boost::asio::thread_pool::executor_type executor() { return pool_.get_executor(); }
 
  private:
   std::latch prioritised_;  // before pool_: outlives the threads' first jobs
+  std::mutex thread_ids_mutex_;
+  std::vector<pid_t> thread_ids_;  // the pool's threads (Linux thread ids)
   boost::asio::thread_pool pool_;
 };
 

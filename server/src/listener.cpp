@@ -55,6 +55,13 @@ std::string peer_name(const sockaddr_storage& peer) {
 
 }  // namespace
 
+std::string connection_peer(int fd) {
+  sockaddr_storage peer{};
+  socklen_t peer_size = sizeof(peer);
+  if (::getpeername(fd, reinterpret_cast<sockaddr*>(&peer), &peer_size) != 0) return "fd:" + std::to_string(fd);
+  return peer_name(peer);
+}
+
 Listener::Listener(const std::string& host_port) {
   const auto colon = host_port.rfind(':');
   std::string host = host_port.substr(0, colon);

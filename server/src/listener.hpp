@@ -26,6 +26,10 @@ namespace lipsync::server {
 
 class ConnectionLedger;
 
+/// The address of the client connected on `fd` ("ipv4:10.0.0.7:51234"), "fd:N" if it is gone.
+/// gRPC names the peer of a connection handed to it by fd "fd:N"; the call logs name it by this.
+std::string connection_peer(int fd);
+
 class Listener {
  public:
   /// Binds and listens on `host_port` ("127.0.0.1:0", "0.0.0.0:50051", "[::]:50051",

@@ -1,5 +1,6 @@
 // ListModels and GetModel: what the server's models are (channels with their
 // ranges and rest values, ARKit names, phonemes, phone sets), from the catalog.
+#include "lipsync/excerpt.hpp"
 #include "service.hpp"
 #include "unary_call.hpp"
 
@@ -33,7 +34,7 @@ grpc::ServerUnaryReactor* LipSyncService::ListModels(grpc::CallbackServerContext
     if (auto status = tenants_.authenticate(*context, "ListModels", caller); !status.ok()) return status;
     for (const auto& entry : catalog_.entries()) describe(*entry, *response->add_models());
     return grpc::Status::OK;
-  });
+  }, &metrics_);
 }
 
 grpc::ServerUnaryReactor* LipSyncService::GetModel(grpc::CallbackServerContext* context,
@@ -44,11 +45,11 @@ grpc::ServerUnaryReactor* LipSyncService::GetModel(grpc::CallbackServerContext* 
     const ModelEntry* entry = catalog_.find(request->name());
     if (!entry) {
       return grpc::Status(grpc::StatusCode::NOT_FOUND,
-                          "no model named '" + request->name() + "' (known: " + catalog_.names() + ")");
+                          "no model named " + excerpt(request->name()) + " (known: " + catalog_.names() + ")");
     }
     describe(*entry, *response);
     return grpc::Status::OK;
-  });
+  }, &metrics_);
 }
 
 }  // namespace lipsync::server

@@ -29,13 +29,13 @@ bool Outbox::push(Message message, std::size_t counted_frames) {
     std::lock_guard lock(mutex_);
     if (finish_status_) return false;
     if (max_frames_ > 0 && queued_frames_ + counted_frames > max_frames_) {
-      queue_.clear();
-      queued_frames_ = 0;
+      drop_queue_locked();
       finish_status_ = grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED, overflow_message_);
       stalled = writing_;
     } else {
-      queue_.emplace_back(std::move(message), counted_frames);
+      queue_.push_back({std::move(message), counted_frames, std::chrono::steady_clock::now()});
       queued_frames_ += counted_frames;
+      if (queued_) queued_->fetch_add(1, std::memory_order_relaxed);
     }
   }
   if (stalled) target_.on_stalled();
@@ -56,8 +56,7 @@ void Outbox::close(const grpc::Status& status) {
 void Outbox::abort(const grpc::Status& status) {
   {
     std::lock_guard lock(mutex_);
-    queue_.clear();
-    queued_frames_ = 0;
+    drop_queue_locked();
     if (!finish_status_) finish_status_ = status;
   }
   pump();
@@ -67,16 +66,33 @@ void Outbox::on_write_done(bool ok) {
   {
     std::lock_guard lock(mutex_);
     writing_ = false;
+    if (ok && latency_ && in_flight_) {
+      latency_->observe_us(std::chrono::duration_cast<std::chrono::microseconds>(
+                               std::chrono::steady_clock::now() - in_flight_pushed_)
+                               .count());
+    }
     in_flight_.reset();
     if (!ok) {
-      queue_.clear();
-      queued_frames_ = 0;
+      drop_queue_locked();
       if (!finish_status_) {
         finish_status_ = grpc::Status(grpc::StatusCode::CANCELLED, "the client went away");
       }
     }
   }
   pump();
+}
+
+void Outbox::measure(Histogram& latency, std::atomic<std::int64_t>& queued) {
+  std::lock_guard lock(mutex_);
+  latency_ = &latency;
+  queued_ = &queued;
+  queued_->fetch_add(static_cast<std::int64_t>(queue_.size()), std::memory_order_relaxed);
+}
+
+void Outbox::drop_queue_locked() {
+  if (queued_) queued_->fetch_sub(static_cast<std::int64_t>(queue_.size()), std::memory_order_relaxed);
+  queue_.clear();
+  queued_frames_ = 0;
 }
 
 std::optional<grpc::Status> Outbox::final_status() const {
@@ -96,9 +112,11 @@ void Outbox::pump() {
     std::lock_guard lock(mutex_);
     if (writing_ || finish_called_) return;
     if (!queue_.empty()) {
-      in_flight_ = std::move(queue_.front().first);
-      queued_frames_ -= queue_.front().second;
+      in_flight_ = std::move(queue_.front().message);
+      in_flight_pushed_ = queue_.front().pushed;
+      queued_frames_ -= queue_.front().counted_frames;
       queue_.pop_front();
+      if (queued_) queued_->fetch_sub(1, std::memory_order_relaxed);
       writing_ = true;
       write = in_flight_.get();
     } else if (finish_status_) {

@@ -21,6 +21,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <cstddef>
 #include <deque>
 #include <memory>
@@ -32,6 +33,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include "lipsync/v1/lipsync.pb.h"
+#include "metrics.hpp"
 
 namespace lipsync::server {
 
@@ -97,6 +99,10 @@ class Outbox {
   /// Counted frames queued and not yet handed to gRPC (the one in flight excluded).
   std::size_t queued_frames() const;
 
+  /// From now on each message's time from push to its completed write goes to `latency`,
+  /// and `queued` follows the messages waiting here (both the server's metrics).
+  void measure(Histogram& latency, std::atomic<std::int64_t>& queued);
+
  private:
   void pump();
 
@@ -104,9 +110,19 @@ class Outbox {
   const std::size_t max_frames_;
   const std::string overflow_message_;
   mutable std::mutex mutex_;
-  std::deque<std::pair<Message, std::size_t>> queue_;
+  struct Queued {
+    Message message;
+    std::size_t counted_frames;
+    std::chrono::steady_clock::time_point pushed;
+  };
+  void drop_queue_locked();
+
+  std::deque<Queued> queue_;
   std::size_t queued_frames_ = 0;
   Message in_flight_;
+  std::chrono::steady_clock::time_point in_flight_pushed_;
+  Histogram* latency_ = nullptr;
+  std::atomic<std::int64_t>* queued_ = nullptr;
   bool writing_ = false;
   bool finish_called_ = false;
   std::optional<grpc::Status> finish_status_;

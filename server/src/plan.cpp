@@ -3,6 +3,7 @@
 #include "plan.hpp"
 
 #include "lipsync/error.hpp"
+#include "lipsync/excerpt.hpp"
 #include "wire.hpp"
 
 namespace lipsync::server {
@@ -51,8 +52,8 @@ grpc::Status resolve_visemes(const v1::AnimationSettings& settings, Plan& plan) 
     }
     const auto shapes = rhubarb_shapes_from_string(letters);
     if (!shapes) {
-      return invalid("settings.outputs.visemes.rhubarb_extended_shapes: '" + letters +
-                     "' is not a set of G, H and X (e.g. GHX, GX or \"\")");
+      return invalid("settings.outputs.visemes.rhubarb_extended_shapes: " + excerpt(letters) +
+                     " is not a set of G, H and X (e.g. GHX, GX or \"\")");
     }
     options.rhubarb_shapes = *shapes;
   }
@@ -76,15 +77,15 @@ grpc::Status resolve_settings(const v1::AnimationSettings& settings, const Model
                               bool with_session, Plan& plan) {
   plan.model = catalog.find(settings.model());
   if (!plan.model) {
-    return invalid("settings.model: unknown model '" + settings.model() + "' (known: " + catalog.names() + ")");
+    return invalid("settings.model: unknown model " + excerpt(settings.model()) + " (known: " + catalog.names() + ")");
   }
   const std::string phone_set = settings.phone_set().empty() ? "arpabet" : settings.phone_set();
   plan.phone_set = plan.model->find_phone_set(phone_set);
   if (!plan.phone_set) {
     std::string known;
     for (const auto& set : plan.model->phone_sets) known += (known.empty() ? "" : ", ") + set.name();
-    return invalid("settings.phone_set: unknown phone set '" + phone_set + "' for model '" + plan.model->name +
-                   "' (known: " + known + ")");
+    return invalid("settings.phone_set: unknown phone set " + excerpt(phone_set) + " for model '" +
+                   plan.model->name + "' (known: " + known + ")");
   }
   try {
     plan.engine = resolve_render_plan(requested_settings(settings), kWireNames);
@@ -92,7 +93,8 @@ grpc::Status resolve_settings(const v1::AnimationSettings& settings, const Model
     return invalid(error.what());
   }
   if (with_session && settings.session().size() > 256) {
-    return invalid("settings.session: the name is longer than 256 bytes");
+    return invalid("settings.session: the name has " + std::to_string(settings.session().size()) +
+                   " bytes, more than the 256 allowed");
   }
   const bool any = settings.outputs().channels() || settings.outputs().arkit();
   plan.channels = !any || settings.outputs().channels();

@@ -41,7 +41,12 @@ grpc::Status render(LipSyncService& service, const v1::RenderRequest& request, v
   StreamEncoder encoder{.face = face_stream.get(), .viseme_detector = {}};
   const Track track = render_track(plan.model->tables, segments, plan.engine.render);
   *response.mutable_header() = plan.header;
+  const auto encoding = Clock::now();
   encode_frames(plan, track, 0, track.frame_count(), 0, *response.mutable_frames(), encoder);
+  if (face_stream) service.metrics().face_solver.observe_us(microseconds_since(encoding));
+  service.metrics().phonemes_received.add(static_cast<std::uint64_t>(request.phonemes_size()));
+  service.metrics().frames_sent.with({"Render"}).add(track.frame_count());
+  service.metrics().messages_sent.with({"Render"}).add();
   encode_summary(track.frame_count(), static_cast<std::uint64_t>(request.phonemes_size()), input.end_us(),
                  *response.mutable_summary());
   return grpc::Status::OK;
@@ -52,23 +57,34 @@ grpc::Status render(LipSyncService& service, const v1::RenderRequest& request, v
 grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* context,
                                                  const v1::RenderRequest* request, v1::RenderResponse* response) {
   if (grpc::Status admission = admission_.admit_render(context->peer()); !admission.ok()) {
-    return unary(context, "Render", [&] { return admission; });
+    return unary(context, "Render", [&] { return admission; }, &metrics_);
   }
+  // What the call holds until it is done: until its response has left, not until Finish
+  // (a drain must not take a Render whose response is still on its way for a finished one).
+  struct Holds {
+    QuotaHold mesh_quota;
+    std::int64_t face_weight = 0;  // once admitted against the face's capacity
+  };
+  auto holds = std::make_shared<Holds>();
+  auto* call = new UnaryCall(
+      "Render", *context,
+      [this, holds](const grpc::Status&) {
+        if (holds->face_weight > 0) face_capacity_.release(holds->face_weight);
+        admission_.release_render();
+      },
+      &metrics_);
   // The tenant (tenants.hpp): its key, its phoneme rate and, with the mesh, its mesh calls.
   Caller caller;
-  auto mesh_hold = std::make_shared<QuotaHold>();
   grpc::Status refused = tenants_.authenticate(*context, "Render", caller);
   if (refused.ok()) refused = caller.take_phonemes(static_cast<std::size_t>(request->phonemes_size()));
-  if (refused.ok() && wants_mesh(request->settings())) refused = caller.hold(Quota::mesh_streams, *mesh_hold);
+  if (refused.ok() && wants_mesh(request->settings())) refused = caller.hold(Quota::mesh_streams, holds->mesh_quota);
   if (!refused.ok()) {
-    auto* reactor = unary(context, "Render", [&] { return refused; });
-    admission_.release_render();
-    return reactor;
+    call->run([&] { return refused; });
+    return call;
   }
   if (!wants_mesh(request->settings())) {
-    auto* reactor = unary(context, "Render", [&] { return render(*this, *request, *response); });
-    admission_.release_render();
-    return reactor;
+    call->run([&] { return render(*this, *request, *response); });
+    return call;
   }
   // Seconds of solver work for a long utterance: off the reaction (face_workers.hpp),
   // admitted against the face's capacity (face_capacity.hpp) for as long as it runs.
@@ -78,17 +94,12 @@ grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* co
                                                   : static_cast<int>(kMeshSubdivisionSetting.default_value),
       settings.fps() == 0 ? static_cast<int>(kFpsSetting.default_value) : static_cast<int>(settings.fps()));
   if (grpc::Status capacity = face_capacity_.admit(weight); !capacity.ok()) {
-    auto* reactor = unary(context, "Render", [&] { return capacity; });
-    admission_.release_render();
-    return reactor;
+    call->run([&] { return capacity; });
+    return call;
   }
-  auto* reactor = context->DefaultReactor();
-  face_workers_.post([this, context, request, response, reactor, mesh_hold, weight] {
-    reactor->Finish(run_unary(context, "Render", [&] { return render(*this, *request, *response); }));
-    face_capacity_.release(weight);
-    admission_.release_render();
-  });
-  return reactor;
+  holds->face_weight = weight;
+  face_workers_.post([this, call, request, response] { call->run([&] { return render(*this, *request, *response); }); });
+  return call;
 }
 
 }  // namespace lipsync::server

@@ -23,9 +23,11 @@
 #include <grpcpp/health_check_service_interface.h>
 #include <spdlog/spdlog.h>
 
+#include "call_log.hpp"
 #include "catalog.hpp"
 #include "http_viewer.hpp"
 #include "listener.hpp"
+#include "metrics_http.hpp"
 #include "service.hpp"
 #include "tls.hpp"
 
@@ -34,6 +36,8 @@ namespace {
 
 /// How long connections may take to flush and close after GOAWAY at the end of a drain.
 constexpr auto kConnectionGrace = std::chrono::milliseconds(50);
+// Streams aborted at the drain deadline get this long to send their ABORTED.
+constexpr auto kAbortedGrace = std::chrono::milliseconds(1000);
 
 }  // namespace
 
@@ -48,12 +52,25 @@ struct Server::Impl {
   std::unique_ptr<TlsCredentials> tls;
   std::unique_ptr<grpc::Server> server;
   std::unique_ptr<HttpViewer> viewer;  // --http-listen: follows sessions through the in-process channel
+  std::unique_ptr<MetricsEndpoint> metrics;  // --metrics-listen
   int port = 0;
   std::once_flag shutdown_once;
+
+  /// Waits until no call is in progress (nor the first call of a connection accepted just
+  /// now: admission.hpp), for at most `limit`; true if none is.
+  bool wait_for_calls(std::chrono::milliseconds limit) {
+    const auto deadline = std::chrono::steady_clock::now() + limit;
+    while (service.admission().calls_in_progress() > 0 || service.admission().awaiting_first_calls()) {
+      if (std::chrono::steady_clock::now() >= deadline) return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    return true;
+  }
 };
 
 Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(config))) {
   spdlog::set_level(spdlog::level::from_str(impl_->config.log_level));
+  set_log_format(impl_->config.log_format == "json" ? LogFormat::json : LogFormat::text);
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
@@ -66,6 +83,11 @@ Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(con
     builder.AddListeningPort(impl_->config.listen, impl_->tls->server_credentials(), &impl_->port);
   }
   builder.SetMaxReceiveMessageSize(static_cast<int>(impl_->config.max_message_bytes));
+  if (impl_->config.transport_memory_bytes > 0) {
+    grpc::ResourceQuota quota("lipsyncd");
+    quota.Resize(impl_->config.transport_memory_bytes);
+    builder.SetResourceQuota(quota);
+  }
   builder.RegisterService(&impl_->service);
   impl_->server = builder.BuildAndStart();
   if (!impl_->server || impl_->port == 0) {
@@ -84,7 +106,13 @@ Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(con
                                                  impl_->server->InProcessChannel(grpc::ChannelArguments()),
                                                  impl_->catalog);
   }
+  if (!impl_->config.metrics_listen.empty()) {
+    impl_->metrics = std::make_unique<MetricsEndpoint>(
+        impl_->config.metrics_listen, [&registry = impl_->service.metrics_registry()] { return registry.exposition(); });
+  }
 }
+
+std::string Server::metrics_address() const { return impl_->metrics ? impl_->metrics->address() : std::string(); }
 
 Server::~Server() { shutdown(std::chrono::milliseconds(0)); }
 
@@ -111,13 +139,21 @@ void Server::shutdown(std::chrono::milliseconds drain) {
       spdlog::info("listener closed: new connections are refused");
     }
     if (auto* health = impl_->server->GetHealthCheckService()) health->Shutdown();
-    Admission& admission = impl_->service.admission();
-    admission.begin_drain();
-    const auto deadline = std::chrono::steady_clock::now() + drain;
-    // Also wait for the first call of a connection accepted just now (admission.hpp).
-    while ((admission.calls_in_progress() > 0 || admission.awaiting_first_calls()) &&
-           std::chrono::steady_clock::now() < deadline) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    impl_->service.admission().begin_drain();
+    if (!impl_->wait_for_calls(drain)) {
+      // Past the deadline: the streams still running end with ABORTED, as documented, and
+      // get a moment to send it (a client that stopped reading never takes it: gRPC's
+      // Shutdown below cancels those).
+      const std::size_t aborted = impl_->service.live_streams().abort_all(
+          {grpc::StatusCode::ABORTED, "the server is shutting down: the drain deadline (--drain-deadline-ms=" +
+                                          std::to_string(drain.count()) + ") has passed"});
+      spdlog::info("drain deadline passed: {} streams aborted", aborted);
+      impl_->wait_for_calls(kAbortedGrace);
+    }
+    // The face threads must not need CPU time nobody else wants to end (face_workers.hpp).
+    if (!impl_->service.face_workers().restore_normal_priority()) {
+      spdlog::info("the face threads keep their low priority (no CAP_SYS_NICE, RLIMIT_NICE below 20): on a busy "
+                   "machine the process may take a while to end");
     }
     // GOAWAY only now, with no call left. A shutdown deadline already past would
     // cut every connection at once, racing the final frames a connection may still

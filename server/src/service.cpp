@@ -16,6 +16,8 @@
 #include <algorithm>
 #include <thread>
 
+#include <grpcpp/grpcpp.h>
+
 namespace lipsync::server {
 namespace {
 
@@ -39,6 +41,37 @@ LipSyncService::LipSyncService(const ServerConfig& config, const ModelCatalog& c
       routing_(config.replica_name, config.listen),
       tenants_(config.api_keys),
       face_capacity_(config.max_mesh_streams_per_face_thread, face_thread_count(config)),
-      face_workers_(face_thread_count(config), face_priority(config.face_priority)) {}
+      face_workers_(face_thread_count(config), face_priority(config.face_priority)) {
+  register_gauges();
+}
+
+void LipSyncService::register_gauges() {
+  metrics_registry_.gauge({"lipsyncd_build_info", "lipsyncd's version and gRPC's; always 1.", {"version", "grpc_version"},
+                           [] { return std::vector<GaugeSample>{{{LIPSYNCD_VERSION, grpc::Version()}, 1}}; }});
+  metrics_registry_.gauge(
+      {"lipsyncd_streams", "Animate and Subscribe streams by state.", {"method", "state", "tenant"}, [this] {
+         return std::vector<GaugeSample>{
+             {{"Animate", "open", ""}, static_cast<double>(metrics_.open_animate.load())},
+             {{"Subscribe", "open", ""}, static_cast<double>(metrics_.open_subscribe.load())}};
+       }});
+  metrics_registry_.gauge({"lipsyncd_sessions", "Named sessions held, by state (live, or ended and retained).",
+                           {"state", "tenant"}, [this] {
+                             const auto counts = sessions_.counts();
+                             return std::vector<GaugeSample>{{{"live", ""}, static_cast<double>(counts.live)},
+                                                             {{"ended", ""}, static_cast<double>(counts.ended)}};
+                           }});
+  metrics_registry_.gauge({"lipsyncd_session_subscribers", "Subscribers attached to sessions.", {}, [this] {
+                             return std::vector<GaugeSample>{{{}, static_cast<double>(sessions_.counts().subscribers)}};
+                           }});
+  metrics_registry_.gauge({"lipsyncd_calls_in_progress", "Animate, Subscribe and Render calls running.", {}, [this] {
+                             return std::vector<GaugeSample>{
+                                 {{}, static_cast<double>(admission_.calls_in_progress())}};
+                           }});
+  metrics_registry_.gauge({"lipsyncd_queued_messages",
+                           "Messages queued for streams, not yet handed to gRPC (all streams together).", {},
+                           [this] {
+                             return std::vector<GaugeSample>{{{}, static_cast<double>(metrics_.queued_messages.load())}};
+                           }});
+}
 
 }  // namespace lipsync::server

@@ -10,6 +10,8 @@
 #include "face_capacity.hpp"
 #include "face_stream.hpp"
 #include "face_workers.hpp"
+#include "live_streams.hpp"
+#include "metrics.hpp"
 #include "lipsync/server/config.hpp"
 #include "session.hpp"
 #include "session_routing.hpp"
@@ -53,6 +55,11 @@ class LipSyncService final : public v1::LipSync::WithRawCallbackMethod_Subscribe
   SessionRouting& routing() { return routing_; }
   /// Meshes and rigs shared by the streams that ask for the mesh output (built lazily).
   FaceLibrary& faces() { return faces_; }
+  /// The metrics every call adds to (metrics.hpp), and their registry (GET /metrics).
+  ServerMetrics& metrics() { return metrics_; }
+  MetricsRegistry& metrics_registry() { return metrics_registry_; }
+  /// The streams running now (aborted with ABORTED at the drain deadline).
+  LiveStreams& live_streams() { return live_streams_; }
   /// The low-priority threads the face runs on.
   FaceWorkers& face_workers() { return face_workers_; }
   /// The one thread Speak synthesises on (espeak-ng is not re-entrant).
@@ -63,8 +70,12 @@ class LipSyncService final : public v1::LipSync::WithRawCallbackMethod_Subscribe
   FaceCapacity& face_capacity() { return face_capacity_; }
 
  private:
+  void register_gauges();
+
   const ServerConfig& config_;
   const ModelCatalog& catalog_;
+  MetricsRegistry metrics_registry_;
+  ServerMetrics metrics_{metrics_registry_};
   SessionRegistry sessions_;
   Admission admission_;
   SessionRouting routing_;
@@ -73,6 +84,7 @@ class LipSyncService final : public v1::LipSync::WithRawCallbackMethod_Subscribe
   FaceCapacity face_capacity_;
   // After what its jobs use, so that it is joined before they go.
   SpeechThread speech_thread_;
+  LiveStreams live_streams_;
   // Last, so that it is destroyed first: its destructor runs the jobs still
   // queued, which use the members above.
   FaceWorkers face_workers_;

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "lipsync/excerpt.hpp"
+
 namespace {
 
 /// Bytes of mesh positions in a batch (0 for every stream without the mesh output); O(1).
@@ -61,7 +63,7 @@ void Session::end_locked(State state) {
 }
 
 grpc::Status Session::aborted_status_locked() const {
-  return {grpc::StatusCode::ABORTED, "session '" + name_ + "': " + failure_};
+  return {grpc::StatusCode::ABORTED, "session " + excerpt(name_) + ": " + failure_};
 }
 
 grpc::Status Session::attach(const std::shared_ptr<Outbox>& outbox, bool from_beginning,
@@ -70,7 +72,7 @@ grpc::Status Session::attach(const std::shared_ptr<Outbox>& outbox, bool from_be
   if (state_ == State::failed) return aborted_status_locked();
   if (state_ == State::live && subscribers_.size() >= max_subscribers) {
     return {grpc::StatusCode::RESOURCE_EXHAUSTED,
-            "session '" + name_ + "' already has " + std::to_string(subscribers_.size()) +
+            "session " + excerpt(name_) + " already has " + std::to_string(subscribers_.size()) +
                 " subscribers (--max-subscribers-per-session=" + std::to_string(max_subscribers) + ")"};
   }
   // The replay does not count toward the subscriber's bound: it is shared and
@@ -124,7 +126,7 @@ grpc::Status SessionRegistry::open(const std::string& name, const Message& heade
   if (const auto it = sessions_.find(key.empty() ? name : key); it != sessions_.end()) {
     if (it->second->live()) {
       return {grpc::StatusCode::ALREADY_EXISTS,
-              "session '" + name + "' already has a live producer"};
+              "session " + excerpt(name) + " already has a live producer"};
     }
     sessions_.erase(it);
   }
@@ -149,6 +151,17 @@ std::size_t SessionRegistry::size() {
   std::lock_guard lock(mutex_);
   sweep_locked();
   return sessions_.size();
+}
+
+SessionRegistry::Counts SessionRegistry::counts() {
+  std::lock_guard lock(mutex_);
+  sweep_locked();
+  Counts counts;
+  for (const auto& [name, session] : sessions_) {
+    ++(session->live() ? counts.live : counts.ended);
+    counts.subscribers += session->subscriber_count();
+  }
+  return counts;
 }
 
 }  // namespace lipsync::server

@@ -88,6 +88,14 @@ class SessionRegistry {
   /// nullptr if there is no session under `key` (or it has expired).
   std::shared_ptr<Session> find(const std::string& key);
   std::size_t size();
+  /// Sessions held by state (live: a producer is streaming; ended: finished or failed, still
+  /// retained) and their subscribers, for the metrics.
+  struct Counts {
+    std::size_t live = 0;
+    std::size_t ended = 0;
+    std::size_t subscribers = 0;
+  };
+  Counts counts();
 
  private:
   void sweep_locked();

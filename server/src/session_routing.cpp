@@ -4,6 +4,8 @@
 
 #include <array>
 
+#include "lipsync/excerpt.hpp"
+
 namespace lipsync::server {
 namespace {
 
@@ -39,13 +41,13 @@ grpc::Status SessionRouting::check_metadata(const grpc::CallbackServerContext& c
   const std::string routed(found->second.data(), found->second.size());
   if (routed == body_session) return grpc::Status::OK;
   return {grpc::StatusCode::INVALID_ARGUMENT,
-          std::string("metadata ") + kMetadataKey + " '" + routed + "' differs from the request's session '" +
-              body_session + "': the balancer routes on the metadata, so both must name the same session"};
+          std::string("metadata ") + kMetadataKey + " " + excerpt(routed) + " differs from the request's session " +
+              excerpt(body_session) + ": the balancer routes on the metadata, so both must name the same session"};
 }
 
 grpc::Status SessionRouting::not_held(const std::string& session, std::int64_t retention_ms) const {
   return {grpc::StatusCode::NOT_FOUND,
-          "no session named '" + session + "' at replica " + replica_name() +
+          "no session named " + excerpt(session) + " at replica " + replica_name() +
               ": it is not held here (never opened on this replica, or ended more than " +
               std::to_string(retention_ms) +
               " ms ago). A session lives on the replica that runs its Animate stream; behind a load "

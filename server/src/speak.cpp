@@ -92,7 +92,7 @@ grpc::Status speak_settings(const v1::AnimationSettings& requested, v1::Animatio
 class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
  public:
   SpeakReactor(LipSyncService& service, grpc::CallbackServerContext* context, const v1::SpeakRequest& request)
-      : service_(service), context_(context), request_(request), started_(Clock::now()) {
+      : service_(service), context_(context), request_(request), log_("Speak", *context, &service.metrics()) {
     grpc::Status status = service_.admission().admit_stream(context_->peer());
     if (!status.ok()) {
       finish(status);
@@ -121,14 +121,9 @@ class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
   void OnCancel() override { cancelled_ = true; }
 
   void OnDone() override {
-    if (admitted_) {
-      spdlog::info("Speak end peer={} session='{}' samples={} frames={} duration_ms={:.1f} status={}",
-                   context_->peer(), session_name_, samples_sent_, frames_sent_, elapsed_ms(started_),
-                   status_name(final_status_));
-      service_.admission().release_stream();
-    } else {
-      spdlog::warn("Speak refused peer={} status={}", context_->peer(), status_name(final_status_));
-    }
+    log_.ended(cancelled_ ? cancelled_status() : final_status_,
+               {{"samples", static_cast<std::uint64_t>(samples_sent_)}, {"frames", static_cast<std::uint64_t>(frames_sent_)}});
+    if (admitted_) service_.admission().release_stream();
     delete this;
   }
 
@@ -153,8 +148,8 @@ class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
       }
       session_name_ = settings.session();
     }
-    spdlog::info("Speak start peer={} session='{}' text_bytes={}", context_->peer(), session_name_,
-                 request_.text().size());
+    log_.set_session(session_name_);
+    log_.started_line({{"text_bytes", static_cast<std::uint64_t>(request_.text().size())}});
     // From here on the speech thread owns the call until its first write or its Finish.
     return service_.speech_thread().post([this] { run(); });
   }
@@ -308,7 +303,7 @@ class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
   LipSyncService& service_;
   grpc::CallbackServerContext* context_;
   const v1::SpeakRequest& request_;
-  const Clock::time_point started_;
+  CallLog log_;
   bool admitted_ = false;
   Caller caller_;  // the tenant; its quotas are held until the reactor is deleted
   QuotaHold stream_hold_, session_hold_;

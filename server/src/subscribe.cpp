@@ -7,6 +7,7 @@
 // has also stopped reading, so that even that status cannot leave, an alarm
 // cancels the call after --stalled-subscriber-ms. The reactor is local to this
 // file and made by LipSyncService::Subscribe at its end.
+#include <atomic>
 #include <chrono>
 #include <memory>
 #include <mutex>
@@ -17,20 +18,25 @@
 #include <spdlog/spdlog.h>
 
 #include "call_log.hpp"
+#include "live_streams.hpp"
 #include "outbox.hpp"
 #include "service.hpp"
 
 namespace lipsync::server {
 namespace {
 
-class SubscribeReactor final : public grpc::ServerWriteReactor<grpc::ByteBuffer>, public OutboxTarget {
+class SubscribeReactor final : public grpc::ServerWriteReactor<grpc::ByteBuffer>,
+                               public OutboxTarget,
+                               public AbortableStream {
  public:
   SubscribeReactor(LipSyncService& service, grpc::CallbackServerContext* context,
                    const v1::SubscribeRequest& request, const grpc::Status& parsed)
       : service_(service),
         context_(context),
         session_name_(request.session()),
-        started_(Clock::now()),
+        log_("Subscribe", *context, &service.metrics()),
+        frames_counter_(service.metrics().frames_sent.with({"Subscribe"})),
+        messages_counter_(service.metrics().messages_sent.with({"Subscribe"})),
         outbox_(std::make_shared<Outbox>(
             *this, service.config().subscriber_queue_frames,
             "subscriber fell behind: more than " + std::to_string(service.config().subscriber_queue_frames) +
@@ -42,6 +48,11 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<grpc::ByteBuffer>
       return;
     }
     admitted_ = true;
+    service_.live_streams().add(*this);
+    ++service_.metrics().open_subscribe;
+    outbox_->measure(service_.metrics().write_latency, service_.metrics().queued_messages);
+    log_.set_session(session_name_);
+    log_.started_line({{"start", v1::SubscribeRequest::Start_Name(request.start())}});
     if (auto status = service_.tenants().authenticate(*context_, "Subscribe", caller_); !status.ok()) {
       outbox_->close(status);
       return;
@@ -73,25 +84,30 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<grpc::ByteBuffer>
   }
 
   void OnWriteDone(bool ok) override { outbox_->on_write_done(ok); }
-  void OnCancel() override { outbox_->abort(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled")); }
+  void OnCancel() override {
+    cancelled_ = true;
+    outbox_->abort(cancelled_status());
+  }
+  void abort_stream(const grpc::Status& status) override { outbox_->abort(status); }
 
   void OnDone() override {
+    if (admitted_) service_.live_streams().remove(*this);
     stall_guard_->release();
     if (session_) session_->detach(outbox_.get());
-    const auto status = outbox_->final_status().value_or(grpc::Status::OK);
+    const auto status = cancelled_ ? cancelled_status() : outbox_->final_status().value_or(grpc::Status::OK);
+    log_.ended(status, {{"frames", frames_sent_}});
     if (admitted_) {
-      spdlog::info("Subscribe end peer={} session='{}' frames={} duration_ms={:.1f} status={}", context_->peer(),
-                   session_name_, frames_sent_, elapsed_ms(started_), status_name(status));
+      --service_.metrics().open_subscribe;
       service_.admission().release_stream();
-    } else {
-      spdlog::warn("Subscribe refused peer={} status={}", context_->peer(), status_name(status));
     }
     delete this;
   }
 
   void start_write(const OutgoingMessage& message) override {
+    messages_counter_.add();
     if (message.message().has_frames()) {
       frames_sent_ += static_cast<std::uint64_t>(message.message().frames().t_us_size());
+      frames_counter_.add(static_cast<std::uint64_t>(message.message().frames().t_us_size()));
     }
     StartWrite(&message.bytes());
   }
@@ -112,11 +128,11 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<grpc::ByteBuffer>
   /// Lets the alarm cancel the call only while the reactor still exists.
   class StallGuard {
    public:
-    explicit StallGuard(grpc::CallbackServerContext* context) : context_(context) {}
+    StallGuard(grpc::CallbackServerContext* context, const CallLog& log) : context_(context), log_(log) {}
     void cancel() {
       std::lock_guard lock(mutex_);
       if (!context_) return;
-      spdlog::warn("Subscribe cancelled peer={}: it stopped reading after it was cut off", context_->peer());
+      log_.line(spdlog::level::warn, "stalled", "cancelled: it stopped reading after it was cut off");
       context_->TryCancel();
     }
     void release() {
@@ -127,6 +143,7 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<grpc::ByteBuffer>
    private:
     std::mutex mutex_;
     grpc::CallbackServerContext* context_;
+    const CallLog& log_;  // the reactor's: used only while context_ is set
   };
 
   LipSyncService& service_;
@@ -135,11 +152,15 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<grpc::ByteBuffer>
   const Clock::time_point started_;
   Caller caller_;  // the tenant; its quotas are held until the reactor is deleted
   QuotaHold stream_hold_, subscriber_hold_;
+  CallLog log_;
+  Counter& frames_counter_;
+  Counter& messages_counter_;
+  std::atomic<bool> cancelled_ = false;
   std::shared_ptr<Outbox> outbox_;
   std::shared_ptr<Session> session_;
   bool admitted_ = false;
   std::uint64_t frames_sent_ = 0;
-  std::shared_ptr<StallGuard> stall_guard_ = std::make_shared<StallGuard>(context_);
+  std::shared_ptr<StallGuard> stall_guard_ = std::make_shared<StallGuard>(context_, log_);
   grpc::Alarm stall_alarm_;
 };
 

@@ -1,38 +1,69 @@
 // Unary calls (Render, ListModels, GetModel) on the callback API: the work runs
 // in the method (or on a face thread), nothing escapes it (an exception becomes
-// INTERNAL), a failure is logged with the peer, and the default reactor
-// finishes the call.
+// INTERNAL), and a reactor of our own finishes the call. The call counts as
+// running until gRPC says it is done (OnDone: the response has left, or the call
+// was cancelled), not until Finish is called: a drain that waits for the calls
+// in progress then also waits for a response still being sent. OnDone writes the
+// call's access line with the status the client received.
 #pragma once
 
+#include <atomic>
 #include <exception>
+#include <functional>
 #include <utility>
 
 #include <grpcpp/grpcpp.h>
-#include <spdlog/spdlog.h>
 
 #include "call_log.hpp"
 
 namespace lipsync::server {
 
-/// The status `function` returns, INTERNAL if it throws; logged unless OK.
+/// The status `function` returns, INTERNAL if it throws.
 template <class Function>
-grpc::Status run_unary(grpc::CallbackServerContext* context, const char* method, Function&& function) {
-  grpc::Status status;
+grpc::Status run_guarded(Function&& function) {
   try {
-    status = function();
+    return function();
   } catch (const std::exception& error) {
-    status = grpc::Status(grpc::StatusCode::INTERNAL, error.what());
+    return grpc::Status(grpc::StatusCode::INTERNAL, error.what());
   }
-  if (!status.ok()) spdlog::info("{} peer={} status={}", method, context->peer(), status_name(status));
-  return status;
 }
+
+class UnaryCall final : public grpc::ServerUnaryReactor {
+ public:
+  /// `on_done` runs once the call is done (after the access line), on a gRPC thread.
+  UnaryCall(const char* method, grpc::CallbackServerContext& context,
+            std::function<void(const grpc::Status&)> on_done = {}, ServerMetrics* metrics = nullptr)
+      : log_(method, context, metrics), on_done_(std::move(on_done)) {}
+
+  /// Runs `function` (may be called on any thread) and finishes the call with its status.
+  template <class Function>
+  void run(Function&& function) {
+    status_ = run_guarded(std::forward<Function>(function));
+    Finish(status_);
+  }
+
+  void OnCancel() override { cancelled_ = true; }
+  void OnDone() override {
+    const grpc::Status received = cancelled_ ? cancelled_status() : status_;
+    log_.ended(received);
+    if (on_done_) on_done_(received);
+    delete this;
+  }
+
+ private:
+  CallLog log_;
+  std::function<void(const grpc::Status&)> on_done_;
+  grpc::Status status_;
+  std::atomic<bool> cancelled_ = false;
+};
 
 /// Runs `function` now and finishes the call with its status.
 template <class Function>
-grpc::ServerUnaryReactor* unary(grpc::CallbackServerContext* context, const char* method, Function&& function) {
-  auto* reactor = context->DefaultReactor();
-  reactor->Finish(run_unary(context, method, std::forward<Function>(function)));
-  return reactor;
+grpc::ServerUnaryReactor* unary(grpc::CallbackServerContext* context, const char* method, Function&& function,
+                                ServerMetrics* metrics = nullptr) {
+  auto* call = new UnaryCall(method, *context, {}, metrics);
+  call->run(std::forward<Function>(function));
+  return call;
 }
 
 }  // namespace lipsync::server

@@ -36,6 +36,7 @@ const std::map<std::string, std::string> kValues = {
     {"--tls-key", "/etc/lipsyncd/key.pem"}, {"--tls-client-ca", "/etc/lipsyncd/clients.pem"},
     {"--api-keys", "/etc/lipsyncd/keys.json"},
     {"--http-listen", "127.0.0.1:6002"},
+    {"--log-format", "json"},        {"--metrics-listen", "127.0.0.1:9464"}, {"--transport-memory-bytes", "1048576"},
 };
 
 std::vector<std::string> flags_in_help() {

@@ -88,6 +88,17 @@ std::string decode_utf16(std::string_view bytes, bool big_endian, std::string_vi
   return out;
 }
 
+
+std::string lowercase(std::string_view text) {
+  std::string out(text);
+  std::transform(out.begin(), out.end(), out.begin(), [](char ch) {
+    return static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  });
+  return out;
+}
+
+}  // namespace
+
 // Length of the valid UTF-8 sequence at text[i], or 0 if it is not valid.
 std::size_t utf8_sequence_length(std::string_view text, std::size_t i) {
   const auto lead = static_cast<unsigned char>(text[i]);
@@ -113,16 +124,6 @@ std::size_t utf8_sequence_length(std::string_view text, std::size_t i) {
   if (value < min_value || value > 0x10FFFF || (value >= 0xD800 && value <= 0xDFFF)) return 0;
   return length;
 }
-
-std::string lowercase(std::string_view text) {
-  std::string out(text);
-  std::transform(out.begin(), out.end(), out.begin(), [](char ch) {
-    return static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-  });
-  return out;
-}
-
-}  // namespace
 
 std::string decode_to_utf8(std::string_view content, std::string_view source) {
   std::string text;

@@ -29,6 +29,9 @@ std::vector<std::string_view> split_fields(std::string_view text);
 
 std::string_view trim(std::string_view text);
 
+/// Length of the valid UTF-8 sequence at text[i] (1 for ASCII), or 0 if it is not valid.
+std::size_t utf8_sequence_length(std::string_view text, std::size_t i);
+
 /// `text` in double quotes for a message, shortened to about 60 bytes on a UTF-8
 /// character boundary, control characters escaped.
 std::string excerpt(std::string_view text);

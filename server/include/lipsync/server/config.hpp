@@ -45,6 +45,8 @@ struct ServerConfig {
   std::size_t max_phonemes = 100'000;             ///< phonemes per utterance
   std::int64_t max_utterance_ms = 3'600'000;      ///< utterance length (end of the last phoneme)
   std::size_t max_message_bytes = 4 * 1024 * 1024;  ///< largest request message
+  /// gRPC's memory quota for the transport (read buffers of every connection); 0 = unbounded.
+  std::size_t transport_memory_bytes = 0;
 
   // Sessions and fan-out.
   std::size_t replay_frames = 1'800;            ///< frames a session keeps for late joiners (1 min at 30 fps)
@@ -68,6 +70,9 @@ struct ServerConfig {
   std::int64_t mesh_max_lag_ms = 3'000;
 
   std::string log_level = "info";  ///< trace, debug, info, warn, error, off
+  std::string log_format = "text";  ///< text or json (one object per line)
+  /// host:port of the Prometheus endpoint (GET /metrics); "" = none. Port 0 picks a free one.
+  std::string metrics_listen;
   std::vector<ModelFile> models;   ///< extra models beside the built-in one
   /// How this replica names itself in errors about sessions it does not hold (a balancer
   /// misrouting shows in one look); "" = "<host name> (<listen address>)".

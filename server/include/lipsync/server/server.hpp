@@ -29,6 +29,8 @@ class Server {
   std::string address() const;
   /// The browser viewer's "host:port" with its bound port (--http-listen); "" when it is off.
   std::string http_address() const;
+  /// "host:port" of the Prometheus endpoint (--metrics-listen), "" when there is none.
+  std::string metrics_address() const;
 
   /// Refuses new calls (UNAVAILABLE), lets running calls finish for up to
   /// `drain`, then cancels the rest and waits until every call has ended.

@@ -1,0 +1,151 @@
+// Hostile input: client values echoed in statuses come back as short excerpts
+// with their length (a default client, whose metadata limit is 8 KB, gets the
+// real INVALID_ARGUMENT / NOT_FOUND instead of "metadata size exceeds limit");
+// and the logs of the lipsyncd binary in --log-format json: one parseable object
+// per line, an access line per call with the status the client received
+// (CANCELLED for a client's cancel), a Subscribe start line, the session on the
+// Animate start line, resolved peers, and excerpts instead of megabytes.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <signal.h>
+
+#include <nlohmann/json.hpp>
+
+#include "../support/child_process.hpp"
+#include "../support/server_harness.hpp"
+
+namespace lipsync::server {
+namespace {
+
+using namespace harness;
+using ::testing::HasSubstr;
+
+const std::string kHuge(100'000, 'x');
+
+/// A channel with gRPC's default limits, as a game client would have.
+std::unique_ptr<v1::LipSync::Stub> default_client(const std::string& address) {
+  return v1::LipSync::NewStub(grpc::CreateChannel(address, grpc::InsecureChannelCredentials()));
+}
+
+void expect_excerpt(const grpc::Status& status, grpc::StatusCode code, const std::string& field) {
+  EXPECT_EQ(status.error_code(), code) << status.error_message().substr(0, 200);
+  EXPECT_LT(status.error_message().size(), 1000u);
+  EXPECT_THAT(status.error_message(), HasSubstr(field));
+  EXPECT_THAT(status.error_message(), HasSubstr("(100000 bytes)"));
+}
+
+grpc::Status render_with(const std::string& address, const v1::RenderRequest& request) {
+  auto stub = default_client(address);
+  grpc::ClientContext context;
+  set_deadline(context);
+  v1::RenderResponse response;
+  return stub->Render(&context, request, &response);
+}
+
+using HostileInputTest = LiveServerTest;
+
+TEST_F(HostileInputTest, EchoedValuesAreShortExcerptsWithTheirLength) {
+  const std::string address = server_->address();
+  v1::RenderRequest label;
+  auto* phoneme = label.add_phonemes();
+  phoneme->set_label(kHuge);
+  phoneme->set_start_us(0);
+  phoneme->set_end_us(100'000);
+  expect_excerpt(render_with(address, label), grpc::StatusCode::INVALID_ARGUMENT, "phoneme stream:1: phoneme 'xxx");
+
+  v1::RenderRequest model;
+  model.mutable_settings()->set_model(kHuge);
+  expect_excerpt(render_with(address, model), grpc::StatusCode::INVALID_ARGUMENT, "settings.model: unknown model");
+
+  v1::RenderRequest phone_set;
+  phone_set.mutable_settings()->set_phone_set(kHuge);
+  expect_excerpt(render_with(address, phone_set), grpc::StatusCode::INVALID_ARGUMENT,
+                 "settings.phone_set: unknown phone set");
+
+  auto stub = default_client(address);
+  grpc::ClientContext context;
+  v1::GetModelRequest get_model;
+  get_model.set_name(kHuge);
+  v1::ModelInfo info;
+  expect_excerpt(stub->GetModel(&context, get_model, &info), grpc::StatusCode::NOT_FOUND, "no model named 'xxx");
+
+  expect_excerpt(subscribe_all(*stub, kHuge).status, grpc::StatusCode::NOT_FOUND, "no session named 'xxx");
+
+  const Received long_session = animate(*stub, {settings_request(session_settings(std::string(257, 's')))});
+  EXPECT_EQ(long_session.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(long_session.status.error_message(), HasSubstr("settings.session: the name has 257 bytes, more than the 256"));
+}
+
+TEST_F(HostileInputTest, ControlCharactersAreEscapedAndShortValuesStayWhole) {
+  v1::RenderRequest request;
+  request.mutable_settings()->set_model("bad\nname'");
+  const grpc::Status status = render_with(server_->address(), request);
+  EXPECT_THAT(status.error_message(), HasSubstr("unknown model 'bad\\x0aname\\x27'"));
+  v1::RenderRequest ipa;
+  auto* phoneme = ipa.add_phonemes();
+  phoneme->set_label("ʃ\x01");  // UTF-8 letters stay as they are
+  phoneme->set_start_us(0);
+  phoneme->set_end_us(100'000);
+  const grpc::Status unknown = render_with(server_->address(), ipa);
+  EXPECT_THAT(unknown.error_message(), HasSubstr("phoneme 'ʃ\\x01'")) << unknown.error_code();
+}
+
+std::vector<nlohmann::json> json_lines(const std::string& text) {
+  std::vector<nlohmann::json> lines;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) {
+    try {
+      lines.push_back(nlohmann::json::parse(line));
+    } catch (const nlohmann::json::exception& error) {
+      ADD_FAILURE() << "not a JSON object: " << line.substr(0, 200);
+    }
+  }
+  return lines;
+}
+
+const nlohmann::json* find_event(const std::vector<nlohmann::json>& lines, const std::string& event) {
+  for (const auto& line : lines) {
+    if (line.value("event", "") == event) return &line;
+  }
+  return nullptr;
+}
+
+TEST(LipsyncdLogs, JsonLinesSayWhatTheClientReceivedWithExcerpts) {
+  const auto dir = lipsync::testing::make_temp_dir("lipsyncd-logs-");
+  lipsync::testing::ChildProcess child({LIPSYNCD_PATH, "--listen", "127.0.0.1:0", "--log-format", "json"}, dir,
+                                       dir / "out", dir / "err");
+  const std::string address = lipsync::testing::wait_for_listening_address(dir / "out");
+  ASSERT_FALSE(address.empty());
+  auto stub = v1::LipSync::NewStub(connect(address));
+  EXPECT_EQ(subscribe_all(*stub, kHuge).status.error_code(), grpc::StatusCode::NOT_FOUND);
+  {
+    Producer cancelled(*stub, session_settings("logged"));
+    cancelled.cancel();
+    cancelled.finish();
+  }
+  child.terminate();
+  EXPECT_EQ(child.wait(), 0);
+  const std::string log = lipsync::testing::read_text(dir / "err");
+  EXPECT_LT(log.size(), 20'000u) << "a 100 kB session name was logged whole";
+  const auto lines = json_lines(log);
+  for (const auto& line : lines) {
+    for (const char* field : {"time", "level", "event"}) EXPECT_TRUE(line.contains(field)) << line.dump();
+  }
+  const auto* subscribe_start = find_event(lines, "Subscribe.start");
+  const auto* subscribe_end = find_event(lines, "Subscribe.end");
+  const auto* animate_start = find_event(lines, "Animate.start");
+  const auto* animate_end = find_event(lines, "Animate.end");
+  ASSERT_TRUE(subscribe_start && subscribe_end && animate_start && animate_end) << log.substr(0, 2000);
+  EXPECT_EQ((*subscribe_end)["status"], "NOT_FOUND");
+  EXPECT_THAT((*subscribe_end)["session"].get<std::string>(), HasSubstr("(100000 bytes)"));
+  EXPECT_EQ((*animate_start)["session"], "logged");
+  EXPECT_EQ((*animate_end)["session"], "logged");
+  EXPECT_EQ((*animate_end)["status"], "CANCELLED");
+  EXPECT_TRUE((*animate_end)["duration_us"].is_number_integer());
+  EXPECT_THAT((*animate_end)["peer"].get<std::string>(), HasSubstr("ipv4:127.0.0.1:"));
+  EXPECT_EQ((*animate_end)["tenant"], "");
+}
+
+}  // namespace
+}  // namespace lipsync::server
