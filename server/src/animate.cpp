@@ -77,6 +77,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
       outbox_.close(status);
       return;
     }
+    log_.set_tenant(caller_.tenant());
     if (auto status = caller_.hold(Quota::streams, stream_hold_); !status.ok()) {
       outbox_.close(status);
       return;

@@ -65,6 +65,8 @@ class CallLog {
   CallLog(const char* method, grpc::CallbackServerContext& context, ServerMetrics* metrics = nullptr);
 
   void set_session(std::string session) { session_ = std::move(session); }
+  /// The caller's tenant (tenants.hpp), once authenticated: in the lines and the metrics' labels.
+  void set_tenant(std::string tenant) { tenant_ = std::move(tenant); }
   const std::string& session() const { return session_; }
   const std::string& peer() const { return peer_; }
   const char* method() const { return method_; }
@@ -85,7 +87,7 @@ class CallLog {
   ServerMetrics* metrics_;
   std::string peer_;
   std::string session_;
-  std::string tenant_;  // empty until tenants exist
+  std::string tenant_;  // empty on an open server or before authentication
   Clock::time_point started_;
 };
 

@@ -7,7 +7,7 @@
 // observing a histogram is a relaxed atomic add. Gauges that the server already
 // knows (open streams, sessions by state, queue depths) are read when scraped.
 // Series live as long as the registry (label values are few: methods, status
-// codes, states; the tenant label is "" until tenants exist), so pointers stay valid.
+// codes, states; the tenant label of the stream and session gauges is still ""), so pointers stay valid.
 //
 // The metric names are the contract with dashboards (deploy/grafana/lipsyncd.json,
 // docs/server.md "Metrics"); ServerMetrics below declares every one of them.

@@ -29,19 +29,24 @@ void describe(const ModelEntry& entry, v1::ModelInfo& info) {
 grpc::ServerUnaryReactor* LipSyncService::ListModels(grpc::CallbackServerContext* context,
                                                      const v1::ListModelsRequest*,
                                                      v1::ListModelsResponse* response) {
-  return unary(context, "ListModels", [&] {
+  auto* call = new UnaryCall("ListModels", *context, {}, &metrics_);
+  call->run([&] {
     Caller caller;
     if (auto status = tenants_.authenticate(*context, "ListModels", caller); !status.ok()) return status;
+    call->set_tenant(caller.tenant());
     for (const auto& entry : catalog_.entries()) describe(*entry, *response->add_models());
     return grpc::Status::OK;
-  }, &metrics_);
+  });
+  return call;
 }
 
 grpc::ServerUnaryReactor* LipSyncService::GetModel(grpc::CallbackServerContext* context,
                                                    const v1::GetModelRequest* request, v1::ModelInfo* response) {
-  return unary(context, "GetModel", [&] {
+  auto* call = new UnaryCall("GetModel", *context, {}, &metrics_);
+  call->run([&] {
     Caller caller;
     if (auto status = tenants_.authenticate(*context, "GetModel", caller); !status.ok()) return status;
+    call->set_tenant(caller.tenant());
     const ModelEntry* entry = catalog_.find(request->name());
     if (!entry) {
       return grpc::Status(grpc::StatusCode::NOT_FOUND,
@@ -49,7 +54,8 @@ grpc::ServerUnaryReactor* LipSyncService::GetModel(grpc::CallbackServerContext* 
     }
     describe(*entry, *response);
     return grpc::Status::OK;
-  }, &metrics_);
+  });
+  return call;
 }
 
 }  // namespace lipsync::server

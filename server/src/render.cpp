@@ -76,6 +76,7 @@ grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* co
   // The tenant (tenants.hpp): its key, its phoneme rate and, with the mesh, its mesh calls.
   Caller caller;
   grpc::Status refused = tenants_.authenticate(*context, "Render", caller);
+  if (refused.ok()) call->set_tenant(caller.tenant());
   if (refused.ok()) refused = caller.take_phonemes(static_cast<std::size_t>(request->phonemes_size()));
   if (refused.ok() && wants_mesh(request->settings())) refused = caller.hold(Quota::mesh_streams, holds->mesh_quota);
   if (!refused.ok()) {

@@ -101,6 +101,7 @@ class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
     admitted_ = true;
     // The tenant (tenants.hpp): its key, its streams, its session and phoneme rate below.
     if (status = service_.tenants().authenticate(*context_, "Speak", caller_); status.ok()) {
+      log_.set_tenant(caller_.tenant());
       status = caller_.hold(Quota::streams, stream_hold_);
     }
     if (!status.ok()) {

@@ -57,6 +57,7 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<grpc::ByteBuffer>
       outbox_->close(status);
       return;
     }
+    log_.set_tenant(caller_.tenant());
     for (auto [quota, hold] : {std::pair{Quota::streams, &stream_hold_}, {Quota::subscribers, &subscriber_hold_}}) {
       if (auto status = caller_.hold(quota, *hold); !status.ok()) {
         outbox_->close(status);

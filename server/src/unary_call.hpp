@@ -42,6 +42,9 @@ class UnaryCall final : public grpc::ServerUnaryReactor {
     Finish(status_);
   }
 
+  /// The caller's tenant, once authenticated (call_log.hpp).
+  void set_tenant(std::string tenant) { log_.set_tenant(std::move(tenant)); }
+
   void OnCancel() override { cancelled_ = true; }
   void OnDone() override {
     const grpc::Status received = cancelled_ ? cancelled_status() : status_;

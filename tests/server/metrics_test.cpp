@@ -4,13 +4,16 @@
 // deploy/grafana only queries metrics the server exports.
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <fstream>
 #include <regex>
 #include <set>
 
 #include <nlohmann/json.hpp>
 
+#include "../support/child_process.hpp"
 #include "../support/prometheus_text.hpp"
+#include "tenants.hpp"
 #include "../support/server_harness.hpp"
 
 namespace lipsync::server {
@@ -84,6 +87,36 @@ TEST_F(MetricsTest, CountersAndGaugesMoveWithTheCalls) {
   EXPECT_EQ(after.at("lipsyncd_calls_in_progress"), 0);
   EXPECT_EQ(after.at("lipsyncd_queued_messages"), 0);
   EXPECT_EQ(after.family_types.at("lipsyncd_face_solver_seconds"), "histogram");
+}
+
+// With --api-keys, each call is counted (and logged) under the tenant of its key; a call refused
+// before a key is known has the tenant "".
+class TenantMetricsTest : public LiveServerTest {
+ protected:
+  void SetUp() override {
+    lipsync::testing::write_text(key_file_, R"({"tenants": {"studio": {}}, "keys": [{"tenant": "studio", "sha256": ")" +
+                                                 sha256_hex("studio-key") + R"("}]})");
+    ServerConfig config;
+    config.metrics_listen = "127.0.0.1:0";
+    config.api_keys = key_file_.string();
+    start(config);
+  }
+  std::filesystem::path key_file_ = lipsync::testing::make_temp_dir("lipsync-metrics-keys-") / "keys.json";
+};
+
+TEST_F(TenantMetricsTest, CallsAreCountedUnderTheTenantOfTheirKey) {
+  v1::ListModelsResponse models;
+  grpc::ClientContext with_key;
+  with_key.AddMetadata("authorization", "Bearer studio-key");
+  ASSERT_TRUE(stub_->ListModels(&with_key, {}, &models).ok());
+  grpc::ClientContext without_key;
+  EXPECT_EQ(stub_->ListModels(&without_key, {}, &models).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  ASSERT_TRUE(eventually([&] {
+    int status = 0;
+    const Exposition now = parse_exposition(http_get(server_->metrics_address(), "/metrics", &status));
+    return now.value_or_zero(R"(lipsyncd_calls_total{method="ListModels",code="OK",tenant="studio"})") == 1 &&
+           now.value_or_zero(R"(lipsyncd_refusals_total{method="ListModels",code="UNAUTHENTICATED",tenant=""})") == 1;
+  }));
 }
 
 TEST_F(MetricsTest, OtherPathsAre404) {
