@@ -177,16 +177,9 @@ TEST_F(ServerTest, SubscribersGetTheProducersMessagesByteForByteWithTheReleaseDe
   }
   ASSERT_GT(produced.size(), 3u);
   for (int s = 0; s < 3; ++s) {
-    grpc::ClientContext context;
-    set_deadline(context);
-    v1::SubscribeRequest request;
-    request.set_session("bytes");
-    auto reader = stub_->Subscribe(&context, request);
-    std::vector<std::string> followed;
-    v1::TrackMessage message;
-    while (reader->Read(&message)) followed.push_back(message.SerializeAsString());
-    ASSERT_TRUE(reader->Finish().ok());
-    EXPECT_EQ(followed, produced) << "subscriber " << s;
+    const SubscribedBytes followed = subscribe_bytes(*stub_, "bytes");
+    ASSERT_TRUE(followed.status.ok()) << followed.status.error_message();
+    EXPECT_EQ(followed.messages, produced) << "subscriber " << s;
   }
   v1::TrackMessage header;
   ASSERT_TRUE(header.ParseFromString(produced.front()));

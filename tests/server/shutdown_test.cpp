@@ -59,7 +59,7 @@ class BusyProcesses {
 
 // The bug: the idle face threads, once they had worked, kept the process alive for 10 s and more.
 // The bound is functional (seconds before the fix), wide enough for a shared, loaded machine.
-TEST(Shutdown, SigtermAfterAMeshRenderExitsAtOnceWithTheCpuLoaded) {
+TEST(Shutdown, SigtermAfterAMeshRenderExitsWithinASecondAndAHalfWithTheCpuLoaded) {
   for (int run = 0; run < 2; ++run) {
     Child child = spawn({"--listen", "127.0.0.1:0", "--log-level", "warn"});
     auto stub = v1::LipSync::NewStub(connect(listening_address(child)));

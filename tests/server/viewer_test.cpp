@@ -138,15 +138,9 @@ class ViewerTest : public LiveServerTest {
 
 TEST_F(ViewerTest, websocket_follower_receives_the_same_messages_as_a_grpc_subscriber) {
   produce_papa("papa");
-  grpc::ClientContext context;
-  set_deadline(context);
-  v1::SubscribeRequest subscribe;
-  subscribe.set_session("papa");
-  auto reader = stub_->Subscribe(&context, subscribe);
-  std::vector<std::string> expected;
-  v1::TrackMessage message;
-  while (reader->Read(&message)) expected.push_back(message.SerializeAsString());
-  ASSERT_TRUE(reader->Finish().ok());
+  const SubscribedBytes subscribed = subscribe_bytes(*stub_, "papa");
+  ASSERT_TRUE(subscribed.status.ok()) << subscribed.status.error_message();
+  const std::vector<std::string>& expected = subscribed.messages;
 
   const WebSocketReply reply = follow("/ws?session=papa");
   EXPECT_EQ(reply.close.code, websocket::close_code::normal);

@@ -156,6 +156,25 @@ inline std::vector<v1::AnimateRequest> whole(const v1::AnimationSettings& settin
   return requests;
 }
 
+/// Every message a Subscribe from the beginning of `session` receives, serialised, and how
+/// the call ended: what goes over the wire, for byte-for-byte comparisons.
+struct SubscribedBytes {
+  std::vector<std::string> messages;
+  grpc::Status status;
+};
+inline SubscribedBytes subscribe_bytes(v1::LipSync::Stub& stub, const std::string& session) {
+  grpc::ClientContext context;
+  set_deadline(context);
+  v1::SubscribeRequest request;
+  request.set_session(session);
+  auto reader = stub.Subscribe(&context, request);
+  SubscribedBytes got;
+  v1::TrackMessage message;
+  while (reader->Read(&message)) got.messages.push_back(message.SerializeAsString());
+  got.status = reader->Finish();
+  return got;
+}
+
 inline Received subscribe_all(v1::LipSync::Stub& stub, const std::string& session,
                        v1::SubscribeRequest::Start start = v1::SubscribeRequest::START_FROM_BEGINNING) {
   grpc::ClientContext context;
