@@ -305,7 +305,10 @@ grpc::Status Tenants::authenticate(const grpc::CallbackServerContext& context, s
   const std::string hash = sha256_hex(value.substr(kScheme.size()));
   std::lock_guard lock(mutex_);
   const auto key = table_->keys_by_hash.find(hash);
-  if (key == table_->keys_by_hash.end()) return {grpc::StatusCode::UNAUTHENTICATED, "unknown API key"};
+  if (key == table_->keys_by_hash.end()) {
+    return {grpc::StatusCode::UNAUTHENTICATED,
+            "unknown API key: it is not in this server's key file (check the key sent as `authorization: Bearer <key>`)"};
+  }
   if (!key->second.calls.empty() && key->second.calls.count(std::string(method)) == 0) {
     std::string allowed;
     for (const std::string& call : key->second.calls) allowed += (allowed.empty() ? "" : ", ") + call;

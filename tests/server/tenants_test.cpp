@@ -185,7 +185,7 @@ TEST_F(TenantServer, ACallWithoutAKeyOrWithAnUnknownOrMalformedOneIsUnauthentica
   EXPECT_THAT(message, HasSubstr("authorization: Bearer"));
   EXPECT_EQ(code_of([&] { client_with("not-a-key").render({}, phonemes(5)); }, &message),
             grpc::StatusCode::UNAUTHENTICATED);
-  EXPECT_EQ(message, "unknown API key");
+  EXPECT_EQ(message, "unknown API key: it is not in this server's key file (check the key sent as `authorization: Bearer <key>`)");
   Stream refused = start_stream(client_with(""), "s");
   EXPECT_EQ(refused.refusal.error_code(), grpc::StatusCode::UNAUTHENTICATED);
   EXPECT_EQ(code_of([&] { client_with("").subscribe("s", v1::SubscribeRequest::START_FROM_BEGINNING); }),
