@@ -17,12 +17,10 @@
 namespace lipsync::server {
 namespace {
 
-grpc::Status render(LipSyncService& service, const v1::RenderRequest& request, v1::RenderResponse& response) {
+/// The track of `request`, whose settings are already resolved into `plan`.
+grpc::Status render(LipSyncService& service, Plan& plan, const v1::RenderRequest& request,
+                    v1::RenderResponse& response) {
   const ServerConfig& config = service.config();
-  Plan plan;
-  if (auto status = resolve_settings(request.settings(), service.catalog(), false, plan); !status.ok()) {
-    return status;
-  }
   if (static_cast<std::size_t>(request.phonemes_size()) > config.max_phonemes) {
     return too_many_phonemes(config.max_phonemes);
   }
@@ -83,23 +81,28 @@ grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* co
     call->run([&] { return refused; });
     return call;
   }
-  if (!wants_mesh(request->settings())) {
-    call->run([&] { return render(*this, *request, *response); });
+  // Settings first: a bad field is INVALID_ARGUMENT naming it, whatever the face's load.
+  auto plan = std::make_shared<Plan>();
+  if (grpc::Status invalid_settings = resolve_settings(request->settings(), catalog(), false, *plan);
+      !invalid_settings.ok()) {
+    call->run([&] { return invalid_settings; });
+    return call;
+  }
+  if (!plan->mesh) {
+    call->run([&] { return render(*this, *plan, *request, *response); });
     return call;
   }
   // Seconds of solver work for a long utterance: off the reaction (face_workers.hpp),
   // admitted against the face's capacity (face_capacity.hpp) for as long as it runs.
-  const v1::AnimationSettings& settings = request->settings();
-  const std::int64_t weight = FaceCapacity::weight_milli(
-      settings.outputs().mesh().has_subdivision() ? static_cast<int>(settings.outputs().mesh().subdivision())
-                                                  : static_cast<int>(kMeshSubdivisionSetting.default_value),
-      settings.fps() == 0 ? static_cast<int>(kFpsSetting.default_value) : static_cast<int>(settings.fps()));
+  const std::int64_t weight = FaceCapacity::weight_milli(plan->engine.mesh_subdivision, plan->engine.render.fps);
   if (grpc::Status capacity = face_capacity_.admit(weight); !capacity.ok()) {
     call->run([&] { return capacity; });
     return call;
   }
   holds->face_weight = weight;
-  face_workers_.post([this, call, request, response] { call->run([&] { return render(*this, *request, *response); }); });
+  face_workers_.post([this, call, plan, request, response] {
+    call->run([&] { return render(*this, *plan, *request, *response); });
+  });
   return call;
 }
 

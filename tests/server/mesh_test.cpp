@@ -455,6 +455,12 @@ TEST_F(MeshTest, MeshStreamsBeyondTheFaceCapacityAreRefusedNamingTheLimit) {
   const grpc::Status refused_render = render(mesh_settings(0), intervals, response);
   EXPECT_EQ(refused_render.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
   EXPECT_THAT(refused_render.error_message(), HasSubstr("--max-mesh-streams-per-face-thread=1"));
+  // Bad settings are named as such even with the face full: they are checked before its capacity.
+  auto bad_fps = mesh_settings(1);
+  bad_fps.set_fps(241);
+  const grpc::Status invalid_render = render(bad_fps, intervals, response);
+  EXPECT_EQ(invalid_render.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << invalid_render.error_message();
+  EXPECT_THAT(invalid_render.error_message(), HasSubstr("settings.fps"));
   // Streams without the mesh are not held to the face's capacity.
   const Received channels_only = animate(v1::AnimationSettings{}, intervals);
   ASSERT_TRUE(channels_only.status.ok()) << channels_only.status.error_message();
