@@ -71,13 +71,14 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     }
     admitted_ = true;
     service_.live_streams().add(*this);
-    ++service_.metrics().open_animate;
     outbox_.measure(service_.metrics().write_latency, service_.metrics().queued_messages);
     if (auto status = service_.tenants().authenticate(*context_, "Animate", caller_); !status.ok()) {
       outbox_.close(status);
       return;
     }
     log_.set_tenant(caller_.tenant());
+    open_stream_ = &service_.metrics().open_streams.with({"Animate", caller_.tenant()});
+    open_stream_->add(1);
     if (auto status = caller_.hold(Quota::streams, stream_hold_); !status.ok()) {
       outbox_.close(status);
       return;
@@ -136,10 +137,8 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     if (admitted_) service_.live_streams().remove(*this);
     const auto status = cancelled_ ? cancelled_status() : outbox_.final_status().value_or(grpc::Status::OK);
     log_.ended(status, {{"phonemes", static_cast<std::uint64_t>(phonemes())}, {"frames", frames_sent_.load()}});
-    if (admitted_) {
-      --service_.metrics().open_animate;
-      service_.admission().release_stream();
-    }
+    if (open_stream_) open_stream_->add(-1);
+    if (admitted_) service_.admission().release_stream();
     stopped_ = true;
     if (mesh_weight_milli_ > 0) service_.face_capacity().release(mesh_weight_milli_);
     if (lane_) {
@@ -354,6 +353,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   Counter& frames_counter_;
   Counter& messages_counter_;
   bool admitted_ = false;
+  Level* open_stream_ = nullptr;  // lipsyncd_streams{method="Animate",tenant}, once authenticated
   std::atomic<bool> cancelled_ = false;  // OnCancel came: the client got CANCELLED (or gRPC's own status)
   Phase phase_ = Phase::awaiting_settings;
   v1::AnimateRequest request_;

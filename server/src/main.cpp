@@ -120,12 +120,13 @@ int main(int argc, char** argv) {
   spdlog::info("{} received: draining for up to {} ms ({} streams open)",
                signal_number == SIGTERM ? "SIGTERM" : "SIGINT", config.drain_deadline_ms,
                server->active_streams());
-  server->shutdown(std::chrono::milliseconds(config.drain_deadline_ms));
+  server->drain_for_exit(std::chrono::milliseconds(config.drain_deadline_ms));
   spdlog::info("stopped");
-  // Every call has ended: exit now, without destroying the server. Its destructor would
-  // join the face threads, which run at SCHED_IDLE and on a busy machine get no CPU time
-  // to wake up and stop (seconds, after any mesh Render or mesh stream had started them
-  // working): exactly what a server shutting down under load must not wait for.
+  // Every call has ended and the connections had their grace: exit now, without
+  // destroying the server. Its destructor would wait for gRPC's teardown and join the
+  // face threads, which on a busy machine wait for time slices (face threads at
+  // SCHED_IDLE for seconds, if drain_for_exit could not raise their priority): exactly
+  // what a server shutting down under load must not wait for.
   spdlog::default_logger()->flush();
   std::cout.flush();
   std::_Exit(0);

@@ -7,7 +7,7 @@
 // observing a histogram is a relaxed atomic add. Gauges that the server already
 // knows (open streams, sessions by state, queue depths) are read when scraped.
 // Series live as long as the registry (label values are few: methods, status
-// codes, states; the tenant label of the stream and session gauges is still ""), so pointers stay valid.
+// codes, states, the tenants of the key file), so pointers stay valid.
 //
 // The metric names are the contract with dashboards (deploy/grafana/lipsyncd.json,
 // docs/server.md "Metrics"); ServerMetrics below declares every one of them.
@@ -33,6 +33,16 @@ class Counter {
 
  private:
   std::atomic<std::uint64_t> value_{0};
+};
+
+/// A count that goes up and down (open streams): read by a gauge when scraped.
+class Level {
+ public:
+  void add(std::int64_t amount) { value_.fetch_add(amount, std::memory_order_relaxed); }
+  std::int64_t value() const { return value_.load(std::memory_order_relaxed); }
+
+ private:
+  std::atomic<std::int64_t> value_{0};
 };
 
 /// Cumulative buckets over fixed upper bounds in seconds; observations in microseconds.
@@ -133,8 +143,8 @@ struct ServerMetrics {
   Histogram& write_latency;             ///< lipsyncd_write_latency_seconds: computable → written
   Histogram& face_solver;               ///< lipsyncd_face_solver_seconds: per mesh frame batch
   std::atomic<std::int64_t> queued_messages{0};  ///< lipsyncd_queued_messages (gauge)
-  std::atomic<std::int64_t> open_animate{0};     ///< lipsyncd_streams{method="Animate",state="open"}
-  std::atomic<std::int64_t> open_subscribe{0};   ///< lipsyncd_streams{method="Subscribe",state="open"}
+  /// lipsyncd_streams{method,state="open",tenant}: a stream counts once authenticated, until OnDone.
+  Family<Level> open_streams{"lipsyncd_streams", "", {"method", "tenant"}, [] { return std::make_unique<Level>(); }};
 };
 
 }  // namespace lipsync::server

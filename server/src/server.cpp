@@ -14,6 +14,7 @@
 // the listener. The plaintext path is unchanged.
 #include "lipsync/server/server.hpp"
 
+#include <future>
 #include <mutex>
 #include <stdexcept>
 #include <thread>
@@ -55,6 +56,10 @@ struct Server::Impl {
   std::unique_ptr<MetricsEndpoint> metrics;  // --metrics-listen
   int port = 0;
   std::once_flag shutdown_once;
+
+  /// Closes the door, lets the calls finish (aborting those past `drain`) and gives the
+  /// face threads their priority back: everything before GOAWAY.
+  void drain_calls(std::chrono::milliseconds drain);
 
   /// Waits until no call is in progress (nor the first call of a connection accepted just
   /// now: admission.hpp), for at most `limit`; true if none is.
@@ -125,44 +130,70 @@ std::string Server::address() const {
 
 std::string Server::http_address() const { return impl_->viewer ? impl_->viewer->address() : std::string(); }
 
+void Server::Impl::drain_calls(std::chrono::milliseconds drain) {
+  // The viewer's followers are Subscribe calls of its own: end them (WebSocket 1001) first.
+  if (viewer) viewer->close();
+  // No new connections from now on; calls that still arrive on open connections
+  // are refused with UNAVAILABLE; running calls get `drain` to finish. Only then
+  // is gRPC shut down (GOAWAY, the rest cancelled): sent earlier, GOAWAY makes
+  // gRPC 1.51 close each connection right after its last stream, racing that
+  // stream's final frames (a balancer then reports the finished stream as reset).
+  if (listener) {
+    listener->close();
+    spdlog::info("listener closed: new connections are refused");
+  }
+  if (auto* health = server->GetHealthCheckService()) health->Shutdown();
+  service.admission().begin_drain();
+  if (!wait_for_calls(drain)) {
+    // Past the deadline: the streams still running end with ABORTED, as documented, and
+    // get a moment to send it (a client that stopped reading never takes it: gRPC's
+    // Shutdown below cancels those).
+    const std::size_t aborted = service.live_streams().abort_all(
+        {grpc::StatusCode::ABORTED, "the server is shutting down: the drain deadline (--drain-deadline-ms=" +
+                                        std::to_string(drain.count()) + ") has passed"});
+    spdlog::info("drain deadline passed: {} streams aborted", aborted);
+    wait_for_calls(kAbortedGrace);
+  }
+  spdlog::debug("drain: no call left");
+  // The face threads must not need CPU time nobody else wants to end (face_workers.hpp).
+  if (!service.face_workers().restore_normal_priority()) {
+    spdlog::info("the face threads keep their low priority (no CAP_SYS_NICE, RLIMIT_NICE below 20): on a busy "
+                 "machine the process may take a while to end");
+  }
+}
+
+// GOAWAY only once no call is left. A shutdown deadline already past would cut every
+// connection at once, racing the final frames a connection may still be flushing (behind
+// nginx: the last subscriber of a drained session got RST_STREAM INTERNAL_ERROR now and
+// then). With the grace, a connection closes once its peer has it all (nginx closes an
+// upstream connection after its response); only idle client connections still open are
+// cut at its end.
 void Server::shutdown(std::chrono::milliseconds drain) {
   std::call_once(impl_->shutdown_once, [&] {
-    // The viewer's followers are Subscribe calls of its own: end them (WebSocket 1001) first.
-    if (impl_->viewer) impl_->viewer->close();
-    // No new connections from now on; calls that still arrive on open connections
-    // are refused with UNAVAILABLE; running calls get `drain` to finish. Only then
-    // is gRPC shut down (GOAWAY, the rest cancelled): sent earlier, GOAWAY makes
-    // gRPC 1.51 close each connection right after its last stream, racing that
-    // stream's final frames (a balancer then reports the finished stream as reset).
-    if (impl_->listener) {
-      impl_->listener->close();
-      spdlog::info("listener closed: new connections are refused");
-    }
-    if (auto* health = impl_->server->GetHealthCheckService()) health->Shutdown();
-    impl_->service.admission().begin_drain();
-    if (!impl_->wait_for_calls(drain)) {
-      // Past the deadline: the streams still running end with ABORTED, as documented, and
-      // get a moment to send it (a client that stopped reading never takes it: gRPC's
-      // Shutdown below cancels those).
-      const std::size_t aborted = impl_->service.live_streams().abort_all(
-          {grpc::StatusCode::ABORTED, "the server is shutting down: the drain deadline (--drain-deadline-ms=" +
-                                          std::to_string(drain.count()) + ") has passed"});
-      spdlog::info("drain deadline passed: {} streams aborted", aborted);
-      impl_->wait_for_calls(kAbortedGrace);
-    }
-    // The face threads must not need CPU time nobody else wants to end (face_workers.hpp).
-    if (!impl_->service.face_workers().restore_normal_priority()) {
-      spdlog::info("the face threads keep their low priority (no CAP_SYS_NICE, RLIMIT_NICE below 20): on a busy "
-                   "machine the process may take a while to end");
-    }
-    // GOAWAY only now, with no call left. A shutdown deadline already past would
-    // cut every connection at once, racing the final frames a connection may still
-    // be flushing (behind nginx: the last subscriber of a drained session got
-    // RST_STREAM INTERNAL_ERROR now and then). With the grace, a connection closes
-    // once its peer has it all (nginx closes an upstream connection after its
-    // response); only idle client connections still open are cut at its end.
+    impl_->drain_calls(drain);
     impl_->server->Shutdown(std::chrono::system_clock::now() + kConnectionGrace);
     impl_->server->Wait();
+  });
+}
+
+// The same drain, but the process ends at the grace's end, or before it once gRPC's
+// Shutdown has returned (every connection closed). After the grace, gRPC would cut the
+// idle connections and tear down its threads: hops from thread to thread that, on a
+// machine with more runnable threads than cores, each wait for a time slice (tens of
+// ms under load), only to free memory the process exit frees at once. The kernel cuts
+// the connections as gRPC would have.
+void Server::drain_for_exit(std::chrono::milliseconds drain) {
+  std::call_once(impl_->shutdown_once, [&] {
+    impl_->drain_calls(drain);
+    const auto grace_end = std::chrono::steady_clock::now() + kConnectionGrace;
+    auto shut_down = std::make_shared<std::promise<void>>();
+    std::future<void> returned = shut_down->get_future();
+    std::thread([server = impl_->server.get(), shut_down] {
+      server->Shutdown(std::chrono::system_clock::now() + kConnectionGrace);
+      shut_down->set_value();
+    }).detach();
+    const bool closed = returned.wait_until(grace_end) == std::future_status::ready;
+    spdlog::debug(closed ? "drain: every connection closed" : "drain: the connection grace has passed");
   });
 }
 

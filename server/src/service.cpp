@@ -48,18 +48,34 @@ LipSyncService::LipSyncService(const ServerConfig& config, const ModelCatalog& c
 void LipSyncService::register_gauges() {
   metrics_registry_.gauge({"lipsyncd_build_info", "lipsyncd's version and gRPC's; always 1.", {"version", "grpc_version"},
                            [] { return std::vector<GaugeSample>{{{LIPSYNCD_VERSION, grpc::Version()}, 1}}; }});
-  metrics_registry_.gauge(
-      {"lipsyncd_streams", "Animate and Subscribe streams by state.", {"method", "state", "tenant"}, [this] {
-         return std::vector<GaugeSample>{
-             {{"Animate", "open", ""}, static_cast<double>(metrics_.open_animate.load())},
-             {{"Subscribe", "open", ""}, static_cast<double>(metrics_.open_subscribe.load())}};
-       }});
-  metrics_registry_.gauge({"lipsyncd_sessions", "Named sessions held, by state (live, or ended and retained).",
-                           {"state", "tenant"}, [this] {
-                             const auto counts = sessions_.counts();
-                             return std::vector<GaugeSample>{{{"live", ""}, static_cast<double>(counts.live)},
-                                                             {{"ended", ""}, static_cast<double>(counts.ended)}};
+  // A tenant's series appear with its first stream and stay (at 0 when idle); an open
+  // server's one tenant "" has them from the start.
+  if (tenants_.open()) {
+    for (const char* method : {"Animate", "Subscribe"}) metrics_.open_streams.with({method, ""});
+  }
+  metrics_registry_.gauge({"lipsyncd_streams", "Animate and Subscribe streams by state and tenant.",
+                           {"method", "state", "tenant"}, [this] {
+                             std::vector<GaugeSample> samples;
+                             metrics_.open_streams.each([&](const LabelValues& method_tenant, const Level& open) {
+                               samples.push_back({{method_tenant[0], "open", method_tenant[1]},
+                                                  static_cast<double>(open.value())});
+                             });
+                             return samples;
                            }});
+  metrics_registry_.gauge(
+      {"lipsyncd_sessions", "Named sessions held, by state (live, or ended and retained) and tenant.",
+       {"state", "tenant"}, [this] {
+         auto by_tenant =
+             sessions_.counts_by([this](const std::string& key) { return tenants_.tenant_of_session_key(key); });
+         metrics_.open_streams.each(
+             [&](const LabelValues& method_tenant, const Level&) { by_tenant.try_emplace(method_tenant[1]); });
+         std::vector<GaugeSample> samples;
+         for (const auto& [tenant, counts] : by_tenant) {
+           samples.push_back({{"live", tenant}, static_cast<double>(counts.live)});
+           samples.push_back({{"ended", tenant}, static_cast<double>(counts.ended)});
+         }
+         return samples;
+       }});
   metrics_registry_.gauge({"lipsyncd_session_subscribers", "Subscribers attached to sessions.", {}, [this] {
                              return std::vector<GaugeSample>{{{}, static_cast<double>(sessions_.counts().subscribers)}};
                            }});

@@ -154,14 +154,21 @@ std::size_t SessionRegistry::size() {
 }
 
 SessionRegistry::Counts SessionRegistry::counts() {
+  const auto all = counts_by([](const std::string&) { return std::string(); });
+  return all.empty() ? Counts{} : all.begin()->second;
+}
+
+std::map<std::string, SessionRegistry::Counts> SessionRegistry::counts_by(
+    const std::function<std::string(const std::string& key)>& group_of) {
   std::lock_guard lock(mutex_);
   sweep_locked();
-  Counts counts;
-  for (const auto& [name, session] : sessions_) {
+  std::map<std::string, Counts> groups;
+  for (const auto& [key, session] : sessions_) {
+    Counts& counts = groups[group_of(key)];
     ++(session->live() ? counts.live : counts.ended);
     counts.subscribers += session->subscriber_count();
   }
-  return counts;
+  return groups;
 }
 
 }  // namespace lipsync::server

@@ -20,6 +20,7 @@
 #include <chrono>
 #include <cstddef>
 #include <deque>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -96,6 +97,8 @@ class SessionRegistry {
     std::size_t subscribers = 0;
   };
   Counts counts();
+  /// The counts per group, the group of a session being `group_of(key)` (its tenant).
+  std::map<std::string, Counts> counts_by(const std::function<std::string(const std::string& key)>& group_of);
 
  private:
   void sweep_locked();

@@ -49,7 +49,6 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<grpc::ByteBuffer>
     }
     admitted_ = true;
     service_.live_streams().add(*this);
-    ++service_.metrics().open_subscribe;
     outbox_->measure(service_.metrics().write_latency, service_.metrics().queued_messages);
     log_.set_session(session_name_);
     log_.started_line({{"start", v1::SubscribeRequest::Start_Name(request.start())}});
@@ -58,6 +57,8 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<grpc::ByteBuffer>
       return;
     }
     log_.set_tenant(caller_.tenant());
+    open_stream_ = &service_.metrics().open_streams.with({"Subscribe", caller_.tenant()});
+    open_stream_->add(1);
     for (auto [quota, hold] : {std::pair{Quota::streams, &stream_hold_}, {Quota::subscribers, &subscriber_hold_}}) {
       if (auto status = caller_.hold(quota, *hold); !status.ok()) {
         outbox_->close(status);
@@ -97,10 +98,8 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<grpc::ByteBuffer>
     if (session_) session_->detach(outbox_.get());
     const auto status = cancelled_ ? cancelled_status() : outbox_->final_status().value_or(grpc::Status::OK);
     log_.ended(status, {{"frames", frames_sent_}});
-    if (admitted_) {
-      --service_.metrics().open_subscribe;
-      service_.admission().release_stream();
-    }
+    if (open_stream_) open_stream_->add(-1);
+    if (admitted_) service_.admission().release_stream();
     delete this;
   }
 
@@ -160,6 +159,7 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<grpc::ByteBuffer>
   std::shared_ptr<Outbox> outbox_;
   std::shared_ptr<Session> session_;
   bool admitted_ = false;
+  Level* open_stream_ = nullptr;  // lipsyncd_streams{method="Subscribe",tenant}, once authenticated
   std::uint64_t frames_sent_ = 0;
   std::shared_ptr<StallGuard> stall_guard_ = std::make_shared<StallGuard>(context_, log_);
   grpc::Alarm stall_alarm_;

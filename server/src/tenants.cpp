@@ -251,6 +251,10 @@ std::string Caller::session_key(const std::string& name) const {
   return tenant_.empty() ? name : tenant_ + "/" + name;
 }
 
+std::string Tenants::tenant_of_session_key(const std::string& session_key) const {
+  return open() ? std::string() : session_key.substr(0, session_key.find('/'));
+}
+
 grpc::Status Caller::hold(Quota quota, QuotaHold& hold) const {
   if (!usage_) return grpc::Status::OK;
   const std::size_t limit = quotas_->limit(quota);

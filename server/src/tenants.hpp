@@ -161,6 +161,8 @@ class Tenants {
   explicit Tenants(std::string key_file);
 
   bool open() const { return key_file_.empty(); }
+  /// The tenant whose namespace holds the registry key `session_key` (Caller::session_key).
+  std::string tenant_of_session_key(const std::string& session_key) const;
   /// "open to every caller (no --api-keys)" or "N API keys of M tenants from FILE".
   std::string describe() const;
 

@@ -11,6 +11,7 @@
 #include <filesystem>
 
 #include "../support/child_process.hpp"
+#include "../support/prometheus_text.hpp"
 #include "../support/server_harness.hpp"
 #include "lipsync/client/animation_client.hpp"
 
@@ -130,7 +131,15 @@ class TenantServer : public LiveServerTest {
     lipsync::testing::write_text(key_file_, key_file_text());
     ServerConfig config;
     config.api_keys = key_file_.string();
+    config.metrics_listen = "127.0.0.1:0";
     start(config);
+  }
+
+  Exposition scrape() const {
+    int status = 0;
+    const std::string body = http_get(server_->metrics_address(), "/metrics", &status);
+    EXPECT_EQ(status, 200);
+    return parse_exposition(body);
   }
 
   client::AnimationClient client_with(const std::string& key) const {
@@ -249,6 +258,49 @@ TEST_F(TenantServer, TheStreamQuotaRefusesTheTenantsNextStreamAndNoOtherTenants)
   })) << after_release.refusal.error_message();
 }
 
+TEST_F(TenantServer, TheStreamAndSessionGaugesCountEachTenantApart) {
+  const auto a = client_with(kKeyA);
+  const auto b = client_with(kKeyB);
+  Stream a_session = start_stream(a, "a-live");
+  Stream a_private = start_stream(a, "");
+  Stream b_session = start_stream(b, "b-live");
+  ASSERT_TRUE(*a_session.header && *a_private.header && *b_session.header);
+  std::atomic<bool> followed = false;
+  const auto b_follower = b.start_subscribe("b-live", v1::SubscribeRequest::START_FROM_BEGINNING,
+                                            [&](const v1::TrackMessage& message) {
+                                              if (message.has_header()) followed = true;
+                                            });
+  ASSERT_TRUE(eventually([&] { return followed.load(); }));
+
+  const Exposition live = scrape();
+  EXPECT_EQ(live.at(R"(lipsyncd_streams{method="Animate",state="open",tenant="a"})"), 2);
+  EXPECT_EQ(live.at(R"(lipsyncd_streams{method="Animate",state="open",tenant="b"})"), 1);
+  EXPECT_EQ(live.value_or_zero(R"(lipsyncd_streams{method="Subscribe",state="open",tenant="a"})"), 0);
+  EXPECT_EQ(live.at(R"(lipsyncd_streams{method="Subscribe",state="open",tenant="b"})"), 1);
+  EXPECT_EQ(live.at(R"(lipsyncd_sessions{state="live",tenant="a"})"), 1);
+  EXPECT_EQ(live.at(R"(lipsyncd_sessions{state="live",tenant="b"})"), 1);
+  EXPECT_EQ(live.samples.count(R"(lipsyncd_streams{method="Animate",state="open",tenant=""})"), 0u)
+      << "a server with keys has no anonymous tenant";
+
+  a_session.call->end();
+  EXPECT_TRUE(a_session.call->wait().ok());
+  // Counted down when gRPC is done with the call, a moment after the client has its status.
+  ASSERT_TRUE(eventually([&] {
+    const Exposition now = scrape();
+    return now.at(R"(lipsyncd_streams{method="Animate",state="open",tenant="a"})") == 1 &&
+           now.at(R"(lipsyncd_sessions{state="ended",tenant="a"})") == 1;
+  }));
+  const Exposition one_ended = scrape();
+  EXPECT_EQ(one_ended.at(R"(lipsyncd_sessions{state="live",tenant="a"})"), 0);
+  EXPECT_EQ(one_ended.at(R"(lipsyncd_sessions{state="live",tenant="b"})"), 1);
+  EXPECT_EQ(one_ended.at(R"(lipsyncd_streams{method="Animate",state="open",tenant="b"})"), 1);
+  a_private.call->end();
+  b_session.call->end();
+  EXPECT_TRUE(a_private.call->wait().ok());
+  EXPECT_TRUE(b_session.call->wait().ok());
+  EXPECT_TRUE(b_follower->wait().ok());
+}
+
 TEST_F(TenantServer, TheSessionAndSubscriberQuotasRefuseNamingTheQuota) {
   const auto q = client_with(kKeyQ);
   Stream producer = start_stream(q, "q-one");
@@ -257,8 +309,14 @@ TEST_F(TenantServer, TheSessionAndSubscriberQuotasRefuseNamingTheQuota) {
   EXPECT_EQ(second_session.refusal.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
   EXPECT_THAT(second_session.refusal.error_message(), HasSubstr("max_sessions=1"));
 
-  auto first = q.start_subscribe("q-one", v1::SubscribeRequest::START_FROM_BEGINNING, {});
-  ASSERT_TRUE(eventually([&] { return server_->active_streams() == 2; }));
+  // Attached (its header replayed), so it holds the subscriber quota: counted as an open stream
+  // it is from a moment before, and a second subscriber in that moment was let in, then waited forever.
+  std::atomic<bool> first_attached = false;
+  auto first = q.start_subscribe("q-one", v1::SubscribeRequest::START_FROM_BEGINNING,
+                                 [&](const v1::TrackMessage& message) {
+                                   if (message.has_header()) first_attached = true;
+                                 });
+  ASSERT_TRUE(eventually([&] { return first_attached.load(); }));
   auto second = q.start_subscribe("q-one", v1::SubscribeRequest::START_FROM_BEGINNING, {});
   const grpc::Status refused = second->wait();
   EXPECT_EQ(refused.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);

@@ -7,14 +7,31 @@ the kinds of calls a real lipsyncd sees, good and bad:
   cancel      Animate that the client cancels half way
   bad         requests the server must refuse: unknown label, unknown model,
               a 1 MB label, a message over --max-message-bytes, Subscribe to nothing
-  face        Animate with the mesh output (subdivision 0)
+  face        Animate with the mesh output (subdivision 0); on a busy machine it may
+              end with DEADLINE_EXCEEDED (behind real time by --mesh-max-lag-ms)
   render      Render and GetModel
 
 Every call's outcome is counted; a status the call should not get is an error.
-Prints one line of counts at the end; exit status 1 if any call got a status it
-should not have. Run with Debian's /usr/bin/python3 (python3-grpcio) and
+
+Every --quiet-every seconds the load pauses: each worker finishes the call it is in and
+waits; once the server's metrics say no call is in progress and no session is held, the
+server's resident memory and open descriptors are read from /proc/PID and printed as a
+`quiet` line, and the load resumes. After the run the quiet samples taken after the
+warm-up are judged by soak_judge.judge.
+
+  soak_load.py ADDRESS METRICS_ADDRESS PID SECONDS
+      [--quiet-every S] [--warmup S] [--rss-slack-mb MB] [--fd-slack N]
+
+Prints the quiet samples, one line of counts and the verdict; exit status 1 if any call
+got a status it should not have, the load could not be made quiet, or memory or
+descriptors grew. Run with Debian's /usr/bin/python3 (python3-grpcio) and
 PYTHONPATH=<build>/clients/python/generated.
 """
+import argparse
+import os
+import re
+import statistics
+import urllib.request
 import random
 import sys
 import threading
@@ -24,11 +41,48 @@ from collections import Counter
 import grpc
 from lipsync.v1 import lipsync_pb2 as pb
 from lipsync.v1 import lipsync_pb2_grpc as rpc
+from soak_judge import judge, lowest_of_thirds
 
 LABELS = ["sil", "P", "AA", "M", "IY", "F", "AO", "R", "T", "UW", "B", "EH", "S", "sil"]
 counts = Counter()
 errors = Counter()
 lock = threading.Lock()
+
+
+class Pause:
+    """Lets the sampler stop the workers between calls and know when all of them stopped."""
+
+    def __init__(self, workers):
+        self.workers = workers
+        self.idle = 0
+        self.paused = False
+        self.changed = threading.Condition()
+
+    def between_calls(self):
+        """Called by a worker between two calls: waits here while the load is paused."""
+        with self.changed:
+            if not self.paused:
+                return
+            self.idle += 1
+            self.changed.notify_all()
+            self.changed.wait_for(lambda: not self.paused)
+            self.idle -= 1
+
+    def worker_done(self):
+        with self.changed:
+            self.workers -= 1
+            self.changed.notify_all()
+
+    def stop_all(self, timeout_s):
+        """Pauses the load; True once every worker waits between calls."""
+        with self.changed:
+            self.paused = True
+            return self.changed.wait_for(lambda: self.idle >= self.workers, timeout=timeout_s)
+
+    def resume(self):
+        with self.changed:
+            self.paused = False
+            self.changed.notify_all()
 
 
 def note(kind, outcome, expected):
@@ -127,7 +181,10 @@ def face(stub, n):
     settings = pb.AnimationSettings()
     settings.outputs.mesh.enabled = True
     settings.outputs.mesh.subdivision = 0
-    note("face", animate(stub, settings, [phonemes(12, n)], timeout=60), {"OK"})
+    outcome = animate(stub, settings, [phonemes(12, n)], timeout=60)
+    # DEADLINE_EXCEEDED: the face fell more than --mesh-max-lag-ms behind real time, as it
+    # may on a machine busy with other work (docs/server.md); the soak runs beside other tests.
+    note("face", outcome, {"OK", "DEADLINE_EXCEEDED"})
 
 
 def render(stub, n):
@@ -139,13 +196,16 @@ def render(stub, n):
         note("render", error.code().name, {"OK"})
 
 
-def worker(address, role, deadline, seed):
+def worker(address, role, deadline, seed, pause):
     channel = grpc.insecure_channel(address, options=[("grpc.max_send_message_length", -1),
                                                       ("grpc.max_receive_message_length", -1)])
     stub = rpc.LipSyncStub(channel)
     rng = random.Random(seed)
     n = 0
     while time.time() < deadline:
+        pause.between_calls()
+        if time.time() >= deadline:
+            break
         n += 1
         if role == "stream":
             name = stream(stub, n, rng)
@@ -169,21 +229,95 @@ def worker(address, role, deadline, seed):
                                      [ps[i:i + 3] for i in range(0, 60, 3)]), {"OK", "ALREADY_EXISTS"})
         time.sleep(0.01)
     channel.close()
+    pause.worker_done()
+
+
+def scrape(metrics_address):
+    with urllib.request.urlopen("http://%s/metrics" % metrics_address, timeout=10) as response:
+        return response.read().decode()
+
+
+def gauge_total(exposition, name):
+    """The sum of every sample of the gauge `name` in a text exposition."""
+    pattern = re.compile(r"^%s(\{[^}]*\})? (\S+)$" % re.escape(name), re.M)
+    return sum(float(value) for _, value in pattern.findall(exposition))
+
+
+def server_is_quiet(metrics_address):
+    exposition = scrape(metrics_address)
+    return gauge_total(exposition, "lipsyncd_calls_in_progress") == 0 and gauge_total(exposition, "lipsyncd_sessions") == 0
+
+
+def rss_kb(pid):
+    with open("/proc/%d/status" % pid) as status:
+        return int(re.search(r"^VmRSS:\s+(\d+) kB", status.read(), re.M).group(1))
+
+
+def quiet_sample(pause, metrics_address, pid, started):
+    """Pauses the load, waits for a quiet server, reads (seconds since start, rss kB, fds)."""
+    try:
+        if not pause.stop_all(timeout_s=90):
+            raise RuntimeError("the workers did not all finish their calls within 90 s")
+        waited_until = time.time() + 30
+        while not server_is_quiet(metrics_address):
+            if time.time() > waited_until:
+                raise RuntimeError("calls or sessions still held 30 s after the load paused")
+            time.sleep(0.1)
+        return time.time() - started, rss_kb(pid), len(os.listdir("/proc/%d/fd" % pid))
+    finally:
+        pause.resume()
 
 
 def main():
-    address, seconds = sys.argv[1], float(sys.argv[2])
-    deadline = time.time() + seconds
+    parser = argparse.ArgumentParser()
+    parser.add_argument("address")
+    parser.add_argument("metrics_address")
+    parser.add_argument("pid", type=int)
+    parser.add_argument("seconds", type=float)
+    parser.add_argument("--quiet-every", type=float, default=10)
+    parser.add_argument("--warmup", type=float, default=20)
+    parser.add_argument("--rss-slack-mb", type=float, default=16)
+    parser.add_argument("--fd-slack", type=int, default=8)
+    args = parser.parse_args()
+
+    started = time.time()
+    deadline = started + args.seconds
     roles = ["stream", "stream", "produce-followed", "follow", "staller", "cancel", "bad", "face", "render"]
-    threads = [threading.Thread(target=worker, args=(address, role, deadline, i)) for i, role in enumerate(roles)]
+    pause = Pause(len(roles))
+    threads = [threading.Thread(target=worker, args=(args.address, role, deadline, i, pause))
+               for i, role in enumerate(roles)]
     for thread in threads:
         thread.start()
+    samples, failures = [], []
+    while time.time() + args.quiet_every < deadline:
+        time.sleep(args.quiet_every)
+        try:
+            seconds, rss, fds = quiet_sample(pause, args.metrics_address, args.pid, started)
+        except (RuntimeError, OSError) as error:
+            failures.append("no quiet sample: %s" % error)
+            break
+        samples.append((seconds, rss, fds))
+        print("quiet: t=%.0fs rss=%.1fMB fds=%d" % (seconds, rss / 1024, fds), flush=True)
     for thread in threads:
         thread.join()
     print("calls: " + " ".join("%s=%d" % item for item in sorted(counts.items())))
     if errors:
-        print("unexpected: " + " ".join("%s=%d" % item for item in sorted(errors.items())))
-        sys.exit(1)
+        failures.append("unexpected statuses: " + " ".join("%s=%d" % item for item in sorted(errors.items())))
+
+    judged = [(rss, fds) for seconds, rss, fds in samples if seconds >= args.warmup]
+    rss_series = [rss for rss, _ in judged]
+    if rss_series:
+        print("quiet samples after the warm-up (%.0f s): %d; rss min %.1f median %.1f max %.1f MB; fds %d..%d"
+              % (args.warmup, len(judged), min(rss_series) / 1024, statistics.median(rss_series) / 1024,
+                 max(rss_series) / 1024, min(f for _, f in judged), max(f for _, f in judged)))
+    if len(judged) >= 3:
+        first, last = lowest_of_thirds(rss_series)
+        print("lowest rss of the first third %.1f MB, of the last third %.1f MB (slack %.0f MB)"
+              % (first / 1024, last / 1024, args.rss_slack_mb))
+    failures += judge(rss_series, [fds for _, fds in judged], args.rss_slack_mb * 1024, args.fd_slack)
+    for failure in failures:
+        print("soak: " + failure)
+    sys.exit(1 if failures else 0)
 
 
 if __name__ == "__main__":

@@ -37,6 +37,13 @@ class Server {
   /// Returns as soon as no call is running. Idempotent.
   void shutdown(std::chrono::milliseconds drain);
 
+  /// shutdown's drain for a process about to end: returns once every call has ended and
+  /// the connections have closed or had their grace (GOAWAY, then 50 ms to flush and
+  /// close), without waiting for gRPC to tear down what only frees memory (that goes on
+  /// in a thread of its own). The caller must then end the process (`_Exit`), never
+  /// destroy the server. Idempotent with shutdown: only the first of the two drains.
+  void drain_for_exit(std::chrono::milliseconds drain);
+
   /// SIGHUP: reads the TLS files and the key file again. A good TLS set is served
   /// to new connections within about a second, a good key file applies to new
   /// calls; a bad one is logged and the old one stays. Open streams are untouched.
