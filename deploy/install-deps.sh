@@ -10,6 +10,8 @@ packages=(
   build-essential cmake ninja-build
   # libraries
   nlohmann-json3-dev libeigen3-dev libspdlog-dev libboost-dev
+  # the command lines of lipsyncd and lipsync (clients/options/)
+  libcli11-dev
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev

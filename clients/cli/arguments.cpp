@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <vector>
 
 #include "cli_error.hpp"
 
@@ -11,103 +12,36 @@ namespace {
 
 std::string in_quotes(std::string_view text) { return "'" + std::string(text) + "'"; }
 
-const OptionSpec* find_long(std::span<const OptionSpec> options, std::string_view name) {
-  const auto it = std::find_if(options.begin(), options.end(),
-                               [&](const OptionSpec& spec) { return spec.name == name; });
-  return it == options.end() ? nullptr : &*it;
-}
-
-const OptionSpec* find_short(std::span<const OptionSpec> options, char name) {
-  const auto it = std::find_if(options.begin(), options.end(),
-                               [&](const OptionSpec& spec) { return spec.short_name == name; });
-  return it == options.end() ? nullptr : &*it;
-}
-
-/// "--anything", or a short option of this command ("-o", "-h"); "-3" and "-" are values.
-bool looks_like_option(std::string_view arg, std::span<const OptionSpec> options) {
-  if (arg.starts_with("--")) return true;
-  return arg.size() == 2 && arg[0] == '-' && (arg[1] == 'h' || find_short(options, arg[1]) != nullptr);
+/// UsageError naming `--option` when `text` is no whole number; the number, or nullopt beyond 64 bits.
+std::optional<std::int64_t> whole_number(std::string_view option, std::string_view text) {
+  const options::WholeNumber number = options::read_whole_number(text);
+  if (number.status == options::WholeNumber::Status::not_a_number) {
+    throw UsageError("--" + std::string(option) + ": " + in_quotes(text) + " is not a whole number");
+  }
+  if (number.status == options::WholeNumber::Status::beyond_64_bits) return std::nullopt;
+  return number.value;
 }
 
 }  // namespace
 
 Arguments Arguments::parse(std::span<const std::string_view> args, std::span<const OptionSpec> options,
                            std::string_view command) {
-  Arguments parsed;
   const std::string see_help = " (see 'lipsync " + std::string(command) + " --help')";
-  bool options_ended = false;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    const std::string_view arg = args[i];
-    if (options_ended || arg == "-" || !arg.starts_with('-')) {
-      parsed.positional_.emplace_back(arg);
-      continue;
+  try {
+    return Arguments(options::parse_arguments(std::vector<std::string>(args.begin(), args.end()), options));
+  } catch (const options::ArgumentError& error) {
+    switch (error.kind()) {
+      case options::ArgumentError::Kind::unknown_option:
+        throw UsageError("unknown option " + in_quotes(error.argument()) + " for 'lipsync " + std::string(command) +
+                         "'" + see_help);
+      case options::ArgumentError::Kind::missing_value:
+        throw UsageError("option " + error.option() + " needs a value (" + error.value_name() + ")" + see_help);
+      case options::ArgumentError::Kind::unexpected_value:
+        throw UsageError("option " + error.option() + " takes no value, got " + in_quotes(error.value()));
     }
-    if (arg == "--") {
-      options_ended = true;
-      continue;
-    }
-    if (arg == "-h" || arg == "--help") {
-      parsed.help_ = true;
-      continue;
-    }
-
-    const OptionSpec* spec = nullptr;
-    std::string shown;  // the option as the user wrote it, for messages
-    std::optional<std::string_view> inline_value;
-    if (arg.starts_with("--")) {
-      std::string_view name = arg.substr(2);
-      if (const std::size_t equals = name.find('='); equals != std::string_view::npos) {
-        inline_value = name.substr(equals + 1);
-        name = name.substr(0, equals);
-      }
-      spec = find_long(options, name);
-      shown = "--" + std::string(name);
-    } else if (arg.size() == 2) {
-      spec = find_short(options, arg[1]);
-      shown = std::string(arg);
-    }
-    if (spec == nullptr) {
-      throw UsageError("unknown option " + in_quotes(arg) + " for 'lipsync " + std::string(command) + "'" +
-                       see_help);
-    }
-
-    std::string value;
-    if (spec->value_name.empty()) {
-      if (inline_value) throw UsageError("option " + shown + " takes no value, got " + in_quotes(*inline_value));
-    } else if (inline_value) {
-      value = std::string(*inline_value);
-    } else if (i + 1 < args.size() && !looks_like_option(args[i + 1], options)) {
-      value = std::string(args[++i]);
-    } else {
-      throw UsageError("option " + shown + " needs a value (" + std::string(spec->value_name) + ")" +
-                       see_help);
-    }
-    parsed.values_[std::string(spec->name)] = std::move(value);
+    throw;
   }
-  return parsed;
 }
-
-std::optional<std::string> Arguments::value(std::string_view name) const {
-  const auto it = values_.find(std::string(name));
-  if (it == values_.end()) return std::nullopt;
-  return it->second;
-}
-
-namespace {
-
-/// The whole number `text` spells (nullopt if it does not fit in 64 bits);
-/// UsageError naming `--option` if it spells none.
-std::optional<std::int64_t> whole_number(std::string_view option, std::string_view text) {
-  std::int64_t number = 0;
-  const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), number);
-  if (text.empty() || error == std::errc::invalid_argument || end != text.data() + text.size()) {
-    throw UsageError("--" + std::string(option) + ": " + in_quotes(text) + " is not a whole number");
-  }
-  if (error == std::errc::result_out_of_range) return std::nullopt;
-  return number;
-}
-
-}  // namespace
 
 int parse_int_option(std::string_view option, std::string_view text, int min, int max) {
   const std::optional<std::int64_t> number = whole_number(option, text);

@@ -1,14 +1,13 @@
-// A small command-line parser: each command declares its options as a table
-// (name, value name, help with the default) and gets back the values as text;
-// the same table prints the command's --help, so the two cannot drift apart.
-//
-// Accepted forms: `--name VALUE`, `--name=VALUE`, `-o VALUE`, `--flag`;
-// `--` ends the options; a lone `-` is a positional argument (stdin).
+// The command line of a `lipsync` command: its options are a table of
+// OptionSpec (lipsync::options, CLI11 underneath), shared groups joined in
+// with options::join; the same table prints the command's --help, so the two
+// cannot drift apart. Mistakes become a UsageError naming the command:
+//   unknown option '--x' for 'lipsync render' (see 'lipsync render --help')
+//   option --fps needs a value (N) (see 'lipsync render --help')
 // Numbers are parsed strictly: the whole text must be the number.
 #pragma once
 
 #include <cstdint>
-#include <map>
 #include <optional>
 #include <ostream>
 #include <span>
@@ -16,17 +15,14 @@
 #include <string_view>
 #include <vector>
 
+#include "lipsync/options/command_line.hpp"
+
 namespace lipsync::cli {
 
-struct OptionSpec {
-  std::string_view name;          ///< long name without dashes: "fps"
-  char short_name = 0;            ///< 'o' for -o; 0 for none
-  std::string_view value_name;    ///< "N", "FILE"; empty for a flag
-  std::string_view help;          ///< what it does, with its range
-  std::string_view default_text;  ///< shown as "(default: ...)"; empty for none
-};
+using options::OptionSpec;
+using options::join;
 
-class Arguments {
+class Arguments : public options::ParsedArguments {
  public:
   /// Parses `args` (the words after the command name). Throws UsageError
   /// naming the option for an unknown option or a missing value. `command`
@@ -34,15 +30,8 @@ class Arguments {
   static Arguments parse(std::span<const std::string_view> args, std::span<const OptionSpec> options,
                          std::string_view command);
 
-  bool help() const { return help_; }
-  bool flag(std::string_view name) const { return values_.count(std::string(name)) > 0; }
-  std::optional<std::string> value(std::string_view name) const;
-  const std::vector<std::string>& positional() const { return positional_; }
-
  private:
-  bool help_ = false;
-  std::map<std::string, std::string> values_;  // flags map to ""
-  std::vector<std::string> positional_;
+  explicit Arguments(options::ParsedArguments parsed) : options::ParsedArguments(std::move(parsed)) {}
 };
 
 /// Whole number in [min, max]; UsageError naming `--option` and the text otherwise.

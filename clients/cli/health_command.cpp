@@ -3,6 +3,7 @@
 // unreachable, or no answer in time). For container health checks (Dockerfile) and scripts.
 // Debian ships no generated health stubs, so the two tiny messages are encoded by hand:
 // HealthCheckRequest{service = ""} is empty; HealthCheckResponse{status} is field 1, a varint.
+#include <array>
 #include <chrono>
 #include <future>
 #include <iostream>
@@ -18,10 +19,9 @@
 namespace lipsync::cli {
 namespace {
 
-constexpr OptionSpec kOptions[] = {
-    kServerOption, kTlsOption, kCaOption, kCertOption, kKeyOption, kApiKeyOption,
+constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     {"timeout", 0, "S", "give up when the server has not answered after S seconds, 1 to 3600", "3"},
-};
+}));
 
 constexpr std::string_view kUsage = "lipsync health [options]";
 constexpr std::string_view kDescription =

@@ -78,8 +78,7 @@ namespace {
 namespace asio = boost::asio;
 using Clock = std::chrono::steady_clock;
 
-constexpr OptionSpec kOptions[] = {
-    kServerOption, kTlsOption, kCaOption, kCertOption, kKeyOption, kApiKeyOption,
+constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     {"producers", 0, "N", "concurrent Animate streams, 1 to 10000", "10"},
     {"subscribers-per-session", 0, "M", "subscribers following each producer's session, 0 to 16", "0"},
     {"duration", 0, "S", "seconds during which new utterances start, 1 to 600", "10"},
@@ -94,7 +93,7 @@ constexpr OptionSpec kOptions[] = {
      "fraction of the producers (spread evenly) that ask for the mesh output (physics face), 0 to 1", "0"},
     {"mesh-subdivision", 0, "N", "subdivision level of their mesh: 0, 1 or 2 (771, 2379, 8775 vertices)", "1"},
     {"mesh-encoding", 0, "ENC", "encoding of their vertex positions: float32 or int16", "float32"},
-};
+}));
 
 constexpr std::string_view kUsage = "lipsync loadtest [options]";
 constexpr std::string_view kDescription =

@@ -5,6 +5,7 @@
 // tracks are written by received_track_writer.hpp.
 #pragma once
 
+#include <array>
 #include <string>
 #include <string_view>
 
@@ -30,8 +31,8 @@ inline constexpr OptionSpec kSessionOption = {"session", 0, "NAME",
 void set_track_request_options(const Arguments& arguments, TrackFormat format,
                                client::v1::AnimationSettings& settings);
 
-/// How to reach a server that uses TLS or API keys (docs/security.md); a command lists
-/// them after kServerOption. The API key may also come from LIPSYNC_API_KEY (kept out of `ps`).
+/// How to reach a server that uses TLS or API keys (docs/security.md), in kConnectionOptions
+/// after kServerOption. The API key may also come from LIPSYNC_API_KEY (kept out of `ps`).
 inline constexpr OptionSpec kTlsOption = {"tls", 0, "", "connect with TLS (implied by --ca, --cert and --key)",
                                           "plaintext"};
 inline constexpr OptionSpec kCaOption = {"ca", 0, "FILE", "PEM CA bundle that signed the server's certificate",
@@ -42,6 +43,10 @@ inline constexpr OptionSpec kKeyOption = {"key", 0, "FILE", "PEM private key of 
 inline constexpr OptionSpec kApiKeyOption = {"api-key", 0, "KEY",
                                              "API key, sent as `authorization: Bearer KEY`",
                                              "$LIPSYNC_API_KEY, else none"};
+
+/// The options every network command takes first: where lipsyncd is and how to reach it.
+inline constexpr std::array kConnectionOptions = {kServerOption, kTlsOption, kCaOption,
+                                                  kCertOption,   kKeyOption, kApiKeyOption};
 
 /// --server, checked to be non-empty.
 std::string server_address(const Arguments& arguments);

@@ -16,6 +16,7 @@
 // otherwise arrive after they are due (playback_buffer.hpp); with a producer
 // whose playout delay covers the lookahead (lipsync stream's default) the
 // offset is 0. The summary line reports it.
+#include <array>
 #include <unistd.h>
 
 #include <algorithm>
@@ -36,14 +37,13 @@
 namespace lipsync::cli {
 namespace {
 
-constexpr OptionSpec kOptions[] = {
-    kServerOption, kTlsOption, kCaOption, kCertOption, kKeyOption, kApiKeyOption,
+constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     {"from-now", 0, "", "only frames produced after joining (default: replay what the server holds)", ""},
     {"rate", 0, "N", "display updates per second, 1 to 240", "the track's fps"},
     {"frames", 0, "N", "stop after N display updates, 1 to 10000000", "when the session ends"},
     {"no-tty", 0, "", "print one line per update instead of redrawing one line", "redraw on a terminal"},
     {"wait", 0, "S", "if the session does not exist yet, keep asking for up to S seconds, 0 to 3600", "0"},
-};
+}));
 
 constexpr std::string_view kUsage = "lipsync play SESSION [options]";
 constexpr std::string_view kDescription =

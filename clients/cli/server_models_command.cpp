@@ -2,6 +2,7 @@
 // (ListModels), or one of them (GetModel), as text for a person or --json for
 // scripts. Unlike `lipsync model dump`, which prints the local built-in model
 // file, this asks a server, which may hold models loaded with --model NAME=FILE.
+#include <array>
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -16,11 +17,10 @@
 namespace lipsync::cli {
 namespace {
 
-constexpr OptionSpec kOptions[] = {
-    kServerOption, kTlsOption, kCaOption, kCertOption, kKeyOption, kApiKeyOption,
+constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     {"json", 0, "", "print JSON: {\"models\": [MODEL...]} without NAME, MODEL with it", ""},
     {"timeout", 0, "S", "give up when the server has not answered after S seconds, 1 to 3600", "5"},
-};
+}));
 
 constexpr std::string_view kUsage = "lipsync server-models [NAME] [options]";
 constexpr std::string_view kDescription =

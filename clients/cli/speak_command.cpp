@@ -5,6 +5,7 @@
 // settings both equal what `lipsync say TEXT -o ... --wav ...` writes on this
 // machine, byte for byte (the same espeak-ng, the same render path).
 // --session publishes the frames for `lipsync subscribe` / `play`.
+#include <array>
 #include <chrono>
 #include <iostream>
 
@@ -21,8 +22,7 @@
 namespace lipsync::cli {
 namespace {
 
-constexpr OptionSpec kOptions[] = {
-    kServerOption, kTlsOption, kCaOption, kCertOption, kKeyOption, kApiKeyOption,
+constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     kTrackOutputOption,
     kTrackFormatOption,
     {"wav", 0, "FILE", "also write the speech to FILE (16-bit mono PCM WAV at the server's rate, 22050 Hz)",
@@ -33,7 +33,7 @@ constexpr OptionSpec kOptions[] = {
     kServerModelOption,
     kSessionOption,
     {"timeout", 0, "S", "give up when the call has not finished after S seconds, 1 to 86400", "600"},
-};
+}));
 
 constexpr std::string_view kUsage = "lipsync speak TEXT [options]";
 constexpr std::string_view kDescription =

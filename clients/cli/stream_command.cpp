@@ -14,6 +14,7 @@
 // --playout-delay after the stream starts, on the "unix" clock; by default
 // that is the lookahead's release delay on read speech (release_delay.hpp)
 // plus a margin, so that players on that clock get every frame in time.
+#include <array>
 #include <algorithm>
 #include <chrono>
 #include <mutex>
@@ -33,8 +34,7 @@
 namespace lipsync::cli {
 namespace {
 
-constexpr OptionSpec kOptions[] = {
-    kServerOption, kTlsOption, kCaOption, kCertOption, kKeyOption, kApiKeyOption,
+constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     kTrackOutputOption,
     kTrackFormatOption,
     {"realtime", 0, "", "send each phoneme when its start time arrives (the default)", ""},
@@ -53,7 +53,7 @@ constexpr OptionSpec kOptions[] = {
     {"lookahead", 0, "N",
      "segments after a frame's own that must be known before it is sent, 0 to 7 (7 is exact)", "7"},
     {"timeout", 0, "S", "give up when the stream has not finished after S seconds, 1 to 86400", "3600"},
-};
+}));
 
 // On top of the lookahead's release delay: the network, scheduling and the
 // player's own margin (PlaybackBuffer::kDefaultReleaseMarginUs), ms.

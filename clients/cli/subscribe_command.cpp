@@ -2,6 +2,7 @@
 // client is streaming to lipsyncd, and writes them once the producer has
 // finished (all or nothing: a session that fails leaves no file), named as the
 // producer's TrackHeader names them (the server's model, channels and ARKit).
+#include <array>
 #include <chrono>
 #include <iostream>
 #include <thread>
@@ -17,15 +18,14 @@
 namespace lipsync::cli {
 namespace {
 
-constexpr OptionSpec kOptions[] = {
-    kServerOption, kTlsOption, kCaOption, kCertOption, kKeyOption, kApiKeyOption,
+constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     kTrackOutputOption,
     kTrackFormatOption,
     {"from-beginning", 0, "", "replay the frames the server still holds, then follow (the default)", ""},
     {"from-now", 0, "", "only frames produced after joining", ""},
     {"wait", 0, "S", "if the session does not exist yet, keep asking for up to S seconds, 0 to 3600", "0"},
     {"timeout", 0, "S", "give up when the session has not finished after S seconds, 1 to 86400", "3600"},
-};
+}));
 
 constexpr std::string_view kUsage = "lipsync subscribe SESSION [options]";
 constexpr std::string_view kDescription =

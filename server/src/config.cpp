@@ -1,14 +1,18 @@
 // Command line, environment and JSON configuration for lipsyncd.
 //
 // One table lists every option: its flag, a value hint, the help line, how to
-// apply a value and how to show the default. The flag parser, the environment
-// reader, the JSON file reader and `--help` all walk that table, so they
-// cannot disagree.
+// apply a value and how to show the default. The flag parser (lipsync::options,
+// CLI11, the one lipsync uses too), the environment reader, the JSON file reader
+// and `--help` all walk that table, so they cannot disagree. The environment and
+// the file are read here, not by CLI11: its variables are read with getenv and
+// its files are TOML/INI, while ours are JSON, come from an injectable
+// Environment, sit under the variables and name the variable or file key in errors.
 #include "lipsync/server/config.hpp"
+
+#include "lipsync/options/command_line.hpp"
 
 #include <algorithm>
 #include <cctype>
-#include <charconv>
 #include <cstdlib>
 #include <fstream>
 #include <functional>
@@ -26,13 +30,11 @@ struct Setting {
 };
 
 std::int64_t parse_integer(const Setting& setting, std::int64_t min, std::int64_t max) {
-  std::int64_t value = 0;
-  const char* begin = setting.value.data();
-  const char* end = begin + setting.value.size();
-  const auto [ptr, error] = std::from_chars(begin, end, value);
-  if (error != std::errc() || ptr != end || setting.value.empty()) {
+  const options::WholeNumber number = options::read_whole_number(setting.value);
+  if (number.status != options::WholeNumber::Status::ok) {
     throw ConfigError(setting.name + ": expected an integer, got '" + setting.value + "'");
   }
+  const std::int64_t value = number.value;
   if (value < min || value > max) {
     throw ConfigError(setting.name + ": " + setting.value + " is out of range [" +
                       std::to_string(min) + ", " + std::to_string(max) + "]");
@@ -257,6 +259,29 @@ std::vector<Setting> read_environment(const Environment& environment, std::vecto
   return settings;
 }
 
+/// The flags of `args` taken apart (lipsync::options, CLI11), every value as written;
+/// ConfigError for an unknown flag, a stray word or a missing value.
+options::ParsedArguments parse_flags(const std::vector<std::string>& args) {
+  static const std::vector<options::OptionSpec> specs = [] {
+    std::vector<options::OptionSpec> table = {{"config", 0, "FILE", "", ""}};
+    for (const Option& option : options()) {
+      table.push_back({std::string_view(option.flag).substr(2), 0, option.value_hint, option.help, ""});
+    }
+    return table;
+  }();
+  try {
+    options::ParsedArguments parsed = options::parse_arguments(args, specs);
+    if (!parsed.positional().empty() && !parsed.help()) {
+      throw ConfigError(parsed.positional().front() + ": unknown flag (see --help)");
+    }
+    return parsed;
+  } catch (const options::ArgumentError& error) {
+    if (error.kind() == options::ArgumentError::Kind::missing_value) throw ConfigError(error.option() + ": missing value");
+    const std::string& word = error.argument();
+    throw ConfigError(word.substr(0, word.find('=')) + ": unknown flag (see --help)");
+  }
+}
+
 }  // namespace
 
 Environment process_environment() {
@@ -277,32 +302,16 @@ std::string environment_variable(const std::string& flag) {
 
 CommandLine parse_command_line(const std::vector<std::string>& args, const Environment& environment) {
   CommandLine result;
-  std::vector<Setting> flags;
-  std::string config_path;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    std::string flag = args[i];
-    if (flag == "--help" || flag == "-h") {
-      result.help = true;
-      return result;
-    }
-    std::string value;
-    bool has_value = false;
-    if (const auto eq = flag.find('='); flag.rfind("--", 0) == 0 && eq != std::string::npos) {
-      value = flag.substr(eq + 1);
-      flag = flag.substr(0, eq);
-      has_value = true;
-    }
-    if (flag != "--config" && !find_option(flag)) throw ConfigError(flag + ": unknown flag (see --help)");
-    if (!has_value) {
-      if (i + 1 >= args.size()) throw ConfigError(flag + ": missing value");
-      value = args[++i];
-    }
-    if (flag == "--config") {
-      config_path = value;
-    } else {
-      flags.push_back({flag, value});
-    }
+  const options::ParsedArguments parsed = parse_flags(args);
+  if (parsed.help()) {
+    result.help = true;
+    return result;
   }
+  std::vector<Setting> flags;
+  for (const Option& option : options()) {
+    for (const std::string& value : parsed.values(option.flag.substr(2))) flags.push_back({option.flag, value});
+  }
+  std::string config_path = parsed.value("config").value_or("");
   if (config_path.empty() && environment) {
     config_path = environment(environment_variable("--config")).value_or("");
   }

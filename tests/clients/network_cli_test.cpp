@@ -316,6 +316,19 @@ TEST_F(NetworkCliTest, every_network_command_has_help_with_the_server_option) {
   }
 }
 
+// The connection group (network.hpp, kConnectionOptions) is declared once and joined into each command.
+TEST_F(NetworkCliTest, every_network_command_takes_the_whole_connection_group) {
+  for (const std::string command : {"stream", "speak", "subscribe", "play", "loadtest", "server-models", "health"}) {
+    const RunResult help = run({command, "--help"});
+    for (const std::string option : {"--server ADDR", "--tls", "--ca FILE", "--cert FILE", "--key FILE", "--api-key KEY"}) {
+      EXPECT_THAT(help.out, HasSubstr(option)) << command;
+    }
+    const RunResult flag_with_value = run({command, "--tls=yes"});  // each command's parser knows --tls as a flag
+    EXPECT_EQ(flag_with_value.status, 2) << command;
+    EXPECT_THAT(flag_with_value.err, HasSubstr("option --tls takes no value, got 'yes'")) << command;
+  }
+}
+
 // 200 producers in real time, each followed by one subscriber, for 10 s.
 TEST_F(NetworkCliTest, loadtest_200_realtime_streams_deliver_every_frame_without_errors) {
   const RunResult report = run({"loadtest", "--server", server(), "--producers", "200", "--subscribers-per-session",

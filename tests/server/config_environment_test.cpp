@@ -92,6 +92,34 @@ TEST(ConfigEnvironment, ABadValueNamesTheVariableAndTheValue) {
   EXPECT_THAT(help_text(), HasSubstr("LIPSYNCD_LISTEN"));
 }
 
+std::string flag_error_of(const std::vector<std::string>& args) {
+  try {
+    parse_command_line(args);
+  } catch (const ConfigError& error) {
+    return error.what();
+  }
+  return "accepted";
+}
+
+// The flags go through lipsync::options (CLI11), the parser lipsync uses; the words stay lipsyncd's.
+TEST(ConfigFlags, MistakesNameTheFlagInLipsyncdsWords) {
+  EXPECT_EQ(flag_error_of({"--bogus", "1"}), "--bogus: unknown flag (see --help)");
+  EXPECT_EQ(flag_error_of({"--bogus=1"}), "--bogus: unknown flag (see --help)");
+  EXPECT_EQ(flag_error_of({"stray"}), "stray: unknown flag (see --help)");
+  EXPECT_EQ(flag_error_of({"--max-streams", "4", "--listen"}), "--listen: missing value");
+  EXPECT_EQ(flag_error_of({"--listen", "--max-streams", "4"}), "--listen: missing value");
+  EXPECT_EQ(flag_error_of({"--max-streams=-3"}), "--max-streams: -3 is out of range [1, 2147483647]");
+}
+
+TEST(ConfigFlags, EqualsFormRepeatedModelsAndEmptyValues) {
+  const ServerConfig config =
+      parse_command_line({"--max-streams=9", "--model", "a=/a.json", "--model=b=/b.json", "--metrics-listen="}).config;
+  EXPECT_EQ(config.max_streams, 9u);
+  EXPECT_EQ(config.models, (std::vector<ModelFile>{{"a", "/a.json"}, {"b", "/b.json"}}));
+  EXPECT_EQ(config.metrics_listen, "");
+  EXPECT_EQ(parse_command_line({"--max-streams", "1", "--max-streams", "2"}).config.max_streams, 2u);
+}
+
 TEST(ConfigEnvironment, WithoutAnEnvironmentNothingIsRead) {
   ::setenv("LIPSYNCD_MAX_STREAMS", "3", 1);
   EXPECT_EQ(parse_command_line({}).config.max_streams, ServerConfig{}.max_streams);
