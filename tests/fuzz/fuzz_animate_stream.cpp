@@ -436,8 +436,11 @@ bool same_bits(const Field& a, const Field& b) {
 
 void check_equals_render(const std::vector<v1::AnimateRequest>& sent, const ReceivedTrack& animated) {
   v1::RenderRequest request;
+  // The utterance is the first message's settings and the phonemes up to `end`. What follows
+  // `end` is refused, or, if gRPC cannot decode it, ends the reads as a half-close does (OK).
   for (const v1::AnimateRequest& message : sent) {
-    if (message.has_settings()) *request.mutable_settings() = message.settings();
+    if (message.has_end()) break;
+    if (&message == &sent.front()) *request.mutable_settings() = message.settings();
     for (const v1::Phoneme& phoneme : message.phonemes().phonemes()) *request.add_phonemes() = phoneme;
   }
   if (request.settings().has_lookahead() && request.settings().lookahead() != kExactLookahead) return;
@@ -447,6 +450,7 @@ void check_equals_render(const std::vector<v1::AnimateRequest>& sent, const Rece
   context.set_deadline(std::chrono::system_clock::now() + kCallDeadline);
   v1::RenderResponse response;
   const grpc::Status status = v1::LipSync::NewStub(in_process_server().channel)->Render(&context, request, &response);
+  if (!status.ok()) std::fprintf(stderr, "Render: status %d: %.300s\n", status.error_code(), status.error_message().c_str());
   check(status.ok(), "what Animate accepted, Render accepts");
   const v1::FrameBatch& rendered = response.frames();
   check(same_bits(rendered.t_us(), animated.frames.t_us()), "Animate's frame times are Render's");
