@@ -25,7 +25,7 @@ if command -v ccache >/dev/null 2>&1; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCH
 
 all_targets=(fuzz_parse_json fuzz_parse_textgrid fuzz_parse_timit fuzz_parse_lab fuzz_parse_pho fuzz_parse_flite
              fuzz_detect_input_format fuzz_model_from_json fuzz_phone_set_from_json fuzz_face_rig_from_json
-             fuzz_render_request)
+             fuzz_render_request fuzz_animate_stream)
 read -r -a targets <<<"${FUZZ_TARGETS:-${all_targets[*]}}"
 
 echo "fuzz: building ${#targets[@]} target(s) in build-fuzz/"
@@ -49,6 +49,7 @@ seeds_for() {
     fuzz_phone_set_from_json) ls data/phonesets/*.json ;;
     fuzz_face_rig_from_json) ls data/face/rig.json ;;
     fuzz_render_request) ;;  # written by make_render_request_seeds
+    fuzz_animate_stream) ls tests/data/closures/* tests/data/formats/* | grep -v '\.sh$' ;;  # made programs of by make_animate_stream_seeds
   esac
 }
 
@@ -60,6 +61,8 @@ run_one() {
   mkdir -p "$seeds" "$corpus" "$findings" build-fuzz/logs
   if [[ "$target" == fuzz_render_request ]]; then
     build-fuzz/tests/fuzz/make_render_request_seeds "$seeds"
+  elif [[ "$target" == fuzz_animate_stream ]]; then
+    seeds_for "$target" | xargs build-fuzz/tests/fuzz/make_animate_stream_seeds "$seeds" >/dev/null
   else
     seeds_for "$target" | xargs -r cp -t "$seeds"
   fi
