@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets of tests/fuzz in build-fuzz/ with clang 14
-# (-fsanitize=fuzzer,address,undefined) and runs each for SECONDS_PER_TARGET
+# (-fsanitize=fuzzer,address,undefined; the build deploy/sanitize.sh asan shares,
+# deploy/asan-build.sh) and runs each for SECONDS_PER_TARGET
 # seconds (default 30; give hours for a long run, e.g. 14400), one after the
 # other, each with the seed corpus from tests/data and data/.
 #   build-fuzz/corpus/TARGET/    what each fuzzer found interesting (kept between runs)
@@ -16,12 +17,7 @@ if ! [[ "$seconds" =~ ^[0-9]+$ ]] || [[ "$seconds" -lt 1 ]]; then
   echo "usage: deploy/fuzz.sh [SECONDS_PER_TARGET]" >&2
   exit 2
 fi
-if ! command -v clang++-14 >/dev/null 2>&1; then
-  echo "fuzz: clang++-14 is missing (apt-get install clang-14 libclang-rt-14-dev)" >&2
-  exit 1
-fi
-launcher=()
-if command -v ccache >/dev/null 2>&1; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache); fi
+source deploy/asan-build.sh
 
 all_targets=(fuzz_parse_json fuzz_parse_textgrid fuzz_parse_timit fuzz_parse_lab fuzz_parse_pho fuzz_parse_flite
              fuzz_detect_input_format fuzz_model_from_json fuzz_phone_set_from_json fuzz_face_rig_from_json
@@ -30,9 +26,7 @@ read -r -a targets <<<"${FUZZ_TARGETS:-${all_targets[*]}}"
 
 echo "fuzz: building ${#targets[@]} target(s) in build-fuzz/"
 start=$SECONDS
-cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++-14 \
-  "${launcher[@]}" -DLIPSYNC_BUILD_FUZZERS=ON -DLIPSYNC_BUILD_TESTS=OFF -DLIPSYNC_BUILD_BENCHMARKS=OFF >/dev/null
-cmake --build build-fuzz -j "$(nproc)" --target "${targets[@]}" make_render_request_seeds
+build_asan "${targets[@]}" make_render_request_seeds
 echo "fuzz: built in $((SECONDS - start)) s"
 
 # Seed corpus: the test data of each reader (copied, so the fuzzers never write into tests/).

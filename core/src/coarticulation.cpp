@@ -66,9 +66,13 @@ inline double log_dominance_slope(const Segment& segment, const DominanceParams&
 // so that the loops below run in whole vectors. They are compiled twice,
 // for AVX2 and for baseline x86-64, and the loader picks the best the CPU has;
 // both give the same numbers (the same operations in the same order per lane).
+// Not under GCC's TSan: the loader runs the clones' resolver (an IFUNC) while
+// it relocates the program, before the TSan runtime is set up, and TSan
+// instruments the resolver too, so every TSan executable died with SIGSEGV
+// before main (docs/security.md, "Sanitizers").
 constexpr std::size_t kLanes = 4;
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__)
 #define LIPSYNC_VECTOR_CLONES __attribute__((target_clones("avx2", "default")))
 #else
 #define LIPSYNC_VECTOR_CLONES
