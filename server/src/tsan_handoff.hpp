@@ -21,8 +21,9 @@
 //   method handler acquires it on entry.
 //
 // Under -fsanitize=thread (GCC defines `__SANITIZE_THREAD__`, clang 14
-// answers `__has_feature(thread_sanitizer)`) these call the TSan runtime's __tsan_release / __tsan_acquire; in every other
-// build they are empty inline functions and compile to nothing.
+// answers `__has_feature(thread_sanitizer)`) these call the TSan runtime's
+// __tsan_release / __tsan_acquire; in every other build they are empty inline
+// functions and compile to nothing.
 #pragma once
 
 #include <utility>
