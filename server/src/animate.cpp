@@ -41,6 +41,7 @@
 #include "phoneme_input.hpp"
 #include "plan.hpp"
 #include "service.hpp"
+#include "tsan_handoff.hpp"
 #include "wire.hpp"
 
 namespace lipsync::server {
@@ -53,7 +54,7 @@ namespace {
 constexpr std::size_t kReadPauseFrames = 4096;
 constexpr std::size_t kReadResumeFrames = 1024;
 
-class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, v1::TrackMessage>,
+class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::AnimateRequest, v1::TrackMessage>>,
                              public OutboxTarget,
                              public AbortableStream {
  public:
@@ -87,6 +88,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   }
 
   void OnReadDone(bool ok) override {
+    const HandoffScope handoff = reaction();
     if (!ok) {
       if (phase_ == Phase::ended) {
         in_order([this] { outbox_.close(grpc::Status::OK); });
@@ -118,6 +120,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   }
 
   void OnWriteDone(bool ok) override {
+    const HandoffScope handoff = reaction();
     outbox_.on_write_done(ok);
     std::lock_guard lock(flow_mutex_);
     if (read_paused_ && frames_waiting() <= kReadResumeFrames) {
@@ -127,6 +130,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   }
 
   void OnCancel() override {
+    const HandoffScope handoff = reaction();
     cancelled_ = true;
     stopped_ = true;
     outbox_.abort(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
@@ -134,6 +138,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
   }
 
   void OnDone() override {
+    last_reaction();
     if (admitted_) service_.live_streams().remove(*this);
     const auto status = cancelled_ ? cancelled_status() : outbox_.final_status().value_or(grpc::Status::OK);
     log_.ended(status, {{"phonemes", static_cast<std::uint64_t>(phonemes())}, {"frames", frames_sent_.load()}});
@@ -384,7 +389,10 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
 
 grpc::ServerBidiReactor<v1::AnimateRequest, v1::TrackMessage>* LipSyncService::Animate(
     grpc::CallbackServerContext* context) {
-  return new AnimateReactor(*this, context);
+  handoff_acquire(this);  // the service as built before the server started (tsan_handoff.hpp)
+  auto* reactor = new AnimateReactor(*this, context);
+  reactor->handed_off();
+  return reactor;
 }
 
 }  // namespace lipsync::server

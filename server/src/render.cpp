@@ -54,6 +54,7 @@ grpc::Status render(LipSyncService& service, Plan& plan, const v1::RenderRequest
 
 grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* context,
                                                  const v1::RenderRequest* request, v1::RenderResponse* response) {
+  handoff_acquire(this);  // the service as built before the server started (tsan_handoff.hpp)
   if (grpc::Status admission = admission_.admit_render(context->peer()); !admission.ok()) {
     return unary(context, "Render", [&] { return admission; }, &metrics_);
   }

@@ -31,6 +31,7 @@
 #include "metrics_http.hpp"
 #include "service.hpp"
 #include "tls.hpp"
+#include "tsan_handoff.hpp"
 
 namespace lipsync::server {
 namespace {
@@ -94,11 +95,13 @@ Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(con
     builder.SetResourceQuota(quota);
   }
   builder.RegisterService(&impl_->service);
+  handoff_release(&impl_->service);  // gRPC calls its handlers on its own threads from now on
   impl_->server = builder.BuildAndStart();
   if (!impl_->server || impl_->port == 0) {
     throw std::runtime_error("cannot start the gRPC server on " + impl_->config.listen);
   }
   impl_->service.routing().set_bound_address(address());
+  handoff_release(&impl_->service);
   if (impl_->listener) impl_->listener->start(*impl_->server, impl_->service.admission().connections());
   spdlog::info("transport: {}", impl_->tls ? (impl_->config.tls_client_ca.empty()
                                                   ? "TLS (" + impl_->config.tls_cert + ")"

@@ -36,6 +36,7 @@
 #include "phoneme_input.hpp"
 #include "plan.hpp"
 #include "service.hpp"
+#include "tsan_handoff.hpp"
 #include "wire.hpp"
 
 namespace lipsync::server {
@@ -89,7 +90,7 @@ grpc::Status speak_settings(const v1::AnimationSettings& requested, v1::Animatio
   return grpc::Status::OK;
 }
 
-class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
+class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::SpeakResponse>> {
  public:
   SpeakReactor(LipSyncService& service, grpc::CallbackServerContext* context, const v1::SpeakRequest& request)
       : service_(service), context_(context), request_(request), log_("Speak", *context, &service.metrics()) {
@@ -112,6 +113,7 @@ class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
   }
 
   void OnWriteDone(bool ok) override {
+    const HandoffScope handoff = reaction();
     if (!ok) {
       finish(grpc::Status(grpc::StatusCode::CANCELLED, "the client stopped reading"));
       return;
@@ -119,9 +121,13 @@ class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
     write_next();
   }
 
-  void OnCancel() override { cancelled_ = true; }
+  void OnCancel() override {
+    const HandoffScope handoff = reaction();
+    cancelled_ = true;
+  }
 
   void OnDone() override {
+    last_reaction();
     log_.ended(cancelled_ ? cancelled_status() : final_status_,
                {{"samples", static_cast<std::uint64_t>(samples_sent_)}, {"frames", static_cast<std::uint64_t>(frames_sent_)}});
     if (admitted_) service_.admission().release_stream();
@@ -328,7 +334,10 @@ class SpeakReactor final : public grpc::ServerWriteReactor<v1::SpeakResponse> {
 
 grpc::ServerWriteReactor<v1::SpeakResponse>* LipSyncService::Speak(grpc::CallbackServerContext* context,
                                                                    const v1::SpeakRequest* request) {
-  return new SpeakReactor(*this, context, *request);
+  handoff_acquire(this);  // the service as built before the server started (tsan_handoff.hpp)
+  auto* reactor = new SpeakReactor(*this, context, *request);
+  reactor->handed_off();
+  return reactor;
 }
 
 }  // namespace lipsync::server

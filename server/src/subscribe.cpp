@@ -21,11 +21,12 @@
 #include "live_streams.hpp"
 #include "outbox.hpp"
 #include "service.hpp"
+#include "tsan_handoff.hpp"
 
 namespace lipsync::server {
 namespace {
 
-class SubscribeReactor final : public grpc::ServerWriteReactor<grpc::ByteBuffer>,
+class SubscribeReactor final : public HandoffReactor<grpc::ServerWriteReactor<grpc::ByteBuffer>>,
                                public OutboxTarget,
                                public AbortableStream {
  public:
@@ -85,14 +86,19 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<grpc::ByteBuffer>
     if (!attached.ok()) outbox_->close(attached);
   }
 
-  void OnWriteDone(bool ok) override { outbox_->on_write_done(ok); }
+  void OnWriteDone(bool ok) override {
+    const HandoffScope handoff = reaction();
+    outbox_->on_write_done(ok);
+  }
   void OnCancel() override {
+    const HandoffScope handoff = reaction();
     cancelled_ = true;
     outbox_->abort(cancelled_status());
   }
   void abort_stream(const grpc::Status& status) override { outbox_->abort(status); }
 
   void OnDone() override {
+    last_reaction();
     if (admitted_) service_.live_streams().remove(*this);
     stall_guard_->release();
     if (session_) session_->detach(outbox_.get());
@@ -169,14 +175,17 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<grpc::ByteBuffer>
 
 grpc::ServerWriteReactor<grpc::ByteBuffer>* LipSyncService::Subscribe(grpc::CallbackServerContext* context,
                                                                       const grpc::ByteBuffer* raw_request) {
+  handoff_acquire(this);  // the service as built before the server started (tsan_handoff.hpp)
   v1::SubscribeRequest request;
   grpc::ByteBuffer bytes = *raw_request;  // Deserialize consumes its buffer; this copy only refs the slices
   const grpc::Status parsed = grpc::SerializationTraits<v1::SubscribeRequest>::Deserialize(&bytes, &request);
-  return new SubscribeReactor(*this, context, request,
-                              parsed.ok() ? grpc::Status::OK
-                                          : grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                                                         "Subscribe: the request is not a SubscribeRequest (" +
-                                                             parsed.error_message() + ")"));
+  auto* reactor = new SubscribeReactor(*this, context, request,
+                                       parsed.ok() ? grpc::Status::OK
+                                                   : grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                                                                  "Subscribe: the request is not a SubscribeRequest (" +
+                                                                      parsed.error_message() + ")"));
+  reactor->handed_off();
+  return reactor;
 }
 
 }  // namespace lipsync::server

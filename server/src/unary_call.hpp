@@ -15,6 +15,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include "call_log.hpp"
+#include "tsan_handoff.hpp"
 
 namespace lipsync::server {
 
@@ -28,7 +29,7 @@ grpc::Status run_guarded(Function&& function) {
   }
 }
 
-class UnaryCall final : public grpc::ServerUnaryReactor {
+class UnaryCall final : public HandoffReactor<grpc::ServerUnaryReactor> {
  public:
   /// `on_done` runs once the call is done (after the access line), on a gRPC thread.
   UnaryCall(const char* method, grpc::CallbackServerContext& context,
@@ -45,8 +46,12 @@ class UnaryCall final : public grpc::ServerUnaryReactor {
   /// The caller's tenant, once authenticated (call_log.hpp).
   void set_tenant(std::string tenant) { log_.set_tenant(std::move(tenant)); }
 
-  void OnCancel() override { cancelled_ = true; }
+  void OnCancel() override {
+    const HandoffScope handoff = reaction();
+    cancelled_ = true;
+  }
   void OnDone() override {
+    last_reaction();
     const grpc::Status received = cancelled_ ? cancelled_status() : status_;
     log_.ended(received);
     if (on_done_) on_done_(received);
