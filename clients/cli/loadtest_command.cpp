@@ -91,7 +91,9 @@ constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     {"no-verify", 0, "", "count frames without checking them against the offline render (baseline servers)", ""},
     {"mesh-share", 0, "F",
      "fraction of the producers (spread evenly) that ask for the mesh output (physics face), 0 to 1", "0"},
-    {"mesh-subdivision", 0, "N", "subdivision level of their mesh: 0, 1 or 2 (771, 2379, 8775 vertices)", "1"},
+    {"mesh-subdivision", 0, "N",
+     kRangedHelp<"subdivision level of their mesh", kMeshSubdivisionSetting, " (771, 2379, 8775 vertices)">.view(),
+     kDefaultText<kMeshSubdivisionSetting>.view()},
     {"mesh-encoding", 0, "ENC", "encoding of their vertex positions: float32 or int16", "float32"},
 }));
 

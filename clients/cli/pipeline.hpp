@@ -24,6 +24,7 @@
 #include "lipsync/utterance.hpp"
 #include "lipsync/viseme_writer.hpp"
 #include "lipsync/visemes.hpp"
+#include "setting_help.hpp"
 
 namespace lipsync::cli {
 
@@ -39,7 +40,8 @@ inline constexpr OptionSpec kExtendedShapesOption = {"extended-shapes", 0, "LETT
     "which of Rhubarb's optional mouth shapes G, H and X the rhubarb formats use (its extendedShapes option); "
     "\"\" for none",
     "GHX"};
-inline constexpr OptionSpec kFpsOption = {"fps", 0, "N", "frames per second of the uniform grid, 1 to 240", "30"};
+inline constexpr OptionSpec kFpsOption = {"fps", 0, "N", kRangedHelp<"frames per second of the uniform grid", kFpsSetting>.view(),
+                                          kDefaultText<kFpsSetting>.view()};
 inline constexpr OptionSpec kPhoneSetOption = {"phone-set", 0, "NAME", "phone set of the labels (see 'lipsync phone-sets'), or auto to detect it",
     "the set the file declares, else auto"};
 inline constexpr OptionSpec kInputFormatOption = {"input-format", 0, "FORMAT", "json, textgrid, timit, lab, pho or flite",

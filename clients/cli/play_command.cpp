@@ -33,13 +33,14 @@
 #include "commands.hpp"
 #include "lipsync/client/playback_buffer.hpp"
 #include "network.hpp"
+#include "setting_help.hpp"
 
 namespace lipsync::cli {
 namespace {
 
 constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     {"from-now", 0, "", "only frames produced after joining (default: replay what the server holds)", ""},
-    {"rate", 0, "N", "display updates per second, 1 to 240", "the track's fps"},
+    {"rate", 0, "N", kRangedHelp<"display updates per second", kFpsSetting>.view(), "the track's fps"},
     {"frames", 0, "N", "stop after N display updates, 1 to 10000000", "when the session ends"},
     {"no-tty", 0, "", "print one line per update instead of redrawing one line", "redraw on a terminal"},
     {"wait", 0, "S", "if the session does not exist yet, keep asking for up to S seconds, 0 to 3600", "0"},
@@ -143,7 +144,7 @@ int run_play(std::span<const std::string_view> args) {
   const auto start = arguments.flag("from-now") ? client::v1::SubscribeRequest::START_FROM_NOW
                                                 : client::v1::SubscribeRequest::START_FROM_BEGINNING;
   std::optional<int> rate;
-  if (const auto text = arguments.value("rate")) rate = parse_int_option("rate", *text, 1, 240);
+  if (const auto text = arguments.value("rate")) rate = parse_int_option("rate", *text, static_cast<int>(kFpsSetting.min), static_cast<int>(kFpsSetting.max));
   std::optional<long> max_updates;
   if (const auto text = arguments.value("frames")) max_updates = parse_int_option("frames", *text, 1, 10'000'000);
   const bool redraw = !arguments.flag("no-tty") && ::isatty(STDOUT_FILENO) == 1;

@@ -41,10 +41,6 @@
 namespace lipsync::cli {
 namespace {
 
-static_assert(RenderOptions{}.fps == 30 && RenderOptions{}.lookahead == 7,
-              "update the defaults shown by --help");
-static_assert(SegmentOptions{}.closure_fraction == 0.6, "update the default shown by --help");
-
 constexpr OptionSpec kOptions[] = {
     kTrackOutputOption,
     kRenderFormatOption,

@@ -13,17 +13,25 @@ namespace lipsync::cli {
 
 // The options of these outputs, shared by the commands that render.
 inline constexpr OptionSpec kModelOption = {"model", 0, "FILE", "articulation model JSON (see 'lipsync model dump')", "the built-in model"};
+// A fraction has no compile-time decimal form here: its default is written out and checked.
+static_assert(kDefaultClosureFraction == 0.6, "update the default shown by --help for --closure-fraction");
 inline constexpr OptionSpec kClosureFractionOption = {"closure-fraction", 0, "F",
      "share of a /p b/ given to its closure when the input has no closure label, in (0, 1)", "0.6"};
 inline constexpr OptionSpec kFixedRateOption = {"fixed-rate", 0, "", "uniform grid only: no key frames at closures and short phonemes", "off"};
 inline constexpr OptionSpec kIncrementalOption = {"incremental", 0, "",
      "feed the phonemes one at a time through the streaming renderer (output identical to offline)", "off"};
-inline constexpr OptionSpec kLookaheadOption = {"lookahead", 0, "N",
-     "segments after a frame's own that must be known before it is computed, 0 to 7 (7 is exact)", "7"};
+inline constexpr OptionSpec kLookaheadOption = {
+    "lookahead", 0, "N",
+    kRangedHelp<"segments after a frame's own that must be known before it is computed", kLookaheadSetting,
+                " (the maximum is exact)">.view(),
+    kDefaultText<kLookaheadSetting>.view()};
 inline constexpr OptionSpec kMeshOption = {"mesh", 0, "FILE",
      "also simulate the physics face and write it as a glTF binary (.glb: mesh and morph-target animation)",
      "no mesh"};
-inline constexpr OptionSpec kMeshSubdivisionOption = {"mesh-subdivision", 0, "N", "face mesh subdivision level for --mesh, --video and --still, 0 to 2", "1"};
+inline constexpr OptionSpec kMeshSubdivisionOption = {
+    "mesh-subdivision", 0, "N",
+    kRangedHelp<"face mesh subdivision level for --mesh, --video and --still", kMeshSubdivisionSetting>.view(),
+    kDefaultText<kMeshSubdivisionSetting>.view()};
 inline constexpr OptionSpec kVideoOption = {"video", 0, "FILE", "also render a software preview of the face to FILE (.mp4, H.264; needs ffmpeg)",
      "no video"};
 inline constexpr OptionSpec kStillOption = {"still", 0, "FILE", "also render one preview frame of the face to FILE (.png; needs ffmpeg)", "no still"};

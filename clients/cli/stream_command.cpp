@@ -51,7 +51,9 @@ constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     kTierOption,
     kSampleRateOption,
     {"lookahead", 0, "N",
-     "segments after a frame's own that must be known before it is sent, 0 to 7 (7 is exact)", "7"},
+     kRangedHelp<"segments after a frame's own that must be known before it is sent", kLookaheadSetting,
+                 " (the maximum is exact)">.view(),
+     kDefaultText<kLookaheadSetting>.view()},
     {"timeout", 0, "S", "give up when the stream has not finished after S seconds, 1 to 86400", "3600"},
 }));
 

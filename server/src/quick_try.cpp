@@ -7,6 +7,7 @@
 #include "lipsync/formats.hpp"
 #include "lipsync/phone_set.hpp"
 #include "lipsync/segment.hpp"
+#include "lipsync/setting_ranges.hpp"
 
 namespace lipsync::server {
 namespace {
@@ -115,7 +116,7 @@ QuickTry plan_quick_try(const QueryParameters& query, std::string_view text, con
   const std::string* session = parameter(query, "session");
   settings.set_session(session && !session->empty() ? *session : random_session_name());
   if (const std::string* model = parameter(query, "model")) settings.set_model(*model);
-  settings.set_fps(static_cast<std::uint32_t>(integer_parameter(query, "fps", 1, 240, 30)));
+  settings.set_fps(static_cast<std::uint32_t>(integer_parameter(query, "fps", kFpsSetting.min, kFpsSetting.max, kFpsSetting.default_value)));
   const bool mesh = integer_parameter(query, "mesh", 0, 1, 0) == 1;
   settings.mutable_outputs()->mutable_mesh()->set_enabled(mesh);
   const std::string* visemes = parameter(query, "visemes");

@@ -22,6 +22,7 @@
 
 #include "lipsync/model.hpp"
 #include "lipsync/phone_set.hpp"
+#include "lipsync/setting_ranges.hpp"
 #include "../support/child_process.hpp"
 
 namespace lipsync {
@@ -106,12 +107,34 @@ TEST_F(CliTest, version_prints_one_line) {
   EXPECT_THAT(result.out, StartsWith("lipsync "));
 }
 
+// The entries of a --help text, by option ("--fps N"): each entry's first line plus its wrapped
+// continuation lines, joined with spaces.
+std::map<std::string, std::string> help_entries(const std::string& help) {
+  std::map<std::string, std::string> entries;
+  std::string* last = nullptr;
+  std::istringstream lines(help);
+  for (std::string line; std::getline(lines, line);) {
+    const auto text = line.find_first_not_of(' ');
+    if (text == std::string::npos) continue;
+    if (line[text] == '-') {
+      // "  -o, --output FILE  help": the key is the long form with its value name.
+      const auto long_form = line.find("--", text);
+      const auto gap = line.find("  ", long_form);
+      last = &entries[line.substr(long_form, gap == std::string::npos ? std::string::npos : gap - long_form)];
+      *last = line;
+    } else if (last && text > 10) {
+      *last += " " + line.substr(text);
+    }
+  }
+  return entries;
+}
+
 TEST_F(CliTest, render_help_documents_every_option_with_its_default) {
   const RunResult result = run({"render", "--help"});
   ASSERT_EQ(result.status, 0) << describe(result);
   EXPECT_THAT(result.out, StartsWith("Usage: lipsync render INPUT [options]\n"));
   const std::vector<std::pair<std::string, std::string>> options = {
-      {"-o, --output FILE", "stdout"},      {"--format FORMAT", "json"},
+      {"--output FILE", "stdout"},          {"--format FORMAT", "json"},
       {"--fps N", "30"},                    {"--model FILE", "the built-in model"},
       {"--phone-set NAME", "auto"},         {"--input-format FORMAT", "detected"},
       {"--tier NAME", "phones"},            {"--sample-rate HZ", "16000"},
@@ -119,29 +142,49 @@ TEST_F(CliTest, render_help_documents_every_option_with_its_default) {
       {"--incremental", "off"},             {"--lookahead N", "7"},
       {"--extended-shapes LETTERS", "GHX"},
   };
-  // One entry per option: its first line plus the wrapped continuation lines.
-  std::vector<std::string> entries;
-  std::istringstream lines(result.out);
-  for (std::string line; std::getline(lines, line);) {
-    const auto text = line.find_first_not_of(' ');
-    if (text == std::string::npos) continue;
-    if (line[text] == '-') {
-      entries.push_back(line);
-    } else if (!entries.empty() && text > 10) {
-      entries.back() += " " + line.substr(text);
-    }
-  }
-  std::map<std::string, std::string> line_of;
-  for (const std::string& entry : entries) {
-    for (const auto& [option, value] : options) {
-      if (entry.find(option + " ") != std::string::npos) line_of[option] = entry;
-    }
-  }
+  std::map<std::string, std::string> line_of = help_entries(result.out);
   for (const auto& [option, value] : options) {
     ASSERT_TRUE(line_of.count(option)) << option << " missing from:\n" << result.out;
     EXPECT_THAT(line_of[option], HasSubstr("(default: ")) << option;
     EXPECT_THAT(line_of[option], HasSubstr(value)) << option;
   }
+  EXPECT_THAT(line_of["--output FILE"], HasSubstr("-o, --output FILE"));
+}
+
+TEST_F(CliTest, help_quotes_the_ranges_and_defaults_that_the_checks_enforce) {
+  const auto range = [](const IntSetting& setting) {
+    return std::to_string(setting.min) + " to " + std::to_string(setting.max);
+  };
+  const auto with_default = [](const IntSetting& setting) {
+    return "(default: " + std::to_string(setting.default_value) + ")";
+  };
+  struct Expected {
+    std::vector<std::string> command;
+    std::string option;
+    IntSetting setting;
+  };
+  for (const Expected& expected : std::vector<Expected>{
+           {{"render"}, "--fps N", kFpsSetting},
+           {{"render"}, "--lookahead N", kLookaheadSetting},
+           {{"render"}, "--mesh-subdivision N", kMeshSubdivisionSetting},
+           {{"stream"}, "--lookahead N", kLookaheadSetting},
+           {{"loadtest"}, "--mesh-subdivision N", kMeshSubdivisionSetting},
+       }) {
+    std::vector<std::string> args = expected.command;
+    args.push_back("--help");
+    const RunResult result = run(args);
+    ASSERT_EQ(result.status, 0) << describe(result);
+    const auto entries = help_entries(result.out);
+    ASSERT_TRUE(entries.count(expected.option)) << expected.option << " missing from:\n" << result.out;
+    EXPECT_THAT(entries.at(expected.option), HasSubstr(range(expected.setting))) << args[0];
+    EXPECT_THAT(entries.at(expected.option), HasSubstr(with_default(expected.setting))) << args[0];
+  }
+  // The check behind --fps quotes the same range as its help.
+  const RunResult too_fast = run({"render", fixture("hello.json"), "--fps", std::to_string(kFpsSetting.max + 1)});
+  EXPECT_EQ(too_fast.status, 2);
+  EXPECT_THAT(too_fast.err, HasSubstr(range(kFpsSetting)));
+  const RunResult play_help = run({"play", "--help"});
+  EXPECT_THAT(help_entries(play_help.out)["--rate N"], HasSubstr(range(kFpsSetting)));
 }
 
 TEST_F(CliTest, every_command_has_help) {

@@ -15,6 +15,8 @@
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 
+#include "lipsync/setting_ranges.hpp"
+
 namespace lipsync::face {
 
 std::array<float, 3> part_colour(FacePart part) {
@@ -77,7 +79,7 @@ void sample_track(const Track& track, std::int64_t t_us, std::span<float> out) {
 
 FaceAnimation simulate_face_animation(const FaceMesh& mesh, const FaceRig& rig, const Track& track, int fps,
                                       FaceSolverParams params) {
-  if (fps < 1 || fps > 240) throw std::invalid_argument("simulate_face_animation: fps must be 1 to 240");
+  checked_fps(fps, "simulate_face_animation: fps");
   if (track.channel_count != rig.channel_count())
     throw std::invalid_argument("simulate_face_animation: the track's channels are not the rig's model's");
   const int substeps = (30 + fps - 1) / fps;  // the solver's step: 1/fps, or 1/30 s at most
