@@ -17,11 +17,21 @@
 // utterance-time order (each audio chunk before the frames at or after its
 // start), are then written back to back, as fast as the client reads: the
 // whole utterance is bounded by the text limit, so nothing waits on a pace.
+//
+// Who owns the reactor: gRPC until OnDone, and the speech thread while the
+// call's job is queued or running there. The one that lets go last deletes it.
+// Finish is called once (`finished_`), and never while a write is in flight.
+// At the drain deadline the call is aborted like Animate's and Subscribe's
+// streams (live_streams.hpp): ABORTED at once if it waits for the speech
+// thread, synthesises, or is between writes; after the write in flight
+// otherwise. A job whose call has ended (aborted, or finished after OnDone)
+// stops right after its synthesis and sends nothing.
 #include <algorithm>
 #include <atomic>
 #include <cstdint>
 #include <deque>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -29,6 +39,7 @@
 #include <spdlog/spdlog.h>
 
 #include "call_log.hpp"
+#include "live_streams.hpp"
 #include "lipsync/error.hpp"
 #include "lipsync/renderer.hpp"
 #include "lipsync/speech/audio.hpp"
@@ -90,7 +101,8 @@ grpc::Status speak_settings(const v1::AnimationSettings& requested, v1::Animatio
   return grpc::Status::OK;
 }
 
-class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::SpeakResponse>> {
+class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::SpeakResponse>>,
+                           public AbortableStream {
  public:
   SpeakReactor(LipSyncService& service, grpc::CallbackServerContext* context, const v1::SpeakRequest& request)
       : service_(service), context_(context), request_(request), log_("Speak", *context, &service.metrics()) {
@@ -100,6 +112,7 @@ class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::Sp
       return;
     }
     admitted_ = true;
+    service_.live_streams().add(*this);
     // The tenant (tenants.hpp): its key, its streams, its session and phoneme rate below.
     if (status = service_.tenants().authenticate(*context_, "Speak", caller_); status.ok()) {
       log_.set_tenant(caller_.tenant());
@@ -114,6 +127,10 @@ class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::Sp
 
   void OnWriteDone(bool ok) override {
     const HandoffScope handoff = reaction();
+    {
+      std::lock_guard lock(mutex_);
+      writing_ = false;
+    }
     if (!ok) {
       finish(grpc::Status(grpc::StatusCode::CANCELLED, "the client stopped reading"));
       return;
@@ -128,10 +145,34 @@ class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::Sp
 
   void OnDone() override {
     last_reaction();
-    log_.ended(cancelled_ ? cancelled_status() : final_status_,
-               {{"samples", static_cast<std::uint64_t>(samples_sent_)}, {"frames", static_cast<std::uint64_t>(frames_sent_)}});
+    if (admitted_) service_.live_streams().remove(*this);
+    bool last_owner = false;
+    grpc::Status status;
+    {
+      std::lock_guard lock(mutex_);
+      status = final_status_;
+      done_ = true;
+      last_owner = !speech_thread_owns_;
+    }
+    // The counts are atomics: an aborted call's job may still be rendering.
+    log_.ended(cancelled_ ? cancelled_status() : status,
+               {{"samples", samples_sent_.load()}, {"frames", frames_sent_.load()}});
     if (admitted_) service_.admission().release_stream();
-    delete this;
+    if (last_owner) delete this;
+  }
+
+  /// At the drain deadline (live_streams.hpp): ends the call with `status` now, or,
+  /// with a write in flight, when it completes; queued messages are not sent.
+  void abort_stream(const grpc::Status& status) override {
+    {
+      std::lock_guard lock(mutex_);
+      if (finished_) return;
+      abort_status_ = status;
+      if (writing_) return;  // OnWriteDone finishes with it
+      finished_ = true;
+      final_status_ = status;
+    }
+    Finish(status);
   }
 
  private:
@@ -157,8 +198,14 @@ class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::Sp
     }
     log_.set_session(session_name_);
     log_.started_line({{"text_bytes", static_cast<std::uint64_t>(request_.text().size())}});
-    // From here on the speech thread owns the call until its first write or its Finish.
-    return service_.speech_thread().post([this] { run(); });
+    // The request is gRPC's and goes at OnDone, which may come before the job ends.
+    text_ = request_.text();
+    // From here on the speech thread shares the reactor (see the top of the file).
+    std::lock_guard lock(mutex_);
+    speech_thread_owns_ = true;
+    grpc::Status posted = service_.speech_thread().post([this] { run(); });
+    if (!posted.ok()) speech_thread_owns_ = false;
+    return posted;
   }
 
   /// On the speech thread: synthesis, rendering, then the first write (or Finish).
@@ -166,9 +213,24 @@ class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::Sp
     if (cancelled_) {
       fail_session("producer disconnected: the Speak call was cancelled");
       finish(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled before synthesis"));
-      return;
+    } else if (ended()) {
+      fail_session("producer failed: " + abort_status().error_message());  // aborted while it waited
+    } else if (run_step([this] { return speak(); })) {
+      write_next();
     }
-    if (run_step([this] { return speak(); })) write_next();
+    bool last_owner = false;
+    {
+      std::lock_guard lock(mutex_);
+      speech_thread_owns_ = false;
+      last_owner = done_;
+    }
+    if (last_owner) delete this;
+  }
+
+  /// Whether Finish was called (the call was aborted, or failed).
+  bool ended() {
+    std::lock_guard lock(mutex_);
+    return finished_;
   }
 
   /// Runs `step`; a failure (INTERNAL if it throws: nothing may escape a reaction or the
@@ -190,12 +252,13 @@ class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::Sp
   grpc::Status speak() {
     speech::Synthesis speech;
     try {
-      speech = speech::synthesize(request_.text(), options_);
+      speech = speech::synthesize(text_, options_);
     } catch (const InputError& error) {
       // synthesize refuses a voice espeak-ng does not know, or a text it finds nothing to say in.
       const bool voice = std::string(error.what()).find("unknown voice") != std::string::npos;
       return invalid((voice ? "voice: " : "text: ") + std::string(error.what()));
     }
+    if (ended()) return abort_status();  // aborted while it spoke: nothing more to do
     if (auto status = caller_.take_phonemes(speech.phonemes.intervals.size()); !status.ok()) return status;
     audio_ = std::move(speech.audio);
     speech::cover_audio(speech.phonemes, audio_.duration_us(), plan_.engine.render.fps);
@@ -289,18 +352,42 @@ class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::Sp
     }
   }
 
-  /// Writes the next prepared message, or finishes with OK after the last.
+  /// Writes the next prepared message, or finishes: with OK after the last, or with
+  /// the drain's status once the call was aborted.
   void write_next() {
-    if (next_ < responses_.size()) {
-      StartWrite(&responses_[next_++]);
+    const v1::SpeakResponse* message = nullptr;
+    grpc::Status end = grpc::Status::OK;
+    {
+      std::lock_guard lock(mutex_);
+      if (finished_) return;
+      if (abort_status_) {
+        end = *abort_status_;
+      } else if (next_ < responses_.size()) {
+        message = &responses_[next_++];
+        writing_ = true;
+      }
+    }
+    if (message) {
+      StartWrite(message);
     } else {
-      finish(grpc::Status::OK);
+      finish(end);
     }
   }
 
+  /// Finishes the call with `status` unless it was finished already.
   void finish(const grpc::Status& status) {
-    final_status_ = status;
+    {
+      std::lock_guard lock(mutex_);
+      if (finished_) return;
+      finished_ = true;
+      final_status_ = status;
+    }
     Finish(status);
+  }
+
+  grpc::Status abort_status() {
+    std::lock_guard lock(mutex_);
+    return abort_status_.value_or(final_status_);
   }
 
   void fail_session(const std::string& reason) {
@@ -315,6 +402,14 @@ class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::Sp
   Caller caller_;  // the tenant; its quotas are held until the reactor is deleted
   QuotaHold stream_hold_, session_hold_;
   std::atomic<bool> cancelled_ = false;
+  // Who may still touch the reactor, and where the call stands (see the top of the file).
+  std::mutex mutex_;
+  bool speech_thread_owns_ = false;
+  bool done_ = false;      // OnDone has run
+  bool finished_ = false;  // Finish was called
+  bool writing_ = false;   // a StartWrite has not completed
+  std::optional<grpc::Status> abort_status_;
+  std::string text_;
   speech::SynthesisOptions options_;
   Plan plan_;
   std::shared_ptr<Session> session_;
@@ -325,8 +420,8 @@ class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::Sp
   std::deque<v1::SpeakResponse> responses_;
   std::size_t next_ = 0;
   StreamEncoder encoder_;
-  std::uint64_t frames_sent_ = 0;
-  std::uint64_t samples_sent_ = 0;
+  std::atomic<std::uint64_t> frames_sent_ = 0;
+  std::atomic<std::uint64_t> samples_sent_ = 0;
   grpc::Status final_status_;
 };
 

@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <future>
 #include <string>
 #include <thread>
 #include <vector>
@@ -25,6 +26,7 @@
 #include "lipsync/speech/synthesizer.hpp"
 #include "lipsync/v1/lipsync.grpc.pb.h"
 #include "../support/child_process.hpp"
+#include "../support/prometheus_text.hpp"
 #include "../support/server_harness.hpp"
 
 namespace lipsync::server {
@@ -241,6 +243,38 @@ TEST_F(SpeakTest, a_full_server_refuses_with_resource_exhausted) {
   const SpeakStream refused = speak_raw(*stub_, speak_request("Hello."));
   EXPECT_EQ(refused.status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << refused.status.error_message();
   EXPECT_THAT(refused.status.error_message(), HasSubstr("--max-streams"));
+}
+
+TEST_F(SpeakTest, calls_speaking_or_waiting_for_the_synthesiser_at_the_drain_deadline_get_aborted) {
+  ServerConfig config;
+  config.metrics_listen = "127.0.0.1:0";
+  start(config);
+  // The speech thread speaks one text at a time, and each of these (4,000 bytes read slowly: five
+  // minutes of speech) takes espeak-ng about a second: at a 200 ms deadline the first call is
+  // still speaking and the others still wait for the synthesiser.
+  v1::SpeakRequest request;
+  while (request.text().size() < 4000) request.mutable_text()->append("Papa parked the car by the ferry, and Bob waved. ");
+  request.set_words_per_minute(80);
+  constexpr int kCalls = 3;
+  std::vector<std::future<SpeakStream>> calls;
+  for (int i = 0; i < kCalls; ++i) {
+    v1::SpeakRequest named = request;
+    named.mutable_settings()->set_session("spoken-" + std::to_string(i));
+    calls.push_back(std::async(std::launch::async, [this, named] { return speak_raw(*stub_, named); }));
+  }
+  // Each call opens its session before it queues for the synthesiser.
+  const auto live_sessions = [&] {
+    const Exposition metrics = parse_exposition(http_get(server_->metrics_address(), "/metrics"));
+    return metrics.at(R"(lipsyncd_sessions{state="live",tenant=""})");
+  };
+  ASSERT_TRUE(eventually([&] { return live_sessions() == kCalls; }));
+  server_->shutdown(std::chrono::milliseconds(200));
+  for (int i = 0; i < kCalls; ++i) {
+    const SpeakStream stream = calls[static_cast<std::size_t>(i)].get();
+    EXPECT_EQ(stream.status.error_code(), grpc::StatusCode::ABORTED) << i << ": " << stream.status.error_message();
+    EXPECT_THAT(stream.status.error_message(), HasSubstr("--drain-deadline-ms=200")) << i;
+    EXPECT_TRUE(stream.messages.empty()) << i << ": nothing is sent once the call is aborted";
+  }
 }
 
 TEST_F(SpeakTest, lipsync_speak_writes_what_lipsync_say_writes) {
