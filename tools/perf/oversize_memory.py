@@ -50,8 +50,10 @@ def start_server(binary, flags):
 
 
 def send_one(address, message_bytes, outcomes):
+    # A connection of its own per stream (gRPC Python would otherwise share one subchannel).
     channel = grpc.insecure_channel(address, options=[("grpc.max_send_message_length", -1),
-                                                       ("grpc.max_receive_message_length", -1)])
+                                                       ("grpc.max_receive_message_length", -1),
+                                                       ("grpc.use_local_subchannel_pool", 1)])
     stub = lipsync_pb2_grpc.LipSyncStub(channel)
     request = lipsync_pb2.AnimateRequest()
     request.settings.model = "x" * message_bytes
