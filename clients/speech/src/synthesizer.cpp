@@ -6,22 +6,38 @@
 // same text spoken twice in one process gives audio a few samples apart, with
 // phoneme times shifted to match. espeak_Terminate does not reset them, and a
 // second espeak_Initialize after it hangs (espeak-ng 1.51). So every synthesis
-// runs in a child process forked for it, in which espeak-ng starts fresh: the
-// audio and the timings depend on the text and the options alone, whichever
-// process asks and whatever it spoke before (`lipsync say`, a long-running
-// lipsyncd, a test). The parent never initialises espeak-ng itself. The child
-// only synthesises, writes its result to a pipe and _exits (no destructors, no
-// atexit handlers run in it); a fork costs a few milliseconds beside the
-// synthesis's tens.
+// runs in a process of its own, in which espeak-ng starts fresh: the audio and
+// the timings depend on the text and the options alone, whichever process asks
+// and whatever it spoke before (`lipsync say`, a long-running lipsyncd, a test).
+// The asking process never initialises espeak-ng itself.
+//
+// That process is the running program started again (posix_spawn of
+// /proc/self/exe), not a fork that goes on without exec: the asker is often
+// multi-threaded (a gRPC server), and a forked child may only make
+// async-signal-safe calls, for any other thread may have held a lock (the
+// allocator's, stdio's, the sanitizers') at the moment of the fork. A forked
+// child that synthesised hung on such a lock under AddressSanitizer. The new
+// process knows it is a synthesis worker by LIPSYNC_ESPEAK_WORKER=1 in its
+// environment: a constructor of this file, which every program that can ask
+// for a synthesis links, sees it before main, reads the request from its
+// standard input (a memfd the asker wrote), writes the result to its standard
+// output (a pipe) and _exits, so none of the program's own start-up runs.
+// Starting a process costs a few milliseconds beside the synthesis's tens.
 #include "lipsync/speech/synthesizer.hpp"
 
 #include <espeak-ng/speak_lib.h>
 #include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/mman.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
+#include <chrono>
+#include <cstdlib>
 #include <cstring>
 #include <mutex>
 #include <stdexcept>
@@ -202,10 +218,48 @@ Synthesis decode(std::string_view bytes) {
   return result;
 }
 
-/// In the child: synthesises, writes the encoded result (or error) to `fd`, and _exits.
-[[noreturn]] void run_child(int fd, std::string_view text, const SynthesisOptions& options) {
+// --- the request through the worker's standard input: the text, the voice, the rate.
+
+std::string encode_request(std::string_view text, const SynthesisOptions& options) {
+  std::string out;
+  put_string(out, std::string(text));
+  put_string(out, options.voice);
+  put(out, options.words_per_minute);
+  return out;
+}
+
+constexpr const char* kWorkerVariable = "LIPSYNC_ESPEAK_WORKER";
+
+/// Writes all of `bytes` to `fd`; false on an error.
+bool write_all(int fd, std::string_view bytes) {
+  while (!bytes.empty()) {
+    const ssize_t n = ::write(fd, bytes.data(), bytes.size());
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return false;
+    bytes.remove_prefix(static_cast<std::size_t>(n));
+  }
+  return true;
+}
+
+/// In the worker: reads the request from standard input, synthesises, writes the encoded
+/// result (or the error) to standard output, and _exits.
+[[noreturn]] void serve_one_synthesis() {
   std::string out;
   try {
+    std::string request;
+    char buffer[65536];
+    for (;;) {
+      const ssize_t n = ::read(STDIN_FILENO, buffer, sizeof buffer);
+      if (n < 0 && errno == EINTR) continue;
+      if (n < 0) throw std::runtime_error("the synthesis worker cannot read its request: " + std::string(std::strerror(errno)));
+      if (n == 0) break;
+      request.append(buffer, static_cast<std::size_t>(n));
+    }
+    Decoder in(request);
+    const std::string text = in.get_string();
+    SynthesisOptions options;
+    options.voice = in.get_string();
+    options.words_per_minute = in.get<int>();
     out = encode(synthesize_here(text, options));
   } catch (const InputError& error) {
     out = std::string(1, kInputError);
@@ -214,45 +268,110 @@ Synthesis decode(std::string_view bytes) {
     out = std::string(1, kOtherError);
     put_string(out, error.what());
   }
-  for (std::size_t written = 0; written < out.size();) {
-    const ssize_t n = ::write(fd, out.data() + written, out.size() - written);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) ::_exit(1);
-    written += static_cast<std::size_t>(n);
-  }
-  ::_exit(0);
+  ::_exit(write_all(STDOUT_FILENO, out) ? 0 : 1);
 }
 
-/// Forks a child that synthesises `text` with a fresh espeak-ng and returns its result.
-Synthesis synthesize_in_child(std::string_view text, const SynthesisOptions& options) {
+/// Before main: a process started as a synthesis worker does only that.
+[[gnu::constructor]] void become_a_synthesis_worker_if_asked() {
+  const char* worker = std::getenv(kWorkerVariable);
+  if (worker != nullptr && std::string_view(worker) == "1") serve_one_synthesis();
+}
+
+/// How long a worker may take before it is killed: generous (espeak-ng speaks a
+/// 4,096-byte text in about a second), so that only a hung worker meets it.
+std::chrono::milliseconds worker_deadline(std::size_t text_bytes) {
+  return std::chrono::milliseconds(30'000 + 10 * static_cast<std::int64_t>(text_bytes));
+}
+
+/// Closes a file descriptor when it goes out of scope.
+struct FileDescriptor {
+  int fd = -1;
+  FileDescriptor() = default;
+  explicit FileDescriptor(int fd_in) : fd(fd_in) {}
+  FileDescriptor(const FileDescriptor&) = delete;
+  FileDescriptor& operator=(const FileDescriptor&) = delete;
+  ~FileDescriptor() { reset(); }
+  void reset() {
+    if (fd >= 0) ::close(fd);
+    fd = -1;
+  }
+};
+
+std::runtime_error system_error(const std::string& what) {
+  return std::runtime_error("espeak-ng: " + what + ": " + std::strerror(errno));
+}
+
+/// Starts this program again as a synthesis worker, hands it the request and returns its result.
+Synthesis synthesize_in_worker(std::string_view text, const SynthesisOptions& options) {
+  // The request in a memfd: written whole before the worker starts, so the asker never
+  // blocks on (or gets SIGPIPE from) a worker that dies without reading.
+  FileDescriptor request(::memfd_create("lipsync-espeak-request", MFD_CLOEXEC));
+  if (request.fd < 0) throw system_error("cannot create the synthesis request");
+  if (!write_all(request.fd, encode_request(text, options)) || ::lseek(request.fd, 0, SEEK_SET) != 0) {
+    throw system_error("cannot write the synthesis request");
+  }
   int fds[2];
-  if (::pipe2(fds, O_CLOEXEC) != 0) throw std::runtime_error("espeak-ng: cannot create a pipe: " + std::string(std::strerror(errno)));
-  const pid_t pid = ::fork();
-  if (pid < 0) {
-    const int error = errno;
-    ::close(fds[0]);
-    ::close(fds[1]);
-    throw std::runtime_error("espeak-ng: cannot fork the synthesis process: " + std::string(std::strerror(error)));
+  if (::pipe2(fds, O_CLOEXEC) != 0) throw system_error("cannot create a pipe");
+  FileDescriptor answer_read(fds[0]);
+  FileDescriptor answer_write(fds[1]);
+
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_adddup2(&actions, request.fd, STDIN_FILENO);
+  posix_spawn_file_actions_adddup2(&actions, answer_write.fd, STDOUT_FILENO);
+  std::vector<std::string> environment;
+  for (char** variable = environ; *variable != nullptr; ++variable) {
+    if (!std::string_view(*variable).starts_with(std::string(kWorkerVariable) + "=")) environment.emplace_back(*variable);
   }
-  if (pid == 0) {
-    ::close(fds[0]);
-    run_child(fds[1], text, options);
+  environment.push_back(std::string(kWorkerVariable) + "=1");
+  std::vector<char*> envp;
+  for (std::string& variable : environment) envp.push_back(variable.data());
+  envp.push_back(nullptr);
+  char name[] = "lipsync-espeak-worker";
+  char* argv[] = {name, nullptr};
+  pid_t pid = 0;
+  const int spawned = ::posix_spawn(&pid, "/proc/self/exe", &actions, nullptr, argv, envp.data());
+  posix_spawn_file_actions_destroy(&actions);
+  if (spawned != 0) {
+    errno = spawned;
+    throw system_error("cannot start the synthesis process");
   }
-  ::close(fds[1]);
+  answer_write.reset();
+  request.reset();
+
   std::string answer;
+  const auto deadline = std::chrono::steady_clock::now() + worker_deadline(text.size());
+  bool timed_out = false;
   char buffer[65536];
   for (;;) {
-    const ssize_t n = ::read(fds[0], buffer, sizeof buffer);
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) {
+      timed_out = true;
+      break;
+    }
+    pollfd readable{answer_read.fd, POLLIN, 0};
+    const int ready = ::poll(&readable, 1, static_cast<int>(left.count()));
+    if (ready < 0 && errno == EINTR) continue;
+    if (ready == 0) continue;  // the deadline is checked above
+    const ssize_t n = ::read(answer_read.fd, buffer, sizeof buffer);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) break;
     answer.append(buffer, static_cast<std::size_t>(n));
   }
-  ::close(fds[0]);
+  if (timed_out) ::kill(pid, SIGKILL);
   int status = 0;
   while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
   }
+  if (timed_out) {
+    throw std::runtime_error("espeak-ng: the synthesis process did not answer within " +
+                             std::to_string(worker_deadline(text.size()).count() / 1000) + " s and was killed");
+  }
   if (WIFSIGNALED(status)) {
     throw std::runtime_error("espeak-ng: the synthesis process died with signal " + std::to_string(WTERMSIG(status)));
+  }
+  if (answer.empty()) {
+    throw std::runtime_error("espeak-ng: the synthesis process ended (exit status " +
+                             std::to_string(WEXITSTATUS(status)) + ") without an answer");
   }
   return decode(answer);
 }
@@ -267,7 +386,7 @@ Synthesis synthesize(std::string_view text, const SynthesisOptions& options) {
                                     " words per minute is out of range (80 to 450)");
   }
   const std::lock_guard lock(espeak_mutex);
-  return synthesize_in_child(text, options);
+  return synthesize_in_worker(text, options);
 }
 
 }  // namespace lipsync::speech

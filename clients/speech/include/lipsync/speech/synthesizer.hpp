@@ -10,7 +10,8 @@
 // espeak-ng keeps its synthesis state (voice, parameters, output buffers, the
 // callback, and wave-generator state that carries from one utterance to the next)
 // in process-wide globals and is not re-entrant. synthesize() therefore runs each
-// synthesis in a child process forked for it, where espeak-ng starts fresh (so the
+// synthesis in a process of its own (the running program started again, with
+// exec: safe in a multi-threaded server), where espeak-ng starts fresh (so the
 // result depends on the text and options alone, not on what the process spoke
 // before), and holds one global mutex for a whole synthesis: calls from several
 // threads are safe but run one at a time.
@@ -34,9 +35,10 @@ struct Synthesis {
   LabeledUtterance phonemes;   ///< phone_set "espeak"; covers [0, audio end] without gaps
 };
 
-/// Speaks `text` (UTF-8) in a fresh espeak-ng (a child process). Throws InputError
+/// Speaks `text` (UTF-8) in a fresh espeak-ng (a process of its own). Throws InputError
 /// (source "espeak-ng") for an empty text, an unknown voice or a failed synthesis;
-/// std::runtime_error when the child process cannot be started or dies.
+/// std::runtime_error when the process cannot be started, dies, or has not answered
+/// after 30 s plus 10 ms per byte of text (it is then killed).
 Synthesis synthesize(std::string_view text, const SynthesisOptions& options = {});
 
 }  // namespace lipsync::speech
