@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <future>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -99,7 +100,8 @@ class ViewerTest : public LiveServerTest {
     return {response.result_int(), std::string(response[http::field::content_type]), response.body()};
   }
 
-  WebSocketReply follow(const std::string& target) {
+  /// Reads until the server closes; `first_binary`, if given, is set when the first binary message arrives.
+  WebSocketReply follow(const std::string& target, std::promise<void>* first_binary = nullptr) {
     websocket::stream<tcp::socket> ws(connect_http());
     ws.handshake(http_host_, target);
     WebSocketReply reply;
@@ -110,6 +112,7 @@ class ViewerTest : public LiveServerTest {
       if (error == websocket::error::closed) break;
       if (error) throw beast::system_error(error);
       (ws.got_binary() ? reply.binary : reply.text).push_back(beast::buffers_to_string(buffer.data()));
+      if (first_binary && ws.got_binary() && reply.binary.size() == 1) first_binary->set_value();
     }
     reply.close = ws.reason();
     return reply;
@@ -286,11 +289,15 @@ TEST_F(ViewerTest, follower_hears_aborted_when_the_producer_goes_away) {
   grpc::ClientContext context;
   auto producer = open_session(context, "waiting");
   WebSocketReply reply;
-  std::thread follower([&] { reply = follow("/ws?session=waiting"); });
-  ASSERT_TRUE(eventually([&] { return server_->active_streams() == 2; }));  // producer + the follower's Subscribe
+  std::promise<void> header_arrived;
+  std::thread follower([&] { reply = follow("/ws?session=waiting", &header_arrived); });
+  // The producer goes away once the follower has the header (the session's first message).
+  const bool header_first =
+      header_arrived.get_future().wait_for(std::chrono::seconds(10)) == std::future_status::ready;
   context.TryCancel();
   producer->Finish();
   follower.join();
+  EXPECT_TRUE(header_first);
   EXPECT_EQ(reply.binary.size(), 1u);  // the header
   EXPECT_EQ(reply.close.code, 4000 + grpc::StatusCode::ABORTED);
   EXPECT_THAT(std::string(reply.close.reason.c_str()), ::testing::HasSubstr("producer"));
