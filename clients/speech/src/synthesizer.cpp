@@ -342,6 +342,7 @@ Synthesis synthesize_in_worker(std::string_view text, const SynthesisOptions& op
   std::string answer;
   const auto deadline = std::chrono::steady_clock::now() + worker_deadline(text.size());
   bool timed_out = false;
+  int read_error = 0;
   char buffer[65536];
   for (;;) {
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
@@ -353,18 +354,23 @@ Synthesis synthesize_in_worker(std::string_view text, const SynthesisOptions& op
     const int ready = ::poll(&readable, 1, static_cast<int>(left.count()));
     if (ready < 0 && errno == EINTR) continue;
     if (ready == 0) continue;  // the deadline is checked above
-    const ssize_t n = ::read(answer_read.fd, buffer, sizeof buffer);
+    const ssize_t n = ready < 0 ? -1 : ::read(answer_read.fd, buffer, sizeof buffer);
     if (n < 0 && errno == EINTR) continue;
+    if (n < 0) read_error = errno;  // the worker is killed below: nothing more can come
     if (n <= 0) break;
     answer.append(buffer, static_cast<std::size_t>(n));
   }
-  if (timed_out) ::kill(pid, SIGKILL);
+  if (timed_out || read_error != 0) ::kill(pid, SIGKILL);
   int status = 0;
   while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
   }
   if (timed_out) {
     throw std::runtime_error("espeak-ng: the synthesis process did not answer within " +
                              std::to_string(worker_deadline(text.size()).count() / 1000) + " s and was killed");
+  }
+  if (read_error != 0) {
+    errno = read_error;
+    throw system_error("cannot read the synthesis process's answer");
   }
   if (WIFSIGNALED(status)) {
     throw std::runtime_error("espeak-ng: the synthesis process died with signal " + std::to_string(WTERMSIG(status)));
