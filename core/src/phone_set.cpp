@@ -56,14 +56,21 @@ PhoneSet PhoneSet::from_json(std::string_view json_text, std::string_view source
                                                    "case_sensitive", "ignore_characters", "phones"};
     if (std::find(known.begin(), known.end(), key) == known.end()) fail("unknown field '" + key + "'");
   }
-  if (root.value("format", "") != "lipsync-phone-set") fail("field 'format' must be \"lipsync-phone-set\"");
+  // Types are checked before values are read: json::value() throws a type_error, not an
+  // InputError, for a field of another type ("format": true).
+  if (!root.contains("format") || root["format"] != "lipsync-phone-set") {
+    fail("field 'format' must be \"lipsync-phone-set\"");
+  }
   if (!root.contains("version") || root["version"] != 1) fail("field 'version' must be 1");
   if (!root.contains("name") || !root["name"].is_string()) fail("field 'name' must be a string");
   if (!root.contains("phones") || !root["phones"].is_object()) fail("field 'phones' must be an object");
 
   PhoneSet set;
   set.name_ = root["name"].get<std::string>();
-  set.description_ = root.value("description", "");
+  if (root.contains("description")) {
+    if (!root["description"].is_string()) fail("field 'description' must be a string");
+    set.description_ = root["description"].get<std::string>();
+  }
   if (root.contains("case_sensitive")) {
     if (!root["case_sensitive"].is_boolean()) fail("field 'case_sensitive' must be true or false");
     set.case_sensitive_ = root["case_sensitive"].get<bool>();

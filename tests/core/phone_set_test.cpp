@@ -21,6 +21,24 @@ TEST(PhoneSet, ANumberThatOverflowsIsAnInputErrorNotACrash) {
   EXPECT_THROW(PhoneSet::from_json(R"({"format": 1E999999})", "big.json", model()), InputError);
 }
 
+// Found by fuzz_phone_set_from_json in CI (2026-11-24): json::value() threw a type_error, not
+// an InputError, for a "format" or "description" of another type than a string.
+TEST(PhoneSet, AFieldOfTheWrongTypeIsAnInputErrorNamingIt) {
+  const auto message_for = [](const std::string& json) {
+    try {
+      PhoneSet::from_json(json, "typed.json", model());
+    } catch (const InputError& error) {
+      return std::string(error.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_THAT(message_for(R"({"format": true, "version": 1, "name": "x", "phones": {}})"),
+              ::testing::HasSubstr("field 'format'"));
+  EXPECT_THAT(message_for(R"({"format": "lipsync-phone-set", "version": 1, "name": "x", "description": 5,
+                              "phones": {}})"),
+              ::testing::HasSubstr("field 'description' must be a string"));
+}
+
 TEST(PhoneSet, EveryBuiltinSetLoadsAgainstTheBuiltinModel) {
   const auto sets = PhoneSet::builtin_all(model());
   std::vector<std::string> names;
