@@ -34,14 +34,14 @@
 #include <spdlog/spdlog.h>
 
 #include "call_log.hpp"
-#include "live_streams.hpp"
 #include "lipsync/excerpt.hpp"
 #include "lipsync/renderer.hpp"
+#include "lipsync/tsan_handoff.hpp"
+#include "live_streams.hpp"
 #include "outbox.hpp"
 #include "phoneme_input.hpp"
 #include "plan.hpp"
 #include "service.hpp"
-#include "tsan_handoff.hpp"
 #include "wire.hpp"
 
 namespace lipsync::server {

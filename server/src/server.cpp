@@ -27,11 +27,11 @@
 #include "call_log.hpp"
 #include "catalog.hpp"
 #include "http_viewer.hpp"
+#include "lipsync/tsan_handoff.hpp"
 #include "listener.hpp"
 #include "metrics_http.hpp"
 #include "service.hpp"
 #include "tls.hpp"
-#include "tsan_handoff.hpp"
 
 namespace lipsync::server {
 namespace {

@@ -39,15 +39,15 @@
 #include <spdlog/spdlog.h>
 
 #include "call_log.hpp"
-#include "live_streams.hpp"
 #include "lipsync/error.hpp"
 #include "lipsync/renderer.hpp"
 #include "lipsync/speech/audio.hpp"
 #include "lipsync/speech/synthesizer.hpp"
+#include "lipsync/tsan_handoff.hpp"
+#include "live_streams.hpp"
 #include "phoneme_input.hpp"
 #include "plan.hpp"
 #include "service.hpp"
-#include "tsan_handoff.hpp"
 #include "wire.hpp"
 
 namespace lipsync::server {

@@ -18,10 +18,10 @@
 #include <spdlog/spdlog.h>
 
 #include "call_log.hpp"
+#include "lipsync/tsan_handoff.hpp"
 #include "live_streams.hpp"
 #include "outbox.hpp"
 #include "service.hpp"
-#include "tsan_handoff.hpp"
 
 namespace lipsync::server {
 namespace {

@@ -15,7 +15,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include "call_log.hpp"
-#include "tsan_handoff.hpp"
+#include "lipsync/tsan_handoff.hpp"
 
 namespace lipsync::server {
 

@@ -14,6 +14,8 @@
 #include <sstream>
 #include <utility>
 
+#include "lipsync/tsan_handoff.hpp"
+
 namespace lipsync::client {
 namespace {
 
@@ -267,7 +269,7 @@ class CallCompletion {
   grpc::Status status_;
 };
 
-class AnimateReactor : public grpc::ClientBidiReactor<v1::AnimateRequest, v1::TrackMessage> {
+class AnimateReactor : public HandoffReactor<grpc::ClientBidiReactor<v1::AnimateRequest, v1::TrackMessage>> {
  public:
   AnimateReactor(v1::LipSync::Stub& stub, const v1::AnimationSettings& settings, MessageHandler handler,
                  DoneHandler on_done, std::chrono::milliseconds timeout, const std::string& api_key)
@@ -315,6 +317,7 @@ class AnimateReactor : public grpc::ClientBidiReactor<v1::AnimateRequest, v1::Tr
   bool done() const { return completion_.done(); }
 
   void OnReadDone(bool ok) override {
+    const HandoffScope handoff = reaction();
     if (ok && guard_.deliver(incoming_, context_)) {
       StartRead(&incoming_);
       return;
@@ -329,6 +332,7 @@ class AnimateReactor : public grpc::ClientBidiReactor<v1::AnimateRequest, v1::Tr
   }
 
   void OnWriteDone(bool ok) override {
+    const HandoffScope handoff = reaction();
     Action action;
     {
       std::lock_guard lock(mutex_);
@@ -340,7 +344,10 @@ class AnimateReactor : public grpc::ClientBidiReactor<v1::AnimateRequest, v1::Tr
   }
 
   // Last: a waiter may destroy this reactor as soon as the call is complete.
-  void OnDone(const grpc::Status& status) override { completion_.complete(guard_.adjust(status)); }
+  void OnDone(const grpc::Status& status) override {
+    last_reaction();
+    completion_.complete(guard_.adjust(status));
+  }
 
  private:
   enum class Action { none, write, close_and_release, release };
@@ -404,7 +411,7 @@ class AnimateReactor : public grpc::ClientBidiReactor<v1::AnimateRequest, v1::Tr
   bool aborted_ = false;
 };
 
-class SubscribeReactor : public grpc::ClientReadReactor<v1::TrackMessage> {
+class SubscribeReactor : public HandoffReactor<grpc::ClientReadReactor<v1::TrackMessage>> {
  public:
   SubscribeReactor(v1::LipSync::Stub& stub, const v1::SubscribeRequest& request, MessageHandler handler,
                    DoneHandler on_done, std::chrono::milliseconds timeout, const std::string& api_key)
@@ -425,11 +432,15 @@ class SubscribeReactor : public grpc::ClientReadReactor<v1::TrackMessage> {
   bool done() const { return completion_.done(); }
 
   void OnReadDone(bool ok) override {
+    const HandoffScope handoff = reaction();
     if (ok && guard_.deliver(incoming_, context_)) StartRead(&incoming_);
   }
 
   // Last: a waiter may destroy this reactor as soon as the call is complete.
-  void OnDone(const grpc::Status& status) override { completion_.complete(guard_.adjust(status)); }
+  void OnDone(const grpc::Status& status) override {
+    last_reaction();
+    completion_.complete(guard_.adjust(status));
+  }
 
  private:
   grpc::ClientContext context_;

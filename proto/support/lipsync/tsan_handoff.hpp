@@ -1,15 +1,23 @@
 // Happens-before edges that gRPC's callback API guarantees, stated for
-// ThreadSanitizer. Debian's gRPC and abseil are not compiled with TSan, so the
-// synchronisation by which gRPC hands a reactor from one of its threads to
-// another (its completion queues, abseil's Mutex, atomics) is invisible, and
-// every field a reactor touches in two reactions looks raced (docs/security.md,
+// ThreadSanitizer; used by the server's reactors and the client library's.
+// Debian's gRPC and abseil are not compiled with TSan, so the synchronisation
+// by which gRPC hands a reactor from one of its threads to another (its
+// completion queues, abseil's Mutex, atomics) is invisible, and every field a
+// reactor touches in two reactions looks raced (docs/security.md,
 // "Sanitizers"). Each edge below is one promise of the API, and nothing more:
 //
-// - An operation started on a reactor (StartSendInitialMetadata, StartRead,
-//   StartWrite, Finish) happens before the reaction that reports its
-//   completion: what the reactor wrote before starting it is visible there.
-//   HandoffReactor releases the reactor before each of them, and a reaction
-//   acquires it on entry (HandoffScope).
+// - An operation started on a reactor (StartCall, StartSendInitialMetadata,
+//   StartRead, StartWrite, StartWritesDone, Finish) happens before the
+//   reaction that reports its completion: what the reactor wrote before
+//   starting it is visible there. HandoffReactor releases the reactor before
+//   each of them, and a reaction acquires it on entry (HandoffScope). The same
+//   for RemoveHold, after which gRPC may run OnDone on another thread.
+// - StartRead(message) happens before gRPC parses the next message into
+//   `message`, on whichever thread completes the read: StartRead releases the
+//   message too. The parse is protobuf's (uninstrumented) code called from
+//   gRPC's; the preloaded probe of `deploy/sanitize.sh tsan-clang`
+//   (deploy/tsan_absl_mutex_probe.cpp) acquires the message when protobuf
+//   starts parsing into it and releases it when the parse returns.
 // - The method handler returns the reactor to gRPC, which runs its reactions
 //   later, on its own threads: the handler releases it once built (handed_off).
 // - Reactions of one reactor never overlap, and OnDone comes after all the
@@ -41,7 +49,7 @@ extern "C" void __tsan_acquire(void* address);
 extern "C" void __tsan_release(void* address);
 #endif
 
-namespace lipsync::server {
+namespace lipsync {
 
 /// Publishes what this thread wrote so far to the thread that next acquires `object`.
 inline void handoff_release(const void* object) {
@@ -73,23 +81,40 @@ class HandoffScope {
   const void* reactor_;
 };
 
-/// A gRPC server reactor (`Reactor`: ServerBidiReactor<...>, ServerWriteReactor<...>,
-/// ServerUnaryReactor) whose operations release it before gRPC takes them over. The
-/// names hide the base's, so a reactor derived from this calls them unchanged.
+/// A gRPC reactor (`Reactor`: ServerBidiReactor<...>, ServerWriteReactor<...>,
+/// ServerUnaryReactor, ClientBidiReactor<...>, ClientReadReactor<...>) whose operations
+/// release it before gRPC takes them over. The names hide the base's, so a reactor
+/// derived from this calls them unchanged (each is instantiated only where used).
 /// Reactions open with `const HandoffScope handoff = reaction();`, OnDone with
 /// `last_reaction();`.
 template <class Reactor>
 class HandoffReactor : public Reactor {
  protected:
   template <class... Arguments>
+  void StartCall(Arguments&&... arguments) {
+    handoff_release(key());
+    Reactor::StartCall(std::forward<Arguments>(arguments)...);
+  }
+  template <class... Arguments>
   void StartSendInitialMetadata(Arguments&&... arguments) {
     handoff_release(key());
     Reactor::StartSendInitialMetadata(std::forward<Arguments>(arguments)...);
   }
-  template <class... Arguments>
-  void StartRead(Arguments&&... arguments) {
+  template <class Message>
+  void StartRead(Message* message) {
     handoff_release(key());
-    Reactor::StartRead(std::forward<Arguments>(arguments)...);
+    handoff_release(message);
+    Reactor::StartRead(message);
+  }
+  template <class... Arguments>
+  void StartWritesDone(Arguments&&... arguments) {
+    handoff_release(key());
+    Reactor::StartWritesDone(std::forward<Arguments>(arguments)...);
+  }
+  template <class... Arguments>
+  void RemoveHold(Arguments&&... arguments) {
+    handoff_release(key());
+    Reactor::RemoveHold(std::forward<Arguments>(arguments)...);
   }
   template <class... Arguments>
   void StartWrite(Arguments&&... arguments) {
@@ -116,4 +141,4 @@ class HandoffReactor : public Reactor {
   const void* key() const { return static_cast<const Reactor*>(this); }
 };
 
-}  // namespace lipsync::server
+}  // namespace lipsync

@@ -1,27 +1,33 @@
-// Probe, preloaded by `deploy/sanitize.sh tsan-clang` only (no CI step): makes abseil's Mutex visible to ThreadSanitizer
-// by interposing its entry points (docs/security.md, "Where TSan stands"). Debian's gRPC
-// takes abseil's Mutex (through gpr_mu) for most of its hand-offs between threads, and TSan
-// cannot see it (abseil is not instrumented). Each interposer calls the real function
-// (dlsym RTLD_NEXT, Debian 12's abseil 20220623, inline namespace debian3) and states the
-// mutex's edge: acquire after a lock, release before an unlock, both around a CondVar wait.
-// Build and use (TSan build in build-tsan/):
-//   g++ -std=c++17 -O1 -shared -fPIC -o build-tsan/libabsl_mutex_tsan.so deploy/tsan_absl_mutex_probe.cpp -ldl
-//   LD_PRELOAD=$PWD/build-tsan/libabsl_mutex_tsan.so TSAN_OPTIONS=... ctest --test-dir build-tsan -R ...
-// Known problem: with the GCC TSan build, tenants_test's TheSessionAndSubscriberQuotasRefuseNamingTheQuota did not end
-// with it (not investigated); with the clang build (tsan-clang) every tenants_test test ended.
+// Preloaded by `deploy/sanitize.sh tsan-clang` (LD_PRELOAD; built there, in no other
+// build): states for ThreadSanitizer the synchronisation that Debian's uninstrumented
+// abseil and protobuf do and TSan cannot see (docs/security.md, "Sanitizers"). Each
+// interposer calls the real function (dlsym RTLD_NEXT; Debian 12's abseil 20220623,
+// inline namespace debian3, and protobuf 3.21) and states one edge:
+//
+// - abseil's Mutex, which gRPC takes (through gpr_mu) for most of its hand-offs between
+//   threads: acquire after a lock, release before an unlock, both around a CondVar wait.
+// - protobuf's parse of a received message, which gRPC runs on whichever thread completed
+//   the read: acquire the message before the parse, release it after. With the release
+//   that a reactor's StartRead(message) makes (proto/support/lipsync/tsan_handoff.hpp),
+//   this says that the reactor's use of the previous message happens before gRPC clears
+//   and refills it, and the parse before the reaction that reads it.
+//
+// Interposition only reaches calls that go through the dynamic linker: gRPC's calls into
+// abseil from its shared libraries, and the parse call in gRPC's inline header code.
 #include <dlfcn.h>
 
 #include <cstdio>
 #include <cstdlib>
 
 #include <absl/synchronization/mutex.h>
+#include <google/protobuf/message_lite.h>
 extern "C" void __tsan_acquire(void*);
 extern "C" void __tsan_release(void*);
 template <class F> F real(const char* name) {
   static_assert(sizeof(F) == sizeof(void*));
   void* p = dlsym(RTLD_NEXT, name);
   if (p == nullptr) {
-    std::fprintf(stderr, "tsan_absl_mutex_probe: %s not found (not Debian 12's abseil?)\n", name);
+    std::fprintf(stderr, "tsan_edges: %s not found (not Debian 12's abseil and protobuf?)\n", name);
     std::abort();
   }
   F f; __builtin_memcpy(&f, &p, sizeof p); return f;
@@ -41,3 +47,14 @@ void CondVar::Wait(Mutex* mu) { static auto f = real<void (*)(CondVar*, Mutex*)>
 bool CondVar::WaitWithTimeout(Mutex* mu, Duration d) { static auto f = real<bool (*)(CondVar*, Mutex*, Duration)>("_ZN4absl7debian37CondVar15WaitWithTimeoutEPNS0_5MutexENS0_8DurationE"); __tsan_release(mu); bool r = f(this, mu, d); __tsan_acquire(mu); return r; }
 bool CondVar::WaitWithDeadline(Mutex* mu, Time t) { static auto f = real<bool (*)(CondVar*, Mutex*, Time)>("_ZN4absl7debian37CondVar16WaitWithDeadlineEPNS0_5MutexENS0_4TimeE"); __tsan_release(mu); bool r = f(this, mu, t); __tsan_acquire(mu); return r; }
 }}
+
+namespace google::protobuf {
+bool MessageLite::ParseFromZeroCopyStream(io::ZeroCopyInputStream* input) {
+  static auto f = real<bool (*)(MessageLite*, io::ZeroCopyInputStream*)>(
+      "_ZN6google8protobuf11MessageLite23ParseFromZeroCopyStreamEPNS0_2io19ZeroCopyInputStreamE");
+  __tsan_acquire(this);
+  bool r = f(this, input);
+  __tsan_release(this);
+  return r;
+}
+}  // namespace google::protobuf
