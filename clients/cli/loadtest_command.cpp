@@ -41,6 +41,7 @@
 // checked, and a frame's latency is its arrival time minus the send time of
 // the last message sent on the stream before it arrived (for lipsyncd in real
 // time that is the same phoneme as above).
+#include <absl/synchronization/mutex.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -558,6 +559,9 @@ int run_loadtest(std::span<const std::string_view> args) {
   if (!arguments.positional().empty()) {
     throw UsageError("loadtest takes no arguments, got '" + arguments.positional().front() + "'");
   }
+  // As lipsyncd does (server/src/main.cpp): Debian's abseil leaves the deadlock detection of
+  // gRPC's Mutexes on, a cost per lock that the generator should not spend on every message.
+  absl::SetMutexDeadlockDetectionMode(absl::OnDeadlockCycle::kIgnore);
   const std::string address = server_address(arguments);
   if (!is_loopback_address(address)) {
     throw UsageError("--server: '" + address + "' is not on this machine; loadtest only runs against loopback "

@@ -231,7 +231,6 @@ void CoarticulationEvaluator::evaluate(std::span<const Segment> window, std::siz
   assert(current < window.size());
   const CoarticulationTables& tables = *tables_;
   const std::size_t channels = tables.channels_;
-  const std::size_t max_shapes = tables.max_shapes_;
   const auto& shape_begin = tables.shape_begin_;
   const std::size_t first = current >= kWindowRadius ? current - kWindowRadius : 0;
   const std::size_t last = std::min(window.size() - 1, current + kWindowRadius);
@@ -240,15 +239,18 @@ void CoarticulationEvaluator::evaluate(std::span<const Segment> window, std::siz
   const double u = static_cast<double>(t_us - here.start_us) / static_cast<double>(here.end_us - here.start_us);
 
   // Pass 1: log D / α for every segment of the window and every shape of its
-  // phoneme (Eq. 2, or Eq. 4's Hermite fade for the 7th segment on each side).
+  // phoneme (Eq. 2, or Eq. 4's Hermite fade for the 7th segment on each side),
+  // packed: each segment's shapes follow the previous segment's, so the passes
+  // below touch only the shapes there are (about 18 of the 15 × max_shapes slots).
   double max_log = kNegativeInfinity;
-  const std::size_t slots = (last - first + 1) * max_shapes;
-  std::fill_n(log_shape_.data(), slots, kNegativeInfinity);  // phonemes with fewer shapes leave some unused
+  std::size_t slots = 0;
   for (std::size_t i = first; i <= last; ++i) {
     const Segment& segment = window[i];
     const auto phoneme = static_cast<std::size_t>(segment.phoneme);
     const std::ptrdiff_t distance = static_cast<std::ptrdiff_t>(i) - static_cast<std::ptrdiff_t>(current);
-    double* log_shape = log_shape_.data() + (i - first) * max_shapes;
+    slot_begin_[i - first] = slots;
+    double* log_shape = log_shape_.data() + slots;
+    slots += shape_begin[phoneme + 1] - shape_begin[phoneme];
     for (std::uint32_t k = shape_begin[phoneme]; k < shape_begin[phoneme + 1]; ++k) {
       const DominanceParams& params = tables.shapes_[k];
       double value = 0.0;
@@ -270,6 +272,7 @@ void CoarticulationEvaluator::evaluate(std::span<const Segment> window, std::siz
       max_log = std::max(max_log, value);
     }
   }
+  slot_begin_[last - first + 1] = slots;
 
   // Pass 2: Eq. 5 with weights α · exp(log D/α − max): the largest shape
   // weight is 1, so nothing overflows and, for all but pathological inputs,
@@ -284,7 +287,7 @@ void CoarticulationEvaluator::evaluate(std::span<const Segment> window, std::siz
   for (std::size_t i = first; i <= last; ++i) {
     const auto phoneme = static_cast<std::size_t>(window[i].phoneme);
     const std::size_t shape_count = shape_begin[phoneme + 1] - shape_begin[phoneme];
-    const double* shape_weight = shape_weight_.data() + (i - first) * max_shapes;
+    const double* shape_weight = shape_weight_.data() + slot_begin_[i - first];
     bool carries_weight = false;
     for (std::size_t k = 0; k < shape_count; ++k) {
       if (shape_weight[k] == 0.0) continue;
@@ -317,7 +320,7 @@ void CoarticulationEvaluator::evaluate_channel_in_log_space(std::span<const Segm
     const auto phoneme = static_cast<std::size_t>(window[i].phoneme);
     const std::size_t shape = tables.channel_shape_[phoneme * padded + channel];
     const double alpha = tables.alpha_[(tables.shape_begin_[phoneme] + shape) * padded + channel];
-    return std::log(alpha) + log_shape_[(i - first) * tables.max_shapes_ + shape];
+    return std::log(alpha) + log_shape_[slot_begin_[i - first] + shape];
   };
   for (std::size_t i = first; i <= last; ++i) max_log = std::max(max_log, log_weight(i));
   double numerator = 0.0;

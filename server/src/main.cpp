@@ -23,6 +23,7 @@
 #include <pthread.h>
 #include <sys/resource.h>
 
+#include <absl/synchronization/mutex.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
@@ -94,6 +95,12 @@ int main(int argc, char** argv) {
   // heap, and resident memory sits 25 to 60 MB higher from then on. MALLOC_MMAP_THRESHOLD_ in
   // the environment still decides when it is set.
   if (std::getenv("MALLOC_MMAP_THRESHOLD_") == nullptr) ::mallopt(M_MMAP_THRESHOLD, 128 * 1024);
+
+  // gRPC's locks are abseil Mutexes, and Debian builds abseil without NDEBUG, which leaves its
+  // deadlock detection on: every lock and unlock also maintains a graph of lock order
+  // (GraphCycles), about 4 % of the server's instructions per frame (docs/performance.md, "Fewer
+  // instructions per frame"). A debugging aid for abseil's users, not a defence: lipsyncd turns it off.
+  absl::SetMutexDeadlockDetectionMode(absl::OnDeadlockCycle::kIgnore);
 
   sigset_t signals;
   sigemptyset(&signals);

@@ -39,6 +39,7 @@
 #include <string>
 #include <vector>
 
+#include <absl/synchronization/mutex.h>
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/impl/codegen/proto_utils.h>
 
@@ -369,6 +370,10 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  // The same process setting as lipsyncd (server/src/main.cpp): Debian's abseil leaves the
+  // deadlock detection of gRPC's Mutexes on; both servers turn it off, so that the comparison
+  // is of the same transport.
+  absl::SetMutexDeadlockDetectionMode(absl::OnDeadlockCycle::kIgnore);
   sigset_t signals;
   sigemptyset(&signals);
   sigaddset(&signals, SIGINT);

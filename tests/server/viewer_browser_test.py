@@ -327,8 +327,10 @@ class ViewerInChromium(unittest.TestCase):
         self.assertGreater(len(drifts), 10, "the audio did not play")
         self.assertIsNotNone(viewer["lockedAtUs"], "the audio never locked onto the anchor")
         # Measured on a 2-core machine loaded by parallel builds (load average 12-17): locked 0.39 to
-        # 1.41 s in, after 1 to 8 seeks.
-        self.assertLess(viewer["lockedAtUs"], 1_500_000, "the audio took over 1.5 s to lock onto the anchor")
+        # 1.41 s in, after 1 to 8 seeks; 1.52 s once in a ctest -j2 of the whole suite (the run's
+        # first page, which took 1.97 s to load). The bound is there to catch an audio that keeps
+        # seeking, not to time Chromium.
+        self.assertLess(viewer["lockedAtUs"], 2_000_000, "the audio took over 2 s to lock onto the anchor")
         self.assertGreater(viewer["lockedSamples"], 15)
         # The audio clock Chromium reports (currentTime) moves in steps, and on a loaded 2-core
         # machine a single measurement now and then lands 35-41 ms off while the rest stay within

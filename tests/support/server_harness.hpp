@@ -11,12 +11,14 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
 #include <optional>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <grpcpp/grpcpp.h>
@@ -292,9 +294,27 @@ inline v1::AnimationSettings session_settings(const std::string& session) {
 // --- the lipsyncd binary as a child process -------------------------------------
 
 #ifdef LIPSYNCD_PATH
+/// A lipsyncd started by `spawn`, its stdout readable line by line. A child still running when
+/// this is destroyed (a test that failed before stopping it) is killed and reaped: left running,
+/// it would hold the test's stdout open and ctest would wait for it until its timeout.
 struct Child {
   pid_t pid = -1;
   FILE* out = nullptr;
+
+  Child() = default;
+  Child(pid_t id, FILE* stdout_pipe) : pid(id), out(stdout_pipe) {}
+  Child(Child&& other) noexcept
+      : pid(std::exchange(other.pid, -1)), out(std::exchange(other.out, nullptr)), reaped(other.reaped) {}
+  Child& operator=(Child&& other) noexcept {
+    if (this != &other) {
+      stop();
+      pid = std::exchange(other.pid, -1);
+      out = std::exchange(other.out, nullptr);
+      reaped = other.reaped;
+    }
+    return *this;
+  }
+  ~Child() { stop(); }
 
   std::string line() {
     char* buffer = nullptr;
@@ -325,7 +345,18 @@ struct Child {
   }
 
  private:
+  bool reaped = false;
+
+  void stop() {
+    if (pid > 0 && !reaped) {
+      kill(pid, SIGKILL);
+      wait();
+    }
+    if (out) fclose(out);
+    out = nullptr;
+  }
   int exit_code(int status) {
+    reaped = true;
     if (out) fclose(out);
     out = nullptr;
     return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);

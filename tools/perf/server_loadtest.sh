@@ -11,19 +11,21 @@
 # producers for the fast-mode throughput runs, CONNECTIONS=8 HTTP/2 connections, SERVER_CPUS and
 # CLIENT_CPUS (taskset CPU lists, e.g. 0 and 1: the servers on one core, the load generator on the
 # other; unset: no pinning), MESH_SESSIONS="500" real-time sessions of which a share MESH_SHARE=0.01
-# ask for the physics face (level MESH_LEVEL=1; lipsyncd only).
+# ask for the physics face (level MESH_LEVEL=1; lipsyncd only). SESSIONS, MESH_SESSIONS and
+# FAST_PRODUCERS set to "" leave those runs out (e.g. FAST_PRODUCERS=50 SESSIONS="" MESH_SESSIONS=""
+# for fast mode alone).
 # Each round runs every step against lipsyncd and the baseline back to back (alternating which goes
 # first), so that ratios compare runs made under the same machine load. Prints one table row per
 # run and a summary of medians; raw JSON reports go to $OUT_DIR (default a temporary folder).
 set -euo pipefail
 
 BUILD=${1:-build-perf}
-SESSIONS=${SESSIONS:-"100 200 500 1000 2000"}
+SESSIONS=${SESSIONS-"100 200 500 1000 2000"}
 SUBSCRIBERS=${SUBSCRIBERS:-"0 1 3"}
 DURATION=${DURATION:-10}
 REPEAT=${REPEAT:-3}
-FAST_PRODUCERS=${FAST_PRODUCERS:-50}
-MESH_SESSIONS=${MESH_SESSIONS:-"500"}
+FAST_PRODUCERS=${FAST_PRODUCERS-50}
+MESH_SESSIONS=${MESH_SESSIONS-"500"}
 MESH_SHARE=${MESH_SHARE:-0.01}
 MESH_LEVEL=${MESH_LEVEL:-1}
 CONNECTIONS=${CONNECTIONS:-8}
@@ -116,8 +118,10 @@ for round in $(seq "$REPEAT"); do
     one lipsyncd "r$round-mesh-$n-lipsyncd" --realtime --producers "$n" --mesh-share "$MESH_SHARE" \
       --mesh-subdivision "$MESH_LEVEL" --duration "$DURATION"
   done
-  for name in "${order[@]}"; do
-    one "$name" "r$round-fast-$FAST_PRODUCERS-$name" --fast --producers "$FAST_PRODUCERS" --duration "$DURATION"
+  for p in $FAST_PRODUCERS; do
+    for name in "${order[@]}"; do
+      one "$name" "r$round-fast-$p-$name" --fast --producers "$p" --duration "$DURATION"
+    done
   done
 done
 

@@ -21,6 +21,7 @@
 //     weight, which removes the last-ulp overshoot of the division.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -90,8 +91,11 @@ class CoarticulationEvaluator {
 
   std::shared_ptr<const CoarticulationTables> tables_;
   // Scratch, sized once.
-  std::vector<double> log_shape_;  // window × max shapes: log(D/α)
+  // log(D/α) of each shape of each segment in the window, segment after segment with
+  // no gaps (a segment's first slot in slot_begin_), then the shapes' weights.
+  std::vector<double> log_shape_;
   std::vector<double> shape_weight_;
+  std::array<std::size_t, 2 * kWindowRadius + 2> slot_begin_{};
   std::vector<double> numerator_;
   std::vector<double> denominator_;
   std::vector<double> low_;
