@@ -1,4 +1,4 @@
-// Preloaded by `deploy/sanitize.sh tsan-clang` (LD_PRELOAD; built there, in no other
+// Preloaded by `deploy/sanitize.sh tsan` (LD_PRELOAD; built there, in no other
 // build): states for ThreadSanitizer the synchronisation that Debian's uninstrumented
 // abseil and protobuf do and TSan cannot see (docs/security.md, "Sanitizers"). Each
 // interposer calls the real function (dlsym RTLD_NEXT; Debian 12's abseil 20220623,

@@ -250,6 +250,13 @@ class Producer {
     received_.status = stream_->Finish();
     return received_;
   }
+  /// Reads until the server ends the call, with the request side left open (a half-close
+  /// before `end` would itself end the call, INVALID_ARGUMENT).
+  Received finish_when_the_server_ends_it() {
+    read_all(*stream_, received_);
+    received_.status = stream_->Finish();
+    return received_;
+  }
   void cancel() { context_.TryCancel(); }
 
  private:

@@ -15,9 +15,9 @@
 // - StartRead(message) happens before gRPC parses the next message into
 //   `message`, on whichever thread completes the read: StartRead releases the
 //   message too. The parse is protobuf's (uninstrumented) code called from
-//   gRPC's; the preloaded probe of `deploy/sanitize.sh tsan-clang`
-//   (deploy/tsan_absl_mutex_probe.cpp) acquires the message when protobuf
-//   starts parsing into it and releases it when the parse returns.
+//   gRPC's; the library `deploy/sanitize.sh tsan` preloads
+//   (deploy/tsan_edges.cpp) acquires the message when protobuf starts
+//   parsing into it and releases it when the parse returns.
 // - The method handler returns the reactor to gRPC, which runs its reactions
 //   later, on its own threads: the handler releases it once built (handed_off).
 // - Reactions of one reactor never overlap, and OnDone comes after all the
