@@ -312,15 +312,6 @@ struct Child {
   Child(pid_t id, FILE* stdout_pipe) : pid(id), out(stdout_pipe) {}
   Child(Child&& other) noexcept
       : pid(std::exchange(other.pid, -1)), out(std::exchange(other.out, nullptr)), reaped(other.reaped) {}
-  Child& operator=(Child&& other) noexcept {
-    if (this != &other) {
-      stop();
-      pid = std::exchange(other.pid, -1);
-      out = std::exchange(other.out, nullptr);
-      reaped = other.reaped;
-    }
-    return *this;
-  }
   ~Child() { stop(); }
 
   std::string line() {

@@ -91,8 +91,9 @@ class CoarticulationEvaluator {
 
   std::shared_ptr<const CoarticulationTables> tables_;
   // Scratch, sized once.
-  // log(D/α) of each shape of each segment in the window, segment after segment with
-  // no gaps (a segment's first slot in slot_begin_), then the shapes' weights.
+  // One slot per dominance shape of each segment in the window, segment after segment with
+  // no gaps; segment i of the window starts at slot_begin_[i]. log_shape_ holds log(D/α),
+  // shape_weight_ the weights exp(log(D/α) − max) of the same slots.
   std::vector<double> log_shape_;
   std::vector<double> shape_weight_;
   std::array<std::size_t, 2 * kWindowRadius + 2> slot_begin_{};
