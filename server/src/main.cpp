@@ -24,6 +24,7 @@
 #include <sys/resource.h>
 
 #include <absl/synchronization/mutex.h>
+#include <grpc/support/log.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
@@ -80,6 +81,15 @@ int main(int argc, char** argv) {
   }
   ServerConfig config = command_line.config;
   spdlog::set_default_logger(spdlog::stderr_color_mt("lipsyncd"));
+  // gRPC core's own messages (a failed TLS handshake, for one) go through the same logger, so
+  // that with --log-format json every line on stderr is one JSON object; gRPC's verbosity
+  // (GRPC_VERBOSITY, errors by default) still decides which of them are written.
+  gpr_set_log_function([](gpr_log_func_args* entry) {
+    const spdlog::level::level_enum level = entry->severity == GPR_LOG_SEVERITY_ERROR  ? spdlog::level::err
+                                            : entry->severity == GPR_LOG_SEVERITY_INFO ? spdlog::level::info
+                                                                                      : spdlog::level::debug;
+    spdlog::log(level, "grpc: {} ({}:{})", entry->message, entry->file, entry->line);
+  });
   spdlog::set_level(spdlog::level::from_str(config.log_level));
 
   // Lets the shutdown give the face threads their normal priority back (face_workers.hpp):

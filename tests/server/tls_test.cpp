@@ -8,6 +8,9 @@
 
 #include <filesystem>
 #include <fstream>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
 
 #include "../support/child_process.hpp"
 #include "../support/server_harness.hpp"
@@ -234,6 +237,30 @@ TEST(LipsyncdTls, SighupServesAReplacedCertificateToNewConnectionsWhileAnOpenStr
   EXPECT_EQ(received.summary->phonemes(), intervals.size());
   server.process->terminate();
   EXPECT_EQ(server.process->wait(), 0);
+}
+
+// gRPC core logs a failed handshake itself; in --log-format json that line must be a JSON
+// object like every other (it was gRPC's own "E1127 ..." text).
+TEST(LipsyncdTls, InJsonLogFormatGrpcsOwnHandshakeErrorIsAJsonLineToo) {
+  RunningServer server({"--tls-cert", cert_path("server.pem"), "--tls-key", cert_path("server.key"), "--log-format",
+                        "json"});
+  ASSERT_FALSE(server.address.empty()) << server.log();
+  EXPECT_EQ(list_models(connect_new(server.address, "")).status.error_code(), grpc::StatusCode::UNAVAILABLE);
+  ASSERT_TRUE(eventually([&] { return server.log().find("Handshake failed") != std::string::npos; })) << server.log();
+  server.process->terminate();
+  EXPECT_EQ(server.process->wait(), 0);
+  std::istringstream log(server.log());
+  std::size_t handshake_errors = 0;
+  for (std::string line; std::getline(log, line);) {
+    const auto object = nlohmann::json::parse(line, nullptr, false);
+    ASSERT_TRUE(object.is_object()) << "not a JSON object: " << line;
+    if (object.value("message", "").find("Handshake failed") != std::string::npos) {
+      ++handshake_errors;
+      EXPECT_EQ(object["level"], "error") << line;
+      EXPECT_EQ(object["message"].get<std::string>().rfind("grpc: ", 0), 0u) << line;
+    }
+  }
+  EXPECT_GT(handshake_errors, 0u);
 }
 
 TEST(LipsyncdTls, TheCliConnectsWithItsCaCertAndKeyOptions) {
