@@ -10,7 +10,7 @@ RUN apt-get update \
  && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends \
       build-essential cmake ninja-build nlohmann-json3-dev libeigen3-dev libspdlog-dev libboost-dev \
       libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler libssl-dev \
-      libespeak-ng-dev libpocketsphinx-dev libsphinxbase-dev libcli11-dev \
+      libespeak-ng-dev libpocketsphinx-dev libsphinxbase-dev libcli11-dev libnghttp2-dev \
  && rm -rf /var/lib/apt/lists/*
 WORKDIR /src
 COPY CMakeLists.txt ./
@@ -33,7 +33,7 @@ FROM debian:12-slim AS runtime
 RUN apt-get update \
  && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends \
       libgrpc++1.51 libprotobuf32 libspdlog1.10 libfmt9 ca-certificates \
-      libespeak-ng1 espeak-ng-data libpocketsphinx3 libsphinxbase3 \
+      libespeak-ng1 espeak-ng-data libpocketsphinx3 libsphinxbase3 libnghttp2-14 \
  && rm -rf /var/lib/apt/lists/* \
  && useradd --system --uid 10001 --no-create-home --shell /usr/sbin/nologin lipsyncd
 COPY --from=build /staging/usr/bin/lipsyncd /staging/usr/bin/lipsync /usr/bin/

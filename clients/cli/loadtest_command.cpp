@@ -22,11 +22,13 @@
 // generator was saturated can be told apart from one that measured the server.
 //
 // --realtime sends each phoneme when its start time arrives (and the end
-// marker at the utterance's end); --fast sends everything at once. All timing
-// runs on one thread with Boost.Asio steady timers; the streams use gRPC's
-// callback API, so 200 streams need no 200 threads. The run is bounded: no
-// utterance starts after --duration, and whatever still runs 30 s later is
-// cancelled (and counted as CANCELLED). Only loopback servers are accepted.
+// marker at the utterance's end), on a 1 ms grid; --fast sends everything at
+// once. All timing runs on one thread with Boost.Asio steady timers. The calls
+// go through one of two clients (loadtest_clients.hpp): by default the
+// generator's own HTTP/2 client, whose streams all live on that same thread,
+// or gRPC's client library (--client grpc). The run is bounded: no utterance
+// starts after --duration, and whatever still runs 30 s later is cancelled
+// (and counted as CANCELLED). Only loopback servers are accepted.
 //
 // --mesh-share F asks for the physics face (settings.outputs.mesh) on a share
 // F of the producers, spread evenly over them (producer p has it when
@@ -66,6 +68,7 @@
 #include "arguments.hpp"
 #include "cli_error.hpp"
 #include "commands.hpp"
+#include "loadtest_clients.hpp"
 #include "lipsync/phone_set.hpp"
 #include "lipsync/renderer.hpp"
 #include "lipsync/segment.hpp"
@@ -88,6 +91,10 @@ constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     {"phonemes-per-utterance", 0, "K", "phonemes per synthetic utterance, 1 to 10000", "30"},
     {"seed", 0, "S", "seed of the synthetic utterances, 0 to 2147483647", "1"},
     {"connections", 0, "N", "HTTP/2 connections the streams are spread over, 1 to 64", "4"},
+    {"client", 0, "KIND",
+     "h2: the generator's own HTTP/2 client, all streams on one thread (plaintext only); grpc: the gRPC client "
+     "library, as applications use it",
+     "h2; grpc with --tls, --ca, --cert or --key"},
     {"json", 0, "", "print the report as JSON", ""},
     {"no-verify", 0, "", "count frames without checking them against the offline render (baseline servers)", ""},
     {"mesh-share", 0, "F",
@@ -110,10 +117,15 @@ constexpr std::string_view kDescription =
 constexpr std::size_t kUtterancePool = 64;
 constexpr auto kGrace = std::chrono::seconds(30);
 constexpr auto kPauseAfterError = std::chrono::milliseconds(100);
+/// Real-time sends are due on a 1 ms grid. A wake-up of the generator's thread costs more kernel
+/// time than the sends it makes (perf: context switches were most of the generator's CPU at 2,000
+/// sessions), so phonemes due in the same millisecond leave together, as a front-end that streams
+/// in small bursts would send them. Latency is measured from the actual send, so it is unaffected.
+constexpr auto kSendGrid = std::chrono::milliseconds(1);
 
 /// One synthetic utterance and what the server must send for it.
 struct Utterance {
-  std::vector<client::v1::Phoneme> phonemes;
+  UtteranceRequests requests;               ///< the phonemes, as each client sends them
   std::vector<std::int64_t> frame_t_us;     ///< the offline render's frame times
   std::vector<float> frame_values;          ///< the offline render's channel values, frame-major
   std::vector<std::uint32_t> released_by;   ///< per frame: phoneme index that released it (size() = end marker)
@@ -126,6 +138,7 @@ Utterance make_utterance(std::uint64_t seed, std::size_t phonemes, const Articul
   options.seed = seed;
   std::vector<LabeledInterval> intervals = synthesize_utterance(options);
   Utterance utterance;
+  std::vector<client::v1::Phoneme> wire;
   SegmentBuilder builder(model, phone_set, "synthetic utterance");
   StreamingRenderer renderer(model);
   Track streamed;
@@ -133,7 +146,7 @@ Utterance make_utterance(std::uint64_t seed, std::size_t phonemes, const Articul
   std::vector<Segment> segments;
   for (std::size_t i = 0; i < intervals.size(); ++i) {
     intervals[i].line = static_cast<int>(i) + 1;
-    utterance.phonemes.push_back(client::to_wire(intervals[i]));
+    wire.push_back(client::to_wire(intervals[i]));
     segments.clear();
     builder.push(intervals[i], segments);
     for (const Segment& segment : segments) renderer.push(segment, streamed);
@@ -144,6 +157,7 @@ Utterance make_utterance(std::uint64_t seed, std::size_t phonemes, const Articul
   LabeledUtterance whole{"synthetic utterance", "arpabet", intervals};
   const Track offline = render_track(model, build_segments(whole, model, phone_set));
   if (offline.t_us != streamed.t_us) throw std::logic_error("streaming and offline renders differ");
+  utterance.requests = UtteranceRequests(std::move(wire));
   utterance.frame_t_us = offline.t_us;
   utterance.frame_values = offline.values;
   return utterance;
@@ -167,8 +181,8 @@ struct Run {
   std::atomic<std::int64_t> last_sent_us{0};               // the latest of sent_us (--no-verify)
   Clock::time_point start;
   std::size_t next_phoneme = 0;
-  std::unique_ptr<client::AnimateCall> call;
-  std::vector<std::unique_ptr<client::SubscribeCall>> subscribers;
+  std::unique_ptr<LoadCall> call;
+  std::vector<std::unique_ptr<LoadCall>> subscribers;
   std::vector<std::unique_ptr<StreamTally>> subscriber_tallies;
   std::vector<grpc::Status> subscriber_status;
   StreamTally producer_tally;
@@ -304,9 +318,8 @@ struct LoadTestConfig {
 
 class LoadTest {
  public:
-  LoadTest(const LoadTestConfig& config, const std::vector<std::unique_ptr<client::AnimationClient>>& clients,
-           const std::vector<Utterance>& pool)
-      : config_(config), clients_(clients), pool_(pool), work_(asio::make_work_guard(io_)), stop_timer_(io_) {}
+  LoadTest(const LoadTestConfig& config, asio::io_context& io, LoadClient& client, const std::vector<Utterance>& pool)
+      : config_(config), io_(io), client_(client), pool_(pool), work_(asio::make_work_guard(io_)), stop_timer_(io_) {}
 
   Results run() {
     start_ = Clock::now();
@@ -356,6 +369,7 @@ class LoadTest {
       if (--active_ == 0) {
         finished_at_ = Clock::now();
         stop_timer_.cancel();
+        client_.close();
         work_.reset();
       }
       return;
@@ -363,7 +377,7 @@ class LoadTest {
     const std::size_t which = (static_cast<std::size_t>(producer.index) * 7 + producer.runs) % pool_.size();
     auto run = std::make_unique<Run>();
     run->utterance = &pool_[which];
-    const std::size_t slots = run->utterance->phonemes.size() + 1;
+    const std::size_t slots = run->utterance->requests.phonemes.size() + 1;
     run->sent_us = std::make_unique<std::atomic<std::int64_t>[]>(slots);
     for (std::size_t i = 0; i < slots; ++i) run->sent_us[i].store(0);
     run->pending = 1;
@@ -387,14 +401,14 @@ class LoadTest {
     ++producer.runs;
     Run* raw = run.get();
     producer.run = std::move(run);
-    const client::AnimationClient& connection = *clients_[static_cast<std::size_t>(producer.index) % clients_.size()];
+    const std::size_t connection = static_cast<std::size_t>(producer.index) % client_.connections();
     raw->start = Clock::now();
-    raw->call = connection.start_animate(
-        settings,
-        [this, raw, &producer, session, &connection](const client::v1::TrackMessage& message) {
+    raw->call = client_.animate(
+        connection, settings, raw->utterance->requests,
+        [this, raw, &producer, session, connection](const client::v1::TrackMessage& message) {
           count_frames(message, *raw, raw->producer_tally, config_.verify);
           if (message.has_header() && config_.subscribers > 0) {
-            asio::post(io_, [this, raw, &producer, session, &connection] {
+            asio::post(io_, [this, raw, &producer, session, connection] {
               start_subscribers(producer, *raw, session, connection);
             });
           }
@@ -409,8 +423,7 @@ class LoadTest {
     send_due(producer, *raw);
   }
 
-  void start_subscribers(Producer& producer, Run& run, const std::string& session,
-                         const client::AnimationClient& connection) {
+  void start_subscribers(Producer& producer, Run& run, const std::string& session, std::size_t connection) {
     if (stopping_ || run.producer_done || !run.subscribers.empty()) return;
     for (int s = 0; s < config_.subscribers; ++s) {
       run.subscriber_tallies.push_back(std::make_unique<StreamTally>());
@@ -420,8 +433,8 @@ class LoadTest {
       ++run.pending;
       ++totals_.by_mesh[run.mesh].subscriptions;
       Run* raw = &run;
-      run.subscribers.push_back(connection.start_subscribe(
-          session, client::v1::SubscribeRequest::START_FROM_BEGINNING,
+      run.subscribers.push_back(client_.subscribe(
+          connection, session,
           [this, raw, tally](const client::v1::TrackMessage& message) {
             count_frames(message, *raw, *tally, config_.verify);
           },
@@ -437,13 +450,13 @@ class LoadTest {
   /// Sends every phoneme whose time has come, then waits for the next one.
   void send_due(Producer& producer, Run& run) {
     if (run.producer_done || run.pending == 0) return;
-    const auto& phonemes = run.utterance->phonemes;
+    const auto& phonemes = run.utterance->requests.phonemes;
     while (run.next_phoneme <= phonemes.size()) {
       const std::size_t i = run.next_phoneme;
       const std::int64_t due_us = i < phonemes.size() ? phonemes[i].start_us() : phonemes.back().end_us();
       const auto due = run.start + std::chrono::microseconds(due_us);
       if (config_.realtime && due > Clock::now()) {
-        producer.timer.expires_at(due);
+        producer.timer.expires_at(on_send_grid(due));
         producer.timer.async_wait([this, &producer, &run](const boost::system::error_code& error) {
           if (!error) send_due(producer, run);
         });
@@ -455,10 +468,17 @@ class LoadTest {
       ++run.next_phoneme;
       if (i == phonemes.size()) {
         run.call->end();
-      } else if (!run.call->send({phonemes[i]})) {
+      } else if (!run.call->send_phoneme(i)) {
         return;  // the stream has ended; call_done reports why
       }
     }
+  }
+
+  /// `due` rounded up to the next step of a grid shared by all producers (kSendGrid): the
+  /// phonemes due within one step are sent together, after one wake-up of the generator's thread.
+  Clock::time_point on_send_grid(Clock::time_point due) const {
+    const auto steps = (due - start_ + kSendGrid - Clock::duration(1)) / kSendGrid;
+    return start_ + steps * kSendGrid;
   }
 
   void call_done(Producer& producer, Run& run) {
@@ -507,9 +527,9 @@ class LoadTest {
   }
 
   const LoadTestConfig& config_;
-  const std::vector<std::unique_ptr<client::AnimationClient>>& clients_;
+  asio::io_context& io_;
+  LoadClient& client_;
   const std::vector<Utterance>& pool_;
-  asio::io_context io_;
   asio::executor_work_guard<asio::io_context::executor_type> work_;
   asio::steady_timer stop_timer_;
   std::vector<std::unique_ptr<Producer>> producers_;
@@ -579,6 +599,15 @@ int run_loadtest(std::span<const std::string_view> args) {
   config.seed = static_cast<std::uint64_t>(parse_int_option("seed", arguments.value("seed").value_or("1"), 0, INT32_MAX));
   config.verify = !arguments.flag("no-verify");
   const int connections = parse_int_option("connections", arguments.value("connections").value_or("4"), 1, 64);
+  const bool tls = connection_options(arguments).tls.on();
+  const std::string client_name = arguments.value("client").value_or(tls ? "grpc" : "h2");
+  if (client_name != "h2" && client_name != "grpc") {
+    throw UsageError("--client: unknown client '" + client_name + "' (choose h2 or grpc)");
+  }
+  const LoadClientKind client_kind = client_name == "h2" ? LoadClientKind::h2 : LoadClientKind::grpc;
+  if (client_kind == LoadClientKind::h2 && tls) {
+    throw UsageError("--client h2 speaks plaintext HTTP/2 only; with --tls, --ca, --cert or --key use --client grpc");
+  }
   config.mesh.share = parse_double_option("mesh-share", arguments.value("mesh-share").value_or("0"));
   if (config.mesh.share < 0.0 || config.mesh.share > 1.0) {
     throw UsageError("--mesh-share: '" + *arguments.value("mesh-share") +
@@ -609,13 +638,10 @@ int run_loadtest(std::span<const std::string_view> args) {
 
   client::ClientOptions client_options = connection_options(arguments);
   client_options.stream_timeout = config.duration + kGrace + std::chrono::seconds(5);
-  std::vector<std::unique_ptr<client::AnimationClient>> clients;
-  for (int c = 0; c < connections; ++c) {
-    clients.push_back(std::make_unique<client::AnimationClient>(address, client_options));
-    clients.back()->wait_connected();
-  }
+  asio::io_context io;
+  const std::unique_ptr<LoadClient> client = connect_load_client(client_kind, io, address, client_options, connections);
 
-  LoadTest test(config, clients, pool);
+  LoadTest test(config, io, *client, pool);
   const double cpu_before = process_cpu_seconds();
   Results results = test.run();
   const double seconds = test.elapsed().count();
@@ -667,6 +693,7 @@ int run_loadtest(std::span<const std::string_view> args) {
     nlohmann::json report = {
         {"server", address},
         {"mode", config.realtime ? "realtime" : "fast"},
+        {"client", load_client_name(client_kind)},
         {"producers", config.producers},
         {"subscribers_per_session", config.subscribers},
         {"duration_s", config.duration.count()},
@@ -694,9 +721,10 @@ int run_loadtest(std::span<const std::string_view> args) {
     std::cout << report.dump(2) << '\n';
   } else {
     char line[256];
-    std::snprintf(line, sizeof line, "loadtest: %d producers (%s), %d subscribers per session, %.1f s, seed %llu\n",
+    std::snprintf(line, sizeof line,
+                  "loadtest: %d producers (%s), %d subscribers per session, %.1f s, seed %llu, client %s\n",
                   config.producers, config.realtime ? "real time" : "fast", config.subscribers, seconds,
-                  static_cast<unsigned long long>(config.seed));
+                  static_cast<unsigned long long>(config.seed), client_name.c_str());
     std::cout << line;
     if (groups[1].producers > 0) {
       std::snprintf(line, sizeof line, "mesh: %d of %d producers (share %.2f), subdivision %u, %s\n",

@@ -52,12 +52,12 @@ class SubscribeReactor final : public HandoffReactor<grpc::ServerWriteReactor<gr
     service_.live_streams().add(*this);
     outbox_->measure(service_.metrics().write_latency, service_.metrics().queued_messages);
     log_.set_session(session_name_);
-    log_.started_line({{"start", v1::SubscribeRequest::Start_Name(request.start())}});
     if (auto status = service_.tenants().authenticate(*context_, "Subscribe", caller_); !status.ok()) {
-      outbox_->close(status);
+      outbox_->close(status);  // logged by the end line, as a refused Animate is
       return;
     }
     log_.set_tenant(caller_.tenant());
+    log_.started_line({{"start", v1::SubscribeRequest::Start_Name(request.start())}});
     open_stream_ = &service_.metrics().open_streams.with({"Subscribe", caller_.tenant()});
     open_stream_->add(1);
     for (auto [quota, hold] : {std::pair{Quota::streams, &stream_hold_}, {Quota::subscribers, &subscriber_hold_}}) {

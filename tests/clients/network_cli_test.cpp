@@ -349,6 +349,90 @@ TEST_F(NetworkCliTest, loadtest_fast_mode_reports_throughput) {
   std::cout << report.out;
 }
 
+// The same load through the client library (gRPC's C++ client), which --client grpc keeps
+// available (and the default with TLS): both clients must see the same frames.
+TEST_F(NetworkCliTest, loadtest_through_the_grpc_client_library_delivers_every_frame_too) {
+  const RunResult report = run({"loadtest", "--server", server(), "--client", "grpc", "--producers", "20",
+                                "--subscribers-per-session", "1", "--duration", "2", "--json"});
+  ASSERT_EQ(report.status, 0) << report.out << report.err;
+  const auto json = nlohmann::json::parse(report.out);
+  EXPECT_EQ(json["client"], "grpc");
+  EXPECT_TRUE(json["every_frame_arrived"].get<bool>());
+  EXPECT_GT(json["subscriptions"]["complete"].get<int>(), 0);
+}
+
+// The generator's own HTTP/2 client carries the API key and the gRPC status of a refusal:
+// against a lipsyncd with --api-keys, no key gets every utterance refused (counted by code,
+// exit 1), the right key gets every frame, to producers and subscribers.
+TEST_F(NetworkCliTest, loadtest_h2_client_sends_the_api_key_and_counts_refusals_by_status_code) {
+  testing::write_text(dir_ / "key", "loadtest-key");
+  const RunResult hashed = testing::run_program({LIPSYNCD_BINARY, "--hash-key"}, dir_, capture_,
+                                                {.stdin_file = dir_ / "key", .path_env = std::nullopt});
+  ASSERT_EQ(hashed.status, 0) << hashed.err;
+  const std::string hash = hashed.out.substr(0, hashed.out.find('\n'));
+  testing::write_text(dir_ / "keys.json", R"({"tenants": {"load": {}}, "keys": [{"tenant": "load", "sha256": ")" +
+                                              hash + R"("}]})");
+  ChildProcess keyed({LIPSYNCD_BINARY, "--listen", "127.0.0.1:0", "--api-keys", (dir_ / "keys.json").string(),
+                      "--log-level", "warn"},
+                     dir_, capture_ / "keyed.out", capture_ / "keyed.err");
+  const std::string address = testing::wait_for_listening_address(capture_ / "keyed.out");
+  ASSERT_FALSE(address.empty()) << read_text(capture_ / "keyed.err");
+
+  const RunResult refused = run({"loadtest", "--server", address, "--producers", "3", "--duration", "1", "--json"});
+  EXPECT_EQ(refused.status, 1) << refused.out << refused.err;
+  const auto refused_json = nlohmann::json::parse(refused.out);
+  EXPECT_EQ(refused_json["client"], "h2");
+  EXPECT_GE(refused_json["errors"].value("UNAUTHENTICATED", 0), 3) << refused.out;
+  EXPECT_EQ(refused_json["errors"].size(), 1u) << refused.out;
+  EXPECT_EQ(refused_json["utterances"]["complete"].get<int>(), 0);
+
+  const RunResult admitted = run({"loadtest", "--server", address, "--api-key", "loadtest-key", "--producers", "3",
+                                  "--subscribers-per-session", "1", "--duration", "1", "--json"});
+  ASSERT_EQ(admitted.status, 0) << admitted.out << admitted.err;
+  const auto admitted_json = nlohmann::json::parse(admitted.out);
+  EXPECT_TRUE(admitted_json["every_frame_arrived"].get<bool>());
+  EXPECT_GE(admitted_json["subscriptions"]["complete"].get<int>(), 3);
+  keyed.terminate();
+  EXPECT_EQ(keyed.wait(), 0);
+}
+
+TEST_F(NetworkCliTest, loadtest_client_choice_is_checked) {
+  const RunResult unknown = run({"loadtest", "--server", server(), "--client", "http3"});
+  EXPECT_EQ(unknown.status, 2);
+  EXPECT_THAT(unknown.err, HasSubstr("--client: unknown client 'http3' (choose h2 or grpc)"));
+  const RunResult tls = run({"loadtest", "--server", server(), "--client", "h2", "--tls"});
+  EXPECT_EQ(tls.status, 2);
+  EXPECT_THAT(tls.err, HasSubstr("plaintext HTTP/2 only; with --tls, --ca, --cert or --key use --client grpc"));
+}
+
+// A port that answers, but not with HTTP/2 (here: an HTTP/1.1 reply, as a TLS or web server
+// would give something else than HTTP/2 settings): exit 1 naming the address and the likely cause.
+TEST_F(NetworkCliTest, loadtest_h2_client_against_a_server_that_is_not_plaintext_http2_says_so) {
+  const int listener = ::socket(AF_INET, SOCK_STREAM, 0);
+  ASSERT_GE(listener, 0);
+  sockaddr_in bound{};
+  bound.sin_family = AF_INET;
+  bound.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ASSERT_EQ(::bind(listener, reinterpret_cast<sockaddr*>(&bound), sizeof bound), 0);
+  ASSERT_EQ(::listen(listener, 4), 0);
+  socklen_t length = sizeof bound;
+  ::getsockname(listener, reinterpret_cast<sockaddr*>(&bound), &length);
+  const std::string address = "127.0.0.1:" + std::to_string(ntohs(bound.sin_port));
+  std::thread web_server([listener] {
+    const int connection = ::accept(listener, nullptr, nullptr);
+    if (connection < 0) return;
+    const std::string reply = "HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\nConnection: close\r\n\r\n";
+    (void)!::write(connection, reply.data(), reply.size());
+    ::close(connection);
+  });
+  const RunResult report = run({"loadtest", "--server", address, "--producers", "1", "--duration", "1"});
+  web_server.join();
+  ::close(listener);
+  EXPECT_EQ(report.status, 1);
+  EXPECT_THAT(report.err, HasSubstr("connecting to lipsyncd at " + address));
+  EXPECT_THAT(report.err, HasSubstr("did not answer as a plaintext HTTP/2 (gRPC) server"));
+}
+
 // --- the server's models ------------------------------------------------------------
 
 TEST_F(NetworkCliTest, server_models_lists_every_model_the_server_loaded_for_a_reader) {

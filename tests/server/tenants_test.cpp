@@ -9,6 +9,9 @@
 
 #include <atomic>
 #include <filesystem>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "../support/child_process.hpp"
 #include "../support/prometheus_text.hpp"
@@ -412,6 +415,40 @@ TEST(LipsyncdKeys, TheStartUpLogSaysWhetherTheServerIsOpenOrHowManyKeysItHas) {
     const std::string log = lipsync::testing::read_text(run / "err");
     EXPECT_THAT(log, HasSubstr(with_keys ? "callers: 4 API keys of 3 tenants from " : "callers: open to every caller"));
   }
+}
+
+// Both access lines of a keyed call name its tenant (the start line used to be written before
+// the key was checked, with tenant "").
+TEST(LipsyncdKeys, JsonAccessLinesOfASubscribeNameTheTenantOfItsKey) {
+  const fs::path work = lipsync::testing::make_temp_dir("lipsyncd-keys-");
+  lipsync::testing::write_text(work / "keys.json", R"({"tenants": {"studio": {}}, "keys": [{"tenant": "studio", )"
+                                                   R"("sha256": ")" + sha256_hex("studio-key") + R"("}]})");
+  lipsync::testing::ChildProcess server({LIPSYNCD_PATH, "--listen", "127.0.0.1:0", "--api-keys",
+                                         (work / "keys.json").string(), "--log-format", "json"},
+                                        work, work / "out", work / "err");
+  const std::string address = lipsync::testing::wait_for_listening_address(work / "out");
+  ASSERT_FALSE(address.empty()) << lipsync::testing::read_text(work / "err");
+  client::ClientOptions options;
+  options.api_key = "studio-key";
+  try {
+    client::AnimationClient(address, options).subscribe("nothing-here", v1::SubscribeRequest::START_FROM_BEGINNING);
+    ADD_FAILURE() << "a subscription to a session that does not exist succeeded";
+  } catch (const client::CallError& error) {
+    EXPECT_EQ(error.code(), grpc::StatusCode::NOT_FOUND) << error.what();
+  }
+  server.terminate();
+  EXPECT_EQ(server.wait(), 0);
+  std::map<std::string, nlohmann::json> by_event;
+  std::istringstream log(lipsync::testing::read_text(work / "err"));
+  for (std::string line; std::getline(log, line);) {
+    const auto parsed = nlohmann::json::parse(line, nullptr, false);
+    if (parsed.is_object() && parsed.contains("event")) by_event[parsed["event"].get<std::string>()] = parsed;
+  }
+  ASSERT_TRUE(by_event.count("Subscribe.start") && by_event.count("Subscribe.end"))
+      << lipsync::testing::read_text(work / "err");
+  EXPECT_EQ(by_event["Subscribe.start"]["tenant"], "studio");
+  EXPECT_EQ(by_event["Subscribe.end"]["tenant"], "studio");
+  EXPECT_EQ(by_event["Subscribe.end"]["status"], "NOT_FOUND");
 }
 
 TEST(LipsyncdKeys, ABadKeyFileExits1NamingTheFileAndTheEntry) {

@@ -287,5 +287,24 @@ TEST(LipsyncdTls, TheCliConnectsWithItsCaCertAndKeyOptions) {
   EXPECT_EQ(server.process->wait(), 0);
 }
 
+// A plaintext client of a TLS server cannot tell a TLS server from a silent one, so its hint names
+// both: the client library's (stream, server-models, ...) and loadtest's own HTTP/2 client's.
+TEST(LipsyncdTls, PlaintextCliCommandsAgainstATlsServerSuggestTheTlsOptions) {
+  RunningServer server({"--tls-cert", cert_path("server.pem"), "--tls-key", cert_path("server.key")});
+  ASSERT_FALSE(server.address.empty()) << server.log();
+  const fs::path work = lipsync::testing::make_temp_dir("lipsync-cli-tls-");
+  const auto models = lipsync::testing::run_program(
+      {LIPSYNC_CLI_BINARY, "server-models", "--server", server.address, "--timeout", "1"}, work, work);
+  EXPECT_EQ(models.status, 1);
+  EXPECT_THAT(models.err, HasSubstr("if it uses TLS, add --ca FILE or --tls"));
+  const auto load = lipsync::testing::run_program(
+      {LIPSYNC_CLI_BINARY, "loadtest", "--server", server.address, "--producers", "1", "--duration", "1"}, work, work);
+  EXPECT_EQ(load.status, 1);
+  EXPECT_THAT(load.err, HasSubstr("did not answer as a plaintext HTTP/2 (gRPC) server; if it uses TLS, run loadtest "
+                                  "with --client grpc and --tls/--ca"));
+  server.process->terminate();
+  EXPECT_EQ(server.process->wait(), 0);
+}
+
 }  // namespace
 }  // namespace lipsync::server

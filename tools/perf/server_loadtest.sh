@@ -8,7 +8,9 @@
 # DURATION=10 seconds per step, REPEAT=3 rounds, SUBSCRIBERS="0 1 3" subscribers per session (each
 # step is run with each count, against lipsyncd and against the baseline, whose fan-out mode sends
 # the same bytes to every subscriber of a session), FAST_PRODUCERS=50
-# producers for the fast-mode throughput runs, CONNECTIONS=8 HTTP/2 connections, SERVER_CPUS and
+# producers for the fast-mode throughput runs, CONNECTIONS=8 HTTP/2 connections, CLIENT=h2 (the
+# generator's own HTTP/2 client; grpc: gRPC's C++ client library, which costs the generator about
+# twice the CPU, docs/performance.md "The load generator"), SERVER_CPUS and
 # CLIENT_CPUS (taskset CPU lists, e.g. 0 and 1: the servers on one core, the load generator on the
 # other; unset: no pinning), MESH_SESSIONS="500" real-time sessions of which a share MESH_SHARE=0.01
 # ask for the physics face (level MESH_LEVEL=1; lipsyncd only). SESSIONS, MESH_SESSIONS and
@@ -29,6 +31,7 @@ MESH_SESSIONS=${MESH_SESSIONS-"500"}
 MESH_SHARE=${MESH_SHARE:-0.01}
 MESH_LEVEL=${MESH_LEVEL:-1}
 CONNECTIONS=${CONNECTIONS:-8}
+CLIENT=${CLIENT:-h2}
 OUT_DIR=${OUT_DIR:-$(mktemp -d /tmp/server_loadtest.XXXXXX)}
 mkdir -p "$OUT_DIR"
 SERVER_PIN=()
@@ -69,7 +72,7 @@ start lipsyncd "${SERVER_PIN[@]}" "$LIPSYNCD" --listen 127.0.0.1:0 --log-level w
 start baseline "${SERVER_PIN[@]}" "$BASELINE" --listen 127.0.0.1:0
 echo "lipsyncd $ADDR_lipsyncd (pid $PID_lipsyncd), baseline $ADDR_baseline (pid $PID_baseline), $(nproc) cores," \
   "servers on CPUs ${SERVER_CPUS:-any}, load generator on CPUs ${CLIENT_CPUS:-any}"
-echo "results in $OUT_DIR"
+echo "results in $OUT_DIR; load generator: lipsync loadtest --client $CLIENT"
 
 cpu_ticks() { awk '{print $14 + $15}' "/proc/$1/stat"; }
 TICK=$(getconf CLK_TCK)
@@ -85,7 +88,7 @@ one() {
   before=$(cpu_ticks "${!pid_var}")
   start_ns=$(date +%s%N)
   local TIMEFORMAT='%U %S'
-  { time "${CLIENT_PIN[@]}" "$LIPSYNC" loadtest --server "${!addr_var}" --connections "$CONNECTIONS" --json "${extra[@]}" "$@" \
+  { time "${CLIENT_PIN[@]}" "$LIPSYNC" loadtest --server "${!addr_var}" --client "$CLIENT" --connections "$CONNECTIONS" --json "${extra[@]}" "$@" \
       >"$OUT_DIR/$tag.raw" 2>"$OUT_DIR/$tag.stderr" || true; } 2>"$OUT_DIR/$tag.time"
   end_ns=$(date +%s%N)
   after=$(cpu_ticks "${!pid_var}")

@@ -495,7 +495,8 @@ void AnimationClient::wait_connected() const {
                     "no answer within " + std::to_string(options_.connect_timeout.count()) + " ms " +
                         (options_.tls.on() ? "(is lipsyncd running there with TLS, and do --ca, --cert and --key "
                                              "match its certificate and client CA? see --server)"
-                                           : "(is lipsyncd running there? see --server)"));
+                                           : "(is lipsyncd running there? if it uses TLS, add --ca FILE or --tls; "
+                                             "see --server)"));
   }
 }
 
