@@ -6,6 +6,7 @@
 #include <bit>
 #include <cassert>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 namespace lipsync {
@@ -78,28 +79,87 @@ constexpr std::size_t kLanes = 4;
 #define LIPSYNC_VECTOR_CLONES
 #endif
 
-/// One dominance shape's share of Eq. 5: its channels' α · T and α, scaled by
-/// the shape's weight (channels of other shapes have α = 0 in these rows).
-LIPSYNC_VECTOR_CLONES void accumulate(std::size_t padded_channels, double weight, const double* __restrict alpha,
-                                      const double* __restrict alpha_target, double* __restrict numerator,
-                                      double* __restrict denominator) {
-  for (std::size_t c = 0; c < padded_channels; ++c) {
-    numerator[c] += alpha_target[c] * weight;
-    denominator[c] += alpha[c] * weight;
+/// One frame's window as the sums of Eq. 5 see it: pointers into the tables
+/// and into the evaluator's scratch, which pass 1 has filled.
+struct FrameSums {
+  std::size_t padded_channels;
+  const double* alpha;                 // shape × padded channel: α of the shape's channels, 0 elsewhere
+  const double* alpha_target;          // shape × padded channel: α · T, likewise
+  const double* target;                // phoneme × padded channel: T
+  const double* weight;                // per slot (a shape of a window segment): exp(log D/α − max)
+  const std::uint32_t* slot_shape;     // per slot: the index of its shape (its row in alpha, alpha_target)
+  const std::uint32_t* shape_phoneme;  // per shape: its phoneme (its row in target)
+  std::size_t slots;
+  double* numerator;                   // per padded channel, written
+  double* denominator;
+  double* low;
+  double* high;
+};
+
+/// kLanes doubles: one AVX2 register, or two SSE2 ones. Arithmetic on it is
+/// lane by lane, the same IEEE operations as on plain doubles.
+using Lanes = double __attribute__((vector_size(kLanes * sizeof(double))));
+
+/// `lanes` = p[0 .. kLanes) (any alignment), and back.
+inline void load(Lanes& lanes, const double* p) { std::memcpy(&lanes, p, sizeof lanes); }
+inline void store(const Lanes& lanes, double* p) { std::memcpy(p, &lanes, sizeof lanes); }
+
+/// Eq. 5's sums for channels [first_channel, first_channel + kWidth) of one
+/// frame. For each slot with a nonzero weight w, in slot order: numerator +=
+/// α·T · w and denominator += α · w (the rows of the slot's shape: channels of
+/// other shapes have α = 0 there), and each channel's [low, high] widened to
+/// the target of the slot's segment (a segment far away in time adds nothing,
+/// and its targets do not bound the result; widening again by the target of
+/// the segment's next shape changes nothing). kWidth is a constant so that the
+/// 4 · kWidth / kLanes accumulators stay in registers across all the frame's
+/// slots (with AVX2 and 16 channels, all but two of them), instead of a call
+/// and a round trip through memory per shape.
+template <std::size_t kWidth>
+[[gnu::always_inline]] inline void sum_block(const FrameSums& frame, std::size_t first_channel) {
+  constexpr std::size_t kVectors = kWidth / kLanes;
+  const std::size_t padded = frame.padded_channels;
+  Lanes numerator[kVectors] = {};
+  Lanes denominator[kVectors] = {};
+  Lanes low[kVectors];
+  Lanes high[kVectors];
+  for (std::size_t v = 0; v < kVectors; ++v) {
+    low[v] = Lanes{} + std::numeric_limits<double>::infinity();
+    high[v] = Lanes{} - std::numeric_limits<double>::infinity();
+  }
+  for (std::size_t slot = 0; slot < frame.slots; ++slot) {
+    const double weight = frame.weight[slot];
+    if (weight == 0.0) continue;
+    const std::uint32_t shape = frame.slot_shape[slot];
+    const double* alpha = frame.alpha + shape * padded + first_channel;
+    const double* alpha_target = frame.alpha_target + shape * padded + first_channel;
+    const double* target = frame.target + frame.shape_phoneme[shape] * padded + first_channel;
+    for (std::size_t v = 0; v < kVectors; ++v) {
+      Lanes lanes;
+      load(lanes, alpha_target + v * kLanes);
+      numerator[v] += lanes * weight;
+      load(lanes, alpha + v * kLanes);
+      denominator[v] += lanes * weight;
+      load(lanes, target + v * kLanes);
+      low[v] = lanes < low[v] ? lanes : low[v];
+      high[v] = lanes > high[v] ? lanes : high[v];
+    }
+  }
+  for (std::size_t v = 0; v < kVectors; ++v) {
+    const std::size_t c = first_channel + v * kLanes;
+    store(numerator[v], frame.numerator + c);
+    store(denominator[v], frame.denominator + c);
+    store(low[v], frame.low + c);
+    store(high[v], frame.high + c);
   }
 }
 
-/// Widens each channel's [low, high] to include a contributing segment's target.
-LIPSYNC_VECTOR_CLONES void widen_range(std::size_t padded_channels, const double* __restrict target,
-                                       double* __restrict low, double* __restrict high) {
-  for (std::size_t c = 0; c < padded_channels; ++c) {
-    // Loaded into locals first: then the selects if-convert and the loop vectorises.
-    const double goal = target[c];
-    const double lowest = low[c];
-    const double highest = high[c];
-    low[c] = goal < lowest ? goal : lowest;
-    high[c] = goal > highest ? goal : highest;
-  }
+/// Eq. 5's sums for all padded channels, in blocks of 16 (the built-in model's
+/// count) and then of one vector.
+LIPSYNC_VECTOR_CLONES void sum_frame(const FrameSums& frame) {
+  constexpr std::size_t kBlock = 4 * kLanes;
+  std::size_t c = 0;
+  for (; c + kBlock <= frame.padded_channels; c += kBlock) sum_block<kBlock>(frame, c);
+  for (; c < frame.padded_channels; c += kLanes) sum_block<kLanes>(frame, c);
 }
 
 /// Splits of ln 2 for the range reduction: k · kLn2Hi is exact for |k| < 2^11.
@@ -115,42 +175,48 @@ constexpr double kSmallestExponent = -708.0;
 
 namespace {
 
-/// e^v for v in [−708, 0], in place: e^v = 2^k · e^r with k = round(v / ln 2)
-/// and |r| ≤ ln 2 / 2, e^r by its Taylor series to degree 12 (truncation error
-/// below 2·10⁻¹⁶). Straight-line arithmetic, so the loop vectorises.
-LIPSYNC_VECTOR_CLONES void exp_in_range(double* __restrict values, std::size_t count) {
-  for (std::size_t i = 0; i < count; ++i) {
-    const double v = values[i];
-    const double shifted = v * kLog2E + kRoundingShift;
-    const double k = shifted - kRoundingShift;
-    const double r = (v - k * kLn2Hi) - k * kLn2Lo;
-    double p = 1.0 / 479001600.0;
-    p = p * r + 1.0 / 39916800.0;
-    p = p * r + 1.0 / 3628800.0;
-    p = p * r + 1.0 / 362880.0;
-    p = p * r + 1.0 / 40320.0;
-    p = p * r + 1.0 / 5040.0;
-    p = p * r + 1.0 / 720.0;
-    p = p * r + 1.0 / 120.0;
-    p = p * r + 1.0 / 24.0;
-    p = p * r + 1.0 / 6.0;
-    p = p * r + 0.5;
-    p = p * r + 1.0;
-    p = p * r + 1.0;
-    // 2^k from the integer in the low bits of `shifted`: exponent field k + 1023.
-    values[i] = p * std::bit_cast<double>((std::bit_cast<std::uint64_t>(shifted) + 1023) << 52);
-  }
+/// e^v for v in [−708, 0]: e^v = 2^k · e^r with k = round(v / ln 2) and
+/// |r| ≤ ln 2 / 2, e^r by its Taylor series to degree 12 (truncation error
+/// below 2·10⁻¹⁶). Straight-line arithmetic, so the loops over it vectorise.
+inline double exp_in_range(double v) {
+  const double shifted = v * kLog2E + kRoundingShift;
+  const double k = shifted - kRoundingShift;
+  const double r = (v - k * kLn2Hi) - k * kLn2Lo;
+  double p = 1.0 / 479001600.0;
+  p = p * r + 1.0 / 39916800.0;
+  p = p * r + 1.0 / 3628800.0;
+  p = p * r + 1.0 / 362880.0;
+  p = p * r + 1.0 / 40320.0;
+  p = p * r + 1.0 / 5040.0;
+  p = p * r + 1.0 / 720.0;
+  p = p * r + 1.0 / 120.0;
+  p = p * r + 1.0 / 24.0;
+  p = p * r + 1.0 / 6.0;
+  p = p * r + 0.5;
+  p = p * r + 1.0;
+  p = p * r + 1.0;
+  // 2^k from the integer in the low bits of `shifted`: exponent field k + 1023.
+  return p * std::bit_cast<double>((std::bit_cast<std::uint64_t>(shifted) + 1023) << 52);
+}
+
+/// y[i] = e^x[i] for x[i] ≤ 0, and 0 where e^x would be subnormal. Three
+/// loops, so that each of them vectorises (in one, GCC branches on the select).
+LIPSYNC_VECTOR_CLONES void exp_or_zero(const double* __restrict x, double* __restrict y, std::size_t count) {
+  for (std::size_t i = 0; i < count; ++i) y[i] = std::max(x[i], kSmallestExponent);
+  for (std::size_t i = 0; i < count; ++i) y[i] = exp_in_range(y[i]);
+  for (std::size_t i = 0; i < count; ++i) y[i] = x[i] < kSmallestExponent ? 0.0 : y[i];
+}
+
+/// The weights of a frame's slots: log_shape[i] −= max_log, then weight[i] = e^log_shape[i] (or 0).
+LIPSYNC_VECTOR_CLONES void shape_weights(double* __restrict log_shape, double max_log, double* __restrict weight,
+                                         std::size_t count) {
+  for (std::size_t i = 0; i < count; ++i) log_shape[i] -= max_log;
+  exp_or_zero(log_shape, weight, count);
 }
 
 }  // namespace
 
-void exp_non_positive(std::span<const double> x, std::span<double> y) {
-  for (std::size_t i = 0; i < x.size(); ++i) y[i] = std::max(x[i], kSmallestExponent);
-  exp_in_range(y.data(), y.size());
-  for (std::size_t i = 0; i < x.size(); ++i) {
-    if (x[i] < kSmallestExponent) y[i] = 0.0;
-  }
-}
+void exp_non_positive(std::span<const double> x, std::span<double> y) { exp_or_zero(x.data(), y.data(), x.size()); }
 
 namespace {
 
@@ -207,6 +273,7 @@ CoarticulationTables::CoarticulationTables(const ArticulationModel& model)
         alpha_target_.push_back(in_shape ? phoneme.dominance[c].alpha * phoneme.targets[c] : 0.0);
       }
     }
+    shape_phoneme_.resize(shapes_.size(), static_cast<std::uint32_t>(shape_begin_.size() - 1));
     shape_begin_.push_back(static_cast<std::uint32_t>(shapes_.size()));
     max_shapes_ = std::max(max_shapes_, shapes_.size() - first_shape);
   }
@@ -220,6 +287,7 @@ CoarticulationEvaluator::CoarticulationEvaluator(std::shared_ptr<const Coarticul
   const std::size_t window = 2 * kWindowRadius + 1;
   log_shape_.resize(window * tables_->max_shapes_);
   shape_weight_.resize(window * tables_->max_shapes_);
+  slot_shape_.resize(window * tables_->max_shapes_);
   numerator_.resize(tables_->padded_channels_);
   denominator_.resize(tables_->padded_channels_);
   low_.resize(tables_->padded_channels_);
@@ -250,6 +318,7 @@ void CoarticulationEvaluator::evaluate(std::span<const Segment> window, std::siz
     const std::ptrdiff_t distance = static_cast<std::ptrdiff_t>(i) - static_cast<std::ptrdiff_t>(current);
     slot_begin_[i - first] = slots;
     double* log_shape = log_shape_.data() + slots;
+    std::uint32_t* slot_shape = slot_shape_.data() + slots;
     slots += shape_begin[phoneme + 1] - shape_begin[phoneme];
     for (std::uint32_t k = shape_begin[phoneme]; k < shape_begin[phoneme + 1]; ++k) {
       const DominanceParams& params = tables.shapes_[k];
@@ -269,6 +338,7 @@ void CoarticulationEvaluator::evaluate(std::span<const Segment> window, std::siz
         value = log_dominance(params, 0.0, tau_s(segment, params, t_us));
       }
       log_shape[k - shape_begin[phoneme]] = value;
+      slot_shape[k - shape_begin[phoneme]] = k;
       max_log = std::max(max_log, value);
     }
   }
@@ -276,29 +346,21 @@ void CoarticulationEvaluator::evaluate(std::span<const Segment> window, std::siz
 
   // Pass 2: Eq. 5 with weights α · exp(log D/α − max): the largest shape
   // weight is 1, so nothing overflows and, for all but pathological inputs,
-  // every channel's denominator stays far from underflow.
-  const std::size_t n = tables.padded_channels_;
-  std::fill_n(numerator_.data(), n, 0.0);
-  std::fill_n(denominator_.data(), n, 0.0);
-  std::fill_n(low_.data(), n, std::numeric_limits<double>::infinity());
-  std::fill_n(high_.data(), n, -std::numeric_limits<double>::infinity());
-  for (std::size_t slot = 0; slot < slots; ++slot) log_shape_[slot] -= max_log;
-  exp_non_positive(std::span<const double>(log_shape_.data(), slots), std::span<double>(shape_weight_.data(), slots));
-  for (std::size_t i = first; i <= last; ++i) {
-    const auto phoneme = static_cast<std::size_t>(window[i].phoneme);
-    const std::size_t shape_count = shape_begin[phoneme + 1] - shape_begin[phoneme];
-    const double* shape_weight = shape_weight_.data() + slot_begin_[i - first];
-    bool carries_weight = false;
-    for (std::size_t k = 0; k < shape_count; ++k) {
-      if (shape_weight[k] == 0.0) continue;
-      const std::size_t row = (shape_begin[phoneme] + k) * n;
-      accumulate(n, shape_weight[k], tables.alpha_.data() + row, tables.alpha_target_.data() + row, numerator_.data(),
-                 denominator_.data());
-      carries_weight = true;
-    }
-    // A segment far away in time adds nothing, and its targets do not bound the result.
-    if (carries_weight) widen_range(n, tables.target_.data() + phoneme * n, low_.data(), high_.data());
-  }
+  // every channel's denominator stays far from underflow. Each channel's sums
+  // run over the slots in window order, one shape after the other.
+  shape_weights(log_shape_.data(), max_log, shape_weight_.data(), slots);
+  sum_frame({.padded_channels = tables.padded_channels_,
+             .alpha = tables.alpha_.data(),
+             .alpha_target = tables.alpha_target_.data(),
+             .target = tables.target_.data(),
+             .weight = shape_weight_.data(),
+             .slot_shape = slot_shape_.data(),
+             .shape_phoneme = tables.shape_phoneme_.data(),
+             .slots = slots,
+             .numerator = numerator_.data(),
+             .denominator = denominator_.data(),
+             .low = low_.data(),
+             .high = high_.data()});
   for (std::size_t c = 0; c < channels; ++c) {
     if (denominator_[c] < kUnderflowGuard) evaluate_channel_in_log_space(window, first, last, c);
   }

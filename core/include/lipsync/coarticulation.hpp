@@ -59,6 +59,7 @@ class CoarticulationTables {
   // shapes_[shape_begin_[p] .. shape_begin_[p + 1]).
   std::vector<DominanceParams> shapes_;
   std::vector<std::uint32_t> shape_begin_;
+  std::vector<std::uint32_t> shape_phoneme_;  // the phoneme of each shape (its row in target_)
   std::size_t max_shapes_ = 1;
   // Phoneme × padded channel tables.
   std::vector<std::uint32_t> channel_shape_;  // index into the phoneme's shapes
@@ -93,9 +94,11 @@ class CoarticulationEvaluator {
   // Scratch, sized once.
   // One slot per dominance shape of each segment in the window, segment after segment with
   // no gaps; segment i of the window starts at slot_begin_[i]. log_shape_ holds log(D/α),
-  // shape_weight_ the weights exp(log(D/α) − max) of the same slots.
+  // shape_weight_ the weights exp(log(D/α) − max) of the same slots, slot_shape_ their shapes
+  // (indices into the tables' shapes).
   std::vector<double> log_shape_;
   std::vector<double> shape_weight_;
+  std::vector<std::uint32_t> slot_shape_;
   std::array<std::size_t, 2 * kWindowRadius + 2> slot_begin_{};
   std::vector<double> numerator_;
   std::vector<double> denominator_;
@@ -113,7 +116,7 @@ double fade_out_shape(double u, double length_s, double slope_per_s);
 
 /// y[i] = e^x[i] for x[i] ≤ 0 (−∞ allowed), within 2 ulp of std::exp, and 0
 /// where e^x would be subnormal (x < −708). The evaluator's weights go through
-/// here in one vectorised batch per frame instead of one libm call each.
+/// the same code in one vectorised batch per frame instead of one libm call each.
 void exp_non_positive(std::span<const double> x, std::span<double> y);
 
 /// The original, unwindowed Cohen–Massaro (Eq. 1): every segment of the
