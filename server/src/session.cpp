@@ -18,8 +18,28 @@ std::size_t mesh_bytes(const lipsync::server::Message& batch) {
 
 namespace lipsync::server {
 
-Session::Session(std::string name, Message header, std::size_t replay_frames)
-    : name_(std::move(name)), header_(std::move(header)), replay_frames_(replay_frames) {}
+void EndedSessions::add(Ended ended) {
+  std::lock_guard lock(mutex_);
+  ended_.push_back(std::move(ended));
+}
+
+std::vector<EndedSessions::Ended> EndedSessions::take_until(std::chrono::steady_clock::time_point cutoff) {
+  std::lock_guard lock(mutex_);
+  std::vector<Ended> taken;
+  while (!ended_.empty() && ended_.front().at <= cutoff) {
+    taken.push_back(std::move(ended_.front()));
+    ended_.pop_front();
+  }
+  return taken;
+}
+
+Session::Session(std::string name, Message header, std::size_t replay_frames, std::string key,
+                 std::shared_ptr<EndedSessions> ended)
+    : name_(std::move(name)),
+      header_(std::move(header)),
+      replay_frames_(replay_frames),
+      key_(std::move(key)),
+      ended_sessions_(std::move(ended)) {}
 
 void Session::publish(const Message& batch, std::size_t frames) {
   std::lock_guard lock(mutex_);
@@ -60,6 +80,7 @@ void Session::end_locked(State state) {
   state_ = state;
   ended_at_ = std::chrono::steady_clock::now();
   subscribers_.clear();
+  if (ended_sessions_) ended_sessions_->add({key_, weak_from_this(), ended_at_});
 }
 
 grpc::Status Session::aborted_status_locked() const {
@@ -100,11 +121,6 @@ bool Session::live() const {
   return state_ == State::live;
 }
 
-bool Session::expired(std::chrono::steady_clock::time_point now, std::chrono::milliseconds retention) const {
-  std::lock_guard lock(mutex_);
-  return state_ != State::live && now - ended_at_ >= retention;
-}
-
 std::size_t Session::subscriber_count() const {
   std::lock_guard lock(mutex_);
   return subscribers_.size();
@@ -115,8 +131,11 @@ SessionRegistry::SessionRegistry(std::size_t max_sessions, std::size_t replay_fr
     : max_sessions_(max_sessions), replay_frames_(replay_frames), retention_(retention) {}
 
 void SessionRegistry::sweep_locked() {
-  const auto now = std::chrono::steady_clock::now();
-  std::erase_if(sessions_, [&](const auto& entry) { return entry.second->expired(now, retention_); });
+  for (const EndedSessions::Ended& ended : ended_->take_until(std::chrono::steady_clock::now() - retention_)) {
+    // The name may have been taken since by a new producer (open replaces an ended session).
+    const auto it = sessions_.find(ended.key);
+    if (it != sessions_.end() && it->second == ended.session.lock()) sessions_.erase(it);
+  }
 }
 
 grpc::Status SessionRegistry::open(const std::string& name, const Message& header,
@@ -135,8 +154,9 @@ grpc::Status SessionRegistry::open(const std::string& name, const Message& heade
             "the server already holds " + std::to_string(sessions_.size()) +
                 " sessions (--max-sessions=" + std::to_string(max_sessions_) + ")"};
   }
-  out = std::make_shared<Session>(name, header, replay_frames_);
-  sessions_.emplace(key.empty() ? name : key, out);
+  const std::string& filed_under = key.empty() ? name : key;
+  out = std::make_shared<Session>(name, header, replay_frames_, filed_under, ended_);
+  sessions_.emplace(filed_under, out);
   return grpc::Status::OK;
 }
 

@@ -410,6 +410,24 @@ TEST_F(ServerTest, UnknownSessionIsNotFoundAndExpiredSessionsAreDropped) {
   EXPECT_EQ(server_->session_count(), 0u);
 }
 
+// The registry forgets an ended session once its retention has passed, by the queue of ended
+// sessions (session.hpp); a new producer that took the name meanwhile is not forgotten with it.
+TEST_F(ServerTest, ANameReusedAfterItsSessionEndedOutlivesTheOldSessionsRetention) {
+  ServerConfig config;
+  config.session_retention_ms = 200;
+  start(config);
+  ASSERT_TRUE(animate(*stub_, whole(session_settings("reused"), utterance(5), 5)).status.ok());
+  Producer second(*stub_, session_settings("reused"));  // replaces the ended one
+  second.write(chunked(utterance(20, 3), 10)[0]);
+  std::this_thread::sleep_for(std::chrono::milliseconds(400));  // the first one's retention is over
+  Subscriber follower(*stub_, "reused", v1::SubscribeRequest::START_FROM_BEGINNING);
+  ASSERT_TRUE(follower.attached());
+  EXPECT_EQ(server_->session_count(), 1u);
+  second.write(end_request());
+  EXPECT_TRUE(second.finish().status.ok());
+  EXPECT_TRUE(follower.finish().status.ok());
+}
+
 TEST_F(ServerTest, ASecondLiveProducerForTheSameSessionIsRefused) {
   Producer first(*stub_, session_settings("taken"));
   const Received second = animate(*stub_, whole(session_settings("taken"), utterance(5), 5));
