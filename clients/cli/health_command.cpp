@@ -54,7 +54,11 @@ int run_health(std::span<const std::string_view> args) {
   const grpc::Status status = done.get_future().get();
   if (!status.ok()) {
     std::cerr << "lipsync: lipsyncd at " << address << " did not answer: "
-              << client::status_code_name(status.error_code()) << ": " << status.error_message() << '\n';
+              << client::status_code_name(status.error_code()) << ": " << status.error_message();
+    const bool unreachable = status.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED ||
+                             status.error_code() == grpc::StatusCode::UNAVAILABLE;
+    if (unreachable) std::cerr << ' ' << client::unreachable_hint(options.tls);
+    std::cerr << '\n';
     return 1;
   }
   std::vector<grpc::Slice> slices;

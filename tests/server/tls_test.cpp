@@ -288,7 +288,7 @@ TEST(LipsyncdTls, TheCliConnectsWithItsCaCertAndKeyOptions) {
 }
 
 // A plaintext client of a TLS server cannot tell a TLS server from a silent one, so its hint names
-// both: the client library's (stream, server-models, ...) and loadtest's own HTTP/2 client's.
+// both: the client library's (stream, server-models, ...), health's and loadtest's own HTTP/2 client's.
 TEST(LipsyncdTls, PlaintextCliCommandsAgainstATlsServerSuggestTheTlsOptions) {
   RunningServer server({"--tls-cert", cert_path("server.pem"), "--tls-key", cert_path("server.key")});
   ASSERT_FALSE(server.address.empty()) << server.log();
@@ -297,6 +297,11 @@ TEST(LipsyncdTls, PlaintextCliCommandsAgainstATlsServerSuggestTheTlsOptions) {
       {LIPSYNC_CLI_BINARY, "server-models", "--server", server.address, "--timeout", "1"}, work, work);
   EXPECT_EQ(models.status, 1);
   EXPECT_THAT(models.err, HasSubstr("if it uses TLS, add --ca FILE or --tls"));
+  const auto health = lipsync::testing::run_program(
+      {LIPSYNC_CLI_BINARY, "health", "--server", server.address, "--timeout", "1"}, work, work);
+  EXPECT_EQ(health.status, 1);
+  EXPECT_THAT(health.err, HasSubstr("did not answer: DEADLINE_EXCEEDED"));
+  EXPECT_THAT(health.err, HasSubstr("if it uses TLS, add --ca FILE or --tls"));
   const auto load = lipsync::testing::run_program(
       {LIPSYNC_CLI_BINARY, "loadtest", "--server", server.address, "--producers", "1", "--duration", "1"}, work, work);
   EXPECT_EQ(load.status, 1);

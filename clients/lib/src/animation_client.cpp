@@ -489,14 +489,17 @@ AnimationClient::AnimationClient(std::string address, ClientOptions options)
   stub_ = v1::LipSync::NewStub(channel_);
 }
 
+std::string unreachable_hint(const TlsOptions& tls) {
+  return tls.on() ? "(is lipsyncd running there with TLS, and do --ca, --cert and --key match its certificate and "
+                    "client CA? see --server)"
+                  : "(is lipsyncd running there? if it uses TLS, add --ca FILE or --tls; see --server)";
+}
+
 void AnimationClient::wait_connected() const {
   if (!channel_->WaitForConnected(deadline_after(options_.connect_timeout))) {
     throw CallError("connecting to lipsyncd at " + address_, grpc::StatusCode::UNAVAILABLE,
                     "no answer within " + std::to_string(options_.connect_timeout.count()) + " ms " +
-                        (options_.tls.on() ? "(is lipsyncd running there with TLS, and do --ca, --cert and --key "
-                                             "match its certificate and client CA? see --server)"
-                                           : "(is lipsyncd running there? if it uses TLS, add --ca FILE or --tls; "
-                                             "see --server)"));
+                        unreachable_hint(options_.tls));
   }
 }
 

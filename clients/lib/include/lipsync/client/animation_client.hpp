@@ -92,6 +92,9 @@ struct ClientOptions {
 /// The channel credentials for `tls`: insecure when it is off. Throws CallError
 /// (INVALID_ARGUMENT) naming a file that cannot be read, or a certificate without its key.
 std::shared_ptr<grpc::ChannelCredentials> channel_credentials(const TlsOptions& tls);
+/// What to check when lipsyncd at an address does not answer, in parentheses: that it runs
+/// there and, with `tls` off, that it does not need TLS; with it on, that the files match.
+std::string unreachable_hint(const TlsOptions& tls);
 /// Adds `authorization: Bearer <api_key>` to `context` (nothing for an empty key).
 void add_api_key(grpc::ClientContext& context, const std::string& api_key);
 
