@@ -266,9 +266,9 @@ std::unique_ptr<H2Call> H2GrpcConnection::start(std::string_view path,
   if (id < 0) {
     // Not started (the connection is closed, or out of stream ids): the call ends with
     // UNAVAILABLE after start returns, as any other call's end is reported.
-    id = next_refused_id_--;
     const std::string why = closed_ ? "the connection to " + address_ + " is closed"
                                     : "HTTP/2 could not start a stream: " + std::string(nghttp2_strerror(id));
+    id = next_refused_id_--;
     streams_.emplace(id, std::move(stream));
     asio::post(io_, [this, alive = alive_, id, why] {
       if (!*alive) return;
