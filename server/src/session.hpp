@@ -40,8 +40,10 @@ namespace lipsync::server {
 
 class Session;
 
-/// The sessions that have ended, oldest first. Its lock is a leaf: taken under
-/// a session's lock or the registry's, and nothing is locked under it.
+/// The sessions that have ended, oldest first (two that end at the same moment
+/// on two threads may be queued in either order: one is then forgotten a few
+/// microseconds late). Its lock is a leaf: taken under a session's lock or the
+/// registry's, and nothing is locked under it.
 class EndedSessions {
  public:
   struct Ended {
