@@ -599,7 +599,8 @@ int run_loadtest(std::span<const std::string_view> args) {
   config.seed = static_cast<std::uint64_t>(parse_int_option("seed", arguments.value("seed").value_or("1"), 0, INT32_MAX));
   config.verify = !arguments.flag("no-verify");
   const int connections = parse_int_option("connections", arguments.value("connections").value_or("4"), 1, 64);
-  const bool tls = connection_options(arguments).tls.on();
+  client::ClientOptions client_options = connection_options(arguments);
+  const bool tls = client_options.tls.on();
   const std::string client_name = arguments.value("client").value_or(tls ? "grpc" : "h2");
   if (client_name != "h2" && client_name != "grpc") {
     throw UsageError("--client: unknown client '" + client_name + "' (choose h2 or grpc)");
@@ -636,7 +637,6 @@ int run_loadtest(std::span<const std::string_view> args) {
     pool.push_back(make_utterance(config.seed * 1'000'003 + i, config.phonemes, model, *arpabet));
   }
 
-  client::ClientOptions client_options = connection_options(arguments);
   client_options.stream_timeout = config.duration + kGrace + std::chrono::seconds(5);
   asio::io_context io;
   const std::unique_ptr<LoadClient> client = connect_load_client(client_kind, io, address, client_options, connections);

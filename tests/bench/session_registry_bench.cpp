@@ -15,7 +15,6 @@
 #include <map>
 #include <memory>
 #include <string>
-#include <vector>
 
 #include "session.hpp"
 
@@ -35,9 +34,8 @@ SessionRegistry& registry_with(std::size_t ended) {
     if (!registry->open("ended-" + std::to_string(i), header, session).ok()) std::abort();
     session->finish(summary);
   }
-  static std::vector<std::shared_ptr<Session>> live;
-  live.emplace_back();
-  if (!registry->open("live", header, live.back()).ok()) std::abort();
+  std::shared_ptr<Session> live;  // the registry holds it; it stays live, never finished
+  if (!registry->open("live", header, live).ok()) std::abort();
   return *registry;
 }
 

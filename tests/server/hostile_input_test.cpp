@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "../support/child_process.hpp"
+#include "../support/json_log.hpp"
 #include "../support/server_harness.hpp"
 
 namespace lipsync::server {
@@ -91,26 +92,6 @@ TEST_F(HostileInputTest, ControlCharactersAreEscapedAndShortValuesStayWhole) {
   EXPECT_THAT(unknown.error_message(), HasSubstr("phoneme 'ʃ\\x01'")) << unknown.error_code();
 }
 
-std::vector<nlohmann::json> json_lines(const std::string& text) {
-  std::vector<nlohmann::json> lines;
-  std::istringstream in(text);
-  for (std::string line; std::getline(in, line);) {
-    try {
-      lines.push_back(nlohmann::json::parse(line));
-    } catch (const nlohmann::json::exception& error) {
-      ADD_FAILURE() << "not a JSON object: " << line.substr(0, 200);
-    }
-  }
-  return lines;
-}
-
-const nlohmann::json* find_event(const std::vector<nlohmann::json>& lines, const std::string& event) {
-  for (const auto& line : lines) {
-    if (line.value("event", "") == event) return &line;
-  }
-  return nullptr;
-}
-
 TEST(LipsyncdLogs, JsonLinesSayWhatTheClientReceivedWithExcerpts) {
   const auto dir = lipsync::testing::make_temp_dir("lipsyncd-logs-");
   lipsync::testing::ChildProcess child({LIPSYNCD_PATH, "--listen", "127.0.0.1:0", "--log-format", "json"}, dir,
@@ -128,14 +109,14 @@ TEST(LipsyncdLogs, JsonLinesSayWhatTheClientReceivedWithExcerpts) {
   EXPECT_EQ(child.wait(), 0);
   const std::string log = lipsync::testing::read_text(dir / "err");
   EXPECT_LT(log.size(), 20'000u) << "a 100 kB session name was logged whole";
-  const auto lines = json_lines(log);
+  const auto lines = lipsync::testing::json_lines(log);
   for (const auto& line : lines) {
     for (const char* field : {"time", "level", "event"}) EXPECT_TRUE(line.contains(field)) << line.dump();
   }
-  const auto* subscribe_start = find_event(lines, "Subscribe.start");
-  const auto* subscribe_end = find_event(lines, "Subscribe.end");
-  const auto* animate_start = find_event(lines, "Animate.start");
-  const auto* animate_end = find_event(lines, "Animate.end");
+  const auto* subscribe_start = lipsync::testing::find_event(lines, "Subscribe.start");
+  const auto* subscribe_end = lipsync::testing::find_event(lines, "Subscribe.end");
+  const auto* animate_start = lipsync::testing::find_event(lines, "Animate.start");
+  const auto* animate_end = lipsync::testing::find_event(lines, "Animate.end");
   ASSERT_TRUE(subscribe_start && subscribe_end && animate_start && animate_end) << log.substr(0, 2000);
   EXPECT_EQ((*subscribe_end)["status"], "NOT_FOUND");
   EXPECT_THAT((*subscribe_end)["session"].get<std::string>(), HasSubstr("(100000 bytes)"));

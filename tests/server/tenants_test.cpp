@@ -9,11 +9,9 @@
 
 #include <atomic>
 #include <filesystem>
-#include <map>
-#include <nlohmann/json.hpp>
-#include <sstream>
 
 #include "../support/child_process.hpp"
+#include "../support/json_log.hpp"
 #include "../support/prometheus_text.hpp"
 #include "../support/server_harness.hpp"
 #include "lipsync/client/animation_client.hpp"
@@ -438,17 +436,13 @@ TEST(LipsyncdKeys, JsonAccessLinesOfASubscribeNameTheTenantOfItsKey) {
   }
   server.terminate();
   EXPECT_EQ(server.wait(), 0);
-  std::map<std::string, nlohmann::json> by_event;
-  std::istringstream log(lipsync::testing::read_text(work / "err"));
-  for (std::string line; std::getline(log, line);) {
-    const auto parsed = nlohmann::json::parse(line, nullptr, false);
-    if (parsed.is_object() && parsed.contains("event")) by_event[parsed["event"].get<std::string>()] = parsed;
-  }
-  ASSERT_TRUE(by_event.count("Subscribe.start") && by_event.count("Subscribe.end"))
-      << lipsync::testing::read_text(work / "err");
-  EXPECT_EQ(by_event["Subscribe.start"]["tenant"], "studio");
-  EXPECT_EQ(by_event["Subscribe.end"]["tenant"], "studio");
-  EXPECT_EQ(by_event["Subscribe.end"]["status"], "NOT_FOUND");
+  const auto lines = lipsync::testing::json_lines(lipsync::testing::read_text(work / "err"));
+  const auto* start = lipsync::testing::find_event(lines, "Subscribe.start");
+  const auto* end = lipsync::testing::find_event(lines, "Subscribe.end");
+  ASSERT_TRUE(start && end) << lipsync::testing::read_text(work / "err");
+  EXPECT_EQ((*start)["tenant"], "studio");
+  EXPECT_EQ((*end)["tenant"], "studio");
+  EXPECT_EQ((*end)["status"], "NOT_FOUND");
 }
 
 TEST(LipsyncdKeys, ABadKeyFileExits1NamingTheFileAndTheEntry) {

@@ -8,11 +8,9 @@
 
 #include <filesystem>
 #include <fstream>
-#include <sstream>
-
-#include <nlohmann/json.hpp>
 
 #include "../support/child_process.hpp"
+#include "../support/json_log.hpp"
 #include "../support/server_harness.hpp"
 #include "lipsync/client/animation_client.hpp"
 
@@ -249,15 +247,12 @@ TEST(LipsyncdTls, InJsonLogFormatGrpcsOwnHandshakeErrorIsAJsonLineToo) {
   ASSERT_TRUE(eventually([&] { return server.log().find("Handshake failed") != std::string::npos; })) << server.log();
   server.process->terminate();
   EXPECT_EQ(server.process->wait(), 0);
-  std::istringstream log(server.log());
   std::size_t handshake_errors = 0;
-  for (std::string line; std::getline(log, line);) {
-    const auto object = nlohmann::json::parse(line, nullptr, false);
-    ASSERT_TRUE(object.is_object()) << "not a JSON object: " << line;
+  for (const auto& object : lipsync::testing::json_lines(server.log())) {  // each line must be an object
     if (object.value("message", "").find("Handshake failed") != std::string::npos) {
       ++handshake_errors;
-      EXPECT_EQ(object["level"], "error") << line;
-      EXPECT_EQ(object["message"].get<std::string>().rfind("grpc: ", 0), 0u) << line;
+      EXPECT_EQ(object["level"], "error") << object.dump();
+      EXPECT_EQ(object["message"].get<std::string>().rfind("grpc: ", 0), 0u) << object.dump();
     }
   }
   EXPECT_GT(handshake_errors, 0u);

@@ -246,9 +246,7 @@ class Producer {
   }
   Received finish() {
     stream_->WritesDone();
-    read_all(*stream_, received_);
-    received_.status = stream_->Finish();
-    return received_;
+    return finish_when_the_server_ends_it();
   }
   /// Reads until the server ends the call, with the request side left open (a half-close
   /// before `end` would itself end the call, INVALID_ARGUMENT).
