@@ -18,16 +18,22 @@ namespace {
 
 using nlohmann::json;
 
+/// The length in bytes of the UTF-8 code point that starts at text[i] (by its
+/// lead byte; a sequence cut short by the end of the text ends there).
+std::size_t code_point_length(std::string_view text, std::size_t i) {
+  const auto lead = static_cast<unsigned char>(text[i]);
+  std::size_t length = 1;
+  if (lead >= 0xF0) length = 4;
+  else if (lead >= 0xE0) length = 3;
+  else if (lead >= 0xC0) length = 2;
+  return std::min(length, text.size() - i);
+}
+
 /// Splits UTF-8 text into code points (each as its byte sequence).
 std::vector<std::string> code_points(std::string_view text) {
   std::vector<std::string> points;
   for (std::size_t i = 0; i < text.size();) {
-    const auto lead = static_cast<unsigned char>(text[i]);
-    std::size_t length = 1;
-    if (lead >= 0xF0) length = 4;
-    else if (lead >= 0xE0) length = 3;
-    else if (lead >= 0xC0) length = 2;
-    length = std::min(length, text.size() - i);
+    const std::size_t length = code_point_length(text, i);
     points.emplace_back(text.substr(i, length));
     i += length;
   }
@@ -118,9 +124,13 @@ std::optional<PhoneSet> PhoneSet::builtin(std::string_view name, const Articulat
 }
 
 std::string PhoneSet::normalise(std::string_view label) const {
+  // Called for every phoneme a client streams: no allocation beyond the result
+  // (which short labels keep in the string itself).
   std::string out;
   out.reserve(label.size());
-  for (const std::string& point : code_points(label)) {
+  for (std::size_t i = 0; i < label.size();) {
+    const std::string_view point = label.substr(i, code_point_length(label, i));
+    i += point.size();
     if (std::find(ignored_.begin(), ignored_.end(), point) != ignored_.end()) continue;
     if (!case_sensitive_ && point.size() == 1 && point[0] >= 'A' && point[0] <= 'Z') {
       out.push_back(static_cast<char>(point[0] - 'A' + 'a'));
