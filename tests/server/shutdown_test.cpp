@@ -43,8 +43,8 @@ class BusyProcesses {
     for (unsigned i = 0; i < count; ++i) {
       const pid_t pid = fork();
       if (pid == 0) {
-        for (volatile unsigned long spin = 0;; spin = spin + 1) {
-        }
+        volatile unsigned long spin = 0;
+        while (true) spin = spin + 1;
       }
       pids_.push_back(pid);
     }
