@@ -5,10 +5,10 @@
 // Why not gRPC's own client: measured with `perf` at 2,000 real-time sessions
 // (docs/performance.md, "The generator's own HTTP/2 client"), gRPC's C++
 // client kept 0.73 of the generator's core busy, 58 % of it in the kernel: a
-// wake-up of one of gRPC's threads and a write(2) for nearly every message. Here every stream of
-// the connection lives on the caller's Asio thread; requests queued while that
-// thread runs its handlers leave in one write, and one read(2) brings whatever
-// the server sent on every stream.
+// wake-up of one of gRPC's threads and a write(2) for nearly every message.
+// Here every stream of the connection lives on the caller's Asio thread;
+// requests queued while that thread runs its handlers leave in one write, and
+// one read(2) brings whatever the server sent on every stream.
 //
 // What it speaks is the part of gRPC's HTTP/2 protocol (gRPC's
 // doc/PROTOCOL-HTTP2.md) that streaming calls need: a POST on the method's
