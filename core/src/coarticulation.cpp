@@ -73,6 +73,57 @@ inline double log_dominance_slope(const Segment& segment, const DominanceParams&
 // before main (docs/security.md, "Sanitizers").
 constexpr std::size_t kLanes = 4;
 
+/// kLanes doubles: one AVX2 register, or two SSE2 ones. Arithmetic on it is
+/// lane by lane, the same IEEE operations as on plain doubles. The channel
+/// sums run over channels in lanes; pass 1 runs over up to kLanes frame times.
+using Lanes = double __attribute__((vector_size(kLanes * sizeof(double))));
+using LaneBits = std::uint64_t __attribute__((vector_size(kLanes * sizeof(std::uint64_t))));
+
+/// log D/α of Eq. 2 (log_dominance with log α = 0, of τ = tau_s) for kLanes
+/// instants at once, lane by lane the same operations. The instants are whole
+/// µs of at most kMaxTimeUs in magnitude, so they, the segment's times and
+/// their sums and differences are exact doubles: subtracting in double gives
+/// the very value tau_s converts from its integer difference. (The result is
+/// written through a reference: GCC warns that a returned Lanes value is
+/// passed differently with and without AVX.)
+[[gnu::always_inline]] inline void log_dominance_lanes(const Segment& segment, const DominanceParams& params,
+                                                       const Lanes& t_us, Lanes& log_dominance) {
+  const double start_us = static_cast<double>(segment.start_us);
+  const double end_us = static_cast<double>(segment.end_us);
+  Lanes tau;
+  switch (segment.phoneme_class) {
+    case PhonemeClass::release:
+      tau = (start_us - t_us) * 1e-6;
+      break;
+    case PhonemeClass::closure: {
+      const Lanes before_start = (start_us - t_us) * 1e-6 - params.t_off_s;
+      const Lanes before_end = (end_us - t_us) * 1e-6 - params.t_off_s;
+      tau = before_start > 0.0 ? before_start : (before_end < 0.0 ? before_end : Lanes{});
+      break;
+    }
+    default:
+      tau = ((start_us + end_us) - 2.0 * t_us) * 0.5e-6 - params.t_off_s;
+  }
+  const Lanes theta = tau >= 0.0 ? (Lanes{} + params.theta_plus_per_s) : (Lanes{} + params.theta_minus_per_s);
+  // |τ|: the sign bit cleared, as std::fabs does.
+  LaneBits bits;
+  std::memcpy(&bits, &tau, sizeof bits);
+  bits &= ~(LaneBits{} + (1ULL << 63));
+  Lanes base;
+  std::memcpy(&base, &bits, sizeof base);
+  Lanes raised;
+  if (params.c == 1.0) {
+    raised = base;
+  } else if (params.c == 0.0) {
+    raised = Lanes{} + 1.0;
+  } else if (params.c == 2.0) {
+    raised = base * base;
+  } else {
+    for (std::size_t lane = 0; lane < kLanes; ++lane) raised[lane] = std::pow(base[lane], params.c);
+  }
+  log_dominance = 0.0 - theta * raised;
+}
+
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__)
 #define LIPSYNC_VECTOR_CLONES __attribute__((target_clones("avx2", "default")))
 #else
@@ -96,10 +147,6 @@ struct FrameSums {
   double* high;
 };
 
-/// kLanes doubles: one AVX2 register, or two SSE2 ones. Arithmetic on it is
-/// lane by lane, the same IEEE operations as on plain doubles.
-using Lanes = double __attribute__((vector_size(kLanes * sizeof(double))));
-
 /// `lanes` = p[0 .. kLanes) (any alignment), and back.
 inline void load(Lanes& lanes, const double* p) { std::memcpy(&lanes, p, sizeof lanes); }
 inline void store(const Lanes& lanes, double* p) { std::memcpy(p, &lanes, sizeof lanes); }
@@ -113,8 +160,9 @@ inline void store(const Lanes& lanes, double* p) { std::memcpy(p, &lanes, sizeof
 /// the segment's next shape changes nothing). kWidth is a constant so that the
 /// 4 · kWidth / kLanes accumulators stay in registers across all the frame's
 /// slots (with AVX2 and 16 channels, all but two of them), instead of a call
-/// and a round trip through memory per shape.
-template <std::size_t kWidth>
+/// and a round trip through memory per shape. Without kRange, [low, high] is
+/// left as it is (another frame with the same contributors has set it).
+template <std::size_t kWidth, bool kRange>
 [[gnu::always_inline]] inline void sum_block(const FrameSums& frame, std::size_t first_channel) {
   constexpr std::size_t kVectors = kWidth / kLanes;
   const std::size_t padded = frame.padded_channels;
@@ -139,27 +187,40 @@ template <std::size_t kWidth>
       numerator[v] += lanes * weight;
       load(lanes, alpha + v * kLanes);
       denominator[v] += lanes * weight;
-      load(lanes, target + v * kLanes);
-      low[v] = lanes < low[v] ? lanes : low[v];
-      high[v] = lanes > high[v] ? lanes : high[v];
+      if constexpr (kRange) {
+        load(lanes, target + v * kLanes);
+        low[v] = lanes < low[v] ? lanes : low[v];
+        high[v] = lanes > high[v] ? lanes : high[v];
+      }
     }
   }
   for (std::size_t v = 0; v < kVectors; ++v) {
     const std::size_t c = first_channel + v * kLanes;
     store(numerator[v], frame.numerator + c);
     store(denominator[v], frame.denominator + c);
-    store(low[v], frame.low + c);
-    store(high[v], frame.high + c);
+    if constexpr (kRange) {
+      store(low[v], frame.low + c);
+      store(high[v], frame.high + c);
+    }
   }
 }
 
-/// Eq. 5's sums for all padded channels, in blocks of 16 (the built-in model's
-/// count) and then of one vector.
-LIPSYNC_VECTOR_CLONES void sum_frame(const FrameSums& frame) {
+template <bool kRange>
+[[gnu::always_inline]] inline void sum_frame_blocks(const FrameSums& frame) {
   constexpr std::size_t kBlock = 4 * kLanes;
   std::size_t c = 0;
-  for (; c + kBlock <= frame.padded_channels; c += kBlock) sum_block<kBlock>(frame, c);
-  for (; c < frame.padded_channels; c += kLanes) sum_block<kLanes>(frame, c);
+  for (; c + kBlock <= frame.padded_channels; c += kBlock) sum_block<kBlock, kRange>(frame, c);
+  for (; c < frame.padded_channels; c += kLanes) sum_block<kLanes, kRange>(frame, c);
+}
+
+/// Eq. 5's sums for all padded channels, in blocks of 16 (the built-in model's
+/// count) and then of one vector; [low, high] too if `range`.
+LIPSYNC_VECTOR_CLONES void sum_frame(const FrameSums& frame, bool range) {
+  if (range) {
+    sum_frame_blocks<true>(frame);
+  } else {
+    sum_frame_blocks<false>(frame);
+  }
 }
 
 /// Splits of ln 2 for the range reduction: k · kLn2Hi is exact for |k| < 2^11.
@@ -207,11 +268,102 @@ LIPSYNC_VECTOR_CLONES void exp_or_zero(const double* __restrict x, double* __res
   for (std::size_t i = 0; i < count; ++i) y[i] = x[i] < kSmallestExponent ? 0.0 : y[i];
 }
 
-/// The weights of a frame's slots: log_shape[i] −= max_log, then weight[i] = e^log_shape[i] (or 0).
-LIPSYNC_VECTOR_CLONES void shape_weights(double* __restrict log_shape, double max_log, double* __restrict weight,
-                                         std::size_t count) {
-  for (std::size_t i = 0; i < count; ++i) log_shape[i] -= max_log;
-  exp_or_zero(log_shape, weight, count);
+/// The weights of the slots of the first `lanes` instants: from log_shape, kLanes values per
+/// slot (slot × lane), scaled[lane][slot] = log_shape[slot][lane] − max_log[lane], and weight =
+/// e^scaled (or 0), instant after instant (lane × slot): each instant's weights are contiguous,
+/// and none are computed for lanes past the instants.
+LIPSYNC_VECTOR_CLONES void shape_weights(const double* __restrict log_shape, const double* __restrict max_log,
+                                         std::size_t lanes, std::size_t slots, double* __restrict scaled,
+                                         double* __restrict weight) {
+  for (std::size_t lane = 0; lane < lanes; ++lane) {
+    for (std::size_t slot = 0; slot < slots; ++slot) {
+      scaled[lane * slots + slot] = log_shape[slot * kLanes + lane] - max_log[lane];
+    }
+  }
+  exp_or_zero(scaled, weight, lanes * slots);
+}
+
+/// Pass 1 of an evaluation for up to kLanes instants in one segment, one per lane.
+struct WindowLogs {
+  const Segment* window;
+  std::size_t first;                 // the window's segments [first, last] are those the instants see
+  std::size_t last;
+  std::size_t current;               // the segment that contains them
+  const DominanceParams* shapes;     // the tables' shapes (α = 1)
+  const std::uint32_t* shape_begin;  // per phoneme, its first shape
+  std::int64_t t_us[kLanes];         // the instants; lanes past `times` repeat the last
+  std::size_t times;                 // how many instants there are
+  double* log_shape;                 // written: per slot, kLanes values of log D/α
+  std::uint32_t* slot_shape;         // written: per slot, its shape
+  std::size_t* slot_begin;           // written: per window segment from `first`, its first slot; then the end
+  double max_log[kLanes];            // written: per lane, the largest log D/α
+};
+
+/// log D / α for every segment of the window and every shape of its phoneme
+/// (Eq. 2, or Eq. 4's Hermite fade for the 7th segment on each side), for each
+/// instant in its lane, packed: each segment's shapes follow the previous
+/// segment's, so the passes after it touch only the shapes there are (about
+/// 18 of the 15 × max_shapes slots). Returns the number of slots.
+LIPSYNC_VECTOR_CLONES std::size_t window_log_dominances(WindowLogs& logs) {
+  const Segment& here = logs.window[logs.current];
+  const double here_length_s = static_cast<double>(here.end_us - here.start_us) * 1e-6;
+  Lanes t;
+  for (std::size_t lane = 0; lane < kLanes; ++lane) t[lane] = static_cast<double>(logs.t_us[lane]);
+  // u of the Hermite fades, exact like τ (see log_dominance_lanes).
+  const Lanes u = (t - static_cast<double>(here.start_us)) /
+                  (static_cast<double>(here.end_us) - static_cast<double>(here.start_us));
+  // value = one of the fades of Eq. 4, e^(border log D) × shape(u), as a logarithm, for the
+  // instants there are (a libm log each), copied to the lanes past them.
+  const auto fade = [&](Lanes& value, double border, auto shape) {
+    for (std::size_t lane = 0; lane < logs.times; ++lane) value[lane] = border + std::log(shape(u[lane]));
+    for (std::size_t lane = logs.times; lane < kLanes; ++lane) value[lane] = value[logs.times - 1];
+  };
+  Lanes max_log = Lanes{} + kNegativeInfinity;
+  std::size_t slots = 0;
+  for (std::size_t i = logs.first; i <= logs.last; ++i) {
+    const Segment& segment = logs.window[i];
+    const auto phoneme = static_cast<std::size_t>(segment.phoneme);
+    const std::ptrdiff_t distance = static_cast<std::ptrdiff_t>(i) - static_cast<std::ptrdiff_t>(logs.current);
+    logs.slot_begin[i - logs.first] = slots;
+    for (std::uint32_t k = logs.shape_begin[phoneme]; k < logs.shape_begin[phoneme + 1]; ++k, ++slots) {
+      const DominanceParams& params = logs.shapes[k];
+      Lanes value;
+      if (distance == kWindowRadius) {
+        // t lies in s₋₇ of this segment: fade in across the current segment,
+        // from 0 at its start to D at its end (= start of s₋₆).
+        const double tau_border = tau_s(segment, params, here.end_us);
+        const double slope = log_dominance_slope(segment, params, tau_border, true);
+        fade(value, log_dominance(params, 0.0, tau_border),
+             [&](double at) { return fade_in_shape(at, here_length_s, slope); });
+      } else if (distance == -kWindowRadius) {
+        // t lies in s₊₇: fade out from D at the current segment's start (= end of s₊₆).
+        const double tau_border = tau_s(segment, params, here.start_us);
+        const double slope = log_dominance_slope(segment, params, tau_border, false);
+        fade(value, log_dominance(params, 0.0, tau_border),
+             [&](double at) { return fade_out_shape(at, here_length_s, slope); });
+      } else {
+        log_dominance_lanes(segment, params, t, value);
+      }
+      store(value, logs.log_shape + slots * kLanes);
+      logs.slot_shape[slots] = k;
+      max_log = max_log < value ? value : max_log;  // std::max, lane by lane
+    }
+  }
+  logs.slot_begin[logs.last - logs.first + 1] = slots;
+  store(max_log, logs.max_log);
+  return slots;
+}
+
+/// Whether the slots with a nonzero weight are the same for each of `lanes` instants (weights
+/// lane × slot).
+bool lanes_share_contributors(const double* weight, std::size_t slots, std::size_t lanes) {
+  for (std::size_t slot = 0; slot < slots; ++slot) {
+    const bool contributes = weight[slot] != 0.0;
+    for (std::size_t lane = 1; lane < lanes; ++lane) {
+      if ((weight[lane * slots + slot] != 0.0) != contributes) return false;
+    }
+  }
+  return true;
 }
 
 }  // namespace
@@ -285,8 +437,9 @@ CoarticulationEvaluator::CoarticulationEvaluator(const ArticulationModel& model)
 CoarticulationEvaluator::CoarticulationEvaluator(std::shared_ptr<const CoarticulationTables> tables)
     : tables_(std::move(tables)) {
   const std::size_t window = 2 * kWindowRadius + 1;
-  log_shape_.resize(window * tables_->max_shapes_);
-  shape_weight_.resize(window * tables_->max_shapes_);
+  log_shape_.resize(window * tables_->max_shapes_ * kLanes);
+  scaled_log_shape_.resize(window * tables_->max_shapes_ * kLanes);
+  shape_weight_.resize(window * tables_->max_shapes_ * kLanes);
   slot_shape_.resize(window * tables_->max_shapes_);
   numerator_.resize(tables_->padded_channels_);
   denominator_.resize(tables_->padded_channels_);
@@ -295,83 +448,80 @@ CoarticulationEvaluator::CoarticulationEvaluator(std::shared_ptr<const Coarticul
 }
 
 void CoarticulationEvaluator::evaluate(std::span<const Segment> window, std::size_t current,
-                                       std::int64_t t_us, std::span<float> out) {
-  assert(current < window.size());
+                                       std::span<const std::int64_t> t_us, std::span<float> out) {
+  const std::size_t channels = tables_->channels_;
+  assert(out.size() >= t_us.size() * channels);
+  for (std::size_t done = 0; done < t_us.size(); done += kLanes) {
+    const std::size_t count = std::min(kLanes, t_us.size() - done);
+    evaluate_lanes(window, current, t_us.subspan(done, count), out.subspan(done * channels, count * channels));
+  }
+}
+
+void CoarticulationEvaluator::evaluate_lanes(std::span<const Segment> window, std::size_t current,
+                                             std::span<const std::int64_t> t_us, std::span<float> out) {
+  assert(current < window.size() && !t_us.empty() && t_us.size() <= kLanes);
   const CoarticulationTables& tables = *tables_;
   const std::size_t channels = tables.channels_;
-  const auto& shape_begin = tables.shape_begin_;
   const std::size_t first = current >= kWindowRadius ? current - kWindowRadius : 0;
   const std::size_t last = std::min(window.size() - 1, current + kWindowRadius);
-  const Segment& here = window[current];
-  const double here_length_s = static_cast<double>(here.end_us - here.start_us) * 1e-6;
-  const double u = static_cast<double>(t_us - here.start_us) / static_cast<double>(here.end_us - here.start_us);
-
-  // Pass 1: log D / α for every segment of the window and every shape of its
-  // phoneme (Eq. 2, or Eq. 4's Hermite fade for the 7th segment on each side),
-  // packed: each segment's shapes follow the previous segment's, so the passes
-  // below touch only the shapes there are (about 18 of the 15 × max_shapes slots).
-  double max_log = kNegativeInfinity;
-  std::size_t slots = 0;
-  for (std::size_t i = first; i <= last; ++i) {
-    const Segment& segment = window[i];
-    const auto phoneme = static_cast<std::size_t>(segment.phoneme);
-    const std::ptrdiff_t distance = static_cast<std::ptrdiff_t>(i) - static_cast<std::ptrdiff_t>(current);
-    slot_begin_[i - first] = slots;
-    double* log_shape = log_shape_.data() + slots;
-    std::uint32_t* slot_shape = slot_shape_.data() + slots;
-    slots += shape_begin[phoneme + 1] - shape_begin[phoneme];
-    for (std::uint32_t k = shape_begin[phoneme]; k < shape_begin[phoneme + 1]; ++k) {
-      const DominanceParams& params = tables.shapes_[k];
-      double value = 0.0;
-      if (distance == kWindowRadius) {
-        // t lies in s₋₇ of this segment: fade in across the current segment,
-        // from 0 at its start to D at its end (= start of s₋₆).
-        const double tau_border = tau_s(segment, params, here.end_us);
-        value = log_dominance(params, 0.0, tau_border) +
-                std::log(fade_in_shape(u, here_length_s, log_dominance_slope(segment, params, tau_border, true)));
-      } else if (distance == -kWindowRadius) {
-        // t lies in s₊₇: fade out from D at the current segment's start (= end of s₊₆).
-        const double tau_border = tau_s(segment, params, here.start_us);
-        value = log_dominance(params, 0.0, tau_border) +
-                std::log(fade_out_shape(u, here_length_s, log_dominance_slope(segment, params, tau_border, false)));
-      } else {
-        value = log_dominance(params, 0.0, tau_s(segment, params, t_us));
-      }
-      log_shape[k - shape_begin[phoneme]] = value;
-      slot_shape[k - shape_begin[phoneme]] = k;
-      max_log = std::max(max_log, value);
-    }
-  }
-  slot_begin_[last - first + 1] = slots;
+  WindowLogs logs{.window = window.data(),
+                  .first = first,
+                  .last = last,
+                  .current = current,
+                  .shapes = tables.shapes_.data(),
+                  .shape_begin = tables.shape_begin_.data(),
+                  .t_us = {},
+                  .times = t_us.size(),
+                  .log_shape = log_shape_.data(),
+                  .slot_shape = slot_shape_.data(),
+                  .slot_begin = slot_begin_.data(),
+                  .max_log = {}};
+  // Lanes past the last time repeat it; their results are dropped.
+  for (std::size_t lane = 0; lane < kLanes; ++lane) logs.t_us[lane] = t_us[std::min(lane, t_us.size() - 1)];
+  const std::size_t slots = window_log_dominances(logs);
 
   // Pass 2: Eq. 5 with weights α · exp(log D/α − max): the largest shape
   // weight is 1, so nothing overflows and, for all but pathological inputs,
   // every channel's denominator stays far from underflow. Each channel's sums
   // run over the slots in window order, one shape after the other.
-  shape_weights(log_shape_.data(), max_log, shape_weight_.data(), slots);
-  sum_frame({.padded_channels = tables.padded_channels_,
-             .alpha = tables.alpha_.data(),
-             .alpha_target = tables.alpha_target_.data(),
-             .target = tables.target_.data(),
-             .weight = shape_weight_.data(),
-             .slot_shape = slot_shape_.data(),
-             .shape_phoneme = tables.shape_phoneme_.data(),
-             .slots = slots,
-             .numerator = numerator_.data(),
-             .denominator = denominator_.data(),
-             .low = low_.data(),
-             .high = high_.data()});
-  for (std::size_t c = 0; c < channels; ++c) {
-    if (denominator_[c] < kUnderflowGuard) evaluate_channel_in_log_space(window, first, last, c);
-  }
-  for (std::size_t c = 0; c < channels; ++c) {
-    // Clamping to the contributing targets removes the division's last-ulp overshoot.
-    out[c] = static_cast<float>(std::clamp(numerator_[c] / denominator_[c], low_[c], high_[c]));
+  shape_weights(log_shape_.data(), logs.max_log, t_us.size(), slots, scaled_log_shape_.data(), shape_weight_.data());
+  // The range of the targets that carry weight is the first instant's for all
+  // of them when the same slots carry weight for all (nearly always), unless
+  // the log-space path has replaced a channel's range with its own.
+  const bool same_contributors = lanes_share_contributors(shape_weight_.data(), slots, t_us.size());
+  bool range_shared = false;  // low_ and high_ hold the range of the slots that carry weight
+  for (std::size_t lane = 0; lane < t_us.size(); ++lane) {
+    sum_frame({.padded_channels = tables.padded_channels_,
+               .alpha = tables.alpha_.data(),
+               .alpha_target = tables.alpha_target_.data(),
+               .target = tables.target_.data(),
+               .weight = shape_weight_.data() + lane * slots,
+               .slot_shape = slot_shape_.data(),
+               .shape_phoneme = tables.shape_phoneme_.data(),
+               .slots = slots,
+               .numerator = numerator_.data(),
+               .denominator = denominator_.data(),
+               .low = low_.data(),
+               .high = high_.data()},
+              !range_shared);
+    range_shared = same_contributors;
+    for (std::size_t c = 0; c < channels; ++c) {
+      if (denominator_[c] < kUnderflowGuard) {
+        evaluate_channel_in_log_space(window, first, last, c, scaled_log_shape_.data() + lane * slots);
+        range_shared = false;
+      }
+    }
+    float* row = out.data() + lane * channels;
+    for (std::size_t c = 0; c < channels; ++c) {
+      // Clamping to the contributing targets removes the division's last-ulp overshoot.
+      row[c] = static_cast<float>(std::clamp(numerator_[c] / denominator_[c], low_[c], high_[c]));
+    }
   }
 }
 
 void CoarticulationEvaluator::evaluate_channel_in_log_space(std::span<const Segment> window, std::size_t first,
-                                                            std::size_t last, std::size_t channel) {
+                                                            std::size_t last, std::size_t channel,
+                                                            const double* scaled_log_shape) {
   // The slow, always-safe path: this channel's weights scaled by their own
   // largest, as logarithms. Taken only when the shared scaling underflowed
   // (shapes of one phoneme that differ by hundreds of orders of magnitude).
@@ -382,7 +532,7 @@ void CoarticulationEvaluator::evaluate_channel_in_log_space(std::span<const Segm
     const auto phoneme = static_cast<std::size_t>(window[i].phoneme);
     const std::size_t shape = tables.channel_shape_[phoneme * padded + channel];
     const double alpha = tables.alpha_[(tables.shape_begin_[phoneme] + shape) * padded + channel];
-    return std::log(alpha) + log_shape_[slot_begin_[i - first] + shape];
+    return std::log(alpha) + scaled_log_shape[slot_begin_[i - first] + shape];
   };
   for (std::size_t i = first; i <= last; ++i) max_log = std::max(max_log, log_weight(i));
   double numerator = 0.0;

@@ -1,5 +1,6 @@
 // Offline and streaming rendering share the scheduler and the evaluator, and
-// hand the evaluator the same window of segments for each frame: that is what
+// hand the evaluator the same window of segments for each frame (all the frames
+// of a segment in one call, each computed on its own): that is what
 // makes the stream identical to the offline render (lipsync/renderer.hpp).
 #include "lipsync/renderer.hpp"
 
@@ -30,13 +31,29 @@ WindowRange window_range(std::size_t frame_segment, std::size_t known, int looka
   return {first, last};
 }
 
-void append_frame(Track& out, const ScheduledFrame& frame, CoarticulationEvaluator& evaluator,
-                  std::span<const Segment> window, std::size_t current) {
+/// Appends the frames [begin, end), all in segment window[current], to `out`:
+/// one call of the evaluator for all of them.
+template <typename FrameIterator>
+void append_frames(Track& out, FrameIterator begin, FrameIterator end, CoarticulationEvaluator& evaluator,
+                   std::span<const Segment> window, std::size_t current) {
+  const std::size_t first_frame = out.t_us.size();
+  for (FrameIterator frame = begin; frame != end; ++frame) {
+    out.t_us.push_back(frame->t_us);
+    out.kinds.push_back(frame->kind);
+  }
+  const std::size_t count = out.t_us.size() - first_frame;
   const std::size_t offset = out.values.size();
-  out.values.resize(offset + out.channel_count);
-  evaluator.evaluate(window, current, frame.t_us, std::span<float>(out.values.data() + offset, out.channel_count));
-  out.t_us.push_back(frame.t_us);
-  out.kinds.push_back(frame.kind);
+  out.values.resize(offset + count * out.channel_count);
+  evaluator.evaluate(window, current, std::span<const std::int64_t>(out.t_us).subspan(first_frame, count),
+                     std::span<float>(out.values).subspan(offset));
+}
+
+/// The end of the run of frames from `begin` that lie in the same segment.
+template <typename FrameIterator>
+FrameIterator same_segment_end(FrameIterator begin, FrameIterator end) {
+  FrameIterator frame = begin;
+  while (frame != end && frame->segment == begin->segment) ++frame;
+  return frame;
 }
 
 }  // namespace
@@ -62,9 +79,11 @@ Track render_track(std::shared_ptr<const CoarticulationTables> tables, const std
   track.values.reserve(frames.size() * track.channel_count);
   CoarticulationEvaluator evaluator(std::move(tables));
   const std::span<const Segment> all(segments);
-  for (const ScheduledFrame& frame : frames) {
-    const auto [first, last] = window_range(frame.segment, segments.size(), options.lookahead);
-    append_frame(track, frame, evaluator, all.subspan(first, last - first + 1), frame.segment - first);
+  for (auto run = frames.cbegin(); run != frames.cend();) {
+    const auto run_end = same_segment_end(run, frames.cend());
+    const auto [first, last] = window_range(run->segment, segments.size(), options.lookahead);
+    append_frames(track, run, run_end, evaluator, all.subspan(first, last - first + 1), run->segment - first);
+    run = run_end;
   }
   return track;
 }
@@ -102,13 +121,14 @@ void StreamingRenderer::finish(Track& out) {
 void StreamingRenderer::emit_ready(Track& out, bool finishing) {
   const auto lookahead = static_cast<std::size_t>(options_.lookahead);
   while (!pending_.empty()) {
-    const ScheduledFrame& frame = pending_.front();
-    if (!finishing && frame.segment + lookahead >= pushed_) break;  // segment k+lookahead not known yet
-    const auto [first, last] = window_range(frame.segment, pushed_, options_.lookahead);
+    const std::size_t segment = pending_.front().segment;
+    if (!finishing && segment + lookahead >= pushed_) break;  // segment k+lookahead not known yet
+    const auto run_end = same_segment_end(pending_.cbegin(), pending_.cend());
+    const auto [first, last] = window_range(segment, pushed_, options_.lookahead);
     scratch_window_.assign(window_.begin() + static_cast<std::ptrdiff_t>(first - first_index_),
                            window_.begin() + static_cast<std::ptrdiff_t>(last - first_index_ + 1));
-    append_frame(out, frame, evaluator_, scratch_window_, frame.segment - first);
-    pending_.pop_front();
+    append_frames(out, pending_.cbegin(), run_end, evaluator_, scratch_window_, segment - first);
+    pending_.erase(pending_.cbegin(), run_end);
   }
   // Keep only the segments a future frame can still see.
   const std::size_t oldest_needed = pending_.empty() ? pushed_ : pending_.front().segment;

@@ -3,8 +3,11 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
+#include <span>
 
 #include "random_segments.hpp"
 #include "test_model.hpp"
@@ -175,6 +178,88 @@ TEST(Coarticulation, IsDeterministic) {
     a.evaluate(segments, current, t, first);
     b.evaluate(segments, current, t, second);
     ASSERT_EQ(first, second);
+  }
+}
+
+/// A variant of the test model whose dominance exponents are neither 1 nor 2 for some
+/// phonemes and channels (std::pow, lane by lane), with offsets and strengths of their own;
+/// in "oo" and "ee" the pucker channel's dominance falls so fast that, half a second from
+/// their centres, its weights underflow the shared scaling (the log-space path).
+const ArticulationModel& exponent_model() {
+  static const ArticulationModel model = ArticulationModel::from_json(R"({
+    "format": "lipsync-articulation-model", "version": 1, "name": "exponents",
+    "channels": [
+      {"name": "lips", "kind": "muscle", "min": 0, "max": 1, "rest": 0},
+      {"name": "jaw", "kind": "jaw", "min": 0, "max": 1, "rest": 0},
+      {"name": "tongue", "kind": "tongue", "min": -1, "max": 1, "rest": 0},
+      {"name": "corner", "kind": "muscle", "min": 0, "max": 1, "rest": 0},
+      {"name": "pucker", "kind": "muscle", "min": 0, "max": 1, "rest": 0}
+    ],
+    "dominance_defaults": {"alpha": 1, "theta_minus_per_s": 20, "theta_plus_per_s": 25, "c": 1, "t_off_ms": 0},
+    "phonemes": {
+      "sil": {"class": "silence", "dominance": {"alpha": 0.5, "c": 1.5}},
+      "aa": {"class": "vowel", "targets": {"lips": 0.2, "jaw": 0.8, "tongue": -0.6, "corner": 0.4}},
+      "uw": {"class": "vowel", "targets": {"lips": 0.6, "jaw": 0.3, "pucker": 0.9},
+             "channel_dominance": {"pucker": {"alpha": 3, "c": 3, "t_off_ms": -15}}},
+      "s": {"class": "consonant", "targets": {"tongue": 0.9, "corner": 0.2}, "dominance": {"c": 2}},
+      "m": {"class": "closure", "targets": {"lips": 0.9, "jaw": 0.05},
+            "channel_dominance": {"lips": {"alpha": 8, "c": 4, "t_off_ms": 5}}},
+      "pcl": {"class": "closure", "targets": {"lips": 1.0, "jaw": 0.05}},
+      "p": {"class": "release", "closure": "pcl", "targets": {"lips": 0.3, "jaw": 0.2},
+            "dominance": {"c": 1.25, "theta_plus_per_s": 60, "theta_minus_per_s": 45}},
+      "oo": {"class": "vowel", "targets": {"lips": 0.7, "pucker": 0.9},
+             "channel_dominance": {"pucker": {"c": 2, "theta_plus_per_s": 5000, "theta_minus_per_s": 5000}}},
+      "ee": {"class": "vowel", "targets": {"lips": 0.1, "pucker": 0.1},
+             "channel_dominance": {"pucker": {"c": 2, "theta_plus_per_s": 5000, "theta_minus_per_s": 5000}}}
+    },
+    "arkit": {"jawOpen": {"weights": {"jaw": 1.0}}}
+  })", "exponent test model");
+  return model;
+}
+
+TEST(Coarticulation, InstantsEvaluatedTogetherGetTheBitsEachGetsAlone) {
+  // The renderers hand the evaluator all the frames of a segment at once; each
+  // must come out exactly as if it had been evaluated on its own (the stream
+  // and the offline render rely on it). Windows cut short on either side, the
+  // faded 7th segments, closures, releases and exponents other than 1 and 2
+  // are all there; 1 to 9 instants per call cover full and partial groups.
+  struct Case {
+    const ArticulationModel* model;
+    std::vector<Segment> segments;
+  };
+  const std::vector<Case> cases = {
+      {&test_model(), testing::random_segments(test_model(), 40, 11)},
+      {&exponent_model(), testing::random_segments(exponent_model(), 40, 11)},
+      {&ArticulationModel::builtin(), testing::random_segments(ArticulationModel::builtin(), 40, 11)},
+      {&exponent_model(), make_segments(exponent_model(), {{"oo", 0.0, 1.0}, {"ee", 1.0, 2.0}, {"oo", 2.0, 3.0}})},
+  };
+  for (const auto& [model, segments] : cases) {
+    const std::size_t channels = model->channel_count();
+    CoarticulationEvaluator together(*model);
+    CoarticulationEvaluator alone(*model);
+    for (std::size_t current = 0; current < segments.size(); ++current) {
+      // The whole utterance, or a window cut 3 segments after the current one (lookahead 3).
+      for (const std::size_t after : {segments.size(), current + 4}) {
+        const std::span<const Segment> window(segments.data(), std::min(segments.size(), after));
+        const std::int64_t start = segments[current].start_us;
+        const std::int64_t length = segments[current].end_us - start;
+        for (std::size_t count = 1; count <= 9; ++count) {
+          std::vector<std::int64_t> times;
+          for (std::size_t k = 0; k < count; ++k) {
+            times.push_back(start + length * static_cast<std::int64_t>(k) / static_cast<std::int64_t>(count));
+          }
+          std::vector<float> rows(count * channels);
+          together.evaluate(window, current, times, rows);
+          std::vector<float> row(channels);
+          for (std::size_t k = 0; k < count; ++k) {
+            alone.evaluate(window, current, times[k], row);
+            ASSERT_EQ(std::memcmp(row.data(), rows.data() + k * channels, channels * sizeof(float)), 0)
+                << model->name() << ": segment " << current << ", instant " << k + 1 << " of " << count
+                << " at " << times[k] << " us";
+          }
+        }
+      }
+    }
   }
 }
 

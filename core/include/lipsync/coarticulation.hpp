@@ -69,8 +69,8 @@ class CoarticulationTables {
   std::vector<double> alpha_target_;
 };
 
-/// Evaluates Eq. 4–5 for one time instant. Holds scratch space sized for the
-/// model, so evaluation allocates nothing; one instance per thread.
+/// Evaluates Eq. 4–5 at instants of one segment. Holds scratch space sized for
+/// the model, so evaluation allocates nothing; one instance per thread.
 class CoarticulationEvaluator {
  public:
   /// Builds the model's tables for this evaluator alone.
@@ -82,21 +82,34 @@ class CoarticulationEvaluator {
   /// `current` indexes the one that contains t (t may equal the end of the last
   /// segment). Segments further than kWindowRadius from `current` are ignored;
   /// a window shorter on one side (utterance edge, or lookahead) simply has
-  /// fewer contributors. Writes channel_count() values to `out`.
+  /// fewer contributors. Times, t's and the segments', lie within ±kMaxTimeUs
+  /// (as SegmentBuilder ensures). Writes channel_count() values to `out`.
   void evaluate(std::span<const Segment> window, std::size_t current, std::int64_t t_us,
+                std::span<float> out) {
+    evaluate(window, current, std::span<const std::int64_t>(&t_us, 1), out);
+  }
+  /// The same for several instants in segment `current`: writes one row of
+  /// channel_count() values per time, in order. Each row is the very value of
+  /// a call for its time alone; the instants share the walk over the window,
+  /// four at a time (the renderers pass all the frames of a segment).
+  void evaluate(std::span<const Segment> window, std::size_t current, std::span<const std::int64_t> t_us,
                 std::span<float> out);
 
  private:
+  void evaluate_lanes(std::span<const Segment> window, std::size_t current, std::span<const std::int64_t> t_us,
+                      std::span<float> out);
   void evaluate_channel_in_log_space(std::span<const Segment> window, std::size_t first, std::size_t last,
-                                     std::size_t channel);
+                                     std::size_t channel, const double* scaled_log_shape);
 
   std::shared_ptr<const CoarticulationTables> tables_;
   // Scratch, sized once.
   // One slot per dominance shape of each segment in the window, segment after segment with
-  // no gaps; segment i of the window starts at slot_begin_[i]. log_shape_ holds log(D/α),
-  // shape_weight_ the weights exp(log(D/α) − max) of the same slots, slot_shape_ their shapes
-  // (indices into the tables' shapes).
+  // no gaps; segment i of the window starts at slot_begin_[i]; slot_shape_ holds the slots'
+  // shapes (indices into the tables' shapes). log_shape_ holds log(D/α) of each slot for the
+  // (up to) four instants evaluated together, slot after slot; scaled_log_shape_ the same less
+  // each instant's largest, and shape_weight_ their exponentials, instant after instant.
   std::vector<double> log_shape_;
+  std::vector<double> scaled_log_shape_;
   std::vector<double> shape_weight_;
   std::vector<std::uint32_t> slot_shape_;
   std::array<std::size_t, 2 * kWindowRadius + 2> slot_begin_{};
