@@ -293,10 +293,12 @@ TEST(LipsyncdTls, ACliCommandThatGivesUpOnAHandshakeEndsWithItsStatusNotASignal)
   RunningServer server({"--tls-cert", cert_path("server.pem"), "--tls-key", cert_path("server.key"), "--tls-client-ca",
                         cert_path("ca.pem")});
   ASSERT_FALSE(server.address.empty()) << server.log();
+  // One working folder per concurrent run (each captures its stdout and stderr there), reused by every round.
+  std::vector<fs::path> works;
+  for (int i = 0; i < 4; ++i) works.push_back(lipsync::testing::make_temp_dir("lipsync-cli-tls-"));
   for (int round = 0; round < 6; ++round) {
     std::vector<std::future<lipsync::testing::RunResult>> runs;
-    for (int i = 0; i < 4; ++i) {
-      const fs::path work = lipsync::testing::make_temp_dir("lipsync-cli-tls-");
+    for (const fs::path& work : works) {
       runs.push_back(std::async(std::launch::async, [&server, work] {
         return lipsync::testing::run_program({LIPSYNC_CLI_BINARY, "server-models", "--server", server.address, "--ca",
                                               cert_path("ca.pem"), "--timeout", "1"},
@@ -309,6 +311,7 @@ TEST(LipsyncdTls, ACliCommandThatGivesUpOnAHandshakeEndsWithItsStatusNotASignal)
       EXPECT_THAT(result.err, HasSubstr("do --ca, --cert and --key match"));
     }
   }
+  for (const fs::path& work : works) fs::remove_all(work);
   server.process->terminate();
   EXPECT_EQ(server.process->wait(), 0);
 }
