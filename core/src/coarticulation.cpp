@@ -78,6 +78,8 @@ constexpr std::size_t kLanes = 4;
 /// sums run over channels in lanes; pass 1 runs over up to kLanes frame times.
 using Lanes = double __attribute__((vector_size(kLanes * sizeof(double))));
 using LaneBits = std::uint64_t __attribute__((vector_size(kLanes * sizeof(std::uint64_t))));
+/// What a comparison of two Lanes gives: all ones in a lane where it holds, zero elsewhere.
+using LaneMask = std::int64_t __attribute__((vector_size(kLanes * sizeof(std::int64_t))));
 
 /// log D/α of Eq. 2 (log_dominance with log α = 0, of τ = tau_s) for kLanes
 /// instants at once, lane by lane the same operations. The instants are whole
@@ -134,14 +136,14 @@ using LaneBits = std::uint64_t __attribute__((vector_size(kLanes * sizeof(std::u
 /// and into the evaluator's scratch, which pass 1 has filled.
 struct FrameSums {
   std::size_t padded_channels;
-  const double* alpha;                 // shape × padded channel: α of the shape's channels, 0 elsewhere
-  const double* alpha_target;          // shape × padded channel: α · T, likewise
-  const double* target;                // phoneme × padded channel: T
-  const double* weight;                // per slot (a shape of a window segment): exp(log D/α − max)
-  const std::uint32_t* slot_shape;     // per slot: the index of its shape (its row in alpha, alpha_target)
-  const std::uint32_t* shape_phoneme;  // per shape: its phoneme (its row in target)
+  const double* alpha;              // shape × padded channel: α of the shape's channels, 0 elsewhere
+  const double* alpha_target;       // shape × padded channel: α · T, likewise
+  const double* target;             // phoneme × padded channel: T
+  const double* weight;             // per slot (a shape of a window segment): exp(log D/α − max), or 0
+  const std::size_t* slot_row;      // per slot: where its shape's row starts in alpha and alpha_target
+  const std::size_t* slot_targets;  // per slot: where its segment's phoneme's row starts in target
   std::size_t slots;
-  double* numerator;                   // per padded channel, written
+  double* numerator;                // per padded channel, written
   double* denominator;
   double* low;
   double* high;
@@ -152,48 +154,61 @@ inline void load(Lanes& lanes, const double* p) { std::memcpy(&lanes, p, sizeof 
 inline void store(const Lanes& lanes, double* p) { std::memcpy(p, &lanes, sizeof lanes); }
 
 /// Eq. 5's sums for channels [first_channel, first_channel + kWidth) of one
-/// frame. For each slot with a nonzero weight w, in slot order: numerator +=
-/// α·T · w and denominator += α · w (the rows of the slot's shape: channels of
-/// other shapes have α = 0 there), and each channel's [low, high] widened to
-/// the target of the slot's segment (a segment far away in time adds nothing,
-/// and its targets do not bound the result; widening again by the target of
-/// the segment's next shape changes nothing). kWidth is a constant so that the
-/// 4 · kWidth / kLanes accumulators stay in registers across all the frame's
-/// slots (with AVX2 and 16 channels, all but two of them), instead of a call
-/// and a round trip through memory per shape. Without kRange, [low, high] is
-/// left as it is (another frame with the same contributors has set it).
+/// frame. For each slot, in slot order: numerator += α·T · w and denominator +=
+/// α · w (the rows of the slot's shape: channels of other shapes have α = 0
+/// there). A term that is zero (α = 0, or w = 0: a segment so far away that its
+/// weight underflowed) changes no sum, not even the sign of a zero one: the sums
+/// start at +0, x + ±0 = x for x ≠ 0 and +0 + ±0 = +0, so no sum is ever −0.
+/// So every slot is added, without a test. With kRange, each channel's [low,
+/// high] is widened to the target of each slot with a nonzero weight (a segment
+/// far away in time adds nothing, and its targets do not bound the result;
+/// widening again by the target of the segment's next shape changes nothing);
+/// without, [low, high] is left as it is (another frame with the same
+/// contributors has set it). kWidth is a constant, and the loops over it are
+/// unrolled, so that the accumulators stay in registers across all the frame's
+/// slots instead of a call and a round trip through memory per shape.
 template <std::size_t kWidth, bool kRange>
 [[gnu::always_inline]] inline void sum_block(const FrameSums& frame, std::size_t first_channel) {
   constexpr std::size_t kVectors = kWidth / kLanes;
-  const std::size_t padded = frame.padded_channels;
+  const double* const alpha = frame.alpha + first_channel;
+  const double* const alpha_target = frame.alpha_target + first_channel;
+  const double* const target = frame.target + first_channel;
+  const double* const weight = frame.weight;
+  const std::size_t slots = frame.slots;
   Lanes numerator[kVectors] = {};
   Lanes denominator[kVectors] = {};
   Lanes low[kVectors];
   Lanes high[kVectors];
+#pragma GCC unroll 16
   for (std::size_t v = 0; v < kVectors; ++v) {
     low[v] = Lanes{} + std::numeric_limits<double>::infinity();
     high[v] = Lanes{} - std::numeric_limits<double>::infinity();
   }
-  for (std::size_t slot = 0; slot < frame.slots; ++slot) {
-    const double weight = frame.weight[slot];
-    if (weight == 0.0) continue;
-    const std::uint32_t shape = frame.slot_shape[slot];
-    const double* alpha = frame.alpha + shape * padded + first_channel;
-    const double* alpha_target = frame.alpha_target + shape * padded + first_channel;
-    const double* target = frame.target + frame.shape_phoneme[shape] * padded + first_channel;
+  for (std::size_t slot = 0; slot < slots; ++slot) {
+    const double w = weight[slot];
+    const double* slot_alpha_target = alpha_target + frame.slot_row[slot];
+    const double* slot_alpha = alpha + frame.slot_row[slot];
+#pragma GCC unroll 16
     for (std::size_t v = 0; v < kVectors; ++v) {
       Lanes lanes;
-      load(lanes, alpha_target + v * kLanes);
-      numerator[v] += lanes * weight;
-      load(lanes, alpha + v * kLanes);
-      denominator[v] += lanes * weight;
-      if constexpr (kRange) {
-        load(lanes, target + v * kLanes);
+      load(lanes, slot_alpha_target + v * kLanes);
+      numerator[v] += lanes * w;
+      load(lanes, slot_alpha + v * kLanes);
+      denominator[v] += lanes * w;
+    }
+    if constexpr (kRange) {
+      if (w == 0.0) continue;
+      const double* slot_target = target + frame.slot_targets[slot];
+#pragma GCC unroll 16
+      for (std::size_t v = 0; v < kVectors; ++v) {
+        Lanes lanes;
+        load(lanes, slot_target + v * kLanes);
         low[v] = lanes < low[v] ? lanes : low[v];
         high[v] = lanes > high[v] ? lanes : high[v];
       }
     }
   }
+#pragma GCC unroll 16
   for (std::size_t v = 0; v < kVectors; ++v) {
     const std::size_t c = first_channel + v * kLanes;
     store(numerator[v], frame.numerator + c);
@@ -291,10 +306,12 @@ struct WindowLogs {
   std::size_t current;               // the segment that contains them
   const DominanceParams* shapes;     // the tables' shapes (α = 1)
   const std::uint32_t* shape_begin;  // per phoneme, its first shape
+  std::size_t padded_channels;       // the length of a row of the tables
   std::int64_t t_us[kLanes];         // the instants; lanes past `times` repeat the last
   std::size_t times;                 // how many instants there are
   double* log_shape;                 // written: per slot, kLanes values of log D/α
-  std::uint32_t* slot_shape;         // written: per slot, its shape
+  std::size_t* slot_row;             // written: per slot, where its shape's row starts (shape × padded)
+  std::size_t* slot_targets;         // written: per slot, where its phoneme's row starts (phoneme × padded)
   std::size_t* slot_begin;           // written: per window segment from `first`, its first slot; then the end
   double max_log[kLanes];            // written: per lane, the largest log D/α
 };
@@ -305,6 +322,11 @@ struct WindowLogs {
 /// segment's, so the passes after it touch only the shapes there are (about
 /// 18 of the 15 × max_shapes slots). Returns the number of slots.
 LIPSYNC_VECTOR_CLONES std::size_t window_log_dominances(WindowLogs& logs) {
+  // Read once: GCC cannot tell the stores below from these fields.
+  double* const log_shape = logs.log_shape;
+  std::size_t* const slot_row = logs.slot_row;
+  std::size_t* const slot_targets = logs.slot_targets;
+  const std::size_t padded = logs.padded_channels;
   const Segment& here = logs.window[logs.current];
   const double here_length_s = static_cast<double>(here.end_us - here.start_us) * 1e-6;
   Lanes t;
@@ -325,6 +347,7 @@ LIPSYNC_VECTOR_CLONES std::size_t window_log_dominances(WindowLogs& logs) {
     const auto phoneme = static_cast<std::size_t>(segment.phoneme);
     const std::ptrdiff_t distance = static_cast<std::ptrdiff_t>(i) - static_cast<std::ptrdiff_t>(logs.current);
     logs.slot_begin[i - logs.first] = slots;
+    const std::size_t targets = phoneme * padded;
     for (std::uint32_t k = logs.shape_begin[phoneme]; k < logs.shape_begin[phoneme + 1]; ++k, ++slots) {
       const DominanceParams& params = logs.shapes[k];
       Lanes value;
@@ -344,8 +367,9 @@ LIPSYNC_VECTOR_CLONES std::size_t window_log_dominances(WindowLogs& logs) {
       } else {
         log_dominance_lanes(segment, params, t, value);
       }
-      store(value, logs.log_shape + slots * kLanes);
-      logs.slot_shape[slots] = k;
+      store(value, log_shape + slots * kLanes);
+      slot_row[slots] = k * padded;
+      slot_targets[slots] = targets;
       max_log = max_log < value ? value : max_log;  // std::max, lane by lane
     }
   }
@@ -355,15 +379,38 @@ LIPSYNC_VECTOR_CLONES std::size_t window_log_dominances(WindowLogs& logs) {
 }
 
 /// Whether the slots with a nonzero weight are the same for each of `lanes` instants (weights
-/// lane × slot).
-bool lanes_share_contributors(const double* weight, std::size_t slots, std::size_t lanes) {
-  for (std::size_t slot = 0; slot < slots; ++slot) {
-    const bool contributes = weight[slot] != 0.0;
-    for (std::size_t lane = 1; lane < lanes; ++lane) {
-      if ((weight[lane * slots + slot] != 0.0) != contributes) return false;
+/// lane × slot). Four slots per vector and no early exit: the answer is nearly always yes.
+LIPSYNC_VECTOR_CLONES bool lanes_share_contributors(const double* weight, std::size_t slots, std::size_t lanes) {
+  LaneMask differ{};
+  bool differ_tail = false;
+  for (std::size_t lane = 1; lane < lanes; ++lane) {
+    const double* other = weight + lane * slots;
+    std::size_t slot = 0;
+    for (; slot + kLanes <= slots; slot += kLanes) {
+      Lanes first;
+      Lanes next;
+      load(first, weight + slot);
+      load(next, other + slot);
+      differ |= (first == 0.0) ^ (next == 0.0);
     }
+    for (; slot < slots; ++slot) differ_tail |= (weight[slot] == 0.0) != (other[slot] == 0.0);
   }
-  return true;
+  return !differ_tail && (differ[0] | differ[1] | differ[2] | differ[3]) == 0;
+}
+
+/// Whether any of the first `count` denominators fell below kUnderflowGuard: one vector
+/// test per four channels, so that the loop that handles such channels runs only when needed.
+LIPSYNC_VECTOR_CLONES bool any_underflow(const double* denominator, std::size_t count) {
+  LaneMask below{};
+  std::size_t c = 0;
+  for (; c + kLanes <= count; c += kLanes) {
+    Lanes lanes;
+    load(lanes, denominator + c);
+    below |= lanes < kUnderflowGuard;
+  }
+  bool any = (below[0] | below[1] | below[2] | below[3]) != 0;
+  for (; c < count; ++c) any |= denominator[c] < kUnderflowGuard;
+  return any;
 }
 
 }  // namespace
@@ -425,7 +472,6 @@ CoarticulationTables::CoarticulationTables(const ArticulationModel& model)
         alpha_target_.push_back(in_shape ? phoneme.dominance[c].alpha * phoneme.targets[c] : 0.0);
       }
     }
-    shape_phoneme_.resize(shapes_.size(), static_cast<std::uint32_t>(shape_begin_.size() - 1));
     shape_begin_.push_back(static_cast<std::uint32_t>(shapes_.size()));
     max_shapes_ = std::max(max_shapes_, shapes_.size() - first_shape);
   }
@@ -440,7 +486,8 @@ CoarticulationEvaluator::CoarticulationEvaluator(std::shared_ptr<const Coarticul
   log_shape_.resize(window * tables_->max_shapes_ * kLanes);
   scaled_log_shape_.resize(window * tables_->max_shapes_ * kLanes);
   shape_weight_.resize(window * tables_->max_shapes_ * kLanes);
-  slot_shape_.resize(window * tables_->max_shapes_);
+  slot_row_.resize(window * tables_->max_shapes_);
+  slot_targets_.resize(window * tables_->max_shapes_);
   numerator_.resize(tables_->padded_channels_);
   denominator_.resize(tables_->padded_channels_);
   low_.resize(tables_->padded_channels_);
@@ -470,10 +517,12 @@ void CoarticulationEvaluator::evaluate_lanes(std::span<const Segment> window, st
                   .current = current,
                   .shapes = tables.shapes_.data(),
                   .shape_begin = tables.shape_begin_.data(),
+                  .padded_channels = tables.padded_channels_,
                   .t_us = {},
                   .times = t_us.size(),
                   .log_shape = log_shape_.data(),
-                  .slot_shape = slot_shape_.data(),
+                  .slot_row = slot_row_.data(),
+                  .slot_targets = slot_targets_.data(),
                   .slot_begin = slot_begin_.data(),
                   .max_log = {}};
   // Lanes past the last time repeat it; their results are dropped.
@@ -496,8 +545,8 @@ void CoarticulationEvaluator::evaluate_lanes(std::span<const Segment> window, st
                .alpha_target = tables.alpha_target_.data(),
                .target = tables.target_.data(),
                .weight = shape_weight_.data() + lane * slots,
-               .slot_shape = slot_shape_.data(),
-               .shape_phoneme = tables.shape_phoneme_.data(),
+               .slot_row = slot_row_.data(),
+               .slot_targets = slot_targets_.data(),
                .slots = slots,
                .numerator = numerator_.data(),
                .denominator = denominator_.data(),
@@ -505,10 +554,12 @@ void CoarticulationEvaluator::evaluate_lanes(std::span<const Segment> window, st
                .high = high_.data()},
               !range_shared);
     range_shared = same_contributors;
-    for (std::size_t c = 0; c < channels; ++c) {
-      if (denominator_[c] < kUnderflowGuard) {
-        evaluate_channel_in_log_space(window, first, last, c, scaled_log_shape_.data() + lane * slots);
-        range_shared = false;
+    if (any_underflow(denominator_.data(), channels)) {
+      for (std::size_t c = 0; c < channels; ++c) {
+        if (denominator_[c] < kUnderflowGuard) {
+          evaluate_channel_in_log_space(window, first, last, c, scaled_log_shape_.data() + lane * slots);
+          range_shared = false;
+        }
       }
     }
     float* row = out.data() + lane * channels;

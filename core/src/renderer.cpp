@@ -96,7 +96,7 @@ StreamingRenderer::StreamingRenderer(std::shared_ptr<const CoarticulationTables>
     : options_(options),
       scheduler_(tables->model(), schedule_options(options)),
       evaluator_(std::move(tables)) {
-  scratch_window_.reserve(2 * kWindowRadius + 1);
+  window_.reserve(2 * kWindowRadius + 2);
 }
 
 void StreamingRenderer::push(const Segment& segment, Track& out) {
@@ -120,22 +120,24 @@ void StreamingRenderer::finish(Track& out) {
 
 void StreamingRenderer::emit_ready(Track& out, bool finishing) {
   const auto lookahead = static_cast<std::size_t>(options_.lookahead);
-  while (!pending_.empty()) {
-    const std::size_t segment = pending_.front().segment;
+  std::size_t emitted = 0;  // frames at the front of pending_ appended to `out`
+  while (emitted < pending_.size()) {
+    const std::size_t segment = pending_[emitted].segment;
     if (!finishing && segment + lookahead >= pushed_) break;  // segment k+lookahead not known yet
-    const auto run_end = same_segment_end(pending_.cbegin(), pending_.cend());
+    const auto run_begin = pending_.cbegin() + static_cast<std::ptrdiff_t>(emitted);
+    const auto run_end = same_segment_end(run_begin, pending_.cend());
     const auto [first, last] = window_range(segment, pushed_, options_.lookahead);
-    scratch_window_.assign(window_.begin() + static_cast<std::ptrdiff_t>(first - first_index_),
-                           window_.begin() + static_cast<std::ptrdiff_t>(last - first_index_ + 1));
-    append_frames(out, pending_.cbegin(), run_end, evaluator_, scratch_window_, segment - first);
-    pending_.erase(pending_.cbegin(), run_end);
+    const auto window = std::span<const Segment>(window_).subspan(first - first_index_, last - first + 1);
+    append_frames(out, run_begin, run_end, evaluator_, window, segment - first);
+    emitted = static_cast<std::size_t>(run_end - pending_.cbegin());
   }
+  pending_.erase(pending_.cbegin(), pending_.cbegin() + static_cast<std::ptrdiff_t>(emitted));
   // Keep only the segments a future frame can still see.
   const std::size_t oldest_needed = pending_.empty() ? pushed_ : pending_.front().segment;
   const std::size_t keep_from = oldest_needed >= kWindowRadius ? oldest_needed - kWindowRadius : 0;
-  while (first_index_ < keep_from && !window_.empty()) {
-    window_.pop_front();
-    ++first_index_;
+  if (first_index_ < keep_from) {
+    window_.erase(window_.begin(), window_.begin() + static_cast<std::ptrdiff_t>(keep_from - first_index_));
+    first_index_ = keep_from;
   }
 }
 

@@ -59,7 +59,6 @@ class CoarticulationTables {
   // shapes_[shape_begin_[p] .. shape_begin_[p + 1]).
   std::vector<DominanceParams> shapes_;
   std::vector<std::uint32_t> shape_begin_;
-  std::vector<std::uint32_t> shape_phoneme_;  // the phoneme of each shape (its row in target_)
   std::size_t max_shapes_ = 1;
   // Phoneme × padded channel tables.
   std::vector<std::uint32_t> channel_shape_;  // index into the phoneme's shapes
@@ -104,14 +103,16 @@ class CoarticulationEvaluator {
   std::shared_ptr<const CoarticulationTables> tables_;
   // Scratch, sized once.
   // One slot per dominance shape of each segment in the window, segment after segment with
-  // no gaps; segment i of the window starts at slot_begin_[i]; slot_shape_ holds the slots'
-  // shapes (indices into the tables' shapes). log_shape_ holds log(D/α) of each slot for the
-  // (up to) four instants evaluated together, slot after slot; scaled_log_shape_ the same less
+  // no gaps; segment i of the window starts at slot_begin_[i]. slot_row_ holds where each
+  // slot's shape's row starts in the tables' α and α·T, slot_targets_ where its segment's
+  // phoneme's row starts in the targets. log_shape_ holds log(D/α) of each slot for the (up
+  // to) four instants evaluated together, slot after slot; scaled_log_shape_ the same less
   // each instant's largest, and shape_weight_ their exponentials, instant after instant.
   std::vector<double> log_shape_;
   std::vector<double> scaled_log_shape_;
   std::vector<double> shape_weight_;
-  std::vector<std::uint32_t> slot_shape_;
+  std::vector<std::size_t> slot_row_;
+  std::vector<std::size_t> slot_targets_;
   std::array<std::size_t, 2 * kWindowRadius + 2> slot_begin_{};
   std::vector<double> numerator_;
   std::vector<double> denominator_;

@@ -11,7 +11,6 @@
 
 #include <cstddef>
 #include <cstdint>
-#include <deque>
 #include <memory>
 #include <vector>
 
@@ -64,12 +63,14 @@ class StreamingRenderer {
   RenderOptions options_;
   FrameScheduler scheduler_;
   CoarticulationEvaluator evaluator_;
-  std::deque<Segment> window_;      // segments [first_index_, first_index_ + size)
-  std::size_t first_index_ = 0;     // global index of window_.front()
-  std::size_t pushed_ = 0;          // segments pushed so far
+  // Segments [first_index_, pushed_): contiguous, so that a frame's window is a
+  // span of them; at most 2 · kWindowRadius + 1 (each emission drops the ones no
+  // future frame can see, a short move to the front).
+  std::vector<Segment> window_;
+  std::size_t first_index_ = 0;  // global index of window_.front()
+  std::size_t pushed_ = 0;       // segments pushed so far
   std::vector<ScheduledFrame> scheduled_;  // scratch for the scheduler
-  std::deque<ScheduledFrame> pending_;
-  std::vector<Segment> scratch_window_;
+  std::vector<ScheduledFrame> pending_;    // in time order; emitted from the front
   bool finished_ = false;
 };
 
