@@ -84,6 +84,11 @@ PhoneSet PhoneSet::from_json(std::string_view json_text, std::string_view source
   if (root.contains("ignore_characters")) {
     if (!root["ignore_characters"].is_string()) fail("field 'ignore_characters' must be a string");
     set.ignored_ = code_points(root["ignore_characters"].get<std::string>());
+    for (const std::string& point : set.ignored_) {
+      if (point.size() == 1 && static_cast<unsigned char>(point[0]) < set.ignored_ascii_.size()) {
+        set.ignored_ascii_[static_cast<unsigned char>(point[0])] = true;
+      }
+    }
   }
   set.silence_phoneme_ = model.silence_phoneme();
   for (const auto& [label, target] : root["phones"].items()) {
@@ -129,14 +134,18 @@ std::string PhoneSet::normalise(std::string_view label) const {
   std::string out;
   out.reserve(label.size());
   for (std::size_t i = 0; i < label.size();) {
+    const auto byte = static_cast<unsigned char>(label[i]);
+    if (byte < ignored_ascii_.size()) {
+      // ASCII (nearly every label): a table lookup instead of a search through ignored_.
+      ++i;
+      if (ignored_ascii_[byte]) continue;
+      const bool fold = !case_sensitive_ && byte >= 'A' && byte <= 'Z';
+      out.push_back(static_cast<char>(fold ? byte - 'A' + 'a' : byte));
+      continue;
+    }
     const std::string_view point = label.substr(i, code_point_length(label, i));
     i += point.size();
-    if (std::find(ignored_.begin(), ignored_.end(), point) != ignored_.end()) continue;
-    if (!case_sensitive_ && point.size() == 1 && point[0] >= 'A' && point[0] <= 'Z') {
-      out.push_back(static_cast<char>(point[0] - 'A' + 'a'));
-    } else {
-      out += point;
-    }
+    if (std::find(ignored_.begin(), ignored_.end(), point) == ignored_.end()) out += point;
   }
   return out;
 }

@@ -23,48 +23,49 @@ SegmentBuilder::SegmentBuilder(const ArticulationModel& model, const PhoneSet& p
   checked_closure_fraction(options_.closure_fraction, "closure_fraction");
 }
 
-void SegmentBuilder::push(const LabeledInterval& interval, std::vector<Segment>& out) {
+void SegmentBuilder::push(std::string_view label, std::int64_t start_us, std::int64_t end_us, int line,
+                          std::vector<Segment>& out) {
   const auto fail = [&](const std::string& message) {
-    throw InputError(source_, interval.line, "phoneme " + excerpt(interval.label) + ": " + message);
+    throw InputError(source_, line, "phoneme " + excerpt(label) + ": " + message);
   };
-  if (interval.start_us < 0) fail("start time " + seconds(interval.start_us) + " is negative");
-  if (interval.end_us > kMaxTimeUs || interval.start_us > kMaxTimeUs) {
-    fail("time " + seconds(std::max(interval.start_us, interval.end_us)) +
+  if (start_us < 0) fail("start time " + seconds(start_us) + " is negative");
+  if (end_us > kMaxTimeUs || start_us > kMaxTimeUs) {
+    fail("time " + seconds(std::max(start_us, end_us)) +
          " is beyond 24 hours; are the times in the right unit?");
   }
-  if (interval.end_us == interval.start_us) {
-    fail("zero duration (starts and ends at " + seconds(interval.start_us) + ")");
+  if (end_us == start_us) {
+    fail("zero duration (starts and ends at " + seconds(start_us) + ")");
   }
-  if (interval.end_us < interval.start_us) {
-    fail("ends (" + seconds(interval.end_us) + ") before it starts (" + seconds(interval.start_us) + ")");
+  if (end_us < start_us) {
+    fail("ends (" + seconds(end_us) + ") before it starts (" + seconds(start_us) + ")");
   }
-  if (interval.start_us < end_us_) {
+  if (start_us < end_us_) {
     std::string previous = last_line_ > 0 ? " (line " + std::to_string(last_line_) + ")" : "";
-    fail("starts at " + seconds(interval.start_us) + ", before the previous phoneme" + previous +
+    fail("starts at " + seconds(start_us) + ", before the previous phoneme" + previous +
          " ends at " + seconds(end_us_) + ": phonemes must be in time order and must not overlap");
   }
-  const auto phoneme = phone_set_.lookup(interval.label);
+  const auto phoneme = phone_set_.lookup(label);
   if (!phoneme) fail("unknown label in phone set '" + phone_set_.name() + "'");
 
   const PhonemeSpec& spec = model_.phoneme(*phoneme);
-  if (interval.start_us > end_us_) {
-    out.push_back({model_.silence_phoneme(), PhonemeClass::silence, end_us_, interval.start_us, 0});
+  if (start_us > end_us_) {
+    out.push_back({model_.silence_phoneme(), PhonemeClass::silence, end_us_, start_us, 0});
     last_phoneme_ = model_.silence_phoneme();
   }
-  std::int64_t start_us = interval.start_us;
-  const std::int64_t duration_us = interval.end_us - interval.start_us;
+  std::int64_t phoneme_start_us = start_us;  // after its closure, if one is split off
+  const std::int64_t duration_us = end_us - start_us;
   if (spec.phoneme_class == PhonemeClass::release && spec.closure_phoneme >= 0 &&
       last_phoneme_ != spec.closure_phoneme && duration_us >= 2) {
     auto closure_us = static_cast<std::int64_t>(
         std::llround(static_cast<double>(duration_us) * options_.closure_fraction));
     closure_us = std::clamp<std::int64_t>(closure_us, 1, duration_us - 1);
-    out.push_back({spec.closure_phoneme, PhonemeClass::closure, start_us, start_us + closure_us, interval.line});
-    start_us += closure_us;
+    out.push_back({spec.closure_phoneme, PhonemeClass::closure, start_us, start_us + closure_us, line});
+    phoneme_start_us += closure_us;
   }
-  out.push_back({*phoneme, spec.phoneme_class, start_us, interval.end_us, interval.line});
+  out.push_back({*phoneme, spec.phoneme_class, phoneme_start_us, end_us, line});
   last_phoneme_ = *phoneme;
-  last_line_ = interval.line;
-  end_us_ = interval.end_us;
+  last_line_ = line;
+  end_us_ = end_us;
 }
 
 std::vector<Segment> build_segments(const LabeledUtterance& utterance, const ArticulationModel& model,

@@ -53,6 +53,8 @@ namespace {
 // control holds the client back; it reads again once at most kReadResumeFrames wait.
 constexpr std::size_t kReadPauseFrames = 4096;
 constexpr std::size_t kReadResumeFrames = 1024;
+// Frames the track of released frames has room for from the start.
+constexpr std::size_t kTypicalReleaseFrames = 16;
 
 class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::AnimateRequest, v1::TrackMessage>>,
                              public OutboxTarget,
@@ -207,7 +209,9 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
       face_deadline_.emplace(FaceDeadline::Clock::now(), std::chrono::milliseconds(service_.config().mesh_max_lag_ms));
     }
     v1::TrackMessage header_message;
-    *header_message.mutable_header() = plan_.header;
+    // Moved, not copied: nothing reads the plan's header after this (its strings were an
+    // allocation each, per stream).
+    *header_message.mutable_header() = std::move(plan_.header);
     const Message header = make_message(std::move(header_message));
     if (!settings.session().empty()) {
       std::shared_ptr<Session> session;
@@ -224,6 +228,9 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
     renderer_.emplace(plan_.model->tables, plan_.engine.render);
     track_.channel_count = plan_.model->model->channel_count();
     track_.fps = plan_.engine.render.fps;
+    // What one read usually releases (a phoneme's frames; more at high rates or for a chunk of
+    // many): the track is cleared, not freed, after each, so it rarely grows past this.
+    track_.reserve(kTypicalReleaseFrames);
     outbox_.push(header);
     if (plan_.mesh) {
       // From here on everything that leaves this stream goes through the lane, in order.
@@ -251,7 +258,7 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
       segments_.clear();
     }
     send_frames(input_->newest_start_us());
-    return grpc::Status::OK;
+    return grpc::Status();  // OK, without copying Status::OK (per read)
   }
 
   grpc::Status end() {

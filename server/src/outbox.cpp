@@ -28,13 +28,14 @@ bool Outbox::push(Message message, std::size_t counted_frames) {
   {
     std::lock_guard lock(mutex_);
     if (finish_status_) return false;
-    if (max_frames_ > 0 && queued_frames_ + counted_frames > max_frames_) {
+    const std::size_t queued_frames = queued_frames_.load(std::memory_order_relaxed);
+    if (max_frames_ > 0 && queued_frames + counted_frames > max_frames_) {
       drop_queue_locked();
       finish_status_ = grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED, overflow_message_);
       stalled = writing_;
     } else {
       queue_.push_back({std::move(message), counted_frames, std::chrono::steady_clock::now()});
-      queued_frames_ += counted_frames;
+      queued_frames_.store(queued_frames + counted_frames, std::memory_order_relaxed);
       if (queued_) queued_->fetch_add(1, std::memory_order_relaxed);
     }
   }
@@ -92,7 +93,7 @@ void Outbox::measure(Histogram& latency, std::atomic<std::int64_t>& queued) {
 void Outbox::drop_queue_locked() {
   if (queued_) queued_->fetch_sub(static_cast<std::int64_t>(queue_.size()), std::memory_order_relaxed);
   queue_.clear();
-  queued_frames_ = 0;
+  queued_frames_.store(0, std::memory_order_relaxed);
 }
 
 std::optional<grpc::Status> Outbox::final_status() const {
@@ -100,10 +101,7 @@ std::optional<grpc::Status> Outbox::final_status() const {
   return finish_status_;
 }
 
-std::size_t Outbox::queued_frames() const {
-  std::lock_guard lock(mutex_);
-  return queued_frames_;
-}
+std::size_t Outbox::queued_frames() const { return queued_frames_.load(std::memory_order_relaxed); }
 
 void Outbox::pump() {
   const OutgoingMessage* write = nullptr;
@@ -114,7 +112,8 @@ void Outbox::pump() {
     if (!queue_.empty()) {
       in_flight_ = std::move(queue_.front().message);
       in_flight_pushed_ = queue_.front().pushed;
-      queued_frames_ -= queue_.front().counted_frames;
+      queued_frames_.store(queued_frames_.load(std::memory_order_relaxed) - queue_.front().counted_frames,
+                           std::memory_order_relaxed);
       queue_.pop_front();
       if (queued_) queued_->fetch_sub(1, std::memory_order_relaxed);
       writing_ = true;

@@ -96,7 +96,10 @@ class Outbox {
 
   /// The status the stream is finishing with, once decided.
   std::optional<grpc::Status> final_status() const;
-  /// Counted frames queued and not yet handed to gRPC (the one in flight excluded).
+  /// Counted frames queued and not yet handed to gRPC (the one in flight excluded). Read
+  /// without the lock (it is asked after every read and write of a producer's stream): a
+  /// caller that must see the count a completion left orders itself after that completion
+  /// (AnimateReactor's flow_mutex_ does).
   std::size_t queued_frames() const;
 
   /// From now on each message's time from push to its completed write goes to `latency`,
@@ -118,7 +121,7 @@ class Outbox {
   void drop_queue_locked();
 
   std::deque<Queued> queue_;
-  std::size_t queued_frames_ = 0;
+  std::atomic<std::size_t> queued_frames_{0};  // written under mutex_ only
   Message in_flight_;
   std::chrono::steady_clock::time_point in_flight_pushed_;
   Histogram* latency_ = nullptr;

@@ -20,7 +20,7 @@ grpc::Status PhonemeInput::push(const v1::Phoneme& phoneme, std::vector<Segment>
   if (count_ >= config_.max_phonemes) return too_many_phonemes(config_.max_phonemes);
   const int index = static_cast<int>(++count_);
   try {
-    builder_.push({phoneme.label(), phoneme.start_us(), phoneme.end_us(), index}, out);
+    builder_.push(phoneme.label(), phoneme.start_us(), phoneme.end_us(), index, out);
   } catch (const InputError& error) {
     return invalid(error.what());
   }
@@ -31,7 +31,8 @@ grpc::Status PhonemeInput::push(const v1::Phoneme& phoneme, std::vector<Segment>
                 std::to_string(builder_.end_us()) + " us, longer than --max-utterance-ms=" +
                 std::to_string(config_.max_utterance_ms)};
   }
-  return grpc::Status::OK;
+  // OK: a default Status, not a copy of Status::OK, which copies its two strings (per phoneme).
+  return grpc::Status();
 }
 
 }  // namespace lipsync::server

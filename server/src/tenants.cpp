@@ -210,7 +210,7 @@ std::size_t TenantUsage::in_use(Quota quota) const {
 }
 
 grpc::Status TenantUsage::take_phonemes(std::size_t count, std::size_t per_second, Clock::time_point now) {
-  if (per_second == kUnlimited) return grpc::Status::OK;
+  if (per_second == kUnlimited) return grpc::Status();  // OK, without copying Status::OK
   std::lock_guard lock(mutex_);
   const double capacity = static_cast<double>(per_second);
   if (!bucket_started_) {
@@ -228,7 +228,7 @@ grpc::Status TenantUsage::take_phonemes(std::size_t count, std::size_t per_secon
                 " ms)"};
   }
   phoneme_tokens_ -= static_cast<double>(count);
-  return grpc::Status::OK;
+  return grpc::Status();  // OK
 }
 
 QuotaHold& QuotaHold::operator=(QuotaHold&& other) noexcept {
@@ -265,7 +265,7 @@ grpc::Status Caller::hold(Quota quota, QuotaHold& hold) const {
 }
 
 grpc::Status Caller::take_phonemes(std::size_t count) const {
-  if (!usage_) return grpc::Status::OK;
+  if (!usage_) return grpc::Status();  // OK
   return usage_->take_phonemes(count, quotas_->max_phonemes_per_second, TenantUsage::Clock::now());
 }
 

@@ -4,6 +4,7 @@
 // (data/phonesets/*.json, docs/phone-sets.md), never code.
 #pragma once
 
+#include <array>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -43,6 +44,7 @@ class PhoneSet {
   std::string description_;
   bool case_sensitive_ = true;
   std::vector<std::string> ignored_;  // code points removed before lookup
+  std::array<bool, 128> ignored_ascii_{};  // the one-byte ones among them, by byte
   std::unordered_map<std::string, int> phoneme_by_label_;
   int silence_phoneme_ = -1;
 };

@@ -15,6 +15,7 @@
 
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "lipsync/model.hpp"
@@ -51,7 +52,12 @@ class SegmentBuilder {
   /// Validates one interval and appends the segments it yields (a gap silence,
   /// a closure, the phoneme) to `out`. Throws InputError on bad input; on throw,
   /// the builder is unchanged and nothing was appended.
-  void push(const LabeledInterval& interval, std::vector<Segment>& out);
+  void push(const LabeledInterval& interval, std::vector<Segment>& out) {
+    push(interval.label, interval.start_us, interval.end_us, interval.line, out);
+  }
+  /// The same for a label held elsewhere (a streamed phoneme's), without copying it.
+  void push(std::string_view label, std::int64_t start_us, std::int64_t end_us, int line,
+            std::vector<Segment>& out);
 
   /// End time of the last segment so far (0 before the first).
   std::int64_t end_us() const { return end_us_; }

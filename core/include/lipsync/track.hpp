@@ -38,6 +38,12 @@ struct Track {
     kinds.clear();
     values.clear();
   }
+  /// Room for `frames` frames (of channel_count values each) without reallocating.
+  void reserve(std::size_t frames) {
+    t_us.reserve(frames);
+    kinds.reserve(frames);
+    values.reserve(frames * channel_count);
+  }
 };
 
 }  // namespace lipsync
