@@ -96,7 +96,7 @@ StreamingRenderer::StreamingRenderer(std::shared_ptr<const CoarticulationTables>
     : options_(options),
       scheduler_(tables->model(), schedule_options(options)),
       evaluator_(std::move(tables)) {
-  window_.reserve(2 * kWindowRadius + 2);
+  window_.reserve(2 * kWindowRadius + 2);  // the most it holds (renderer.hpp)
 }
 
 void StreamingRenderer::push(const Segment& segment, Track& out) {

@@ -64,8 +64,9 @@ class StreamingRenderer {
   FrameScheduler scheduler_;
   CoarticulationEvaluator evaluator_;
   // Segments [first_index_, pushed_): contiguous, so that a frame's window is a
-  // span of them; at most 2 · kWindowRadius + 1 (each emission drops the ones no
-  // future frame can see, a short move to the front).
+  // span of them. At most 2 · kWindowRadius + 1 between calls, one more while push
+  // adds a segment before emitting: each emission drops the ones no future frame
+  // can see (a short move to the front), so the reserved room never grows.
   std::vector<Segment> window_;
   std::size_t first_index_ = 0;  // global index of window_.front()
   std::size_t pushed_ = 0;       // segments pushed so far
