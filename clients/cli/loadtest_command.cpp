@@ -166,6 +166,7 @@ Utterance make_utterance(std::uint64_t seed, std::size_t phonemes, const Articul
 /// What one stream (a producer's Animate or a subscriber) received.
 struct StreamTally {
   std::uint64_t frames = 0;
+  std::uint64_t batches = 0;     ///< messages that carried frames
   std::uint64_t unexpected = 0;  ///< frames not in the offline render (wrong index or time)
   std::uint64_t without_positions = 0;  ///< mesh stream: frames without the header's V × 3 positions
   std::size_t mesh_coordinates = 0;     ///< from the header: V × 3 (0: no mesh in the header)
@@ -212,6 +213,7 @@ void count_frames(const client::v1::TrackMessage& message, const Run& run, Strea
   if (!message.has_frames()) return;
   const std::int64_t arrival_us = since_epoch_us(Clock::now());
   const auto& batch = message.frames();
+  ++tally.batches;
   if (verify && run.mesh && !carries_positions(batch, tally)) {
     tally.without_positions += static_cast<std::uint64_t>(batch.t_us_size());
   }
@@ -260,6 +262,8 @@ struct Totals {
   std::uint64_t utterances_complete = 0;
   std::uint64_t producer_frames = 0;
   std::uint64_t subscriber_frames = 0;
+  std::uint64_t producer_batches = 0;
+  std::uint64_t subscriber_batches = 0;
   std::uint64_t subscriptions = 0;
   std::uint64_t subscriptions_complete = 0;
   std::uint64_t missing_frames = 0;
@@ -274,6 +278,8 @@ struct Totals {
     utterances_complete += other.utterances_complete;
     producer_frames += other.producer_frames;
     subscriber_frames += other.subscriber_frames;
+    producer_batches += other.producer_batches;
+    subscriber_batches += other.subscriber_batches;
     subscriptions += other.subscriptions;
     subscriptions_complete += other.subscriptions_complete;
     missing_frames += other.missing_frames;
@@ -501,9 +507,11 @@ class LoadTest {
       return good == expected && stream.unexpected == 0 && stream.without_positions == 0;
     };
     totals.producer_frames += run.producer_tally.frames;
+    totals.producer_batches += run.producer_tally.batches;
     if (tally(run.producer_tally, run.producer_status, totals.producer_latencies_us)) ++totals.utterances_complete;
     for (std::size_t s = 0; s < run.subscribers.size(); ++s) {
       totals.subscriber_frames += run.subscriber_tallies[s]->frames;
+      totals.subscriber_batches += run.subscriber_tallies[s]->batches;
       if (tally(*run.subscriber_tallies[s], run.subscriber_status[s], totals.subscriber_latencies_us)) {
         ++totals.subscriptions_complete;
       }
@@ -685,6 +693,7 @@ int run_loadtest(std::span<const std::string_view> args) {
           {"utterances", {{"started", group.utterances_started}, {"complete", group.utterances_complete}}},
           {"subscriptions", {{"started", group.subscriptions}, {"complete", group.subscriptions_complete}}},
           {"frames", frames},
+          {"batches", {{"producers", group.producer_batches}, {"subscribers", group.subscriber_batches}}},
           {"latency_ms",
            {{"producers", to_json(producer_latency_by_mesh[m])},
             {"subscribers", to_json(subscriber_latency_by_mesh[m])}}},
@@ -711,6 +720,7 @@ int run_loadtest(std::span<const std::string_view> args) {
           {"missing", totals.missing_frames},
           {"unexpected", totals.unexpected_frames},
           {"without_positions", totals.frames_without_positions}}},
+        {"batches", {{"producers", totals.producer_batches}, {"subscribers", totals.subscriber_batches}}},
         {"latency_ms", {{"producers", to_json(producer_latency)}, {"subscribers", to_json(subscriber_latency)}}},
         {"by_output", {{"mesh", group_json(1)}, {"no_mesh", group_json(0)}}},
         {"errors", results.errors},
@@ -735,9 +745,13 @@ int run_loadtest(std::span<const std::string_view> args) {
     std::cout << "utterances: " << totals.utterances_started << " started, " << totals.utterances_complete
               << " complete; subscriptions: " << totals.subscriptions << " started, "
               << totals.subscriptions_complete << " complete\n";
-    std::snprintf(line, sizeof line, "frames: %llu to producers, %llu to subscribers, %.0f/s; %llu missing, %llu unexpected\n",
+    std::snprintf(line, sizeof line,
+                  "frames: %llu to producers (%llu batches), %llu to subscribers (%llu batches), %.0f/s; %llu missing, "
+                  "%llu unexpected\n",
                   static_cast<unsigned long long>(totals.producer_frames),
-                  static_cast<unsigned long long>(totals.subscriber_frames), frames_per_second(totals),
+                  static_cast<unsigned long long>(totals.producer_batches),
+                  static_cast<unsigned long long>(totals.subscriber_frames),
+                  static_cast<unsigned long long>(totals.subscriber_batches), frames_per_second(totals),
                   static_cast<unsigned long long>(totals.missing_frames),
                   static_cast<unsigned long long>(totals.unexpected_frames));
     std::cout << line;

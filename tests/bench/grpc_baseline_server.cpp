@@ -5,9 +5,13 @@
 // Finish only when none is) and answers with messages of the same shape: a
 // TrackHeader, FrameBatches of constant frames on the uniform grid (t_us,
 // kinds, 16 channel floats and/or 52 ARKit floats per frame, as the settings'
-// outputs ask), and a TrackSummary. Like lipsyncd with lookahead 7, a chunk
-// releases the frames before the start of the phoneme 7 places back, and `end`
-// releases the rest; batches hold at most 512 frames. There is no engine, no
+// outputs ask), and a TrackSummary. Like lipsyncd with lookahead 7, which
+// computes a segment's frames once the 7th segment after it is known, a chunk
+// releases the frames up to the end of the phoneme 7 places back (before the
+// start of the one 6 places back), and `end` releases the rest; batches hold
+// at most 512 frames. (lipsyncd still sends a few more batches per utterance:
+// a closure, or a phoneme shorter than a frame interval, gets a key frame of
+// its own there, so none of its releases is empty.) There is no engine, no
 // session, no validation and no admission limit: what it costs is what gRPC
 // and protobuf cost, so `lipsync loadtest --no-verify` against it gives the
 // ceiling lipsyncd is compared with (tools/perf/server_loadtest.sh).
@@ -234,7 +238,8 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
         starts_.push_back(phoneme.start_us());
         end_us_ = std::max(end_us_, phoneme.end_us());
       }
-      if (starts_.size() > kLookahead) release_before(starts_[starts_.size() - 1 - kLookahead]);
+      // With N phonemes known, lipsyncd's renderer releases the frames of phoneme N − 8.
+      if (starts_.size() > kLookahead) release_before(starts_[starts_.size() - kLookahead]);
     } else if (request_.has_end()) {
       release_before(end_us_ + 1);
       auto summary = std::make_shared<v1::TrackMessage>();

@@ -339,6 +339,14 @@ TEST_F(NetworkCliTest, loadtest_200_realtime_streams_deliver_every_frame_without
   EXPECT_THAT(json["errors"], IsEmpty());
   EXPECT_GT(json["utterances"]["complete"].get<int>(), 200);
   EXPECT_EQ(json["frames"]["missing"].get<int>(), 0);
+  // In real time a batch leaves per phoneme that releases frames: 20 phonemes give at least
+  // the end's batch and at most one per phoneme and the end, each with at least one frame.
+  const auto utterances = json["utterances"]["complete"].get<std::uint64_t>();
+  const auto batches = json["batches"]["producers"].get<std::uint64_t>();
+  EXPECT_GE(batches, utterances);
+  EXPECT_LE(batches, utterances * 21);
+  EXPECT_LE(batches, json["frames"]["producers"].get<std::uint64_t>());
+  EXPECT_EQ(json["batches"]["subscribers"].get<std::uint64_t>(), batches);
   std::cout << report.out;
 }
 
