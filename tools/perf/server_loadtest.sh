@@ -34,6 +34,11 @@ CONNECTIONS=${CONNECTIONS:-8}
 CLIENT=${CLIENT:-h2}
 OUT_DIR=${OUT_DIR:-$(mktemp -d /tmp/server_loadtest.XXXXXX)}
 mkdir -p "$OUT_DIR"
+# The summary reads every run report in OUT_DIR: an earlier run's must not join this one's.
+if compgen -G "$OUT_DIR/r[0-9]*-*" >/dev/null; then
+  echo "removing the run reports of an earlier load test from $OUT_DIR" >&2
+  rm -f "$OUT_DIR"/r[0-9]*-*
+fi
 SERVER_PIN=()
 CLIENT_PIN=()
 [[ -n ${SERVER_CPUS:-} ]] && SERVER_PIN=(taskset -c "$SERVER_CPUS")
