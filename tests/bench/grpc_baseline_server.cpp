@@ -21,8 +21,8 @@
 // the start, then each as it comes) to any number of streams. As in lipsyncd,
 // each message is serialised once into a grpc::ByteBuffer that every
 // subscriber's write shares (Subscribe is a raw method), so N subscribers cost
-// what N writes of the same bytes cost. A session is forgotten 10 s after its
-// producer ends; an unknown one is NOT_FOUND.
+// what N writes of the same bytes cost. A session is forgotten once its producer
+// has ended 10 s ago, when the next session opens; an unknown one is NOT_FOUND.
 //
 //   grpc_baseline_server [--listen 127.0.0.1:0]
 //
@@ -147,22 +147,31 @@ class SubscribeReactor;
 
 /// One producer's messages, serialised once, and the streams following them.
 struct Session {
+  std::uint64_t id = 0;  // which opening of its name (SessionMap)
   std::mutex mutex;
   std::vector<grpc::ByteBuffer> messages;
   std::vector<SubscribeReactor*> subscribers;
   std::optional<std::chrono::steady_clock::time_point> ended_at;
 };
 
+/// The sessions by name. Every session is kept for the same kSessionRetention after
+/// it ends, so they expire in the order they ended: opening one forgets the expired
+/// at the front of that order, without visiting the others (as lipsyncd's registry
+/// does; a sweep of every session held, ~8,000 at 2,000 sessions, had made the
+/// baseline's tail with subscribers longer than lipsyncd's).
 class SessionMap {
  public:
   std::shared_ptr<Session> open(const std::string& name) {
     std::lock_guard lock(mutex_);
     const auto now = std::chrono::steady_clock::now();
-    std::erase_if(sessions_, [&](const auto& entry) {
-      std::lock_guard session_lock(entry.second->mutex);
-      return entry.second->ended_at && now - *entry.second->ended_at > kSessionRetention;
-    });
+    while (!ended_.empty() && now - ended_.front().at > kSessionRetention) {
+      const auto it = sessions_.find(ended_.front().name);
+      // The name may have been opened again since: only the session that ended goes.
+      if (it != sessions_.end() && it->second->id == ended_.front().id) sessions_.erase(it);
+      ended_.pop_front();
+    }
     auto session = std::make_shared<Session>();
+    session->id = ++opened_;
     sessions_[name] = session;
     return session;
   }
@@ -171,10 +180,22 @@ class SessionMap {
     const auto it = sessions_.find(name);
     return it == sessions_.end() ? nullptr : it->second;
   }
+  /// `session`, opened as `name`, ended at `at`.
+  void ended(const std::string& name, const Session& session, std::chrono::steady_clock::time_point at) {
+    std::lock_guard lock(mutex_);
+    ended_.push_back({name, session.id, at});
+  }
 
  private:
+  struct Ended {
+    std::string name;
+    std::uint64_t id;
+    std::chrono::steady_clock::time_point at;
+  };
   std::mutex mutex_;
+  std::uint64_t opened_ = 0;
   std::map<std::string, std::shared_ptr<Session>> sessions_;
+  std::deque<Ended> ended_;
 };
 
 class SubscribeReactor final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
@@ -272,7 +293,10 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     h.set_fps(fps_);
     h.set_lookahead(kLookahead);
     h.set_session(settings.session());
-    if (!settings.session().empty()) session_ = sessions_.open(settings.session());
+    if (!settings.session().empty()) {
+      session_name_ = settings.session();
+      session_ = sessions_.open(session_name_);
+    }
     if (channels_) {
       for (int c = 0; c < kChannels; ++c) h.add_channels("channel_" + std::to_string(c));
     }
@@ -324,15 +348,21 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
 
   void end_session() {
     if (!session_) return;
-    std::lock_guard lock(session_->mutex);
-    if (session_->ended_at) return;
-    session_->ended_at = std::chrono::steady_clock::now();
-    for (SubscribeReactor* subscriber : session_->subscribers) subscriber->close();
-    session_->subscribers.clear();
+    std::chrono::steady_clock::time_point ended_at;
+    {
+      std::lock_guard lock(session_->mutex);
+      if (session_->ended_at) return;
+      ended_at = std::chrono::steady_clock::now();
+      session_->ended_at = ended_at;
+      for (SubscribeReactor* subscriber : session_->subscribers) subscriber->close();
+      session_->subscribers.clear();
+    }
+    sessions_.ended(session_name_, *session_, ended_at);
   }
 
   friend class Writer<Message, AnimateReactor>;
   SessionMap& sessions_;
+  std::string session_name_;
   std::shared_ptr<Session> session_;
   Writer<Message, AnimateReactor> writer_;
   v1::AnimateRequest request_;
