@@ -149,6 +149,12 @@ struct FrameSums {
   double* high;
 };
 
+/// Whether a comparison held in any lane.
+inline bool any_lane(const LaneMask& mask) {
+  static_assert(kLanes == 4, "any_lane reads four lanes");
+  return (mask[0] | mask[1] | mask[2] | mask[3]) != 0;
+}
+
 /// `lanes` = p[0 .. kLanes) (any alignment), and back.
 inline void load(Lanes& lanes, const double* p) { std::memcpy(&lanes, p, sizeof lanes); }
 inline void store(const Lanes& lanes, double* p) { std::memcpy(p, &lanes, sizeof lanes); }
@@ -395,7 +401,7 @@ LIPSYNC_VECTOR_CLONES bool lanes_share_contributors(const double* weight, std::s
     }
     for (; slot < slots; ++slot) differ_tail |= (weight[slot] == 0.0) != (other[slot] == 0.0);
   }
-  return !differ_tail && (differ[0] | differ[1] | differ[2] | differ[3]) == 0;
+  return !differ_tail && !any_lane(differ);
 }
 
 /// Whether any of the first `count` denominators fell below kUnderflowGuard: one vector
@@ -408,7 +414,7 @@ LIPSYNC_VECTOR_CLONES bool any_underflow(const double* denominator, std::size_t 
     load(lanes, denominator + c);
     below |= lanes < kUnderflowGuard;
   }
-  bool any = (below[0] | below[1] | below[2] | below[3]) != 0;
+  bool any = any_lane(below);
   for (; c < count; ++c) any |= denominator[c] < kUnderflowGuard;
   return any;
 }

@@ -147,6 +147,7 @@ class SubscribeReactor;
 
 /// One producer's messages, serialised once, and the streams following them.
 struct Session {
+  std::string name;
   std::uint64_t id = 0;  // which opening of its name (SessionMap)
   std::mutex mutex;
   std::vector<grpc::ByteBuffer> messages;
@@ -171,6 +172,7 @@ class SessionMap {
       ended_.pop_front();
     }
     auto session = std::make_shared<Session>();
+    session->name = name;
     session->id = ++opened_;
     sessions_[name] = session;
     return session;
@@ -180,10 +182,10 @@ class SessionMap {
     const auto it = sessions_.find(name);
     return it == sessions_.end() ? nullptr : it->second;
   }
-  /// `session`, opened as `name`, ended at `at`.
-  void ended(const std::string& name, const Session& session, std::chrono::steady_clock::time_point at) {
+  /// `session` ended at `at`.
+  void ended(const Session& session, std::chrono::steady_clock::time_point at) {
     std::lock_guard lock(mutex_);
-    ended_.push_back({name, session.id, at});
+    ended_.push_back({session.name, session.id, at});
   }
 
  private:
@@ -293,10 +295,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
     h.set_fps(fps_);
     h.set_lookahead(kLookahead);
     h.set_session(settings.session());
-    if (!settings.session().empty()) {
-      session_name_ = settings.session();
-      session_ = sessions_.open(session_name_);
-    }
+    if (!settings.session().empty()) session_ = sessions_.open(settings.session());
     if (channels_) {
       for (int c = 0; c < kChannels; ++c) h.add_channels("channel_" + std::to_string(c));
     }
@@ -357,12 +356,11 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
       for (SubscribeReactor* subscriber : session_->subscribers) subscriber->close();
       session_->subscribers.clear();
     }
-    sessions_.ended(session_name_, *session_, ended_at);
+    sessions_.ended(*session_, ended_at);
   }
 
   friend class Writer<Message, AnimateReactor>;
   SessionMap& sessions_;
-  std::string session_name_;
   std::shared_ptr<Session> session_;
   Writer<Message, AnimateReactor> writer_;
   v1::AnimateRequest request_;
