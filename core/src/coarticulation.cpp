@@ -332,8 +332,16 @@ LIPSYNC_VECTOR_CLONES std::size_t window_log_dominances(WindowLogs& logs) {
   double* const log_shape = logs.log_shape;
   std::size_t* const slot_row = logs.slot_row;
   std::size_t* const slot_targets = logs.slot_targets;
+  std::size_t* const slot_begin = logs.slot_begin;
+  const Segment* const window = logs.window;
+  const DominanceParams* const shapes = logs.shapes;
+  const std::uint32_t* const shape_begin = logs.shape_begin;
   const std::size_t padded = logs.padded_channels;
-  const Segment& here = logs.window[logs.current];
+  const std::size_t first = logs.first;
+  const std::size_t last = logs.last;
+  const std::size_t current = logs.current;
+  const std::size_t times = logs.times;
+  const Segment& here = window[current];
   const double here_length_s = static_cast<double>(here.end_us - here.start_us) * 1e-6;
   Lanes t;
   for (std::size_t lane = 0; lane < kLanes; ++lane) t[lane] = static_cast<double>(logs.t_us[lane]);
@@ -343,19 +351,19 @@ LIPSYNC_VECTOR_CLONES std::size_t window_log_dominances(WindowLogs& logs) {
   // value = one of the fades of Eq. 4, e^(border log D) × shape(u), as a logarithm, for the
   // instants there are (a libm log each), copied to the lanes past them.
   const auto fade = [&](Lanes& value, double border, auto shape) {
-    for (std::size_t lane = 0; lane < logs.times; ++lane) value[lane] = border + std::log(shape(u[lane]));
-    for (std::size_t lane = logs.times; lane < kLanes; ++lane) value[lane] = value[logs.times - 1];
+    for (std::size_t lane = 0; lane < times; ++lane) value[lane] = border + std::log(shape(u[lane]));
+    for (std::size_t lane = times; lane < kLanes; ++lane) value[lane] = value[times - 1];
   };
   Lanes max_log = Lanes{} + kNegativeInfinity;
   std::size_t slots = 0;
-  for (std::size_t i = logs.first; i <= logs.last; ++i) {
-    const Segment& segment = logs.window[i];
+  for (std::size_t i = first; i <= last; ++i) {
+    const Segment& segment = window[i];
     const auto phoneme = static_cast<std::size_t>(segment.phoneme);
-    const std::ptrdiff_t distance = static_cast<std::ptrdiff_t>(i) - static_cast<std::ptrdiff_t>(logs.current);
-    logs.slot_begin[i - logs.first] = slots;
+    const std::ptrdiff_t distance = static_cast<std::ptrdiff_t>(i) - static_cast<std::ptrdiff_t>(current);
+    slot_begin[i - first] = slots;
     const std::size_t targets = phoneme * padded;
-    for (std::uint32_t k = logs.shape_begin[phoneme]; k < logs.shape_begin[phoneme + 1]; ++k, ++slots) {
-      const DominanceParams& params = logs.shapes[k];
+    for (std::uint32_t k = shape_begin[phoneme]; k < shape_begin[phoneme + 1]; ++k, ++slots) {
+      const DominanceParams& params = shapes[k];
       Lanes value;
       if (distance == kWindowRadius) {
         // t lies in s₋₇ of this segment: fade in across the current segment,
@@ -379,7 +387,7 @@ LIPSYNC_VECTOR_CLONES std::size_t window_log_dominances(WindowLogs& logs) {
       max_log = max_log < value ? value : max_log;  // std::max, lane by lane
     }
   }
-  logs.slot_begin[logs.last - logs.first + 1] = slots;
+  slot_begin[last - first + 1] = slots;
   store(max_log, logs.max_log);
   return slots;
 }
