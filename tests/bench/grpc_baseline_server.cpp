@@ -22,9 +22,11 @@
 // each message is serialised once into a grpc::ByteBuffer that every
 // subscriber's write shares (Subscribe is a raw method), so N subscribers cost
 // what N writes of the same bytes cost. A session is forgotten once its producer
-// has ended 10 s ago, when the next session opens; an unknown one is NOT_FOUND.
+// has ended the retention ago (10 s, as lipsyncd's default), when the next session
+// opens; an unknown one is NOT_FOUND. tests/clients/baseline_server_test.cpp
+// checks these promises against lipsyncd.
 //
-//   grpc_baseline_server [--listen 127.0.0.1:0]
+//   grpc_baseline_server [--listen 127.0.0.1:0] [--session-retention-ms 10000]
 //
 // Prints "listening on HOST:PORT" on stdout; SIGINT/SIGTERM stop it.
 #include <signal.h>
@@ -33,6 +35,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <chrono>
 #include <deque>
 #include <iostream>
@@ -62,7 +65,6 @@ constexpr int kChannels = 16;
 constexpr int kArkit = 52;
 constexpr std::size_t kLookahead = 7;
 constexpr std::int64_t kMaxFramesPerBatch = 512;
-constexpr auto kSessionRetention = std::chrono::seconds(10);
 
 /// The outgoing side of a stream: one write in flight, Finish once nothing is
 /// queued. `Item` is what the stream writes (a typed message or bytes).
@@ -155,17 +157,19 @@ struct Session {
   std::optional<std::chrono::steady_clock::time_point> ended_at;
 };
 
-/// The sessions by name. Every session is kept for the same kSessionRetention after
+/// The sessions by name. Every session is kept for the same retention after
 /// it ends, so they expire in the order they ended: opening one forgets the expired
 /// at the front of that order, without visiting the others (as lipsyncd's registry
 /// does; a sweep of every session held, ~8,000 at 2,000 sessions, had made the
 /// baseline's tail with subscribers longer than lipsyncd's).
 class SessionMap {
  public:
+  explicit SessionMap(std::chrono::milliseconds retention) : retention_(retention) {}
+
   std::shared_ptr<Session> open(const std::string& name) {
     std::lock_guard lock(mutex_);
     const auto now = std::chrono::steady_clock::now();
-    while (!ended_.empty() && now - ended_.front().at > kSessionRetention) {
+    while (!ended_.empty() && now - ended_.front().at > retention_) {
       const auto it = sessions_.find(ended_.front().name);
       // The name may have been opened again since: only the session that ended goes.
       if (it != sessions_.end() && it->second->id == ended_.front().id) sessions_.erase(it);
@@ -194,6 +198,7 @@ class SessionMap {
     std::uint64_t id;
     std::chrono::steady_clock::time_point at;
   };
+  const std::chrono::milliseconds retention_;
   std::mutex mutex_;
   std::uint64_t opened_ = 0;
   std::map<std::string, std::shared_ptr<Session>> sessions_;
@@ -374,6 +379,10 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
 };
 
 class BaselineService final : public v1::LipSync::WithRawCallbackMethod_Subscribe<v1::LipSync::CallbackService> {
+ public:
+  explicit BaselineService(std::chrono::milliseconds retention) : sessions_(retention) {}
+
+ private:
   grpc::ServerBidiReactor<v1::AnimateRequest, v1::TrackMessage>* Animate(
       grpc::CallbackServerContext* /*context*/) override {
     return new AnimateReactor(sessions_);
@@ -391,12 +400,21 @@ class BaselineService final : public v1::LipSync::WithRawCallbackMethod_Subscrib
 
 int main(int argc, char** argv) {
   std::string listen = "127.0.0.1:0";
+  long retention_ms = 10'000;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--listen" && i + 1 < argc) {
       listen = argv[++i];
+    } else if (arg == "--session-retention-ms" && i + 1 < argc) {
+      const std::string value = argv[++i];
+      char* end = nullptr;
+      retention_ms = std::strtol(value.c_str(), &end, 10);
+      if (value.empty() || *end != '\0' || retention_ms < 0 || retention_ms > 86'400'000) {
+        std::cerr << "grpc_baseline_server: --session-retention-ms must be 0 to 86400000, not '" << value << "'\n";
+        return 2;
+      }
     } else if (arg == "--help" || arg == "-h") {
-      std::cout << "grpc_baseline_server [--listen 127.0.0.1:0]\n";
+      std::cout << "grpc_baseline_server [--listen 127.0.0.1:0] [--session-retention-ms 10000]\n";
       return 0;
     } else {
       std::cerr << "grpc_baseline_server: unknown argument '" << arg << "'\n";
@@ -413,7 +431,7 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
-  BaselineService service;
+  BaselineService service{std::chrono::milliseconds(retention_ms)};
   grpc::ServerBuilder builder;
   int port = 0;
   builder.AddListeningPort(listen, grpc::InsecureServerCredentials(), &port);

@@ -1,0 +1,223 @@
+// The bare gRPC server that the load tests measure lipsyncd against
+// (tests/bench/grpc_baseline_server.cpp, docs/performance.md) is a reference only
+// while it sends what lipsyncd sends and keeps sessions as lipsyncd does. Twice
+// it did not: it released each phoneme's frames one phoneme late (fewer, larger
+// batches: a cheaper reference), and it swept every session it held on each open
+// (a longer tail with subscribers than lipsyncd's). These tests run the real
+// baseline and the real lipsyncd on 127.0.0.1:0, drive both with the real
+// `lipsync loadtest`, and pin what a fair comparison needs.
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "../support/child_process.hpp"
+#include "lipsync/v1/lipsync.grpc.pb.h"
+
+namespace lipsync {
+namespace {
+
+namespace fs = std::filesystem;
+namespace v1 = lipsync::v1;
+using testing::ChildProcess;
+using testing::make_temp_dir;
+using testing::read_text;
+using namespace std::chrono_literals;
+
+constexpr auto kRetention = 1000ms;
+
+/// HOST:PORT from the first line of `out` that starts with `prefix`; "" if none comes within 20 s.
+std::string wait_for_address(const fs::path& out, const std::string& prefix) {
+  const auto give_up = std::chrono::steady_clock::now() + 20s;
+  while (std::chrono::steady_clock::now() < give_up) {
+    const std::string text = read_text(out);
+    const auto at = text.find(prefix);
+    if (at != std::string::npos && text.find('\n', at) != std::string::npos) {
+      return text.substr(at + prefix.size(), text.find('\n', at) - at - prefix.size());
+    }
+    std::this_thread::sleep_for(20ms);
+  }
+  return "";
+}
+
+class BaselineServerTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new fs::path(make_temp_dir("baseline-server-test-"));
+    baseline_ = new ChildProcess({GRPC_BASELINE_SERVER_BINARY, "--listen", "127.0.0.1:0", "--session-retention-ms",
+                                  std::to_string(kRetention.count())},
+                                 *dir_, *dir_ / "baseline.out", *dir_ / "baseline.err");
+    lipsyncd_ = new ChildProcess({LIPSYNCD_BINARY, "--listen", "127.0.0.1:0", "--log-level", "warn"}, *dir_,
+                                 *dir_ / "lipsyncd.out", *dir_ / "lipsyncd.err");
+    baseline_address_ = new std::string(wait_for_address(*dir_ / "baseline.out", "listening on "));
+    lipsyncd_address_ = new std::string(wait_for_address(*dir_ / "lipsyncd.out", "lipsyncd listening on "));
+  }
+  static void TearDownTestSuite() {
+    for (ChildProcess* server : {baseline_, lipsyncd_}) {
+      server->terminate();
+      server->wait();
+      delete server;
+    }
+    fs::remove_all(*dir_);
+    delete dir_;
+    delete baseline_address_;
+    delete lipsyncd_address_;
+  }
+  void SetUp() override {
+    ASSERT_FALSE(baseline_address_->empty()) << "the baseline did not start: " << read_text(*dir_ / "baseline.err");
+    ASSERT_FALSE(lipsyncd_address_->empty()) << "lipsyncd did not start: " << read_text(*dir_ / "lipsyncd.err");
+  }
+
+  /// `lipsync loadtest` against `address` with `options`, its JSON report (after checking that it
+  /// exited 0: no errors, every frame arrived).
+  static nlohmann::json loadtest(const std::string& address, std::vector<std::string> options) {
+    std::vector<std::string> args = {LIPSYNC_CLI_BINARY, "loadtest", "--server", address, "--json"};
+    args.insert(args.end(), options.begin(), options.end());
+    ChildProcess run(args, *dir_, *dir_ / "loadtest.out", *dir_ / "loadtest.err");
+    const int status = run.wait();
+    const std::string out = read_text(*dir_ / "loadtest.out");
+    EXPECT_EQ(status, 0) << out << read_text(*dir_ / "loadtest.err");
+    return nlohmann::json::parse(out);
+  }
+
+  static std::unique_ptr<v1::LipSync::Stub> baseline_stub() {
+    return v1::LipSync::NewStub(grpc::CreateChannel(*baseline_address_, grpc::InsecureChannelCredentials()));
+  }
+
+  static fs::path* dir_;
+  static ChildProcess* baseline_;
+  static ChildProcess* lipsyncd_;
+  static std::string* baseline_address_;
+  static std::string* lipsyncd_address_;
+};
+
+fs::path* BaselineServerTest::dir_ = nullptr;
+ChildProcess* BaselineServerTest::baseline_ = nullptr;
+ChildProcess* BaselineServerTest::lipsyncd_ = nullptr;
+std::string* BaselineServerTest::baseline_address_ = nullptr;
+std::string* BaselineServerTest::lipsyncd_address_ = nullptr;
+
+/// Per utterance, what one server sent its producers.
+struct PerUtterance {
+  double frames;
+  double batches;
+};
+
+PerUtterance per_utterance(const nlohmann::json& report) {
+  const auto utterances = report["utterances"]["complete"].get<double>();
+  EXPECT_GT(utterances, 0.0);
+  return {report["frames"]["producers"].get<double>() / utterances,
+          report["batches"]["producers"].get<double>() / utterances};
+}
+
+TEST_F(BaselineServerTest, sends_as_many_frames_and_batches_per_utterance_as_lipsyncd) {
+  const std::vector<std::string> load = {"--fast", "--producers", "4", "--duration", "2", "--seed", "7"};
+  const PerUtterance lipsyncd = per_utterance(loadtest(*lipsyncd_address_, load));
+  std::vector<std::string> unverified = load;
+  unverified.push_back("--no-verify");
+  const PerUtterance baseline = per_utterance(loadtest(*baseline_address_, unverified));
+  // The same utterances give the same frames, give or take lipsyncd's key frames (about 1.5 %
+  // fewer frames: no uniform frame inside a closure).
+  EXPECT_NEAR(baseline.frames / lipsyncd.frames, 1.0, 0.04)
+      << "frames per utterance: baseline " << baseline.frames << ", lipsyncd " << lipsyncd.frames;
+  // Released at the same phoneme, so in as many batches, less the few that lipsyncd's key frames
+  // add (2.6 % on 2026-11-28). Released one phoneme late, the baseline sent 6.6 % fewer.
+  EXPECT_GE(baseline.batches / lipsyncd.batches, 0.95)
+      << "batches per utterance: baseline " << baseline.batches << ", lipsyncd " << lipsyncd.batches;
+  EXPECT_LE(baseline.batches / lipsyncd.batches, 1.01)
+      << "batches per utterance: baseline " << baseline.batches << ", lipsyncd " << lipsyncd.batches;
+}
+
+TEST_F(BaselineServerTest, every_subscriber_receives_exactly_what_its_producer_receives) {
+  const nlohmann::json report = loadtest(
+      *baseline_address_, {"--producers", "20", "--subscribers-per-session", "1", "--duration", "2", "--no-verify"});
+  EXPECT_TRUE(report["errors"].empty()) << report.dump();
+  EXPECT_GT(report["subscriptions"]["complete"].get<int>(), 0);
+  EXPECT_EQ(report["frames"]["subscribers"], report["frames"]["producers"]);
+  EXPECT_EQ(report["batches"]["subscribers"], report["batches"]["producers"]);
+}
+
+/// One utterance of `phonemes` phonemes of 100 ms streamed to the baseline under `session`; the
+/// number of messages the producer received.
+std::size_t produce(v1::LipSync::Stub& stub, const std::string& session, int phonemes) {
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + 10s);
+  auto stream = stub.Animate(&context);
+  v1::AnimateRequest request;
+  request.mutable_settings()->set_session(session);
+  EXPECT_TRUE(stream->Write(request));
+  request.Clear();
+  for (int i = 0; i < phonemes; ++i) {
+    v1::Phoneme& phoneme = *request.mutable_phonemes()->add_phonemes();
+    phoneme.set_label("aa");
+    phoneme.set_start_us(i * 100'000);
+    phoneme.set_end_us((i + 1) * 100'000);
+  }
+  EXPECT_TRUE(stream->Write(request));
+  request.Clear();
+  request.mutable_end();
+  EXPECT_TRUE(stream->Write(request));
+  stream->WritesDone();
+  std::size_t messages = 0;
+  v1::TrackMessage message;
+  while (stream->Read(&message)) ++messages;
+  const grpc::Status status = stream->Finish();
+  EXPECT_TRUE(status.ok()) << status.error_message();
+  return messages;
+}
+
+struct Subscription {
+  grpc::StatusCode code;
+  std::size_t messages;
+};
+
+Subscription subscribe(v1::LipSync::Stub& stub, const std::string& session) {
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + 10s);
+  v1::SubscribeRequest request;
+  request.set_session(session);
+  auto reader = stub.Subscribe(&context, request);
+  std::size_t messages = 0;
+  v1::TrackMessage message;
+  while (reader->Read(&message)) ++messages;
+  return {reader->Finish().error_code(), messages};
+}
+
+TEST_F(BaselineServerTest, keeps_an_ended_session_for_the_retention_and_then_forgets_it) {
+  auto stub = baseline_stub();
+  const std::size_t sent = produce(*stub, "kept", 20);
+  // Header, batches, summary: 20 phonemes of 100 ms at 30 fps release frames in several batches.
+  EXPECT_GE(sent, 4u);
+  const Subscription late = subscribe(*stub, "kept");
+  EXPECT_EQ(late.code, grpc::StatusCode::OK);
+  EXPECT_EQ(late.messages, sent) << "a subscriber after the end gets every message from the start";
+
+  std::this_thread::sleep_for(kRetention + 200ms);
+  // Expired sessions are forgotten when the next one opens.
+  produce(*stub, "next", 2);
+  EXPECT_EQ(subscribe(*stub, "kept").code, grpc::StatusCode::NOT_FOUND);
+  EXPECT_EQ(subscribe(*stub, "next").code, grpc::StatusCode::OK);
+}
+
+TEST_F(BaselineServerTest, a_name_opened_again_is_not_forgotten_with_its_earlier_session) {
+  auto stub = baseline_stub();
+  produce(*stub, "again", 2);
+  std::this_thread::sleep_for(kRetention / 2);
+  const std::size_t second = produce(*stub, "again", 12);
+  // The first "again" expires now, the second not for another half retention.
+  std::this_thread::sleep_for(kRetention / 2 + 100ms);  // the second has 400 ms to go
+  produce(*stub, "opener", 2);
+  const Subscription found = subscribe(*stub, "again");
+  EXPECT_EQ(found.code, grpc::StatusCode::OK);
+  EXPECT_EQ(found.messages, second);
+}
+
+}  // namespace
+}  // namespace lipsync
