@@ -403,9 +403,13 @@ int main(int argc, char** argv) {
   long retention_ms = 10'000;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
-    if (arg == "--listen" && i + 1 < argc) {
+    if ((arg == "--listen" || arg == "--session-retention-ms") && i + 1 == argc) {
+      std::cerr << "grpc_baseline_server: " << arg << " needs a value\n";
+      return 2;
+    }
+    if (arg == "--listen") {
       listen = argv[++i];
-    } else if (arg == "--session-retention-ms" && i + 1 < argc) {
+    } else if (arg == "--session-retention-ms") {
       const std::string value = argv[++i];
       char* end = nullptr;
       retention_ms = std::strtol(value.c_str(), &end, 10);

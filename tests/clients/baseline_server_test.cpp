@@ -33,20 +33,6 @@ using namespace std::chrono_literals;
 
 constexpr auto kRetention = 1000ms;
 
-/// HOST:PORT from the first line of `out` that starts with `prefix`; "" if none comes within 20 s.
-std::string wait_for_address(const fs::path& out, const std::string& prefix) {
-  const auto give_up = std::chrono::steady_clock::now() + 20s;
-  while (std::chrono::steady_clock::now() < give_up) {
-    const std::string text = read_text(out);
-    const auto at = text.find(prefix);
-    if (at != std::string::npos && text.find('\n', at) != std::string::npos) {
-      return text.substr(at + prefix.size(), text.find('\n', at) - at - prefix.size());
-    }
-    std::this_thread::sleep_for(20ms);
-  }
-  return "";
-}
-
 class BaselineServerTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -56,8 +42,8 @@ class BaselineServerTest : public ::testing::Test {
                                  *dir_, *dir_ / "baseline.out", *dir_ / "baseline.err");
     lipsyncd_ = new ChildProcess({LIPSYNCD_BINARY, "--listen", "127.0.0.1:0", "--log-level", "warn"}, *dir_,
                                  *dir_ / "lipsyncd.out", *dir_ / "lipsyncd.err");
-    baseline_address_ = new std::string(wait_for_address(*dir_ / "baseline.out", "listening on "));
-    lipsyncd_address_ = new std::string(wait_for_address(*dir_ / "lipsyncd.out", "lipsyncd listening on "));
+    baseline_address_ = new std::string(testing::wait_for_listening_address(*dir_ / "baseline.out", "listening on "));
+    lipsyncd_address_ = new std::string(testing::wait_for_listening_address(*dir_ / "lipsyncd.out"));
   }
   static void TearDownTestSuite() {
     for (ChildProcess* server : {baseline_, lipsyncd_}) {
@@ -199,7 +185,14 @@ TEST_F(BaselineServerTest, keeps_an_ended_session_for_the_retention_and_then_for
   EXPECT_EQ(late.code, grpc::StatusCode::OK);
   EXPECT_EQ(late.messages, sent) << "a subscriber after the end gets every message from the start";
 
-  std::this_thread::sleep_for(kRetention + 200ms);
+  // A session that opens within the retention forgets nothing.
+  std::this_thread::sleep_for(kRetention / 2);
+  produce(*stub, "within", 2);
+  const Subscription still = subscribe(*stub, "kept");
+  EXPECT_EQ(still.code, grpc::StatusCode::OK);
+  EXPECT_EQ(still.messages, sent);
+
+  std::this_thread::sleep_for(kRetention / 2 + 200ms);
   // Expired sessions are forgotten when the next one opens.
   produce(*stub, "next", 2);
   EXPECT_EQ(subscribe(*stub, "kept").code, grpc::StatusCode::NOT_FOUND);

@@ -103,9 +103,10 @@ class ChildProcess {
 };
 
 /// The HOST:PORT of a lipsyncd whose stdout goes to `out`, from its line "lipsyncd listening on
-/// HOST:PORT"; "" if that line has not come within 10 s.
-inline std::string wait_for_listening_address(const std::filesystem::path& out) {
-  const std::string prefix = "lipsyncd listening on ";
+/// HOST:PORT" (or another server's line that starts with `prefix`); "" if that line has not come
+/// within 10 s.
+inline std::string wait_for_listening_address(const std::filesystem::path& out,
+                                              const std::string& prefix = "lipsyncd listening on ") {
   for (int i = 0; i < 500; ++i) {
     const std::string text = read_text(out);
     const auto at = text.find(prefix);
