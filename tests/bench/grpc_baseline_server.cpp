@@ -26,17 +26,24 @@
 // opens; an unknown one is NOT_FOUND. tests/clients/baseline_server_test.cpp
 // checks these promises against lipsyncd.
 //
-//   grpc_baseline_server [--listen 127.0.0.1:0] [--session-retention-ms 10000]
+// With --busy-ns-per-frame N it also spins on the clock for N ns per frame it
+// sends (0 by default): a server that costs the baseline's transport plus a
+// known amount of work per frame, to find how much extra work per frame
+// accounts for lipsyncd's throughput in fast mode (docs/performance.md,
+// "What fast mode's gap is made of").
+//
+//   grpc_baseline_server [--listen 127.0.0.1:0] [--session-retention-ms 10000] [--busy-ns-per-frame 0]
 //
 // Prints "listening on HOST:PORT" on stdout; SIGINT/SIGTERM stop it.
 #include <signal.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
-#include <chrono>
 #include <deque>
 #include <iostream>
 #include <map>
@@ -65,6 +72,14 @@ constexpr int kChannels = 16;
 constexpr int kArkit = 52;
 constexpr std::size_t kLookahead = 7;
 constexpr std::int64_t kMaxFramesPerBatch = 512;
+
+/// Spins on the clock for `duration` (nothing if it is zero or less).
+void busy_for(std::chrono::nanoseconds duration) {
+  if (duration <= std::chrono::nanoseconds::zero()) return;
+  const auto until = std::chrono::steady_clock::now() + duration;
+  while (std::chrono::steady_clock::now() < until) {
+  }
+}
 
 /// The outgoing side of a stream: one write in flight, Finish once nothing is
 /// queued. `Item` is what the stream writes (a typed message or bytes).
@@ -250,7 +265,10 @@ class SubscribeReactor final : public grpc::ServerWriteReactor<grpc::ByteBuffer>
 
 class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, v1::TrackMessage> {
  public:
-  explicit AnimateReactor(SessionMap& sessions) : sessions_(sessions), writer_(*this) { StartRead(&request_); }
+  AnimateReactor(SessionMap& sessions, std::chrono::nanoseconds busy_per_frame)
+      : sessions_(sessions), busy_per_frame_(busy_per_frame), writer_(*this) {
+    StartRead(&request_);
+  }
 
   void OnReadDone(bool ok) override {
     if (!ok) {
@@ -331,6 +349,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
       if (channels_) batch.mutable_values()->Resize(static_cast<int>(count) * kChannels, 0.25f);
       if (arkit_) batch.mutable_arkit()->Resize(static_cast<int>(count) * kArkit, 0.125f);
       next_frame_ += count;
+      busy_for(busy_per_frame_ * count);
       push(std::move(message));
     }
   }
@@ -366,6 +385,7 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
 
   friend class Writer<Message, AnimateReactor>;
   SessionMap& sessions_;
+  const std::chrono::nanoseconds busy_per_frame_;
   std::shared_ptr<Session> session_;
   Writer<Message, AnimateReactor> writer_;
   v1::AnimateRequest request_;
@@ -380,12 +400,13 @@ class AnimateReactor final : public grpc::ServerBidiReactor<v1::AnimateRequest, 
 
 class BaselineService final : public v1::LipSync::WithRawCallbackMethod_Subscribe<v1::LipSync::CallbackService> {
  public:
-  explicit BaselineService(std::chrono::milliseconds retention) : sessions_(retention) {}
+  BaselineService(std::chrono::milliseconds retention, std::chrono::nanoseconds busy_per_frame)
+      : sessions_(retention), busy_per_frame_(busy_per_frame) {}
 
  private:
   grpc::ServerBidiReactor<v1::AnimateRequest, v1::TrackMessage>* Animate(
       grpc::CallbackServerContext* /*context*/) override {
-    return new AnimateReactor(sessions_);
+    return new AnimateReactor(sessions_, busy_per_frame_);
   }
   grpc::ServerWriteReactor<grpc::ByteBuffer>* Subscribe(grpc::CallbackServerContext* /*context*/,
                                                         const grpc::ByteBuffer* request) override {
@@ -393,6 +414,7 @@ class BaselineService final : public v1::LipSync::WithRawCallbackMethod_Subscrib
   }
 
   SessionMap sessions_;
+  const std::chrono::nanoseconds busy_per_frame_;
 };
 #pragma GCC diagnostic pop
 
@@ -401,24 +423,37 @@ class BaselineService final : public v1::LipSync::WithRawCallbackMethod_Subscrib
 int main(int argc, char** argv) {
   std::string listen = "127.0.0.1:0";
   long retention_ms = 10'000;
+  long busy_ns_per_frame = 0;
+  // A whole number in [0, max] for `option`, or a message on stderr and nullopt.
+  const auto whole_number = [](const std::string& option, const std::string& value, long max) -> std::optional<long> {
+    char* end = nullptr;
+    errno = 0;
+    const long number = std::strtol(value.c_str(), &end, 10);
+    if (value.empty() || *end != '\0' || errno != 0 || number < 0 || number > max) {
+      std::cerr << "grpc_baseline_server: " << option << " must be 0 to " << max << ", not '" << value << "'\n";
+      return std::nullopt;
+    }
+    return number;
+  };
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
-    if ((arg == "--listen" || arg == "--session-retention-ms") && i + 1 == argc) {
+    if ((arg == "--listen" || arg == "--session-retention-ms" || arg == "--busy-ns-per-frame") && i + 1 == argc) {
       std::cerr << "grpc_baseline_server: " << arg << " needs a value\n";
       return 2;
     }
     if (arg == "--listen") {
       listen = argv[++i];
     } else if (arg == "--session-retention-ms") {
-      const std::string value = argv[++i];
-      char* end = nullptr;
-      retention_ms = std::strtol(value.c_str(), &end, 10);
-      if (value.empty() || *end != '\0' || retention_ms < 0 || retention_ms > 86'400'000) {
-        std::cerr << "grpc_baseline_server: --session-retention-ms must be 0 to 86400000, not '" << value << "'\n";
-        return 2;
-      }
+      const std::optional<long> number = whole_number(arg, argv[++i], 86'400'000);
+      if (!number) return 2;
+      retention_ms = *number;
+    } else if (arg == "--busy-ns-per-frame") {
+      const std::optional<long> number = whole_number(arg, argv[++i], 1'000'000);
+      if (!number) return 2;
+      busy_ns_per_frame = *number;
     } else if (arg == "--help" || arg == "-h") {
-      std::cout << "grpc_baseline_server [--listen 127.0.0.1:0] [--session-retention-ms 10000]\n";
+      std::cout
+          << "grpc_baseline_server [--listen 127.0.0.1:0] [--session-retention-ms 10000] [--busy-ns-per-frame 0]\n";
       return 0;
     } else {
       std::cerr << "grpc_baseline_server: unknown argument '" << arg << "'\n";
@@ -435,7 +470,7 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
-  BaselineService service{std::chrono::milliseconds(retention_ms)};
+  BaselineService service{std::chrono::milliseconds(retention_ms), std::chrono::nanoseconds(busy_ns_per_frame)};
   grpc::ServerBuilder builder;
   int port = 0;
   builder.AddListeningPort(listen, grpc::InsecureServerCredentials(), &port);

@@ -5,15 +5,20 @@
 // batches: a cheaper reference), and it swept every session it held on each open
 // (a longer tail with subscribers than lipsyncd's). These tests run the real
 // baseline and the real lipsyncd on 127.0.0.1:0, drive both with the real
-// `lipsync loadtest`, and pin what a fair comparison needs.
+// `lipsync loadtest`, and pin what a fair comparison needs. The baseline's
+// --busy-ns-per-frame, which adds a known amount of work per frame sent, is
+// checked to spend it and to change nothing that is sent.
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -210,6 +215,57 @@ TEST_F(BaselineServerTest, a_name_opened_again_is_not_forgotten_with_its_earlier
   const Subscription found = subscribe(*stub, "again");
   EXPECT_EQ(found.code, grpc::StatusCode::OK);
   EXPECT_EQ(found.messages, second);
+}
+
+/// The user and system CPU time `pid` has spent, from /proc/PID/stat (fields 14 and 15, after
+/// the command name in parentheses).
+std::chrono::duration<double> cpu_time(pid_t pid) {
+  std::ifstream file("/proc/" + std::to_string(pid) + "/stat");
+  std::string stat((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+  std::istringstream fields(stat.substr(stat.rfind(')') + 2));
+  std::string field;
+  for (int i = 3; i < 14; ++i) fields >> field;  // state (field 3) to cmajflt (field 13)
+  long user_ticks = 0;
+  long system_ticks = 0;
+  fields >> user_ticks >> system_ticks;
+  return std::chrono::duration<double>(static_cast<double>(user_ticks + system_ticks) /
+                                       static_cast<double>(::sysconf(_SC_CLK_TCK)));
+}
+
+TEST_F(BaselineServerTest, spends_its_busy_time_per_frame_and_sends_the_same_messages) {
+  // 1 ms per frame: 60 phonemes of 100 ms are 180 frames at 30 fps, 180 ms of spinning.
+  ChildProcess busy({GRPC_BASELINE_SERVER_BINARY, "--listen", "127.0.0.1:0", "--busy-ns-per-frame", "1000000"}, *dir_,
+                    *dir_ / "busy.out", *dir_ / "busy.err");
+  const std::string address = testing::wait_for_listening_address(*dir_ / "busy.out", "listening on ");
+  ASSERT_FALSE(address.empty()) << read_text(*dir_ / "busy.err");
+  auto busy_stub = v1::LipSync::NewStub(grpc::CreateChannel(address, grpc::InsecureChannelCredentials()));
+  const auto before = cpu_time(busy.pid());
+  const std::size_t busy_messages = produce(*busy_stub, "busy", 60);
+  const auto spent = cpu_time(busy.pid()) - before;
+  busy.terminate();
+  EXPECT_EQ(busy.wait(), 0);
+
+  EXPECT_EQ(busy_messages, produce(*baseline_stub(), "not busy", 60));
+  // The spin is on the clock, so a core shared with other work gives it less CPU; a quarter of it
+  // still tells it apart from the few milliseconds the stream costs without it.
+  EXPECT_GE(spent.count(), 0.045) << "CPU spent on 180 frames with 1 ms of work each";
+}
+
+TEST(BaselineServerOptions, a_bad_value_exits_2_and_names_the_option) {
+  const fs::path dir = make_temp_dir("baseline-options-test-");
+  for (const std::vector<std::string>& args :
+       std::vector<std::vector<std::string>>{{"--busy-ns-per-frame", "-1"},
+                                             {"--busy-ns-per-frame", "1000001"},
+                                             {"--busy-ns-per-frame", "12x"},
+                                             {"--session-retention-ms", "86400001"},
+                                             {"--busy-ns-per-frame"}}) {
+    std::vector<std::string> argv = {GRPC_BASELINE_SERVER_BINARY};
+    argv.insert(argv.end(), args.begin(), args.end());
+    ChildProcess run(argv, dir, dir / "out", dir / "err");
+    EXPECT_EQ(run.wait(), 2) << args.front();
+    EXPECT_NE(read_text(dir / "err").find(args.front()), std::string::npos) << read_text(dir / "err");
+  }
+  fs::remove_all(dir);
 }
 
 }  // namespace

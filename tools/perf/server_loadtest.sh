@@ -15,7 +15,8 @@
 # other; unset: no pinning), MESH_SESSIONS="500" real-time sessions of which a share MESH_SHARE=0.01
 # ask for the physics face (level MESH_LEVEL=1; lipsyncd only). SESSIONS, MESH_SESSIONS and
 # FAST_PRODUCERS set to "" leave those runs out (e.g. FAST_PRODUCERS=50 SESSIONS="" MESH_SESSIONS=""
-# for fast mode alone).
+# for fast mode alone). BASELINE_BUSY_NS=0 nanoseconds of work the baseline adds per frame it
+# sends (its --busy-ns-per-frame; docs/performance.md "What fast mode's gap is made of"), 0 to 1000000.
 # Each round runs every step against lipsyncd and the baseline back to back (alternating which goes
 # first), so that ratios compare runs made under the same machine load. Prints one table row per
 # run and a summary of medians; raw JSON reports go to $OUT_DIR (default a temporary folder).
@@ -32,6 +33,7 @@ MESH_SHARE=${MESH_SHARE:-0.01}
 MESH_LEVEL=${MESH_LEVEL:-1}
 CONNECTIONS=${CONNECTIONS:-8}
 CLIENT=${CLIENT:-h2}
+BASELINE_BUSY_NS=${BASELINE_BUSY_NS:-0}
 OUT_DIR=${OUT_DIR:-$(mktemp -d /tmp/server_loadtest.XXXXXX)}
 mkdir -p "$OUT_DIR"
 # The summary reads every run report in OUT_DIR: an earlier run's must not join this one's.
@@ -63,18 +65,18 @@ start() {
   local pid=$!
   PIDS+=("$pid")
   for _ in $(seq 100); do
-    if grep -q "listening on" "$log"; then break; fi
+    if grep -q "listening on" "$log" || ! kill -0 "$pid" 2>/dev/null; then break; fi
     sleep 0.1
   done
   local addr
-  addr=$(grep -o "listening on [^ ]*" "$log" | head -1 | cut -d' ' -f3)
-  [[ -n $addr ]] || { echo "$name did not start" >&2; cat "$OUT_DIR/$name.err" >&2; exit 1; }
+  addr=$( (grep -o "listening on [^ ]*" "$log" || true) | head -1 | cut -d' ' -f3)
+  [[ -n $addr ]] || { echo "$name did not start: $*" >&2; cat "$OUT_DIR/$name.err" >&2; exit 1; }
   printf -v "ADDR_$name" %s "$addr"
   printf -v "PID_$name" %s "$pid"
 }
 
 start lipsyncd "${SERVER_PIN[@]}" "$LIPSYNCD" --listen 127.0.0.1:0 --log-level warn
-start baseline "${SERVER_PIN[@]}" "$BASELINE" --listen 127.0.0.1:0
+start baseline "${SERVER_PIN[@]}" "$BASELINE" --listen 127.0.0.1:0 --busy-ns-per-frame "$BASELINE_BUSY_NS"
 echo "lipsyncd $ADDR_lipsyncd (pid $PID_lipsyncd), baseline $ADDR_baseline (pid $PID_baseline), $(nproc) cores," \
   "servers on CPUs ${SERVER_CPUS:-any}, load generator on CPUs ${CLIENT_CPUS:-any}"
 echo "results in $OUT_DIR; load generator: lipsync loadtest --client $CLIENT"
