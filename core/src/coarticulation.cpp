@@ -3,6 +3,7 @@
 #include "lipsync/coarticulation.hpp"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cassert>
 #include <cmath>
@@ -494,31 +495,62 @@ CoarticulationTables::CoarticulationTables(const ArticulationModel& model)
 CoarticulationEvaluator::CoarticulationEvaluator(const ArticulationModel& model)
     : CoarticulationEvaluator(std::make_shared<const CoarticulationTables>(model)) {}
 
+/// An evaluation's working space. One slot per dominance shape of each segment in the window,
+/// segment after segment with no gaps; segment i of the window starts at slot_begin[i].
+/// slot_row holds where each slot's shape's row starts in the tables' α and α·T, slot_targets
+/// where its segment's phoneme's row starts in the targets. log_shape holds log(D/α) of each
+/// slot for the (up to) four instants evaluated together, slot after slot; scaled_log_shape
+/// the same less each instant's largest, and shape_weight their exponentials, instant after
+/// instant. numerator, denominator, low and high: Eq. 5's sums and the clamp's range, per
+/// padded channel. Nothing in it outlives a call of evaluate.
+struct CoarticulationEvaluator::Scratch {
+  std::vector<double> log_shape;
+  std::vector<double> scaled_log_shape;
+  std::vector<double> shape_weight;
+  std::vector<std::size_t> slot_row;
+  std::vector<std::size_t> slot_targets;
+  std::array<std::size_t, 2 * kWindowRadius + 2> slot_begin{};
+  std::vector<double> numerator;
+  std::vector<double> denominator;
+  std::vector<double> low;
+  std::vector<double> high;
+
+  /// Grows, if it must, to hold an evaluation with tables of these sizes.
+  void fit(std::size_t max_shapes, std::size_t padded_channels) {
+    const std::size_t slots = (2 * kWindowRadius + 1) * max_shapes;
+    if (slot_row.size() < slots) {
+      log_shape.resize(slots * kLanes);
+      scaled_log_shape.resize(slots * kLanes);
+      shape_weight.resize(slots * kLanes);
+      slot_row.resize(slots);
+      slot_targets.resize(slots);
+    }
+    if (numerator.size() < padded_channels) {
+      numerator.resize(padded_channels);
+      denominator.resize(padded_channels);
+      low.resize(padded_channels);
+      high.resize(padded_channels);
+    }
+  }
+};
+
 CoarticulationEvaluator::CoarticulationEvaluator(std::shared_ptr<const CoarticulationTables> tables)
-    : tables_(std::move(tables)) {
-  const std::size_t window = 2 * kWindowRadius + 1;
-  log_shape_.resize(window * tables_->max_shapes_ * kLanes);
-  scaled_log_shape_.resize(window * tables_->max_shapes_ * kLanes);
-  shape_weight_.resize(window * tables_->max_shapes_ * kLanes);
-  slot_row_.resize(window * tables_->max_shapes_);
-  slot_targets_.resize(window * tables_->max_shapes_);
-  numerator_.resize(tables_->padded_channels_);
-  denominator_.resize(tables_->padded_channels_);
-  low_.resize(tables_->padded_channels_);
-  high_.resize(tables_->padded_channels_);
-}
+    : tables_(std::move(tables)) {}
 
 void CoarticulationEvaluator::evaluate(std::span<const Segment> window, std::size_t current,
                                        std::span<const std::int64_t> t_us, std::span<float> out) {
   const std::size_t channels = tables_->channels_;
   assert(out.size() >= t_us.size() * channels);
+  // The thread's scratch: hot in its caches whichever of its streams calls.
+  thread_local Scratch scratch;
+  scratch.fit(tables_->max_shapes_, tables_->padded_channels_);
   for (std::size_t done = 0; done < t_us.size(); done += kLanes) {
     const std::size_t count = std::min(kLanes, t_us.size() - done);
-    evaluate_lanes(window, current, t_us.subspan(done, count), out.subspan(done * channels, count * channels));
+    evaluate_lanes(scratch, window, current, t_us.subspan(done, count), out.subspan(done * channels, count * channels));
   }
 }
 
-void CoarticulationEvaluator::evaluate_lanes(std::span<const Segment> window, std::size_t current,
+void CoarticulationEvaluator::evaluate_lanes(Scratch& scratch, std::span<const Segment> window, std::size_t current,
                                              std::span<const std::int64_t> t_us, std::span<float> out) {
   assert(current < window.size() && !t_us.empty() && t_us.size() <= kLanes);
   const CoarticulationTables& tables = *tables_;
@@ -534,10 +566,10 @@ void CoarticulationEvaluator::evaluate_lanes(std::span<const Segment> window, st
                   .padded_channels = tables.padded_channels_,
                   .t_us = {},
                   .times = t_us.size(),
-                  .log_shape = log_shape_.data(),
-                  .slot_row = slot_row_.data(),
-                  .slot_targets = slot_targets_.data(),
-                  .slot_begin = slot_begin_.data(),
+                  .log_shape = scratch.log_shape.data(),
+                  .slot_row = scratch.slot_row.data(),
+                  .slot_targets = scratch.slot_targets.data(),
+                  .slot_begin = scratch.slot_begin.data(),
                   .max_log = {}};
   // Lanes past the last time repeat it; their results are dropped.
   for (std::size_t lane = 0; lane < kLanes; ++lane) logs.t_us[lane] = t_us[std::min(lane, t_us.size() - 1)];
@@ -547,31 +579,33 @@ void CoarticulationEvaluator::evaluate_lanes(std::span<const Segment> window, st
   // weight is 1, so nothing overflows and, for all but pathological inputs,
   // every channel's denominator stays far from underflow. Each channel's sums
   // run over the slots in window order, one shape after the other.
-  shape_weights(log_shape_.data(), logs.max_log, t_us.size(), slots, scaled_log_shape_.data(), shape_weight_.data());
+  shape_weights(scratch.log_shape.data(), logs.max_log, t_us.size(), slots, scratch.scaled_log_shape.data(),
+                scratch.shape_weight.data());
   // The range of the targets that carry weight is the first instant's for all
   // of them when the same slots carry weight for all (nearly always), unless
   // the log-space path has replaced a channel's range with its own.
-  const bool same_contributors = lanes_share_contributors(shape_weight_.data(), slots, t_us.size());
+  const bool same_contributors = lanes_share_contributors(scratch.shape_weight.data(), slots, t_us.size());
   bool range_shared = false;  // low_ and high_ hold the range of the slots that carry weight
   for (std::size_t lane = 0; lane < t_us.size(); ++lane) {
     sum_frame({.padded_channels = tables.padded_channels_,
                .alpha = tables.alpha_.data(),
                .alpha_target = tables.alpha_target_.data(),
                .target = tables.target_.data(),
-               .weight = shape_weight_.data() + lane * slots,
-               .slot_row = slot_row_.data(),
-               .slot_targets = slot_targets_.data(),
+               .weight = scratch.shape_weight.data() + lane * slots,
+               .slot_row = scratch.slot_row.data(),
+               .slot_targets = scratch.slot_targets.data(),
                .slots = slots,
-               .numerator = numerator_.data(),
-               .denominator = denominator_.data(),
-               .low = low_.data(),
-               .high = high_.data()},
+               .numerator = scratch.numerator.data(),
+               .denominator = scratch.denominator.data(),
+               .low = scratch.low.data(),
+               .high = scratch.high.data()},
               !range_shared);
     range_shared = same_contributors;
-    if (any_underflow(denominator_.data(), channels)) {
+    if (any_underflow(scratch.denominator.data(), channels)) {
       for (std::size_t c = 0; c < channels; ++c) {
-        if (denominator_[c] < kUnderflowGuard) {
-          evaluate_channel_in_log_space(window, first, last, c, scaled_log_shape_.data() + lane * slots);
+        if (scratch.denominator[c] < kUnderflowGuard) {
+          evaluate_channel_in_log_space(scratch, window, first, last, c,
+                                        scratch.scaled_log_shape.data() + lane * slots);
           range_shared = false;
         }
       }
@@ -579,13 +613,14 @@ void CoarticulationEvaluator::evaluate_lanes(std::span<const Segment> window, st
     float* row = out.data() + lane * channels;
     for (std::size_t c = 0; c < channels; ++c) {
       // Clamping to the contributing targets removes the division's last-ulp overshoot.
-      row[c] = static_cast<float>(std::clamp(numerator_[c] / denominator_[c], low_[c], high_[c]));
+      row[c] = static_cast<float>(
+          std::clamp(scratch.numerator[c] / scratch.denominator[c], scratch.low[c], scratch.high[c]));
     }
   }
 }
 
-void CoarticulationEvaluator::evaluate_channel_in_log_space(std::span<const Segment> window, std::size_t first,
-                                                            std::size_t last, std::size_t channel,
+void CoarticulationEvaluator::evaluate_channel_in_log_space(Scratch& scratch, std::span<const Segment> window,
+                                                            std::size_t first, std::size_t last, std::size_t channel,
                                                             const double* scaled_log_shape) {
   // The slow, always-safe path: this channel's weights scaled by their own
   // largest, as logarithms. Taken only when the shared scaling underflowed
@@ -597,7 +632,7 @@ void CoarticulationEvaluator::evaluate_channel_in_log_space(std::span<const Segm
     const auto phoneme = static_cast<std::size_t>(window[i].phoneme);
     const std::size_t shape = tables.channel_shape_[phoneme * padded + channel];
     const double alpha = tables.alpha_[(tables.shape_begin_[phoneme] + shape) * padded + channel];
-    return std::log(alpha) + scaled_log_shape[slot_begin_[i - first] + shape];
+    return std::log(alpha) + scaled_log_shape[scratch.slot_begin[i - first] + shape];
   };
   for (std::size_t i = first; i <= last; ++i) max_log = std::max(max_log, log_weight(i));
   double numerator = 0.0;
@@ -613,10 +648,10 @@ void CoarticulationEvaluator::evaluate_channel_in_log_space(std::span<const Segm
     low = std::min(low, target);
     high = std::max(high, target);
   }
-  numerator_[channel] = numerator;
-  denominator_[channel] = denominator;
-  low_[channel] = low;
-  high_[channel] = high;
+  scratch.numerator[channel] = numerator;
+  scratch.denominator[channel] = denominator;
+  scratch.low[channel] = low;
+  scratch.high[channel] = high;
 }
 
 void evaluate_unwindowed(const ArticulationModel& model, std::span<const Segment> segments,

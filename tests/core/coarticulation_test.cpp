@@ -8,6 +8,8 @@
 #include <cstring>
 #include <limits>
 #include <span>
+#include <thread>
+#include <vector>
 
 #include "random_segments.hpp"
 #include "test_model.hpp"
@@ -18,14 +20,20 @@ namespace {
 using testing::make_segments;
 using testing::test_model;
 
-std::vector<float> evaluate_at(const std::vector<Segment>& segments, std::int64_t t_us) {
-  const ArticulationModel& model = test_model();
-  CoarticulationEvaluator evaluator(model);
+/// The channel values at `t_us`, as `evaluator` (of `model`) gives them with all of `segments`
+/// as the window.
+std::vector<float> values_at(CoarticulationEvaluator& evaluator, const ArticulationModel& model,
+                             const std::vector<Segment>& segments, std::int64_t t_us) {
   std::size_t current = 0;
   while (current + 1 < segments.size() && segments[current].end_us <= t_us) ++current;
   std::vector<float> out(model.channel_count());
   evaluator.evaluate(segments, current, t_us, out);
   return out;
+}
+
+std::vector<float> evaluate_at(const std::vector<Segment>& segments, std::int64_t t_us) {
+  CoarticulationEvaluator evaluator(test_model());
+  return values_at(evaluator, test_model(), segments, t_us);
 }
 
 TEST(Coarticulation, TwoSegmentsGiveASmoothMonotoneTransition) {
@@ -260,6 +268,56 @@ TEST(Coarticulation, InstantsEvaluatedTogetherGetTheBitsEachGetsAlone) {
         }
       }
     }
+  }
+}
+
+/// The channel values of frame `frame` of a 30 fps grid over `segments`.
+std::vector<float> frame_values(CoarticulationEvaluator& evaluator, const ArticulationModel& model,
+                                const std::vector<Segment>& segments, std::size_t frame) {
+  return values_at(evaluator, model, segments, static_cast<std::int64_t>(frame) * 1'000'000 / 30);
+}
+
+TEST(Coarticulation, EvaluatorsOfDifferentModelsTakingTurnsOnAThreadGetWhatEachGetsAlone) {
+  // Evaluators keep no scratch of their own: those on one thread share the thread's, which grows
+  // to the largest model the thread has seen. Three models (5 channels with 1 shape per phoneme, 5
+  // with up to 3, the built-in 16) take turns frame by frame, the smallest first, on threads of
+  // their own and three such threads at once; each frame must be what an evaluator of its model
+  // gives on a thread where no other model ever ran.
+  const std::vector<const ArticulationModel*> models = {&test_model(), &exponent_model(),
+                                                        &ArticulationModel::builtin()};
+  std::vector<std::vector<Segment>> segments;
+  for (const ArticulationModel* model : models) segments.push_back(testing::random_segments(*model, 30, 5));
+  const auto frames_of = [&](std::size_t m) {
+    return static_cast<std::size_t>(segments[m].back().end_us * 30 / 1'000'000) + 1;
+  };
+  std::vector<std::vector<std::vector<float>>> alone(models.size());
+  for (std::size_t m = 0; m < models.size(); ++m) {
+    std::thread([&, m] {
+      CoarticulationEvaluator evaluator(*models[m]);
+      for (std::size_t f = 0; f < frames_of(m); ++f) {
+        alone[m].push_back(frame_values(evaluator, *models[m], segments[m], f));
+      }
+    }).join();
+  }
+  const auto take_turns = [&](std::vector<std::string>& differences) {
+    std::vector<CoarticulationEvaluator> evaluators;
+    for (const ArticulationModel* model : models) evaluators.emplace_back(*model);
+    for (std::size_t f = 0; f < std::max({frames_of(0), frames_of(1), frames_of(2)}); ++f) {
+      for (std::size_t m = 0; m < models.size(); ++m) {
+        if (f >= frames_of(m)) continue;
+        if (frame_values(evaluators[m], *models[m], segments[m], f) != alone[m][f]) {
+          differences.push_back(models[m]->name() + ", frame " + std::to_string(f));
+        }
+      }
+    }
+  };
+  std::vector<std::vector<std::string>> differences(4);
+  std::thread(take_turns, std::ref(differences[0])).join();
+  std::vector<std::thread> together;
+  for (std::size_t i = 1; i < differences.size(); ++i) together.emplace_back(take_turns, std::ref(differences[i]));
+  for (std::thread& thread : together) thread.join();
+  for (const std::vector<std::string>& thread_differences : differences) {
+    EXPECT_THAT(thread_differences, ::testing::IsEmpty());
   }
 }
 

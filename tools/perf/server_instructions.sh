@@ -1,13 +1,17 @@
 #!/usr/bin/env bash
 # Server work per frame in instructions: lipsyncd against the bare gRPC server
 # (tests/bench/grpc_baseline_server), each run under callgrind and driven by the
-# same `lipsync loadtest --fast` workload (fixed seed). Instruction counts do not
-# depend on what else the machine is doing, so the ratio is repeatable on a
-# shared 2-core machine where wall-clock throughput moves by ±20 %.
+# same `lipsync loadtest --fast` workload (fixed seed; MODE=realtime below for
+# real-time sessions). Instruction counts do not depend on what else the machine
+# is doing, so the ratio is repeatable on a shared 2-core machine where
+# wall-clock throughput moves by ±20 %.
 #
 #   tools/perf/server_instructions.sh [BUILD_DIR]    (default build-perf)
 #
-# Environment: PRODUCERS=8, DURATION=20 seconds of load, CONNECTIONS=4, SUBSCRIBERS=0 per session
+# Environment: PRODUCERS=8, DURATION=20 seconds of load, CONNECTIONS=4, SUBSCRIBERS=0 per session,
+# MODE=fast (each utterance sent as fast as possible) or realtime (each phoneme in its own message
+# when its start time comes, as in the capacity curve; use enough PRODUCERS, e.g. 100, and note
+# that callgrind runs a server about 50 times slower, so that it must keep up at that rate)
 # (with subscribers, frames counts what producers and subscribers received: a frame sent to a
 # producer and two subscribers counts three times).
 # What a server spends without load (start-up, model loading, DURATION seconds of
@@ -20,6 +24,8 @@ PRODUCERS=${PRODUCERS:-8}
 DURATION=${DURATION:-20}
 CONNECTIONS=${CONNECTIONS:-4}
 SUBSCRIBERS=${SUBSCRIBERS:-0}
+MODE=${MODE:-fast}
+[[ $MODE == fast || $MODE == realtime ]] || { echo "MODE must be fast or realtime, not '$MODE'" >&2; exit 2; }
 OUT_DIR=${OUT_DIR:-$(mktemp -d /tmp/server_instructions.XXXXXX)}
 mkdir -p "$OUT_DIR"
 
@@ -50,7 +56,7 @@ measure() {
   if [[ $load == 1 ]]; then
     local extra=()
     [[ $name == baseline ]] && extra=(--no-verify)
-    "$LIPSYNC" loadtest --server "$addr" --connections "$CONNECTIONS" --fast --producers "$PRODUCERS" \
+    "$LIPSYNC" loadtest --server "$addr" --connections "$CONNECTIONS" "--$MODE" --producers "$PRODUCERS" \
       --duration "$DURATION" --subscribers-per-session "$SUBSCRIBERS" --json "${extra[@]}" >"$tag.json"
     frames=$(python3 -c 'import json,sys; f=json.load(open(sys.argv[1]))["frames"]; print(f["producers"] + f["subscribers"])' \
       "$tag.json")

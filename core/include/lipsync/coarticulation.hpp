@@ -21,7 +21,6 @@
 //     weight, which removes the last-ulp overshoot of the division.
 #pragma once
 
-#include <array>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -68,8 +67,13 @@ class CoarticulationTables {
   std::vector<double> alpha_target_;
 };
 
-/// Evaluates Eq. 4–5 at instants of one segment. Holds scratch space sized for
-/// the model, so evaluation allocates nothing; one instance per thread.
+/// Evaluates Eq. 4–5 at instants of one segment. It holds only the shared
+/// tables: its scratch space is its thread's, one for all the evaluators that
+/// run there (sized once for the largest model seen, so evaluation allocates
+/// nothing after a thread's first call). A server runs an evaluator per stream,
+/// thousands of them; with scratch of their own, every call would first fetch
+/// its stream's few kilobytes from memory (docs/performance.md, "Scratch per
+/// thread, not per stream").
 class CoarticulationEvaluator {
  public:
   /// Builds the model's tables for this evaluator alone.
@@ -95,29 +99,13 @@ class CoarticulationEvaluator {
                 std::span<float> out);
 
  private:
-  void evaluate_lanes(std::span<const Segment> window, std::size_t current, std::span<const std::int64_t> t_us,
-                      std::span<float> out);
-  void evaluate_channel_in_log_space(std::span<const Segment> window, std::size_t first, std::size_t last,
-                                     std::size_t channel, const double* scaled_log_shape);
+  struct Scratch;
+  void evaluate_lanes(Scratch& scratch, std::span<const Segment> window, std::size_t current,
+                      std::span<const std::int64_t> t_us, std::span<float> out);
+  void evaluate_channel_in_log_space(Scratch& scratch, std::span<const Segment> window, std::size_t first,
+                                     std::size_t last, std::size_t channel, const double* scaled_log_shape);
 
   std::shared_ptr<const CoarticulationTables> tables_;
-  // Scratch, sized once.
-  // One slot per dominance shape of each segment in the window, segment after segment with
-  // no gaps; segment i of the window starts at slot_begin_[i]. slot_row_ holds where each
-  // slot's shape's row starts in the tables' α and α·T, slot_targets_ where its segment's
-  // phoneme's row starts in the targets. log_shape_ holds log(D/α) of each slot for the (up
-  // to) four instants evaluated together, slot after slot; scaled_log_shape_ the same less
-  // each instant's largest, and shape_weight_ their exponentials, instant after instant.
-  std::vector<double> log_shape_;
-  std::vector<double> scaled_log_shape_;
-  std::vector<double> shape_weight_;
-  std::vector<std::size_t> slot_row_;
-  std::vector<std::size_t> slot_targets_;
-  std::array<std::size_t, 2 * kWindowRadius + 2> slot_begin_{};
-  std::vector<double> numerator_;
-  std::vector<double> denominator_;
-  std::vector<double> low_;
-  std::vector<double> high_;
 };
 
 /// The Hermite fade of Eq. 4 divided by the border dominance P, for u ∈ [0, 1]
