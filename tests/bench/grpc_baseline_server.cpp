@@ -27,10 +27,11 @@
 // checks these promises against lipsyncd.
 //
 // With --busy-ns-per-frame N it also spins on the clock for N ns per frame it
-// sends (0 by default): a server that costs the baseline's transport plus a
-// known amount of work per frame, to find how much extra work per frame
-// accounts for lipsyncd's throughput in fast mode (docs/performance.md,
-// "What fast mode's gap is made of").
+// releases (once, however many streams receive the frame; 0 by default): a
+// server that costs the baseline's transport plus a known amount of work per
+// frame, to find how much extra work per frame accounts for lipsyncd's
+// throughput in fast mode (docs/performance.md, "What fast mode's gap is made
+// of").
 //
 //   grpc_baseline_server [--listen 127.0.0.1:0] [--session-retention-ms 10000] [--busy-ns-per-frame 0]
 //
