@@ -16,7 +16,8 @@
 # ask for the physics face (level MESH_LEVEL=1; lipsyncd only). SESSIONS, MESH_SESSIONS and
 # FAST_PRODUCERS set to "" leave those runs out (e.g. FAST_PRODUCERS=50 SESSIONS="" MESH_SESSIONS=""
 # for fast mode alone). BASELINE_BUSY_NS=0 nanoseconds of work the baseline adds per frame it
-# sends (its --busy-ns-per-frame; docs/performance.md "What fast mode's gap is made of"), 0 to 1000000.
+# releases (its --busy-ns-per-frame; docs/performance.md "What fast mode's gap is made of"), 0 to
+# 1000000.
 # Each round runs every step against lipsyncd and the baseline back to back (alternating which goes
 # first), so that ratios compare runs made under the same machine load. Prints one table row per
 # run and a summary of medians; raw JSON reports go to $OUT_DIR (default a temporary folder).
@@ -77,7 +78,8 @@ start() {
 
 start lipsyncd "${SERVER_PIN[@]}" "$LIPSYNCD" --listen 127.0.0.1:0 --log-level warn
 start baseline "${SERVER_PIN[@]}" "$BASELINE" --listen 127.0.0.1:0 --busy-ns-per-frame "$BASELINE_BUSY_NS"
-echo "lipsyncd $ADDR_lipsyncd (pid $PID_lipsyncd), baseline $ADDR_baseline (pid $PID_baseline), $(nproc) cores," \
+echo "lipsyncd $ADDR_lipsyncd (pid $PID_lipsyncd), baseline $ADDR_baseline (pid $PID_baseline," \
+  "$BASELINE_BUSY_NS ns of added work per frame), $(nproc) cores," \
   "servers on CPUs ${SERVER_CPUS:-any}, load generator on CPUs ${CLIENT_CPUS:-any}"
 echo "results in $OUT_DIR; load generator: lipsync loadtest --client $CLIENT"
 
