@@ -585,7 +585,7 @@ void CoarticulationEvaluator::evaluate_lanes(Scratch& scratch, std::span<const S
   // of them when the same slots carry weight for all (nearly always), unless
   // the log-space path has replaced a channel's range with its own.
   const bool same_contributors = lanes_share_contributors(scratch.shape_weight.data(), slots, t_us.size());
-  bool range_shared = false;  // low_ and high_ hold the range of the slots that carry weight
+  bool range_shared = false;  // scratch.low and .high hold the range of the slots that carry weight
   for (std::size_t lane = 0; lane < t_us.size(); ++lane) {
     sum_frame({.padded_channels = tables.padded_channels_,
                .alpha = tables.alpha_.data(),
