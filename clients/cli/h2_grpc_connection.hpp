@@ -3,7 +3,7 @@
 // real-time sessions.
 //
 // Why not gRPC's own client: measured with `perf` at 2,000 real-time sessions
-// (docs/performance.md, "The generator's own HTTP/2 client"), gRPC's C++
+// (docs/performance.md, "The load generator"), gRPC's C++
 // client kept 0.73 of the generator's core busy, 58 % of it in the kernel: a
 // wake-up of one of gRPC's threads and a write(2) for nearly every message.
 // Here every stream of the connection lives on the caller's Asio thread;

@@ -108,8 +108,8 @@ int main(int argc, char** argv) {
 
   // gRPC's locks are abseil Mutexes, and Debian builds abseil without NDEBUG, which leaves its
   // deadlock detection on: every lock and unlock also maintains a graph of lock order
-  // (GraphCycles), about 4 % of the server's instructions per frame (docs/performance.md, "Fewer
-  // instructions per frame"). A debugging aid for abseil's users, not a defence: lipsyncd turns it off.
+  // (GraphCycles), about 4 % of the server's instructions per frame (docs/performance.md,
+  // "What makes the server cheap"). A debugging aid for abseil's users, not a defence: lipsyncd turns it off.
   absl::SetMutexDeadlockDetectionMode(absl::OnDeadlockCycle::kIgnore);
 
   sigset_t signals;

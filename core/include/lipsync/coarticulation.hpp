@@ -72,8 +72,8 @@ class CoarticulationTables {
 /// run there (sized once for the largest model seen, so evaluation allocates
 /// nothing after a thread's first call). A server runs an evaluator per stream,
 /// thousands of them; with scratch of their own, every call would first fetch
-/// its stream's few kilobytes from memory (docs/performance.md, "Scratch per
-/// thread, not per stream").
+/// its stream's few kilobytes from memory (docs/performance.md, "What
+/// makes it fast").
 class CoarticulationEvaluator {
  public:
   /// Builds the model's tables for this evaluator alone.
