@@ -1,6 +1,6 @@
 # Install rules: `cmake --install build --prefix DIR` puts everything under DIR.
 #
-#   bin/lipsyncd, bin/lipsync                      component server (Debian package lipsyncd)
+#   bin/lipsyncd, bin/lipsync, bin/lipsync-loadtest component server (Debian package lipsyncd)
 #   share/lipsync/data/, share/lipsync/web/,
 #   share/doc/lipsyncd/                            component server
 #   lib/systemd/system/lipsyncd.service,
@@ -27,6 +27,9 @@ endif()
 
 # --- the programs, the data, the documentation, the service ---------------------------------
 install(TARGETS lipsync RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT server)
+if(TARGET lipsync-loadtest)
+  install(TARGETS lipsync-loadtest RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT server)
+endif()
 if(LIPSYNC_BUILD_SERVER)
   install(TARGETS lipsyncd RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT server)
   install(FILES deploy/systemd/lipsyncd.service DESTINATION lib/systemd/system COMPONENT server)

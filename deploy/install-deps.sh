@@ -13,7 +13,7 @@ packages=(
   # the command lines of lipsyncd and lipsync (clients/options/)
   libcli11-dev
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
-  # `lipsync loadtest`'s own HTTP/2 client (clients/cli/h2_grpc_connection.cpp)
+  # the load generator's own HTTP/2 client (tools/loadtest/h2_grpc_connection.cpp)
   libnghttp2-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev

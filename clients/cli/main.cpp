@@ -1,32 +1,14 @@
 // lipsync: the command-line client of lipsyncd. Dispatches to a subcommand
 // and turns every failure into one line on stderr and an exit status:
 // 0 success, 1 bad input or a file problem, 2 a mistake on the command line.
-#include <cstdio>
-#include <cstdlib>
-#include <exception>
 #include <iostream>
-#include <new>
-#include <stdexcept>
+#include <string>
 #include <string_view>
 #include <vector>
 
 #include "cli_error.hpp"
+#include "command_main.hpp"
 #include "commands.hpp"
-#include "lipsync/error.hpp"
-#ifdef LIPSYNC_WITH_NETWORK
-#include "lipsync/client/animation_client.hpp"
-#endif
-
-#if defined(__SANITIZE_ADDRESS__)
-#define LIPSYNC_ADDRESS_SANITIZER 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define LIPSYNC_ADDRESS_SANITIZER 1
-#endif
-#endif
-#ifdef LIPSYNC_ADDRESS_SANITIZER
-#include <sanitizer/lsan_interface.h>
-#endif
 
 namespace {
 
@@ -83,11 +65,6 @@ void print_overview(std::ostream& out) {
   out << kFooter;
 }
 
-int fail(std::string_view message, int status) {
-  std::cerr << "lipsync: error: " << message << '\n';
-  return status;
-}
-
 int dispatch(const std::vector<std::string_view>& args) {
   if (args.empty()) {
     print_overview(std::cerr);
@@ -108,47 +85,9 @@ int dispatch(const std::vector<std::string_view>& args) {
   throw UsageError("unknown command '" + std::string(name) + "' (see 'lipsync --help')");
 }
 
-/// Runs the command; its status, and every failure as one line on stderr.
-int run(const std::vector<std::string_view>& args) {
-  try {
-    return dispatch(args);
-  } catch (const UsageError& error) {
-    return fail(error.what(), kExitUsageError);
-  } catch (const lipsync::InputError& error) {
-    return fail(error.what(), kExitInputError);
-  } catch (const FileError& error) {
-    return fail(error.what(), kExitInputError);
-#ifdef LIPSYNC_WITH_NETWORK
-  } catch (const lipsync::client::CallError& error) {
-    return fail(error.what(), kExitInputError);
-#endif
-  } catch (const std::bad_alloc&) {
-    return fail("out of memory", kExitInputError);
-  } catch (const std::exception& error) {
-    return fail(std::string("internal error: ") + error.what(), kExitInputError);
-  }
-}
-
-/// Ends the process once the command's output is flushed, without exit handlers.
-/// gRPC's threads may still be busy with a connection the command has given up
-/// on (a TLS handshake retried after --timeout, say) while the exit handlers
-/// run, and OpenSSL's frees what such a thread uses: `server-models --ca` against
-/// a server that wants a client certificate died with SIGSEGV after printing its
-/// error in 2 of 60 runs. Everything the command wrote is closed by now (its
-/// files by their writers, stdout and stderr here), and lipsyncd ends the same
-/// way (server/src/main.cpp). Under ASan the leak check that an exit handler
-/// would make is made here; under TSan a report ends the process at once
-/// (halt_on_error, as deploy/sanitize.sh runs it).
-[[noreturn]] void end_process(int status) {
-  std::cout.flush();
-  std::cerr.flush();
-  std::fflush(nullptr);
-#ifdef LIPSYNC_ADDRESS_SANITIZER
-  __lsan_do_leak_check();  // ends the process with LSan's exit code if something leaked
-#endif
-  std::_Exit(status);
-}
-
 }  // namespace
 
-int main(int argc, char** argv) { end_process(run(std::vector<std::string_view>(argv + 1, argv + argc))); }
+int main(int argc, char** argv) {
+  const std::vector<std::string_view> args(argv + 1, argv + argc);
+  end_process(report_failures([&] { return dispatch(args); }));
+}

@@ -22,7 +22,7 @@ trap cleanup EXIT
 prefix=$work/prefix
 
 cmake --install "$build" --prefix "$prefix" >"$work/install.log"
-for file in bin/lipsyncd bin/lipsync share/lipsync/data/models/default.json share/doc/lipsyncd/server.md \
+for file in bin/lipsyncd bin/lipsync bin/lipsync-loadtest share/lipsync/data/models/default.json share/doc/lipsyncd/server.md \
             share/lipsync/web/viewer.js share/lipsync/data/face/viewer_face.json \
             etc/lipsyncd/lipsyncd.json lib/systemd/system/lipsyncd.service include/lipsync/client/animation_client.hpp \
             include/lipsync/v1/lipsync.grpc.pb.h lib/cmake/lipsync/lipsyncConfig.cmake \

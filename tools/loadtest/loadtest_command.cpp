@@ -579,24 +579,28 @@ std::string to_text(const Percentiles& p) {
   return text;
 }
 
-}  // namespace
+/// What the command line asked for, checked: the run's shape and where and how to connect.
+struct Request {
+  LoadTestConfig config;
+  std::string address;
+  LoadClientKind client_kind = LoadClientKind::h2;
+  std::string client_name;
+  client::ClientOptions client_options;
+  int connections = 4;
+};
 
-int run_loadtest(std::span<const std::string_view> args) {
-  const Arguments arguments = Arguments::parse(args, kOptions, "loadtest");
-  if (print_help_if_asked(arguments, kUsage, kDescription, kOptions, std::cout)) return 0;
+Request parse_request(const Arguments& arguments) {
   if (!arguments.positional().empty()) {
     throw UsageError("loadtest takes no arguments, got '" + arguments.positional().front() + "'");
   }
-  // As lipsyncd does (server/src/main.cpp): Debian's abseil leaves the deadlock detection of
-  // gRPC's Mutexes on, a cost per lock that the generator should not spend on every message.
-  absl::SetMutexDeadlockDetectionMode(absl::OnDeadlockCycle::kIgnore);
-  const std::string address = server_address(arguments);
-  if (!is_loopback_address(address)) {
-    throw UsageError("--server: '" + address + "' is not on this machine; loadtest only runs against loopback "
+  Request request;
+  request.address = server_address(arguments);
+  if (!is_loopback_address(request.address)) {
+    throw UsageError("--server: '" + request.address + "' is not on this machine; loadtest only runs against loopback "
                      "addresses (127.0.0.1:PORT, localhost:PORT, [::1]:PORT, unix:PATH)");
   }
   if (arguments.flag("realtime") && arguments.flag("fast")) throw UsageError("choose one of --realtime and --fast");
-  LoadTestConfig config;
+  LoadTestConfig& config = request.config;
   config.producers = parse_int_option("producers", arguments.value("producers").value_or("10"), 1, 10'000);
   config.subscribers =
       parse_int_option("subscribers-per-session", arguments.value("subscribers-per-session").value_or("0"), 0, 16);
@@ -606,15 +610,15 @@ int run_loadtest(std::span<const std::string_view> args) {
       parse_int_option("phonemes-per-utterance", arguments.value("phonemes-per-utterance").value_or("30"), 1, 10'000));
   config.seed = static_cast<std::uint64_t>(parse_int_option("seed", arguments.value("seed").value_or("1"), 0, INT32_MAX));
   config.verify = !arguments.flag("no-verify");
-  const int connections = parse_int_option("connections", arguments.value("connections").value_or("4"), 1, 64);
-  client::ClientOptions client_options = connection_options(arguments);
-  const bool tls = client_options.tls.on();
-  const std::string client_name = arguments.value("client").value_or(tls ? "grpc" : "h2");
-  if (client_name != "h2" && client_name != "grpc") {
-    throw UsageError("--client: unknown client '" + client_name + "' (choose h2 or grpc)");
+  request.connections = parse_int_option("connections", arguments.value("connections").value_or("4"), 1, 64);
+  request.client_options = connection_options(arguments);
+  const bool tls = request.client_options.tls.on();
+  request.client_name = arguments.value("client").value_or(tls ? "grpc" : "h2");
+  if (request.client_name != "h2" && request.client_name != "grpc") {
+    throw UsageError("--client: unknown client '" + request.client_name + "' (choose h2 or grpc)");
   }
-  const LoadClientKind client_kind = client_name == "h2" ? LoadClientKind::h2 : LoadClientKind::grpc;
-  if (client_kind == LoadClientKind::h2 && tls) {
+  request.client_kind = request.client_name == "h2" ? LoadClientKind::h2 : LoadClientKind::grpc;
+  if (request.client_kind == LoadClientKind::h2 && tls) {
     throw UsageError("--client h2 speaks plaintext HTTP/2 only; with --tls, --ca, --cert or --key use --client grpc");
   }
   config.mesh.share = parse_double_option("mesh-share", arguments.value("mesh-share").value_or("0"));
@@ -635,7 +639,11 @@ int run_loadtest(std::span<const std::string_view> args) {
   if (mesh_options && config.mesh.share == 0.0) {
     throw UsageError("--mesh-subdivision and --mesh-encoding need --mesh-share above 0");
   }
+  return request;
+}
 
+/// The utterances the producers take turns with, rendered offline once.
+std::vector<Utterance> make_pool(const LoadTestConfig& config) {
   const ArticulationModel& model = ArticulationModel::builtin();
   const std::optional<PhoneSet> arpabet = PhoneSet::builtin("arpabet", model);
   if (!arpabet) throw std::logic_error("the built-in ARPAbet phone set is missing");
@@ -644,155 +652,207 @@ int run_loadtest(std::span<const std::string_view> args) {
   for (std::size_t i = 0; i < pool_size; ++i) {
     pool.push_back(make_utterance(config.seed * 1'000'003 + i, config.phonemes, model, *arpabet));
   }
+  return pool;
+}
 
-  client_options.stream_timeout = config.duration + kGrace + std::chrono::seconds(5);
+/// A finished run summed up: totals of all producers and of each kind, their latencies, and the verdict.
+struct Summary {
+  double seconds = 0;
+  double generator_cpu = 0;  ///< cores the generator kept busy on average (its threads and gRPC's)
+  std::array<Totals, 2> groups;  ///< without ([0]) and with ([1]) the mesh
+  Totals totals;
+  std::array<Percentiles, 2> producer_latency_by_mesh;
+  std::array<Percentiles, 2> subscriber_latency_by_mesh;
+  Percentiles producer_latency;
+  Percentiles subscriber_latency;
+  std::map<std::string, std::uint64_t> errors;
+  bool every_frame = false;
+
+  double frames_per_second(const Totals& group) const {
+    return static_cast<double>(group.producer_frames + group.subscriber_frames) / seconds;
+  }
+};
+
+Summary summarise(Results results, double seconds, double generator_cpu) {
+  Summary summary;
+  summary.seconds = seconds;
+  summary.generator_cpu = generator_cpu;
+  for (std::size_t m = 0; m < 2; ++m) {
+    summary.producer_latency_by_mesh[m] = percentiles(results.by_mesh[m].producer_latencies_us);
+    summary.subscriber_latency_by_mesh[m] = percentiles(results.by_mesh[m].subscriber_latencies_us);
+  }
+  summary.groups = {results.by_mesh[0], results.by_mesh[1]};
+  Totals& totals = summary.totals;
+  totals.add(std::move(results.by_mesh[0]));
+  totals.add(std::move(results.by_mesh[1]));
+  summary.producer_latency = percentiles(totals.producer_latencies_us);
+  summary.subscriber_latency = percentiles(totals.subscriber_latencies_us);
+  std::uint64_t error_count = 0;
+  for (const auto& [code, count] : results.errors) error_count += count;
+  summary.every_frame = totals.missing_frames == 0 && totals.unexpected_frames == 0 &&
+                        totals.frames_without_positions == 0 && error_count == 0 &&
+                        totals.utterances_complete == totals.utterances_started &&
+                        totals.subscriptions_complete == totals.subscriptions;
+  summary.errors = std::move(results.errors);
+  return summary;
+}
+
+std::string encoding_name(const MeshRequest& mesh) {
+  return mesh.encoding == client::v1::MESH_ENCODING_INT16 ? "int16" : "float32";
+}
+
+/// `--json`: the whole report as one JSON document (tools/perf reads it).
+void write_json_report(const Request& request, const Summary& summary, std::ostream& out) {
+  const LoadTestConfig& config = request.config;
+  const auto group_json = [&](std::size_t m) {
+    const Totals& group = summary.groups[m];
+    nlohmann::json frames = {{"producers", group.producer_frames},
+                             {"subscribers", group.subscriber_frames},
+                             {"per_second", summary.frames_per_second(group)},
+                             {"missing", group.missing_frames},
+                             {"unexpected", group.unexpected_frames}};
+    if (m == 1) frames["without_positions"] = group.frames_without_positions;
+    return nlohmann::json{
+        {"producers", group.producers},
+        {"utterances", {{"started", group.utterances_started}, {"complete", group.utterances_complete}}},
+        {"subscriptions", {{"started", group.subscriptions}, {"complete", group.subscriptions_complete}}},
+        {"frames", frames},
+        {"batches", {{"producers", group.producer_batches}, {"subscribers", group.subscriber_batches}}},
+        {"latency_ms",
+         {{"producers", to_json(summary.producer_latency_by_mesh[m])},
+          {"subscribers", to_json(summary.subscriber_latency_by_mesh[m])}}},
+    };
+  };
+  const Totals& totals = summary.totals;
+  nlohmann::json report = {
+      {"server", request.address},
+      {"mode", config.realtime ? "realtime" : "fast"},
+      {"client", load_client_name(request.client_kind)},
+      {"producers", config.producers},
+      {"subscribers_per_session", config.subscribers},
+      {"duration_s", config.duration.count()},
+      {"elapsed_s", summary.seconds},
+      {"phonemes_per_utterance", config.phonemes},
+      {"seed", config.seed},
+      {"mesh",
+       {{"share", config.mesh.share}, {"subdivision", config.mesh.subdivision}, {"encoding", encoding_name(config.mesh)}}},
+      {"utterances", {{"started", totals.utterances_started}, {"complete", totals.utterances_complete}}},
+      {"subscriptions", {{"started", totals.subscriptions}, {"complete", totals.subscriptions_complete}}},
+      {"frames",
+       {{"producers", totals.producer_frames},
+        {"subscribers", totals.subscriber_frames},
+        {"per_second", summary.frames_per_second(totals)},
+        {"missing", totals.missing_frames},
+        {"unexpected", totals.unexpected_frames},
+        {"without_positions", totals.frames_without_positions}}},
+      {"batches", {{"producers", totals.producer_batches}, {"subscribers", totals.subscriber_batches}}},
+      {"latency_ms",
+       {{"producers", to_json(summary.producer_latency)}, {"subscribers", to_json(summary.subscriber_latency)}}},
+      {"by_output", {{"mesh", group_json(1)}, {"no_mesh", group_json(0)}}},
+      {"errors", summary.errors},
+      {"verified", config.verify},
+      {"generator_cpu_cores", summary.generator_cpu},
+      {"every_frame_arrived", summary.every_frame},
+  };
+  out << report.dump(2) << '\n';
+}
+
+/// Without `--json`: a few lines for a person, the verdict last.
+void write_text_report(const Request& request, const Summary& summary, std::ostream& out) {
+  const LoadTestConfig& config = request.config;
+  const Totals& totals = summary.totals;
+  const std::array<Totals, 2>& groups = summary.groups;
+  char line[256];
+  std::snprintf(line, sizeof line,
+                "loadtest: %d producers (%s), %d subscribers per session, %.1f s, seed %llu, client %s\n",
+                config.producers, config.realtime ? "real time" : "fast", config.subscribers, summary.seconds,
+                static_cast<unsigned long long>(config.seed), request.client_name.c_str());
+  out << line;
+  if (groups[1].producers > 0) {
+    std::snprintf(line, sizeof line, "mesh: %d of %d producers (share %.2f), subdivision %u, %s\n",
+                  groups[1].producers, config.producers, config.mesh.share, config.mesh.subdivision,
+                  encoding_name(config.mesh).c_str());
+    out << line;
+  }
+  out << "utterances: " << totals.utterances_started << " started, " << totals.utterances_complete
+      << " complete; subscriptions: " << totals.subscriptions << " started, " << totals.subscriptions_complete
+      << " complete\n";
+  std::snprintf(line, sizeof line,
+                "frames: %llu to producers (%llu batches), %llu to subscribers (%llu batches), %.0f/s; %llu missing, "
+                "%llu unexpected\n",
+                static_cast<unsigned long long>(totals.producer_frames),
+                static_cast<unsigned long long>(totals.producer_batches),
+                static_cast<unsigned long long>(totals.subscriber_frames),
+                static_cast<unsigned long long>(totals.subscriber_batches), summary.frames_per_second(totals),
+                static_cast<unsigned long long>(totals.missing_frames),
+                static_cast<unsigned long long>(totals.unexpected_frames));
+  out << line;
+  if (groups[1].producers == 0) {
+    out << "latency, computable to arrival (producers): " << to_text(summary.producer_latency) << '\n';
+    if (config.subscribers > 0) {
+      out << "latency, computable to arrival (subscribers): " << to_text(summary.subscriber_latency) << '\n';
+    }
+  } else {
+    for (const std::size_t m : {std::size_t{0}, std::size_t{1}}) {
+      const Totals& group = groups[m];
+      const char* name = m == 1 ? "mesh" : "no mesh";
+      std::snprintf(line, sizeof line,
+                    "%s: %d producers, %llu utterances complete, frames %llu to producers, %llu to subscribers, %.0f/s",
+                    name, group.producers, static_cast<unsigned long long>(group.utterances_complete),
+                    static_cast<unsigned long long>(group.producer_frames),
+                    static_cast<unsigned long long>(group.subscriber_frames), summary.frames_per_second(group));
+      out << line;
+      if (m == 1) out << "; " << group.frames_without_positions << " without positions";
+      out << '\n';
+      if (group.producers == 0) continue;
+      out << "  latency, computable to arrival (" << name
+          << " producers): " << to_text(summary.producer_latency_by_mesh[m]) << '\n';
+      if (config.subscribers > 0) {
+        out << "  latency, computable to arrival (" << name
+            << " subscribers): " << to_text(summary.subscriber_latency_by_mesh[m]) << '\n';
+      }
+    }
+  }
+  std::snprintf(line, sizeof line, "load generator CPU: %.2f cores\n", summary.generator_cpu);
+  out << line;
+  out << "errors:";
+  if (summary.errors.empty()) out << " none";
+  for (const auto& [code, count] : summary.errors) out << ' ' << code << ' ' << count;
+  out << '\n';
+  if (!config.verify) {
+    out << (summary.every_frame ? "result: no errors (frames not checked: --no-verify)\n" : "result: FAILED (errors)\n");
+  } else {
+    out << (summary.every_frame ? "result: every frame arrived\n" : "result: FAILED (errors or missing frames)\n");
+  }
+}
+
+}  // namespace
+
+int run_loadtest(std::span<const std::string_view> args) {
+  const Arguments arguments = Arguments::parse(args, kOptions, "loadtest");
+  if (print_help_if_asked(arguments, kUsage, kDescription, kOptions, std::cout)) return 0;
+  Request request = parse_request(arguments);
+  // As lipsyncd does (server/src/main.cpp): Debian's abseil leaves the deadlock detection of
+  // gRPC's Mutexes on, a cost per lock that the generator should not spend on every message.
+  absl::SetMutexDeadlockDetectionMode(absl::OnDeadlockCycle::kIgnore);
+  const std::vector<Utterance> pool = make_pool(request.config);
+
+  request.client_options.stream_timeout = request.config.duration + kGrace + std::chrono::seconds(5);
   asio::io_context io;
-  const std::unique_ptr<LoadClient> client = connect_load_client(client_kind, io, address, client_options, connections);
+  const std::unique_ptr<LoadClient> client =
+      connect_load_client(request.client_kind, io, request.address, request.client_options, request.connections);
 
-  LoadTest test(config, io, *client, pool);
+  LoadTest test(request.config, io, *client, pool);
   const double cpu_before = process_cpu_seconds();
   Results results = test.run();
   const double seconds = test.elapsed().count();
-  // Cores the generator kept busy on average while the streams ran (its own
-  // threads and gRPC's): near the cores it may use, it and not the server was the limit.
-  const double generator_cpu = (process_cpu_seconds() - cpu_before) / seconds;
-  std::array<Percentiles, 2> producer_latency_by_mesh;
-  std::array<Percentiles, 2> subscriber_latency_by_mesh;
-  for (std::size_t m = 0; m < 2; ++m) {
-    producer_latency_by_mesh[m] = percentiles(results.by_mesh[m].producer_latencies_us);
-    subscriber_latency_by_mesh[m] = percentiles(results.by_mesh[m].subscriber_latencies_us);
-  }
-  const std::array<Totals, 2> groups = {results.by_mesh[0], results.by_mesh[1]};
-  Totals totals;
-  totals.add(std::move(results.by_mesh[0]));
-  totals.add(std::move(results.by_mesh[1]));
-  const Percentiles producer_latency = percentiles(totals.producer_latencies_us);
-  const Percentiles subscriber_latency = percentiles(totals.subscriber_latencies_us);
-  std::uint64_t error_count = 0;
-  for (const auto& [code, count] : results.errors) error_count += count;
-  const bool every_frame = totals.missing_frames == 0 && totals.unexpected_frames == 0 &&
-                           totals.frames_without_positions == 0 && error_count == 0 &&
-                           totals.utterances_complete == totals.utterances_started &&
-                           totals.subscriptions_complete == totals.subscriptions;
-  const std::string encoding_name = config.mesh.encoding == client::v1::MESH_ENCODING_INT16 ? "int16" : "float32";
-  const auto frames_per_second = [seconds](const Totals& group) {
-    return static_cast<double>(group.producer_frames + group.subscriber_frames) / seconds;
-  };
-
+  const Summary summary = summarise(std::move(results), seconds, (process_cpu_seconds() - cpu_before) / seconds);
   if (arguments.flag("json")) {
-    const auto group_json = [&](std::size_t m) {
-      const Totals& group = groups[m];
-      nlohmann::json frames = {{"producers", group.producer_frames},
-                               {"subscribers", group.subscriber_frames},
-                               {"per_second", frames_per_second(group)},
-                               {"missing", group.missing_frames},
-                               {"unexpected", group.unexpected_frames}};
-      if (m == 1) frames["without_positions"] = group.frames_without_positions;
-      return nlohmann::json{
-          {"producers", group.producers},
-          {"utterances", {{"started", group.utterances_started}, {"complete", group.utterances_complete}}},
-          {"subscriptions", {{"started", group.subscriptions}, {"complete", group.subscriptions_complete}}},
-          {"frames", frames},
-          {"batches", {{"producers", group.producer_batches}, {"subscribers", group.subscriber_batches}}},
-          {"latency_ms",
-           {{"producers", to_json(producer_latency_by_mesh[m])},
-            {"subscribers", to_json(subscriber_latency_by_mesh[m])}}},
-      };
-    };
-    nlohmann::json report = {
-        {"server", address},
-        {"mode", config.realtime ? "realtime" : "fast"},
-        {"client", load_client_name(client_kind)},
-        {"producers", config.producers},
-        {"subscribers_per_session", config.subscribers},
-        {"duration_s", config.duration.count()},
-        {"elapsed_s", seconds},
-        {"phonemes_per_utterance", config.phonemes},
-        {"seed", config.seed},
-        {"mesh",
-         {{"share", config.mesh.share}, {"subdivision", config.mesh.subdivision}, {"encoding", encoding_name}}},
-        {"utterances", {{"started", totals.utterances_started}, {"complete", totals.utterances_complete}}},
-        {"subscriptions", {{"started", totals.subscriptions}, {"complete", totals.subscriptions_complete}}},
-        {"frames",
-         {{"producers", totals.producer_frames},
-          {"subscribers", totals.subscriber_frames},
-          {"per_second", frames_per_second(totals)},
-          {"missing", totals.missing_frames},
-          {"unexpected", totals.unexpected_frames},
-          {"without_positions", totals.frames_without_positions}}},
-        {"batches", {{"producers", totals.producer_batches}, {"subscribers", totals.subscriber_batches}}},
-        {"latency_ms", {{"producers", to_json(producer_latency)}, {"subscribers", to_json(subscriber_latency)}}},
-        {"by_output", {{"mesh", group_json(1)}, {"no_mesh", group_json(0)}}},
-        {"errors", results.errors},
-        {"verified", config.verify},
-        {"generator_cpu_cores", generator_cpu},
-        {"every_frame_arrived", every_frame},
-    };
-    std::cout << report.dump(2) << '\n';
+    write_json_report(request, summary, std::cout);
   } else {
-    char line[256];
-    std::snprintf(line, sizeof line,
-                  "loadtest: %d producers (%s), %d subscribers per session, %.1f s, seed %llu, client %s\n",
-                  config.producers, config.realtime ? "real time" : "fast", config.subscribers, seconds,
-                  static_cast<unsigned long long>(config.seed), client_name.c_str());
-    std::cout << line;
-    if (groups[1].producers > 0) {
-      std::snprintf(line, sizeof line, "mesh: %d of %d producers (share %.2f), subdivision %u, %s\n",
-                    groups[1].producers, config.producers, config.mesh.share, config.mesh.subdivision,
-                    encoding_name.c_str());
-      std::cout << line;
-    }
-    std::cout << "utterances: " << totals.utterances_started << " started, " << totals.utterances_complete
-              << " complete; subscriptions: " << totals.subscriptions << " started, "
-              << totals.subscriptions_complete << " complete\n";
-    std::snprintf(line, sizeof line,
-                  "frames: %llu to producers (%llu batches), %llu to subscribers (%llu batches), %.0f/s; %llu missing, "
-                  "%llu unexpected\n",
-                  static_cast<unsigned long long>(totals.producer_frames),
-                  static_cast<unsigned long long>(totals.producer_batches),
-                  static_cast<unsigned long long>(totals.subscriber_frames),
-                  static_cast<unsigned long long>(totals.subscriber_batches), frames_per_second(totals),
-                  static_cast<unsigned long long>(totals.missing_frames),
-                  static_cast<unsigned long long>(totals.unexpected_frames));
-    std::cout << line;
-    if (groups[1].producers == 0) {
-      std::cout << "latency, computable to arrival (producers): " << to_text(producer_latency) << '\n';
-      if (config.subscribers > 0) {
-        std::cout << "latency, computable to arrival (subscribers): " << to_text(subscriber_latency) << '\n';
-      }
-    } else {
-      for (const std::size_t m : {std::size_t{0}, std::size_t{1}}) {
-        const Totals& group = groups[m];
-        const char* name = m == 1 ? "mesh" : "no mesh";
-        std::snprintf(line, sizeof line, "%s: %d producers, %llu utterances complete, frames %llu to producers, %llu to subscribers, %.0f/s",
-                      name, group.producers, static_cast<unsigned long long>(group.utterances_complete),
-                      static_cast<unsigned long long>(group.producer_frames),
-                      static_cast<unsigned long long>(group.subscriber_frames), frames_per_second(group));
-        std::cout << line;
-        if (m == 1) std::cout << "; " << group.frames_without_positions << " without positions";
-        std::cout << '\n';
-        if (group.producers == 0) continue;
-        std::cout << "  latency, computable to arrival (" << name << " producers): "
-                  << to_text(producer_latency_by_mesh[m]) << '\n';
-        if (config.subscribers > 0) {
-          std::cout << "  latency, computable to arrival (" << name << " subscribers): "
-                    << to_text(subscriber_latency_by_mesh[m]) << '\n';
-        }
-      }
-    }
-    std::snprintf(line, sizeof line, "load generator CPU: %.2f cores\n", generator_cpu);
-    std::cout << line;
-    std::cout << "errors:";
-    if (results.errors.empty()) std::cout << " none";
-    for (const auto& [code, count] : results.errors) std::cout << ' ' << code << ' ' << count;
-    std::cout << '\n';
-    if (!config.verify) {
-      std::cout << (every_frame ? "result: no errors (frames not checked: --no-verify)\n" : "result: FAILED (errors)\n");
-    } else {
-      std::cout << (every_frame ? "result: every frame arrived\n" : "result: FAILED (errors or missing frames)\n");
-    }
+    write_text_report(request, summary, std::cout);
   }
-  return every_frame ? 0 : kExitInputError;
+  return summary.every_frame ? 0 : kExitInputError;
 }
 
 }  // namespace lipsync::cli
