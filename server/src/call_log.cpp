@@ -17,7 +17,7 @@
 #include <spdlog/spdlog.h>
 
 #include "lipsync/excerpt.hpp"
-#include "listener.hpp"
+#include "transport/listener.hpp"
 #include "metrics.hpp"
 
 namespace lipsync::server {

@@ -31,7 +31,7 @@
 #include "lipsync/error.hpp"
 #include "lipsync/server/config.hpp"
 #include "lipsync/server/server.hpp"
-#include "tenants.hpp"
+#include "transport/tenants.hpp"
 
 namespace {
 

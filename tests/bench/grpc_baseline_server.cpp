@@ -59,7 +59,7 @@
 #include <grpcpp/impl/codegen/proto_utils.h>
 
 // The generated base declares sync-API overloads of Animate that the callback
-// override hides on purpose (as in server/src/service.hpp).
+// override hides on purpose (as in server/src/rpc/service.hpp).
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Woverloaded-virtual"
 #include "lipsync/v1/lipsync.grpc.pb.h"

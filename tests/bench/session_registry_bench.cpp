@@ -16,7 +16,7 @@
 #include <memory>
 #include <string>
 
-#include "session.hpp"
+#include "sessions/session.hpp"
 
 namespace lipsync::server {
 namespace {

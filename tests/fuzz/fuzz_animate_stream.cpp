@@ -49,8 +49,8 @@
 #include "fuzz_support.hpp"
 #include "lipsync/server/config.hpp"
 #include "lipsync/v1/lipsync.pb.h"
-#include "plan.hpp"
-#include "service.hpp"
+#include "rpc/plan.hpp"
+#include "rpc/service.hpp"
 
 namespace {
 

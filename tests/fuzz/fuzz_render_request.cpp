@@ -19,9 +19,9 @@
 #include "lipsync/renderer.hpp"
 #include "lipsync/server/config.hpp"
 #include "lipsync/v1/lipsync.pb.h"
-#include "phoneme_input.hpp"
-#include "plan.hpp"
-#include "wire.hpp"
+#include "rpc/phoneme_input.hpp"
+#include "rpc/plan.hpp"
+#include "rpc/wire.hpp"
 
 namespace {
 

@@ -1,7 +1,7 @@
-// The face threads (server/src/face_workers.hpp): a lane runs its jobs in
+// The face threads (server/src/face/face_workers.hpp): a lane runs its jobs in
 // order and one at a time while lanes run side by side, retire comes last, the
 // destructor runs what is queued, and every thread has the asked priority.
-#include "face_workers.hpp"
+#include "face/face_workers.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>

@@ -13,7 +13,7 @@
 
 #include "../support/child_process.hpp"
 #include "../support/prometheus_text.hpp"
-#include "tenants.hpp"
+#include "transport/tenants.hpp"
 #include "../support/server_harness.hpp"
 
 namespace lipsync::server {

@@ -1,10 +1,10 @@
-// The outgoing side of a stream (server/src/outbox.hpp), against a target that
+// The outgoing side of a stream (server/src/rpc/outbox.hpp), against a target that
 // records what the outbox asks of gRPC: one write in flight at a time, in push
 // order; Finish only once no write is outstanding, after every queued message
 // for close and at once for abort; the bound and a failed write end the stream
 // with the right status; and, with pushers and completions on several threads,
 // every message is written exactly once and in each pusher's order.
-#include "outbox.hpp"
+#include "rpc/outbox.hpp"
 
 #include <gtest/gtest.h>
 

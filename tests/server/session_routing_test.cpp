@@ -1,4 +1,4 @@
-// Session routing (server/src/session_routing.hpp): the x-lipsync-session metadata must equal the
+// Session routing (server/src/sessions/session_routing.hpp): the x-lipsync-session metadata must equal the
 // body's session, a Subscribe at a replica without its session gets a NOT_FOUND naming the replica,
 // and the C++ client library sends the metadata on its own (seen by a recording fake server).
 #include <gmock/gmock.h>
@@ -7,7 +7,7 @@
 #include <mutex>
 
 // RecordingService below hides the generated base's sync-API overloads on purpose (as
-// server/src/service.hpp does): the warning points into the generated header, so it is
+// server/src/rpc/service.hpp does): the warning points into the generated header, so it is
 // silenced for the whole file.
 #pragma GCC diagnostic ignored "-Woverloaded-virtual"
 #include "lipsync/client/animation_client.hpp"

@@ -1,8 +1,8 @@
-// API keys, tenants and quotas (server/src/tenants.hpp): the key file and the
+// API keys, tenants and quotas (server/src/transport/tenants.hpp): the key file and the
 // counting on their own, then every refusal and the session namespaces on a
 // real lipsyncd (in-process on 127.0.0.1:0, the C++ client library sending the
 // key), and the binary's start-up log, key-file errors and --hash-key.
-#include "tenants.hpp"
+#include "transport/tenants.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>

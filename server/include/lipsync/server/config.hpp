@@ -63,7 +63,7 @@ struct ServerConfig {
   /// streams never wait for a face), "low" (nice 10) or "normal".
   std::string face_priority = "idle";
   /// Mesh work admitted, in level-1 30 fps streams per face thread (a stream weighs its CPU
-  /// need: server/src/face_capacity.hpp); beyond it mesh streams get RESOURCE_EXHAUSTED.
+  /// need: server/src/face/face_capacity.hpp); beyond it mesh streams get RESOURCE_EXHAUSTED.
   std::size_t max_mesh_streams_per_face_thread = 8;
   /// An admitted mesh stream whose face falls further behind real time than this ends with
   /// DEADLINE_EXCEEDED.

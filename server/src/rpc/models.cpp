@@ -1,8 +1,8 @@
 // ListModels and GetModel: what the server's models are (channels with their
 // ranges and rest values, ARKit names, phonemes, phone sets), from the catalog.
 #include "lipsync/excerpt.hpp"
-#include "service.hpp"
-#include "unary_call.hpp"
+#include "rpc/service.hpp"
+#include "rpc/unary_call.hpp"
 
 namespace lipsync::server {
 namespace {

@@ -34,7 +34,7 @@
 #include <string>
 #include <vector>
 
-#include "outbox.hpp"
+#include "rpc/outbox.hpp"
 
 namespace lipsync::server {
 

@@ -37,12 +37,12 @@
 #include "lipsync/excerpt.hpp"
 #include "lipsync/renderer.hpp"
 #include "lipsync/tsan_handoff.hpp"
-#include "live_streams.hpp"
-#include "outbox.hpp"
-#include "phoneme_input.hpp"
-#include "plan.hpp"
-#include "service.hpp"
-#include "wire.hpp"
+#include "sessions/live_streams.hpp"
+#include "rpc/outbox.hpp"
+#include "rpc/phoneme_input.hpp"
+#include "rpc/plan.hpp"
+#include "rpc/service.hpp"
+#include "rpc/wire.hpp"
 
 namespace lipsync::server {
 namespace {

@@ -8,11 +8,11 @@
 #include <vector>
 
 #include "lipsync/renderer.hpp"
-#include "phoneme_input.hpp"
-#include "plan.hpp"
-#include "service.hpp"
-#include "unary_call.hpp"
-#include "wire.hpp"
+#include "rpc/phoneme_input.hpp"
+#include "rpc/plan.hpp"
+#include "rpc/service.hpp"
+#include "rpc/unary_call.hpp"
+#include "rpc/wire.hpp"
 
 namespace lipsync::server {
 namespace {

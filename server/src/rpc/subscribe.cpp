@@ -19,9 +19,9 @@
 
 #include "call_log.hpp"
 #include "lipsync/tsan_handoff.hpp"
-#include "live_streams.hpp"
-#include "outbox.hpp"
-#include "service.hpp"
+#include "sessions/live_streams.hpp"
+#include "rpc/outbox.hpp"
+#include "rpc/service.hpp"
 
 namespace lipsync::server {
 namespace {

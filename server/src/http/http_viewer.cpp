@@ -17,8 +17,8 @@
 #include "call_log.hpp"
 #include "lipsync/error.hpp"
 #include "lipsync/v1/lipsync.grpc.pb.h"
-#include "quick_try.hpp"
-#include "web_assets.hpp"
+#include "http/quick_try.hpp"
+#include "http/web_assets.hpp"
 
 namespace lipsync::server {
 namespace {

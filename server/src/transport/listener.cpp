@@ -18,7 +18,7 @@
 #include <grpcpp/server_posix.h>
 #include <spdlog/spdlog.h>
 
-#include "connection_ledger.hpp"
+#include "transport/connection_ledger.hpp"
 
 namespace lipsync::server {
 namespace {

@@ -9,11 +9,11 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "face_stream.hpp"
+#include "face/face_stream.hpp"
 #include "lipsync/track.hpp"
 #include "lipsync/v1/lipsync.pb.h"
 #include "lipsync/visemes.hpp"
-#include "plan.hpp"
+#include "rpc/plan.hpp"
 
 namespace lipsync::server {
 

@@ -26,12 +26,12 @@
 
 #include "call_log.hpp"
 #include "catalog.hpp"
-#include "http_viewer.hpp"
+#include "http/http_viewer.hpp"
 #include "lipsync/tsan_handoff.hpp"
-#include "listener.hpp"
-#include "metrics_http.hpp"
-#include "service.hpp"
-#include "tls.hpp"
+#include "transport/listener.hpp"
+#include "http/metrics_http.hpp"
+#include "rpc/service.hpp"
+#include "transport/tls.hpp"
 
 namespace lipsync::server {
 namespace {

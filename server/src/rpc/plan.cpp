@@ -4,7 +4,7 @@
 
 #include "lipsync/error.hpp"
 #include "lipsync/excerpt.hpp"
-#include "wire.hpp"
+#include "rpc/wire.hpp"
 
 namespace lipsync::server {
 namespace {

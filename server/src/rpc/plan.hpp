@@ -17,7 +17,7 @@
 #include <grpcpp/support/status.h>
 
 #include "catalog.hpp"
-#include "face_stream.hpp"
+#include "face/face_stream.hpp"
 #include "lipsync/render_plan.hpp"
 #include "lipsync/v1/lipsync.pb.h"
 #include "lipsync/visemes.hpp"

@@ -5,18 +5,18 @@
 // session registry, the configuration, admission control and the face.
 #pragma once
 
-#include "admission.hpp"
+#include "transport/admission.hpp"
 #include "catalog.hpp"
-#include "face_capacity.hpp"
-#include "face_stream.hpp"
-#include "face_workers.hpp"
-#include "live_streams.hpp"
+#include "face/face_capacity.hpp"
+#include "face/face_stream.hpp"
+#include "face/face_workers.hpp"
+#include "sessions/live_streams.hpp"
 #include "metrics.hpp"
 #include "lipsync/server/config.hpp"
-#include "session.hpp"
-#include "session_routing.hpp"
-#include "speech_thread.hpp"
-#include "tenants.hpp"
+#include "sessions/session.hpp"
+#include "sessions/session_routing.hpp"
+#include "rpc/speech_thread.hpp"
+#include "transport/tenants.hpp"
 
 // The generated base declares sync-API overloads of each method that the
 // callback overrides hide on purpose.

@@ -16,7 +16,7 @@
 
 #include <grpcpp/support/status.h>
 
-#include "connection_ledger.hpp"
+#include "transport/connection_ledger.hpp"
 
 namespace lipsync::server {
 

@@ -44,11 +44,11 @@
 #include "lipsync/speech/audio.hpp"
 #include "lipsync/speech/synthesizer.hpp"
 #include "lipsync/tsan_handoff.hpp"
-#include "live_streams.hpp"
-#include "phoneme_input.hpp"
-#include "plan.hpp"
-#include "service.hpp"
-#include "wire.hpp"
+#include "sessions/live_streams.hpp"
+#include "rpc/phoneme_input.hpp"
+#include "rpc/plan.hpp"
+#include "rpc/service.hpp"
+#include "rpc/wire.hpp"
 
 namespace lipsync::server {
 namespace {

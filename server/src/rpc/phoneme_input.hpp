@@ -15,7 +15,7 @@
 #include "lipsync/segment.hpp"
 #include "lipsync/server/config.hpp"
 #include "lipsync/v1/lipsync.pb.h"
-#include "plan.hpp"
+#include "rpc/plan.hpp"
 
 namespace lipsync::server {
 
