@@ -31,9 +31,14 @@ def f32(value):
 
 
 def install_addon():
+    """As Edit > Preferences > Add-ons > Install, then the tick box."""
     bpy.ops.preferences.addon_install(filepath=CONFIG["addon_zip"], overwrite=True)
     bpy.ops.preferences.addon_enable(module="lipsync_blender")
-    assert hasattr(bpy.ops.lipsync, "import_track"), "the add-on did not register its operators"
+    for operator in ("import_track", "render_phonemes", "speak"):
+        assert hasattr(bpy.ops.lipsync, operator), f"the add-on did not register lipsync.{operator}"
+    assert hasattr(bpy.types, "LIPSYNC_PT_sidebar"), "the add-on's sidebar panel is not registered"
+    menu = [f.__name__ for f in bpy.types.TOPBAR_MT_file_import._dyn_ui_initialize()]
+    assert "_menu_import" in menu, f"File > Import has no lipsyncd entry: {menu}"
 
 
 def load_json(path):
@@ -317,6 +322,17 @@ class LiveChecks(KeyedTrackChecks):
         self.assert_keys_equal_track(self.face, self.track, 1, 24)
         self.assert_closures_hold(self.face, self.track, 1, 24)
         self.assertEqual(len(self.scene.sequence_editor.sequences_all), 1)
+
+    def test_render_reports_progress_as_the_frames_arrive(self):
+        live = sys.modules["lipsync_blender.live"]
+        phonemes, phone_set = live.read_phonemes(CONFIG["psdur"])
+        fractions = []
+        track = live.render_phonemes(CONFIG["server"], phonemes, phone_set, progress=fractions.append)
+        self.assertEqual(len(fractions), len(self.track["frames"]), "one update per frame received")
+        self.assertEqual(fractions, sorted(fractions), "progress never goes back")
+        self.assertGreater(fractions[0], -1e-9)
+        self.assertAlmostEqual(fractions[-1], 1.0, delta=0.05)
+        self.assertEqual(track.times_us, [f["t_us"] for f in self.track["frames"]])
 
     def test_speak_adds_the_speech_and_its_track(self):
         wav = os.path.join(CONFIG["work"], "spoken.wav")
