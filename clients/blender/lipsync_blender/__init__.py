@@ -120,7 +120,7 @@ class LIPSYNC_OT_import_track(bpy.types.Operator, ImportHelper, _KeyingOptions):
                                description="The speech, added as a sound strip at the start frame")
     csv_fps: IntProperty(name="CSV frame rate", default=60, min=1, max=240,
                          description="The --fps a Live Link Face CSV was rendered at (its "
-                                     "timecodes count frames of that rate)")
+                                     "timecodes count frames of that rate; 60 is Live Link Face's)")
 
     def invoke(self, context, event):
         self.invoke_start_frame(context)

@@ -7,7 +7,8 @@ values. This module reads the three layouts lipsyncd writes that carry such curv
 * ``json`` (``"format": "lipsync-track"``): times from ``t_us``, the frame kinds, the ARKit
   weights under Apple's names and the model channels under the model's names;
 * ``arkit-csv`` (Unreal Live Link Face CSV): times from the ``HH:MM:SS:FF.fff`` timecode at
-  the frame rate the track was rendered at (the file does not say it), PascalCase names
+  the frame rate the track was rendered at (the file does not say it; a rate that does not fit
+  the timecodes is refused), PascalCase names
   turned back into Apple's (``JawOpen`` -> ``jawOpen``); the nine head and eye rotation
   columns are not blendshapes and are left out;
 * ``csv`` (model channels): times from ``t_us``, kinds, the channels.
@@ -25,7 +26,7 @@ import json
 import os
 import re
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional
+from typing import Dict, List, Optional, Tuple
 
 #: The Live Link Face CSV's rotation columns: not blendshapes (always 0 in lipsyncd's output).
 ROTATION_COLUMNS = (
@@ -158,23 +159,49 @@ def parse_json_track(text: str, source: str) -> Track:
     return Track(source, "json", times, kinds, arkit, channels, model, fps)
 
 
-def _timecode_to_us(source: str, line: int, text: str, fps: int) -> int:
+def _split_timecode(source: str, line: int, text: str) -> Tuple[int, int, int]:
+    """(whole seconds, frame, thousandths of a frame) of HH:MM:SS:FF.fff."""
     match = _TIMECODE.match(text.strip())
     if not match:
         raise TrackError(f"{source}:{line}: Timecode {text!r} is not HH:MM:SS:FF.fff")
     hours, minutes, seconds, frame = (int(match.group(i)) for i in range(1, 5))
     millis = int((match.group(5) or "0").ljust(3, "0"))
-    if frame >= fps:
-        raise TrackError(f"{source}:{line}: Timecode {text!r} has frame {frame} in a second of {fps} "
-                         f"frames: set the CSV frame rate to the rate the track was rendered at "
-                         f"(`lipsync render --fps N`)")
+    return (hours * 60 + minutes) * 60 + seconds, frame, millis
+
+
+def _timecode_to_us(timecode: Tuple[int, int, int], fps: int) -> int:
+    seconds, frame, millis = timecode
     milliframes = frame * 1000 + millis
     # µs = milliframes / (fps × 1000) s, rounded half up, in integers.
     sub_us = (milliframes * 2_000_000 + fps * 1000) // (2 * fps * 1000)
-    return ((hours * 60 + minutes) * 60 + seconds) * 1_000_000 + sub_us
+    return seconds * 1_000_000 + sub_us
 
 
-def parse_csv_track(text: str, source: str, csv_fps: int) -> Track:
+def _check_rate(source: str, body, timecodes, csv_fps: int) -> int:
+    """csv_fps, checked against the timecodes.
+
+    A frame number never reaches the rate. And a track at N frames/s has frames all through
+    its first second (lipsyncd's frames are at most a couple of grid steps apart), so when the
+    track goes past that second, its frame numbers there go well beyond N / 2: a rate twice too
+    high or more shows. (The rate cannot be read from the timecodes in general: key frames
+    fall anywhere, and at low rates around every second boundary.)
+    """
+    hint = "set the CSV frame rate to the rate the track was rendered at (`lipsync render --fps N`)"
+    if csv_fps < 1:
+        raise TrackError(f"{source}: a Live Link Face CSV needs its frame rate: {hint}")
+    for (line, row), (_, frame, _) in zip(body, timecodes):
+        if frame >= csv_fps:
+            raise TrackError(f"{source}:{line}: Timecode {row[0]!r} has frame {frame} in a second of "
+                             f"{csv_fps} frames: {hint}")
+    if any(seconds >= 1 for seconds, _, _ in timecodes):
+        highest = max(frame for seconds, frame, _ in timecodes if seconds == 0)
+        if 2 * (highest + 1) <= csv_fps:
+            raise TrackError(f"{source}: the first second's timecodes stop at frame {highest}, so the "
+                             f"track is at about {highest + 1} frames/s, not {csv_fps}: {hint}")
+    return csv_fps
+
+
+def parse_csv_track(text: str, source: str, csv_fps: int = 60) -> Track:
     rows = list(csv.reader(io.StringIO(text)))
     if not rows or not rows[0]:
         raise TrackError(f"{source}: empty file; {_RENDER_HINT}")
@@ -183,20 +210,20 @@ def parse_csv_track(text: str, source: str, csv_fps: int) -> Track:
     if not body:
         raise TrackError(f"{source}: a header and no frames")
     if header[:2] == ["Timecode", "BlendShapeCount"]:
-        if csv_fps < 1:
-            raise TrackError(f"{source}: a Live Link Face CSV needs its frame rate (1..240)")
         columns = [(i, h[:1].lower() + h[1:]) for i, h in enumerate(header)
                    if i >= 2 and h not in ROTATION_COLUMNS]
         arkit = {name: [] for _, name in columns}
-        times = []
+        timecodes = []
         for line, row in body:
             if len(row) != len(header):
                 raise TrackError(f"{source}:{line}: {len(row)} columns, the header has {len(header)}")
-            times.append(_timecode_to_us(source, line, row[0], csv_fps))
+            timecodes.append(_split_timecode(source, line, row[0]))
             for i, name in columns:
                 arkit[name].append(_number(source, f"line {line}, column {header[i]}", row[i]))
+        fps = _check_rate(source, body, timecodes, csv_fps)
+        times = [_timecode_to_us(timecode, fps) for timecode in timecodes]
         _check_times(source, times, lambda i: f"line {body[i][0]}")
-        return Track(source, "arkit-csv", times, [None] * len(times), arkit, {}, None, csv_fps)
+        return Track(source, "arkit-csv", times, [None] * len(times), arkit, {}, None, fps)
     if header[:3] == ["t", "t_us", "kind"]:
         channels = {name: [] for name in header[3:]}
         times, kinds = [], []
@@ -217,7 +244,8 @@ def parse_csv_track(text: str, source: str, csv_fps: int) -> Track:
 
 
 def read_track(path: str, csv_fps: int = 60) -> Track:
-    """Reads a track file; the layout comes from the content (JSON object or CSV header)."""
+    """Reads a track file; the layout comes from the content (JSON object or CSV header).
+    csv_fps: the frame rate a Live Link Face CSV was rendered at (its timecodes count such frames)."""
     try:
         with open(path, "rb") as stream:
             data = stream.read()

@@ -271,8 +271,13 @@ class BadInputChecks(unittest.TestCase):
         cube.shape_key_add(name="Smile")
         self.assert_refused("has no shape key for any of the track's curves", filepath=CONFIG["track_json"])
 
-    def test_a_csv_at_the_wrong_frame_rate(self):
-        self.assert_refused("set the CSV frame rate", filepath=CONFIG["track_csv60"], csv_fps=30)
+    def test_a_csv_read_at_too_low_a_frame_rate(self):
+        self.assert_refused("has frame 30 in a second of 30 frames: set the CSV frame rate to the rate "
+                            "the track was rendered at", filepath=CONFIG["track_csv60"], csv_fps=30)
+
+    def test_a_csv_read_at_too_high_a_frame_rate(self):
+        self.assert_refused("so the track is at about 60 frames/s, not 120", filepath=CONFIG["track_csv60"],
+                            csv_fps=120)
 
     def test_a_missing_audio_file(self):
         self.assert_refused("does not exist", filepath=CONFIG["track_json"],
