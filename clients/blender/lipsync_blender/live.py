@@ -48,9 +48,10 @@ def _client_module():
             "install grpcio protobuf") from None
     try:
         from lipsync_client import client
-    except ImportError as error:
-        raise LiveError(f"The lipsyncd Python client could not be loaded ({error}): reinstall the "
-                        "add-on from the zip the build makes (build/lipsync_blender.zip)") from None
+    except Exception as error:  # ImportError, or protobuf's TypeError for a runtime too old for the stubs
+        raise LiveError(f"The lipsyncd Python client could not be loaded ({type(error).__name__}: {error}): "
+                        "reinstall the add-on from the zip the build makes (build/lipsync_blender.zip); "
+                        "the stubs need protobuf 3.20 or newer") from None
     return client
 
 
@@ -155,6 +156,8 @@ def render_phonemes(address: str, phonemes, phone_set: str, *, model: str = "", 
                 progress(min(frame.t_us / end_us, 1.0))
     except grpc.RpcError as error:
         raise _rpc_error(error, address, "phonemes") from None
+    except ValueError as error:  # a malformed message (lipsync_client's checks)
+        raise LiveError(f"lipsyncd at {address} sent a malformed track: {error}") from None
     finally:
         client.close()
     if not frames or stream.header is None:
@@ -175,6 +178,8 @@ def speak(address: str, text: str, wav_path: str, *, voice: str = "", model: str
         speech = client.speak(text, voice=voice, **_settings(model, fps))
     except grpc.RpcError as error:
         raise _rpc_error(error, address, "text") from None
+    except ValueError as error:  # a malformed or cut-short stream (lipsync_client's checks)
+        raise LiveError(f"lipsyncd at {address} sent a malformed answer: {error}") from None
     finally:
         client.close()
     if progress:

@@ -369,6 +369,22 @@ class LiveChecks(KeyedTrackChecks):
         self.assertIn(f"No lipsyncd answers at {CONFIG['dead_server']}: start it", str(raised.exception))
         self.assertEqual(snapshot(self.scene), before)
 
+    def test_without_grpc_the_report_says_what_to_install(self):
+        saved = sys.modules.get("grpc")
+        sys.modules["grpc"] = None  # what `import grpc` meets in a Blender without grpcio
+        before = snapshot(self.scene)
+        try:
+            with self.assertRaises(RuntimeError) as raised:
+                bpy.ops.lipsync.render_phonemes(filepath=CONFIG["psdur"])
+        finally:
+            if saved is None:
+                del sys.modules["grpc"]
+            else:
+                sys.modules["grpc"] = saved
+        self.assertIn("grpc is not available in Blender's Python", str(raised.exception))
+        self.assertIn("apt-get install python3-grpcio python3-protobuf", str(raised.exception))
+        self.assertEqual(snapshot(self.scene), before)
+
     def test_a_refused_phoneme_is_reported_with_the_servers_words(self):
         bad = os.path.join(CONFIG["work"], "bad.psdur")
         with open(bad, "w", encoding="utf-8") as out:
