@@ -91,9 +91,11 @@ class _KeyingOptions:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
         closures = sum(1 for k in the_track.kinds if k in ("closure_start", "closure_end"))
+        kinds_known = any(k is not None for k in the_track.kinds)  # a Live Link Face CSV has none
         self.report({"INFO"}, (
             f"Keyed {len(applied.keyed)} shape keys of {obj.name!r} at {len(applied.frames)} track "
-            f"frames ({closures} closure key frames), frames {applied.frames[0]:.3f} to "
+            + (f"frames ({closures} closure key frames)" if kinds_known else "frames") +
+            f", frames {applied.frames[0]:.3f} to "
             f"{applied.frames[-1]:.3f}, action {applied.action.name!r}"
             + (f", audio {os.path.basename(sound_path)!r} from frame {self.start_frame}" if sound_path else "")))
         if resolution.unmapped:
