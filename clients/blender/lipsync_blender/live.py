@@ -42,7 +42,7 @@ def _client_module():
         import grpc  # noqa: F401
     except ImportError:
         raise LiveError(
-            "The Python module grpc is not available in Blender's Python. On Debian or Ubuntu: "
+            "The Python module grpc is not available in Blender's Python. On Debian: "
             "apt-get install python3-grpcio python3-protobuf (Debian's Blender runs on the system "
             "Python); with a blender.org build: <blender>/<version>/python/bin/python3.* -m pip "
             "install grpcio protobuf") from None
