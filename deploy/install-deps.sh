@@ -35,7 +35,12 @@ packages=(
   # the browser viewer's test: headless Chromium (WebGL through SwiftShader) driven over the
   # DevTools protocol from /usr/bin/python3 with websocket-client
   chromium python3-websocket
+  # the Blender add-on's tests (tests/integrations/blender): Blender headless; numpy for its glTF exporter
+  blender python3-numpy
 )
+# npm fetches the Khronos glTF validator for the Blender add-on's test (a Node.js that brings its
+# own npm, such as NodeSource's, conflicts with Debian's npm package: then it is not asked for)
+command -v npm >/dev/null 2>&1 || packages+=(npm)
 
 missing=()
 for package in "${packages[@]}"; do
