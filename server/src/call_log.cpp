@@ -17,6 +17,7 @@
 #include <spdlog/spdlog.h>
 
 #include "lipsync/excerpt.hpp"
+#include "lipsync/grpc_status_name.hpp"
 #include "transport/listener.hpp"
 #include "metrics.hpp"
 
@@ -89,14 +90,8 @@ void set_log_format(LogFormat format) {
   }
 }
 
-const char* code_name(grpc::StatusCode code) {
-  static constexpr std::array<const char*, 17> kNames = {
-      "OK", "CANCELLED", "UNKNOWN", "INVALID_ARGUMENT", "DEADLINE_EXCEEDED", "NOT_FOUND",
-      "ALREADY_EXISTS", "PERMISSION_DENIED", "RESOURCE_EXHAUSTED", "FAILED_PRECONDITION", "ABORTED",
-      "OUT_OF_RANGE", "UNIMPLEMENTED", "INTERNAL", "UNAVAILABLE", "DATA_LOSS", "UNAUTHENTICATED"};
-  const auto index = static_cast<std::size_t>(code);
-  return index < kNames.size() ? kNames[index] : "UNKNOWN";
-}
+// The names are string literals, so their views end in a NUL.
+const char* code_name(grpc::StatusCode code) { return grpc_status_code_name(code).data(); }
 
 std::string status_name(const grpc::Status& status) {
   std::string name = code_name(status.error_code());

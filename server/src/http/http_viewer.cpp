@@ -61,12 +61,6 @@ http::status http_status(grpc::StatusCode code) {
   }
 }
 
-/// "NOT_FOUND": the code's name alone (status_name adds the message).
-std::string code_name(grpc::StatusCode code) {
-  const std::string name = status_name(grpc::Status(code, "-"));
-  return name.substr(0, name.find(' '));
-}
-
 std::string error_json(const std::string& code, const std::string& message) {
   return nlohmann::json{{"code", code}, {"message", message}}.dump();
 }

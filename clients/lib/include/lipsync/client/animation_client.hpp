@@ -52,7 +52,7 @@ namespace v1 = ::lipsync::v1;
 /// The metadata key that carries a call's session name, for load balancers (docs/deploy.md).
 inline constexpr std::string_view kSessionMetadataKey = "x-lipsync-session";
 
-/// "INVALID_ARGUMENT" for grpc::StatusCode::INVALID_ARGUMENT, and so on.
+/// "INVALID_ARGUMENT" for grpc::StatusCode::INVALID_ARGUMENT, and so on (lipsync::grpc_status_code_name).
 std::string_view status_code_name(grpc::StatusCode code);
 
 /// A call that ended with a status other than OK.
