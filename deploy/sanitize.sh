@@ -7,7 +7,7 @@
 #   deploy/sanitize.sh tsan [TEST...]      clang 14 TSan in build-tsan-clang/ of the server tests
 #                                          (default: tsan_tests below, as CI runs them), then the
 #                                          canary that must be reported (tests/server/tsan_canary.cpp).
-#                                          gRPC's half is made invisible or stated: deploy/tsan.ignorelist,
+#                                          gRPC's half is made invisible or stated: deploy/sanitizers/tsan.ignorelist,
 #                                          tsan.exports, tsan_edges.cpp (preloaded), tsan.supp
 #                                          (docs/security.md, "Sanitizers"). TSAN_EXTRA replaces
 #                                          halt_on_error=1 in TSAN_OPTIONS, e.g.
@@ -51,7 +51,7 @@ case "$mode" in
     export ASAN_OPTIONS="halt_on_error=1:detect_leaks=1:strict_string_checks=1:detect_stack_use_after_return=1"
     export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
     # Leaks inside Debian's libraries; print_suppressions=0 keeps the CLI tests' stderr theirs.
-    export LSAN_OPTIONS="suppressions=$PWD/deploy/lsan.supp:print_suppressions=0"
+    export LSAN_OPTIONS="suppressions=$PWD/deploy/sanitizers/lsan.supp:print_suppressions=0"
     source deploy/asan-build.sh
     start=$SECONDS
     if [[ "${tests[*]}" == all ]]; then
@@ -69,10 +69,10 @@ case "$mode" in
   tsan)
     # Clang 14 TSan (its ignore lists; GCC 12 has none). Debian's gRPC, protobuf and abseil are
     # not instrumented; what of them is compiled into our executables is left uninstrumented
-    # too (deploy/tsan.ignorelist), their calls keep to libstdc++.so's own string code
-    # (deploy/tsan.exports), the synchronisation TSan cannot see is stated (the preloaded
-    # deploy/tsan_edges.cpp, and the reactors' HandoffReactor), and their interceptor calls
-    # are ignored (deploy/tsan.supp, ignore_noninstrumented_modules). Every line of server/,
+    # too (deploy/sanitizers/tsan.ignorelist), their calls keep to libstdc++.so's own string code
+    # (deploy/sanitizers/tsan.exports), the synchronisation TSan cannot see is stated (the preloaded
+    # deploy/sanitizers/tsan_edges.cpp, and the reactors' HandoffReactor), and their interceptor calls
+    # are ignored (deploy/sanitizers/tsan.supp, ignore_noninstrumented_modules). Every line of server/,
     # clients/, core/ and tests/ stays instrumented (docs/security.md, "Sanitizers").
     tests=("$@")
     [[ ${#tests[@]} -gt 0 ]] || tests=("${tsan_tests[@]}")
@@ -82,17 +82,17 @@ case "$mode" in
     # Neither ninja nor ccache 4.7 looks at the contents of the ignore list or the exports
     # script: their hash joins the flags, so an edit rebuilds every object, and ccache hashes
     # the list with each compilation.
-    ignorelist_hash="$(cat deploy/tsan.ignorelist deploy/tsan.exports | sha256sum | cut -c1-16)"
-    export CCACHE_EXTRAFILES="$PWD/deploy/tsan.ignorelist"
+    ignorelist_hash="$(cat deploy/sanitizers/tsan.ignorelist deploy/sanitizers/tsan.exports | sha256sum | cut -c1-16)"
+    export CCACHE_EXTRAFILES="$PWD/deploy/sanitizers/tsan.ignorelist"
     cmake -S . -B build-tsan-clang -G Ninja -DCMAKE_CXX_COMPILER=clang++-14 -DCMAKE_C_COMPILER=clang-14 \
       -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -gline-tables-only" \
-      -DCMAKE_CXX_FLAGS="-fsanitize=thread -fno-omit-frame-pointer -fsanitize-ignorelist=$PWD/deploy/tsan.ignorelist -DLIPSYNC_TSAN_IGNORELIST=$ignorelist_hash" \
-      -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=thread -Wl,--version-script=$PWD/deploy/tsan.exports" \
+      -DCMAKE_CXX_FLAGS="-fsanitize=thread -fno-omit-frame-pointer -fsanitize-ignorelist=$PWD/deploy/sanitizers/tsan.ignorelist -DLIPSYNC_TSAN_IGNORELIST=$ignorelist_hash" \
+      -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=thread -Wl,--version-script=$PWD/deploy/sanitizers/tsan.exports" \
       -DCMAKE_SHARED_LINKER_FLAGS=-fsanitize=thread -DLIPSYNC_BUILD_BENCHMARKS=OFF "${launcher[@]}" >/dev/null
     cmake --build build-tsan-clang -j "$(nproc)" --target "${tests[@]}" tsan_canary
-    g++ -std=c++17 -O1 -shared -fPIC -o build-tsan-clang/libtsan_edges.so deploy/tsan_edges.cpp -ldl
+    g++ -std=c++17 -O1 -shared -fPIC -o build-tsan-clang/libtsan_edges.so deploy/sanitizers/tsan_edges.cpp -ldl
     echo "sanitize: build-tsan-clang built in $((SECONDS - start)) s"
-    export TSAN_OPTIONS="${TSAN_EXTRA:-halt_on_error=1}:second_deadlock_stack=1:ignore_noninstrumented_modules=1:suppressions=$PWD/deploy/tsan.supp"
+    export TSAN_OPTIONS="${TSAN_EXTRA:-halt_on_error=1}:second_deadlock_stack=1:ignore_noninstrumented_modules=1:suppressions=$PWD/deploy/sanitizers/tsan.supp"
     export LD_PRELOAD="$PWD/build-tsan-clang/libtsan_edges.so"
     run_tests build-tsan-clang "${tests[@]}"
     # The canary (tests/server/tsan_canary.cpp): a race planted in a reaction, under the same

@@ -1,9 +1,9 @@
 // The TSan canary: proves that the TSan step still reports a race inside a reaction.
 //
 // `deploy/sanitize.sh tsan-clang` leaves gRPC's inline code uninstrumented (ignore list),
-// states gRPC's hand-offs (HandoffReactor, the preloaded deploy/tsan_edges.cpp), keeps
-// libstdc++'s string copies local (deploy/tsan.exports) and suppresses one gRPC assignment
-// (deploy/tsan.supp). Each of those removes reports; a clean run means something only if
+// states gRPC's hand-offs (HandoffReactor, the preloaded deploy/sanitizers/tsan_edges.cpp), keeps
+// libstdc++'s string copies local (deploy/sanitizers/tsan.exports) and suppresses one gRPC assignment
+// (deploy/sanitizers/tsan.supp). Each of those removes reports; a clean run means something only if
 // a real race in our code would still be reported under all of them. This program plants
 // one and the script runs it after the server tests: it must die with a TSan report that
 // names the reaction, or the step fails.

@@ -16,7 +16,7 @@
 //   `message`, on whichever thread completes the read: StartRead releases the
 //   message too. The parse is protobuf's (uninstrumented) code called from
 //   gRPC's; the library `deploy/sanitize.sh tsan` preloads
-//   (deploy/tsan_edges.cpp) acquires the message when protobuf starts
+//   (deploy/sanitizers/tsan_edges.cpp) acquires the message when protobuf starts
 //   parsing into it and releases it when the parse returns.
 // - The method handler returns the reactor to gRPC, which runs its reactions
 //   later, on its own threads: the handler releases it once built (handed_off).
@@ -24,7 +24,7 @@
 //   others have returned: a reaction releases the reactor on exit too.
 // - The service is built before the server starts, and gRPC calls its method
 //   handlers only after that (on its threads, created by libgpr, whose
-//   pthread_create TSan ignores: deploy/tsan.supp): Server releases the
+//   pthread_create TSan ignores: deploy/sanitizers/tsan.supp): Server releases the
 //   service before BuildAndStart and once its address is known, and each
 //   method handler acquires it on entry.
 //
