@@ -35,6 +35,8 @@ packages=(
   # the browser viewer's test: headless Chromium (WebGL through SwiftShader) driven over the
   # DevTools protocol from /usr/bin/python3 with websocket-client
   chromium python3-websocket
+  # the Godot add-on's test (clients/godot, tests/integrations/godot): Godot 3's headless runtime
+  godot3-server
 )
 
 missing=()
