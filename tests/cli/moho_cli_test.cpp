@@ -41,7 +41,9 @@ class MohoCliTest : public ::testing::Test {
   fs::path dir_, capture_;
 };
 
-std::string closure_file(const std::string& name) { return (fs::path(LIPSYNC_TEST_DATA_DIR) / "closures" / name).string(); }
+std::string closure_file(const std::string& name) {
+  return (fs::path(LIPSYNC_TEST_DATA_DIR) / "closures" / name).string();
+}
 
 /// The switch data of `name` (a radio-labelled Festival or flite file) through the core, in process.
 std::string core_switch_data(const std::string& name, int track_fps, int moho_fps) {
@@ -55,7 +57,10 @@ std::string core_switch_data(const std::string& name, int track_fps, int moho_fp
   const VisemeClassifier classifier(model, {.vocabulary = VisemeVocabulary::rhubarb});
   const VisemeTrack visemes = compute_visemes(classifier, track);
   std::ostringstream out;
-  write_moho_switch({.model = model.name(), .classifier = classifier, .track = track, .visemes = visemes,
+  write_moho_switch({.model = model.name(),
+                     .classifier = classifier,
+                     .track = track,
+                     .visemes = visemes,
                      .end_us = utterance.intervals.back().end_us},
                     moho_fps, out);
   return out.str();

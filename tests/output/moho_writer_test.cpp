@@ -5,6 +5,8 @@
 // flite timings of tests/data/closures (and their PocketSphinx alignments) every /p b m/ key frame
 // shows MBP on its Moho frame, every closure key frame shows its own mouth, and every other frame
 // shows the mouth the track holds there; a closure shorter than a frame still shuts the lips.
+#include "lipsync/moho_writer.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -17,7 +19,6 @@
 #include <vector>
 
 #include "../support/closure_frames.hpp"
-#include "lipsync/moho_writer.hpp"
 #include "lipsync/renderer.hpp"
 #include "lipsync/visemes.hpp"
 
@@ -94,9 +95,9 @@ Written write(const VisemeClassifier& classifier, const std::vector<Segment>& se
   out.visemes = compute_visemes(classifier, out.track);
   out.end_us = segments.back().end_us;
   std::ostringstream text;
-  write_moho_switch({.model = "default", .classifier = classifier, .track = out.track, .visemes = out.visemes,
-                     .end_us = out.end_us},
-                    moho_fps, text);
+  write_moho_switch(
+      {.model = "default", .classifier = classifier, .track = out.track, .visemes = out.visemes, .end_us = out.end_us},
+      moho_fps, text);
   out.text = text.str();
   return out;
 }
@@ -117,13 +118,14 @@ TEST(MohoSwitchData, RealSpeechReadsBackWithEveryClosureKeyFrameOnItsFrame) {
   for (const auto& spoken : corpus) {
     for (const int track_fps : {30, 60}) {
       for (const int moho_fps : {24, 25, 30}) {
-        const std::string label = spoken.name + " track " + std::to_string(track_fps) + " fps, Moho " +
-                                  std::to_string(moho_fps) + " fps";
+        const std::string label =
+            spoken.name + " track " + std::to_string(track_fps) + " fps, Moho " + std::to_string(moho_fps) + " fps";
         const Written written = write(classifier, spoken.segments, track_fps, moho_fps);
         SwitchData data;
         ASSERT_NO_THROW(data = read_switch_data(written.text)) << label << "\n" << written.text;
         // The end: the first frame whose instant is at or after the utterance's end shows rest.
-        const auto end_frame = static_cast<long long>(std::ceil(static_cast<double>(written.end_us) * moho_fps / 1e6)) + 1;
+        const auto end_frame =
+            static_cast<long long>(std::ceil(static_cast<double>(written.end_us) * moho_fps / 1e6)) + 1;
         ASSERT_EQ(data.end_frame(), end_frame) << label;
 
         // Closure key frames: the mouth of their own winner on their frame, MBP where a bilabial is.
@@ -237,9 +239,8 @@ TEST(MohoSwitchData, AClosureKeyFrameWinsItsFrameOverTheMouthHeldAtItsEnd) {
   add(430'000, FrameKind::uniform, "C");
   add(600'000, FrameKind::uniform, "X");
   std::ostringstream text;
-  write_moho_switch({.model = "default", .classifier = classifier, .track = track, .visemes = visemes,
-                     .end_us = 600'000},
-                    24, text);
+  write_moho_switch(
+      {.model = "default", .classifier = classifier, .track = track, .visemes = visemes, .end_us = 600'000}, 24, text);
   EXPECT_EQ(text.str(), "MohoSwitch1\n1 rest\n7 AI\n8 MBP\n9 AI\n11 MBP\n12 E\n15 rest\n16 rest\n");
 }
 
@@ -249,8 +250,8 @@ TEST(MohoSwitchData, AnEmptyUtteranceIsTheRestMouth) {
   track.channel_count = model().channel_count();
   const VisemeTrack visemes = compute_visemes(classifier, track);
   std::ostringstream text;
-  write_moho_switch({.model = "default", .classifier = classifier, .track = track, .visemes = visemes, .end_us = 0},
-                    24, text);
+  write_moho_switch({.model = "default", .classifier = classifier, .track = track, .visemes = visemes, .end_us = 0}, 24,
+                    text);
   EXPECT_EQ(text.str(), "MohoSwitch1\n1 rest\n");
 }
 
@@ -261,9 +262,9 @@ TEST(MohoSwitchData, AnotherVocabularyOrFrameRateIsRefusedNamingIt) {
   const VisemeTrack oculus_visemes = compute_visemes(oculus, track);
   std::ostringstream text;
   try {
-    write_moho_switch({.model = "default", .classifier = oculus, .track = track, .visemes = oculus_visemes,
-                       .end_us = 480'000},
-                      24, text);
+    write_moho_switch(
+        {.model = "default", .classifier = oculus, .track = track, .visemes = oculus_visemes, .end_us = 480'000}, 24,
+        text);
     FAIL() << "oculus visemes accepted";
   } catch (const std::invalid_argument& error) {
     EXPECT_NE(std::string(error.what()).find("rhubarb visemes, got oculus"), std::string::npos) << error.what();
@@ -272,13 +273,12 @@ TEST(MohoSwitchData, AnotherVocabularyOrFrameRateIsRefusedNamingIt) {
   const VisemeTrack visemes = compute_visemes(rhubarb, track);
   for (const int fps : {0, -24, 1001}) {
     try {
-      write_moho_switch({.model = "default", .classifier = rhubarb, .track = track, .visemes = visemes,
-                         .end_us = 480'000},
-                        fps, text);
+      write_moho_switch(
+          {.model = "default", .classifier = rhubarb, .track = track, .visemes = visemes, .end_us = 480'000}, fps,
+          text);
       FAIL() << fps << " fps accepted";
     } catch (const std::invalid_argument& error) {
-      EXPECT_NE(std::string(error.what()).find("frame rate " + std::to_string(fps)), std::string::npos)
-          << error.what();
+      EXPECT_NE(std::string(error.what()).find("frame rate " + std::to_string(fps)), std::string::npos) << error.what();
     }
   }
   EXPECT_TRUE(text.str().empty()) << "nothing is written for a refused request";

@@ -7,10 +7,11 @@
 //
 //   MohoSwitch1
 //   1 rest
-//   6 MBP
+//   5 MBP
+//   7 etc
 //   8 AI
 //   ...
-//   66 rest
+//   50 rest
 //
 // The mouths come from the Rhubarb viseme layer (visemes.hpp: A–H and X, computed from the
 // coarticulated channels), renamed as Rhubarb's own `--datUsePrestonBlair` renames them: A MBP, B etc,
@@ -22,8 +23,9 @@
 // Moho frame shows the mouth of the last track frame that belongs to it or to an earlier one. A
 // closure key frame (closure_start, closure_end) takes precedence in the Moho frame it belongs to:
 // that frame shows its mouth (MBP before any other when several closures meet there), so a /p b m/
-// shorter than a frame still shuts the lips on its frame, which sampling alone would skip. The last
-// line is the first frame at or after the end of the utterance, with the rest mouth.
+// whose release falls in the same frame as an opening mouth still shuts the lips on its frame, which
+// sampling alone would skip. The last line is the first frame at or after the end of the utterance,
+// with the rest mouth (it marks the end, so it may repeat the mouth before it).
 #pragma once
 
 #include <cstdint>
