@@ -333,3 +333,14 @@ func _run_bad_input():
 	lost.mesh_path = NodePath("/root/Nowhere")
 	_check(lost.load_track(good) == ERR_UNCONFIGURED, "a mesh_path to nothing is refused")
 	print("ok: bad input refused with the scene untouched")
+
+	# The inspector's way, for contrast: properties set before the node enters the tree load and
+	# play the track in _ready.
+	var configured = LipsyncPlayer.new()
+	configured.mesh_path = NodePath("/root/Face")
+	configured.track_file = good
+	configured.autoplay = true
+	get_root().add_child(configured)
+	_check(configured.frame_times_us.size() == frames and configured.is_playing(), "track_file and autoplay load and play in _ready")
+	_check(face.get("blend_shapes/jawOpen") != 0.5, "the configured player keyed the face")
+	print("ok: track_file and autoplay play on _ready")
