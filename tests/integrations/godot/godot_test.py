@@ -10,7 +10,9 @@ real lipsyncd (--http-listen on port 0) fed in real time by `lipsync stream`.
   * bad_input: a track of another model (rendered with `lipsync model dump` renamed), a mesh
     without the shape keys, wrong mappings, a viseme file: refused, push_error saying what to do,
     the scene untouched;
-  * live: a lipsyncd session followed over the viewer's WebSocket with the media-clock anchor;
+  * live: a lipsyncd session followed over the viewer's WebSocket with the media-clock anchor, the
+    follower started before the session (it asks again until the session exists); a session that
+    never starts is reported after live_wait_ms;
   * no_server: following a viewer address where nothing listens reports it.
 
 Usage: godot_test.py LIPSYNC LIPSYNCD SOURCE_DIR. Exits 77 (skipped) without godot3-server.
@@ -126,10 +128,16 @@ class GodotAddOn(unittest.TestCase):
             grpc_address = re.match(r"lipsyncd listening on (\S+)", lipsyncd.stdout.readline()).group(1)
             viewer = re.match(r"lipsyncd viewer on (http://\S+)/view", lipsyncd.stdout.readline()).group(1)
             # Godot first: it waits for the session (asking every 250 ms) as the producer starts.
+            # The producer starts after the follower has found no session (>= 1 s later): it waits.
             environment = self.environment("live", LIPSYNC_WS=viewer, LIPSYNC_SESSION="godot-live",
-                                           LIPSYNC_EXPECTED=self.tracks[0])
+                                           LIPSYNC_EXPECTED=self.tracks[0], LIPSYNC_EXPECT_RETRIES="1")
             godot = subprocess.Popen([GODOT, "--path", self.project, "-s", "res://test_live.gd"], env=environment,
                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            # A session that never starts, meanwhile: reported after live_wait_ms (1 s).
+            missing = self.godot("test_live.gd", "no_session", LIPSYNC_WS=viewer, LIPSYNC_SESSION="nobody",
+                                 LIPSYNC_EXPECTED=self.tracks[0])
+            self.assertPassed(missing)
+            self.assertIn("start the producer (lipsync stream INPUT --session nobody)", missing.stderr)
             producer = subprocess.run([LIPSYNC, "stream", os.path.join(CLOSURES, "flite_1.psdur"), "--server",
                                        grpc_address, "--session", "godot-live", "-o", os.devnull],
                                       capture_output=True, text=True, timeout=60)

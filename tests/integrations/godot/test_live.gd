@@ -6,7 +6,8 @@
 #     and the track's weights at that time (linear between frames), closures sealed on the mesh;
 #   - the session's end arrives (live_ended, code 1000).
 # With LIPSYNC_GODOT_TEST=no_server, follow() of an address where nothing listens reports an error
-# and leaves the face untouched.
+# and leaves the face untouched; with no_session, a session that never starts is reported after
+# live_wait_ms (lipsyncd's NOT_FOUND, asked again every 250 ms until then).
 extends SceneTree
 
 const Fixture = preload("res://face_fixture.gd")
@@ -40,7 +41,7 @@ func _init():
 	player.model = "default"
 	player.connect("live_header", self, "_on_header")
 	player.connect("live_ended", self, "_on_ended")
-	if mode == "no_server":
+	if mode == "no_server" or mode == "no_session":
 		face.set("blend_shapes/jawOpen", 0.5)
 		player.live_wait_ms = 1000
 	var error = player.follow(OS.get_environment("LIPSYNC_WS"), OS.get_environment("LIPSYNC_SESSION"))
@@ -76,6 +77,14 @@ func _idle(_delta):
 	if OS.get_ticks_msec() - started_ms > 30000:
 		_check(false, "timed out: header %s, %d frames, ended %s, error '%s'" % [str(header != null), player.frame_times_us.size(), str(ended), player.live_error])
 		_finish()
+		return false
+	if mode == "no_session":
+		if player.live_error != "":
+			_check(player.live_error.find("NOT_FOUND") < 0 and player.live_error.find("lipsync stream INPUT --session nobody") >= 0, "the error says to start the producer: " + player.live_error)
+			_check(player.live_retries >= 2, "asked again while waiting: %d times" % player.live_retries)
+			_check(face.get("blend_shapes/jawOpen") == 0.5, "the face is untouched")
+			print("ok: no such session, after %d tries in %d ms: %s" % [player.live_retries + 1, OS.get_ticks_msec() - started_ms, player.live_error])
+			_finish()
 		return false
 	if mode == "no_server":
 		if player.live_error != "":
@@ -117,6 +126,8 @@ func _expected_at(name, t_us):
 func _verify():
 	_check(header["clock"] == "unix" and header["utterance_zero_us"] > 0, "the header carries a unix anchor: %s %d" % [header["clock"], header["utterance_zero_us"]])
 	_check(ended[0] == 1000, "the session ended with 1000: %s" % str(ended))
+	var waited = int(OS.get_environment("LIPSYNC_EXPECT_RETRIES"))
+	_check(player.live_retries >= waited, "asked again for the session before it started: %d times (expected at least %d)" % [player.live_retries, waited])
 	# The frames received are the offline track's.
 	var frames = expected["frames"]
 	var names = expected["arkit_names"]
@@ -169,7 +180,7 @@ func _verify():
 	_check(inside >= 30, "frames shown during the utterance: %d" % inside)
 	_check(open >= 3, "frames with the mouth open: %d" % open)
 	_check(in_closure >= 3, "frames inside /p b m/ holds: %d" % in_closure)
-	print("ok: live: %d frames received = offline; %d frames shown during the utterance (%d open, %d inside /p b m/ holds, all sealed); the player's clock within %d us of the anchor, the face shown at most %d us behind it (one frame); weights exact to %s" % [player.frame_times_us.size(), inside, open, in_closure, anchor_error, clock_error, weight_error])
+	print("ok: live: followed after %d tries; %d frames received = offline; %d frames shown during the utterance (%d open, %d inside /p b m/ holds, all sealed); the player's clock within %d us of the anchor, the face shown at most %d us behind it (one frame); weights exact to %s" % [player.live_retries + 1, player.frame_times_us.size(), inside, open, in_closure, anchor_error, clock_error, weight_error])
 
 
 # [start µs, end µs] of each /p b m/ hold of the expected track: a closure_start followed by a

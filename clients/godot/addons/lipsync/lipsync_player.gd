@@ -78,6 +78,7 @@ var _live_zero_ticks_us = 0  # ticks at utterance time 0 (non-unix clocks)
 var _live_audio_started = false
 var _live_close = [1006, ""]  # the close code and reason lipsyncd sent
 var live_done = false
+var live_retries = 0  # times follow() asked again for a session that had not started
 var live_error = ""
 
 
@@ -307,6 +308,7 @@ func follow(url, session, start = "beginning"):
 	_live_header = null
 	live_done = false
 	live_error = ""
+	live_retries = 0
 	_live_audio_started = false
 	frame_times_us = []
 	_weights = PoolRealArray()
@@ -402,6 +404,7 @@ func _on_live_error_text(text):
 	if code == "NOT_FOUND" and _live_header == null and OS.get_ticks_msec() < _live_deadline_ms:
 		_close_socket()
 		_live_retry_at_ms = OS.get_ticks_msec() + 250  # the session has not started yet
+		live_retries += 1
 		return
 	if code == "NOT_FOUND":
 		_live_fail(ERR_DOES_NOT_EXIST, "%s (waited %d ms); start the producer (lipsync stream INPUT --session %s) or check the name" % [message, live_wait_ms, _live_session])
