@@ -24,6 +24,8 @@ var ended = []
 var header = null
 var after_end_steps = 0
 var mode = ""
+var audio = null
+var audio_start = null  # [anchor's utterance time, audio clock] when the audio was first seen playing
 
 
 func _init():
@@ -41,6 +43,13 @@ func _init():
 	player.model = "default"
 	player.connect("live_header", self, "_on_header")
 	player.connect("live_ended", self, "_on_ended")
+	if mode == "live":
+		# The session's audio (silence of its length here) starts when utterance time 0 comes.
+		var end_us = int(expected["frames"][expected["frames"].size() - 1]["t_us"])
+		audio = AudioStreamPlayer.new()
+		audio.stream = Fixture.make_silence(end_us / 1000000.0 + 0.5)
+		get_root().add_child(audio)
+		player.audio_player_path = player.get_path_to(audio)
 	if mode == "no_server" or mode == "no_session":
 		face.set("blend_shapes/jawOpen", 0.5)
 		player.live_wait_ms = 1000
@@ -100,6 +109,8 @@ func _idle(_delta):
 	for name in ["jawOpen", "mouthClose", "mouthFunnel", "mouthPucker", "mouthRollLower"]:
 		shown[name] = face.get("blend_shapes/" + name)
 	samples.append([_unix_now_us(), player.last_time_us, player.frame_times_us.size(), shown, player.current_time_us()])
+	if audio_start == null and audio.playing:
+		audio_start = [player.current_time_us(), LipsyncPlayer.audio_clock_us(audio)]
 	var last_t = int(expected["frames"][expected["frames"].size() - 1]["t_us"])
 	if ended.size() > 0 and player.last_time_us > last_t + 100000:
 		_verify()
@@ -126,6 +137,11 @@ func _expected_at(name, t_us):
 func _verify():
 	_check(header["clock"] == "unix" and header["utterance_zero_us"] > 0, "the header carries a unix anchor: %s %d" % [header["clock"], header["utterance_zero_us"]])
 	_check(ended[0] == 1000, "the session ended with 1000: %s" % str(ended))
+	# The audio started at utterance time 0, not before: when first seen playing, it was where the
+	# anchor was (within a frame of the main loop, and the mix's granularity).
+	if _check(audio_start != null, "the audio started"):
+		_check(audio_start[0] >= 0 and abs(audio_start[0] - audio_start[1]) <= 100000, "the audio started at the anchor's time: anchor %d us, audio %d us" % audio_start)
+		print("ok: the audio started with the anchor at %d us, its clock then %d us" % audio_start)
 	var waited = int(OS.get_environment("LIPSYNC_EXPECT_RETRIES"))
 	_check(player.live_retries >= waited, "asked again for the session before it started: %d times (expected at least %d)" % [player.live_retries, waited])
 	# The frames received are the offline track's.

@@ -244,6 +244,10 @@ func _process(_delta):
 	if _playing or _live_header != null:
 		var t = current_time_us()
 		show_at(t)
+		# In live mode the audio (if any) starts when utterance time 0 comes, at the anchor's time.
+		if _live_header != null and _audio is AudioStreamPlayer and not _live_audio_started and t >= 0:
+			_audio.play(t / 1000000.0)
+			_live_audio_started = true
 		if _playing and clock_source == null and _audio != null and not _audio.playing:
 			_playing = false  # the audio ended
 			emit_signal("finished")
@@ -457,12 +461,3 @@ func _end_live(code, reason):
 	live_done = true
 	_close_socket()
 	emit_signal("live_ended", code, reason)
-
-
-# In live mode the audio (if any) starts when utterance time 0 comes, at the anchor's time.
-func _physics_process(_delta):
-	if _live_header != null and _audio is AudioStreamPlayer and not _live_audio_started and clock_source == null:
-		var t = current_time_us()
-		if t >= 0:
-			_audio.play(t / 1000000.0)
-			_live_audio_started = true
