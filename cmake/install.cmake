@@ -42,6 +42,9 @@ endif()
 install(DIRECTORY data/ DESTINATION ${CMAKE_INSTALL_DATADIR}/lipsync/data COMPONENT server)
 install(DIRECTORY docs/ DESTINATION ${CMAKE_INSTALL_DOCDIR} COMPONENT server)
 install(FILES README.md DESTINATION ${CMAKE_INSTALL_DOCDIR} COMPONENT server)
+# The Godot add-on (docs/integrations.md): copied into a Godot project's addons/ folder.
+install(DIRECTORY clients/godot/addons/lipsync DESTINATION ${CMAKE_INSTALL_DATADIR}/lipsync/godot/addons
+        COMPONENT server)
 install(FILES proto/lipsync/v1/lipsync.proto DESTINATION ${CMAKE_INSTALL_DATADIR}/lipsync/proto/lipsync/v1
         COMPONENT dev)
 

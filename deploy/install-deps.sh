@@ -37,6 +37,8 @@ packages=(
   chromium python3-websocket
   # the Blender add-on's tests (tests/integrations/blender): Blender headless; numpy for its glTF exporter
   blender python3-numpy
+  # the Godot add-on's test (clients/godot, tests/integrations/godot): Godot 3's headless runtime
+  godot3-server
 )
 # npm fetches the Khronos glTF validator for the Blender add-on's test (a Node.js that brings its
 # own npm, such as NodeSource's, conflicts with Debian's npm package: then it is not asked for)

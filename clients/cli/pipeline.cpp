@@ -37,9 +37,10 @@ TrackFormat parse_track_format_option(std::string_view text) {
 RenderFormat parse_render_format_option(std::string_view text) {
   if (const auto format = track_format_from_string(text)) return {.track = *format, .visemes = std::nullopt};
   if (const auto format = viseme_format_from_string(text)) return {.track = std::nullopt, .visemes = *format};
+  if (text == "moho-dat") return {.track = std::nullopt, .visemes = std::nullopt, .moho_switch = true};
   throw UsageError("--format: unknown format '" + std::string(text) +
-                   "' (choose json, csv, arkit-csv, visemes-oculus, visemes-azure, visemes-polly, rhubarb-tsv or "
-                   "rhubarb-json)");
+                   "' (choose json, csv, arkit-csv, visemes-oculus, visemes-azure, visemes-polly, rhubarb-tsv, "
+                   "rhubarb-json or moho-dat)");
 }
 
 InputFormat parse_input_format_option(std::string_view text) {
@@ -146,6 +147,23 @@ void write_viseme_output(const Track& track, const ArticulationModel& model, con
   }
   AtomicOutputFile file(output);
   write_visemes(view, format, file.stream());
+  file.commit();
+}
+
+void write_moho_output(const Track& track, const ArticulationModel& model, const VisemeOptions& options, int fps,
+                       std::int64_t end_us, const std::string& output) {
+  const VisemeClassifier classifier(model, options);
+  const VisemeTrack visemes = compute_visemes(classifier, track);
+  const VisemeTrackView view{
+      .model = model.name(), .classifier = classifier, .track = track, .visemes = visemes, .end_us = end_us};
+  if (output == "-") {
+    write_moho_switch(view, fps, std::cout);
+    std::cout.flush();
+    if (!std::cout) throw FileError("cannot write the switch data to standard output");
+    return;
+  }
+  AtomicOutputFile file(output);
+  write_moho_switch(view, fps, file.stream());
   file.commit();
 }
 

@@ -15,6 +15,7 @@
 #include "arguments.hpp"
 #include "lipsync/formats.hpp"
 #include "lipsync/model.hpp"
+#include "lipsync/moho_writer.hpp"
 #include "lipsync/phone_set.hpp"
 #include "lipsync/render_plan.hpp"
 #include "lipsync/renderer.hpp"
@@ -34,8 +35,10 @@ inline constexpr OptionSpec kTrackOutputOption = {"output", 'o', "FILE", "write 
 inline constexpr OptionSpec kTrackFormatOption = {"format", 0, "FORMAT", "track format: json, csv or arkit-csv (Unreal Live Link Face CSV)", "json"};
 inline constexpr OptionSpec kRenderFormatOption = {"format", 0, "FORMAT",
     "track format: json, csv, arkit-csv (Unreal Live Link Face CSV), or visemes: visemes-oculus, visemes-azure, "
-    "visemes-polly, rhubarb-tsv, rhubarb-json",
+    "visemes-polly, rhubarb-tsv, rhubarb-json, or moho-dat (Moho/OpenToonz/Papagayo switch data, Preston Blair mouths)",
     "json"};
+inline constexpr OptionSpec kMohoFpsOption = {"moho-fps", 0, "N",
+    "frames per second of --format moho-dat's frame numbers (the Moho project's frame rate), 1 to 1000", "24"};
 inline constexpr OptionSpec kExtendedShapesOption = {"extended-shapes", 0, "LETTERS",
     "which of Rhubarb's optional mouth shapes G, H and X the rhubarb formats use (its extendedShapes option); "
     "\"\" for none",
@@ -72,6 +75,7 @@ TrackFormat parse_track_format_option(std::string_view text);
 struct RenderFormat {
   std::optional<TrackFormat> track;
   std::optional<VisemeFormat> visemes;
+  bool moho_switch = false;  ///< moho-dat (lipsync/moho_writer.hpp): neither of the above
 };
 RenderFormat parse_render_format_option(std::string_view text);
 InputFormat parse_input_format_option(std::string_view text);
@@ -111,5 +115,10 @@ void write_output(const Track& track, const ArticulationModel& model, TrackForma
 /// atomically. Throws FileError.
 void write_viseme_output(const Track& track, const ArticulationModel& model, const VisemeOptions& options,
                          VisemeFormat format, std::int64_t end_us, const std::string& output);
+
+/// Writes the Moho switch data of `track` (Rhubarb visemes with `options`' shapes) at `fps` frames
+/// per second to `output` atomically. Throws FileError.
+void write_moho_output(const Track& track, const ArticulationModel& model, const VisemeOptions& options, int fps,
+                       std::int64_t end_us, const std::string& output);
 
 }  // namespace lipsync::cli

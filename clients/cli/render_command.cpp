@@ -45,6 +45,7 @@ constexpr OptionSpec kOptions[] = {
     kTrackOutputOption,
     kRenderFormatOption,
     kExtendedShapesOption,
+    kMohoFpsOption,
     kFpsOption,
     kModelOption,
     kPhoneSetOption,
@@ -199,6 +200,11 @@ OutputRequest parse_output_request(const Arguments& arguments) {
   out.output_given = arguments.value("output").has_value();
   out.format = parse_render_format_option(arguments.value("format").value_or("json"));
   if (out.format.visemes) out.visemes.vocabulary = vocabulary_of(*out.format.visemes);
+  if (out.format.moho_switch) out.visemes.vocabulary = VisemeVocabulary::rhubarb;
+  if (const auto text = arguments.value("moho-fps")) {
+    if (!out.format.moho_switch) throw UsageError("--moho-fps needs --format moho-dat");
+    out.moho_fps = parse_int_option("moho-fps", *text, kMinMohoFps, kMaxMohoFps);
+  }
   if (const auto letters = arguments.value("extended-shapes")) {
     if (out.visemes.vocabulary != VisemeVocabulary::rhubarb || !out.format.visemes)
       throw UsageError("--extended-shapes needs --format rhubarb-tsv or rhubarb-json");
@@ -268,7 +274,11 @@ void render_outputs(const OutputRequest& out, LabeledUtterance utterance) {
     } else {
       // The visemes of the utterance, which ends where its last phoneme (or the audio) does.
       const std::int64_t end_us = utterance.intervals.empty() ? 0 : utterance.intervals.back().end_us;
-      write_viseme_output(track, model, out.visemes, *out.format.visemes, end_us, out.output);
+      if (out.format.moho_switch) {
+        write_moho_output(track, model, out.visemes, out.moho_fps, end_us, out.output);
+      } else {
+        write_viseme_output(track, model, out.visemes, *out.format.visemes, end_us, out.output);
+      }
     }
   };
   const bool face_outputs = out.mesh_path || out.video_path || out.still_path;

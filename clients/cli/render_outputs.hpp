@@ -42,6 +42,7 @@ struct OutputRequest {
   bool output_given = false;
   RenderFormat format{TrackFormat::json, std::nullopt};  ///< --format: a track or a viseme format
   VisemeOptions visemes;                                  ///< with a viseme format: vocabulary, Rhubarb shapes
+  int moho_fps = 24;                                      ///< --moho-fps, with --format moho-dat
   TrackRequest track;
   std::optional<std::string> phone_set_name, model_path;
   std::optional<std::string> mesh_path, video_path, audio_path, still_path;

@@ -25,6 +25,7 @@ constexpr OptionSpec kOptions[] = {
     kTrackOutputOption,
     kRenderFormatOption,
     kExtendedShapesOption,
+    kMohoFpsOption,
     kFpsOption,
     {"wav", 0, "FILE", "also write the speech to FILE (16-bit mono PCM WAV at espeak-ng's 22050 Hz)", "no WAV"},
     kVoiceOption,

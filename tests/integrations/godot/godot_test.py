@@ -1,0 +1,163 @@
+"""The Godot add-on (clients/godot/addons/lipsync) inside real Godot: Debian's godot3-server 3.2.3,
+the headless runtime, running the GDScript tests beside this file in a throw-away project that
+holds the add-on. Nothing is stubbed: the tracks are rendered at test time by the built `lipsync`
+from the real Festival and flite timings of tests/data/closures, and the live session comes from a
+real lipsyncd (--http-listen on port 0) fed in real time by `lipsync stream`.
+
+  * closures: at every closure key frame and open-vowel frame of four utterances the mesh's blend
+    shapes equal the track's ARKit weights, and between frames their interpolation (test_player.gd);
+  * audio: an AudioStreamPlayer's clock drives the face (pause freezes it, seek moves it);
+  * bad_input: a track of another model (rendered with `lipsync model dump` renamed), a mesh
+    without the shape keys, wrong mappings, a viseme file: refused, push_error saying what to do,
+    the scene untouched;
+  * live: a lipsyncd session followed over the viewer's WebSocket with the media-clock anchor, the
+    follower started before the session (it asks again until the session exists); a session that
+    never starts is reported after live_wait_ms;
+  * no_server: following a viewer address where nothing listens reports it.
+
+Usage: godot_test.py LIPSYNC LIPSYNCD SOURCE_DIR. Exits 77 (skipped) without godot3-server.
+"""
+
+import json
+import os
+import re
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+import unittest
+
+LIPSYNC, LIPSYNCD, SOURCE_DIR = sys.argv[1:4] if len(sys.argv) >= 4 else \
+    ("build/clients/cli/lipsync", "build/server/lipsyncd", ".")
+GODOT = shutil.which("godot3-server")
+HERE = os.path.dirname(os.path.abspath(__file__))
+CLOSURES = os.path.join(SOURCE_DIR, "tests", "data", "closures")
+TRACK_INPUTS = ["flite_1.psdur", "festival_2.lab", "flite_fast_3.psdur", "aligned_festival_5.TextGrid"]
+
+
+def free_port():
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+class GodotAddOn(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.workdir = tempfile.mkdtemp(prefix="lipsync-godot-")
+        cls.project = os.path.join(cls.workdir, "project")
+        os.makedirs(cls.project)
+        with open(os.path.join(cls.project, "project.godot"), "w") as project:
+            project.write('config_version=4\n\n[application]\n\nconfig/name="lipsync add-on test"\n')
+        shutil.copytree(os.path.join(SOURCE_DIR, "clients", "godot", "addons"), os.path.join(cls.project, "addons"))
+        for script in ("face_fixture.gd", "test_player.gd", "test_live.gd"):
+            shutil.copy(os.path.join(HERE, script), cls.project)
+        cls.tracks = []
+        for name in TRACK_INPUTS:
+            out = os.path.join(cls.workdir, name + ".json")
+            subprocess.run([LIPSYNC, "render", os.path.join(CLOSURES, name), "-o", out], check=True)
+            cls.tracks.append(out)
+        # A track of another model: the default model under another name.
+        model = json.loads(subprocess.run([LIPSYNC, "model", "dump"], check=True, capture_output=True,
+                                          text=True).stdout)
+        model["name"] = "other-rig"
+        with open(os.path.join(cls.workdir, "other.json"), "w") as other:
+            json.dump(model, other)
+        cls.other_track = os.path.join(cls.workdir, "other_track.json")
+        subprocess.run([LIPSYNC, "render", os.path.join(CLOSURES, "flite_1.psdur"), "--model",
+                        os.path.join(cls.workdir, "other.json"), "-o", cls.other_track], check=True)
+        cls.visemes = os.path.join(cls.workdir, "visemes.json")
+        subprocess.run([LIPSYNC, "render", os.path.join(CLOSURES, "flite_1.psdur"), "--format", "visemes-oculus",
+                        "-o", cls.visemes], check=True)
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.workdir, ignore_errors=True)
+
+    def environment(self, test, **env):
+        """Godot's user and cache folders in the work folder; a locale Godot knows (not 'C')."""
+        return dict(os.environ, HOME=self.workdir, XDG_DATA_HOME=os.path.join(self.workdir, "data"),
+                    XDG_CONFIG_HOME=os.path.join(self.workdir, "config"),
+                    XDG_CACHE_HOME=os.path.join(self.workdir, "cache"), LANG="en_US.UTF-8",
+                    LIPSYNC_GODOT_TEST=test, **env)
+
+    def godot(self, script, test, timeout=90, **env):
+        return subprocess.run([GODOT, "--path", self.project, "-s", "res://" + script],
+                              env=self.environment(test, **env), capture_output=True, text=True, timeout=timeout)
+
+    def assertPassed(self, run):
+        output = run.stdout + run.stderr
+        for line in run.stdout.splitlines():
+            if line.startswith(("ok:", "FAIL:")):
+                print("  " + line, flush=True)
+        self.assertEqual(run.returncode, 0, output[-6000:])
+        self.assertNotIn("SCRIPT ERROR", output, output[-6000:])
+        self.assertIn("ok:", run.stdout)
+
+    def test_blend_shapes_equal_the_track_at_closures_and_open_vowels(self):
+        run = self.godot("test_player.gd", "closures", LIPSYNC_TRACKS=";".join(self.tracks))
+        self.assertPassed(run)
+        self.assertNotIn("ERROR", run.stderr, run.stderr[-4000:])
+
+    def test_the_audio_players_clock_drives_the_face(self):
+        run = self.godot("test_player.gd", "audio", LIPSYNC_TRACKS=self.tracks[0])
+        self.assertPassed(run)
+        self.assertNotIn("ERROR", run.stderr, run.stderr[-4000:])
+
+    def test_bad_input_is_refused_with_what_to_do_and_the_scene_untouched(self):
+        run = self.godot("test_player.gd", "bad_input", LIPSYNC_TRACKS=self.tracks[0],
+                         LIPSYNC_OTHER_MODEL_TRACK=self.other_track, LIPSYNC_NOT_A_TRACK=self.visemes)
+        self.assertPassed(run)
+        # push_error's messages, as a Godot user sees them.
+        for expected in ["a track of model 'other-rig', but this LipsyncPlayer's mapping is for model 'default'; "
+                         "render the track with that model",
+                         "not a lipsyncd track (no \"format\": \"lipsync-track\"); render one with 'lipsync render",
+                         "cannot open the track",
+                         "has none of the blend shapes to animate (it has [Key 1, Smile]); give it ARKit-named shape keys",
+                         "has no blend shapes [MouthClosed] that `mapping` names",
+                         "`mapping` names [jawOpenWide], which the track does not have",
+                         "mesh_path '/root/Nowhere' is not a MeshInstance",
+                         "play(): no track; call load_track()"]:
+            self.assertIn(expected, run.stderr)
+
+    def test_a_live_session_is_followed_with_the_media_clock_anchor(self):
+        lipsyncd = subprocess.Popen([LIPSYNCD, "--listen", "127.0.0.1:0", "--http-listen", "127.0.0.1:0",
+                                     "--log-level", "warn"], stdout=subprocess.PIPE, text=True)
+        try:
+            grpc_address = re.match(r"lipsyncd listening on (\S+)", lipsyncd.stdout.readline()).group(1)
+            viewer = re.match(r"lipsyncd viewer on (http://\S+)/view", lipsyncd.stdout.readline()).group(1)
+            # Godot first: it waits for the session (asking every 250 ms) as the producer starts.
+            # The producer starts after the follower has found no session (>= 1 s later): it waits.
+            environment = self.environment("live", LIPSYNC_WS=viewer, LIPSYNC_SESSION="godot-live",
+                                           LIPSYNC_EXPECTED=self.tracks[0], LIPSYNC_EXPECT_RETRIES="1")
+            godot = subprocess.Popen([GODOT, "--path", self.project, "-s", "res://test_live.gd"], env=environment,
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            # A session that never starts, meanwhile: reported after live_wait_ms (1 s).
+            missing = self.godot("test_live.gd", "no_session", LIPSYNC_WS=viewer, LIPSYNC_SESSION="nobody",
+                                 LIPSYNC_EXPECTED=self.tracks[0])
+            self.assertPassed(missing)
+            self.assertIn("start the producer (lipsync stream INPUT --session nobody)", missing.stderr)
+            producer = subprocess.run([LIPSYNC, "stream", os.path.join(CLOSURES, "flite_1.psdur"), "--server",
+                                       grpc_address, "--session", "godot-live", "-o", os.devnull],
+                                      capture_output=True, text=True, timeout=60)
+            self.assertEqual(producer.returncode, 0, producer.stderr)
+            out, err = godot.communicate(timeout=60)
+            self.assertPassed(subprocess.CompletedProcess(godot.args, godot.returncode, out, err))
+        finally:
+            lipsyncd.terminate()
+            lipsyncd.wait()
+            lipsyncd.stdout.close()
+
+    def test_following_without_a_lipsyncd_says_to_start_one(self):
+        run = self.godot("test_live.gd", "no_server", LIPSYNC_WS=f"ws://127.0.0.1:{free_port()}",
+                         LIPSYNC_SESSION="nobody", LIPSYNC_EXPECTED=self.tracks[0])
+        self.assertPassed(run)
+        self.assertIn("start lipsyncd with --http-listen HOST:PORT", run.stderr)
+
+
+if __name__ == "__main__":
+    if GODOT is None:
+        print("godot3-server is not installed (apt-get install godot3-server): skipped")
+        sys.exit(77)
+    unittest.main(argv=[sys.argv[0]], verbosity=2)
