@@ -50,7 +50,11 @@ install(FILES proto/lipsync/v1/lipsync.proto DESTINATION ${CMAKE_INSTALL_DATADIR
 
 # --- the C++ client library: headers, static libraries, CMake package, pkg-config ---------------
 if(LIPSYNC_BUILD_CLIENT)
-  install(TARGETS lipsync_core lipsync_proto lipsync_client EXPORT lipsyncTargets
+  set(_lipsync_face_target "")
+  if(TARGET lipsync_face)
+    set(_lipsync_face_target lipsync_face)
+  endif()
+  install(TARGETS lipsync_core ${_lipsync_face_target} lipsync_proto lipsync_client EXPORT lipsyncTargets
           ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT dev
           LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT dev
           INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})

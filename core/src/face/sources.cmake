@@ -1,4 +1,4 @@
-# Source files of the physics face (included by core/CMakeLists.txt).
+# Source files of the physics face, the target lipsync::face (included by core/CMakeLists.txt).
 set(LIPSYNC_FACE_SOURCES
   src/face/face_mesh.cpp
   src/face/face_rig.cpp
