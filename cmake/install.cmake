@@ -26,7 +26,9 @@ else()
 endif()
 
 # --- the programs, the data, the documentation, the service ---------------------------------
-install(TARGETS lipsync RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT server)
+if(TARGET lipsync)
+  install(TARGETS lipsync RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT server)
+endif()
 if(TARGET lipsync-loadtest)
   install(TARGETS lipsync-loadtest RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT server)
 endif()
