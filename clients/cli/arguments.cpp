@@ -52,6 +52,12 @@ int parse_int_option(std::string_view option, std::string_view text, int min, in
   return static_cast<int>(*number);
 }
 
+int parse_setting_option(const Arguments& arguments, std::string_view option, IntSetting setting) {
+  const std::optional<std::string> text = arguments.value(option);
+  if (!text) return static_cast<int>(setting.default_value);
+  return parse_int_option(option, *text, static_cast<int>(setting.min), static_cast<int>(setting.max));
+}
+
 std::int64_t parse_whole_option(std::string_view option, std::string_view text) {
   const std::optional<std::int64_t> number = whole_number(option, text);
   if (!number) throw UsageError("--" + std::string(option) + ": " + in_quotes(text) + " is out of range");

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "lipsync/options/command_line.hpp"
+#include "lipsync/setting_ranges.hpp"
 
 namespace lipsync::cli {
 
@@ -40,6 +41,10 @@ int parse_int_option(std::string_view option, std::string_view text, int min, in
 /// Whole number that fits in 64 bits (its range is checked by the caller);
 /// UsageError naming `--option` and the text otherwise.
 std::int64_t parse_whole_option(std::string_view option, std::string_view text);
+
+/// The option's whole number within `setting`'s range, or its default when it is not given;
+/// UsageError naming `--option`, the text and the range otherwise.
+int parse_setting_option(const Arguments& arguments, std::string_view option, IntSetting setting);
 
 /// Finite decimal number; UsageError naming `--option` and the text otherwise.
 double parse_double_option(std::string_view option, std::string_view text);

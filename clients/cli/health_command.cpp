@@ -19,8 +19,11 @@
 namespace lipsync::cli {
 namespace {
 
+/// --timeout: a health check answers at once or not at all.
+constexpr IntSetting kHealthTimeoutSetting = {1, 3600, 3};
+
 constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
-    {"timeout", 0, "S", "give up when the server has not answered after S seconds, 1 to 3600", "3"},
+    kTimeoutOption<"give up when the server has not answered after S seconds", kHealthTimeoutSetting>,
 }));
 
 constexpr std::string_view kUsage = "lipsync health [options]";
@@ -38,7 +41,7 @@ int run_health(std::span<const std::string_view> args) {
   if (print_help_if_asked(arguments, kUsage, kDescription, kOptions, std::cout)) return 0;
   if (!arguments.positional().empty()) throw UsageError("health takes no arguments (see 'lipsync health --help')");
   const std::string address = server_address(arguments);
-  const int timeout_s = parse_int_option("timeout", arguments.value("timeout").value_or("3"), 1, 3600);
+  const int timeout_s = parse_setting_option(arguments, "timeout", kHealthTimeoutSetting);
 
   const client::ClientOptions options = connection_options(arguments);
   grpc::GenericStub stub(grpc::CreateChannel(address, client::channel_credentials(options.tls)));

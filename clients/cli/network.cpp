@@ -27,6 +27,20 @@ void set_track_request_options(const Arguments& arguments, TrackFormat format,
   }
 }
 
+client::v1::SubscribeRequest::Start subscribe_start(const Arguments& arguments) {
+  return arguments.flag("from-now") ? client::v1::SubscribeRequest::START_FROM_NOW
+                                    : client::v1::SubscribeRequest::START_FROM_BEGINNING;
+}
+
+SessionWait::SessionWait(const Arguments& arguments)
+    : wait_(parse_setting_option(arguments, "wait", kWaitSetting)), give_up_(std::chrono::steady_clock::now() + wait_) {}
+
+void SessionWait::start() { give_up_ = std::chrono::steady_clock::now() + wait_; }
+
+bool SessionWait::asks_again(grpc::StatusCode code) const {
+  return code == grpc::StatusCode::NOT_FOUND && std::chrono::steady_clock::now() < give_up_;
+}
+
 client::ClientOptions connection_options(const Arguments& arguments) {
   client::ClientOptions options;
   options.tls.enabled = arguments.flag("tls");

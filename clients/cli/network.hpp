@@ -6,12 +6,15 @@
 #pragma once
 
 #include <array>
+#include <chrono>
 #include <string>
 #include <string_view>
 
 #include "arguments.hpp"
 #include "lipsync/client/animation_client.hpp"
+#include "lipsync/setting_ranges.hpp"
 #include "lipsync/track_writer.hpp"
+#include "setting_help.hpp"
 
 namespace lipsync::cli {
 
@@ -47,6 +50,44 @@ inline constexpr OptionSpec kApiKeyOption = {"api-key", 0, "KEY",
 /// The options every network command takes first: where lipsyncd is and how to reach it.
 inline constexpr std::array kConnectionOptions = {kServerOption, kTlsOption, kCaOption,
                                                   kCertOption,   kKeyOption, kApiKeyOption};
+
+/// --timeout S: how long a command waits for its call. Each command states its range and default
+/// once, as an IntSetting, with the help's lead ("give up when ... after S seconds"); its help and
+/// its check (parse_setting_option) both come from that declaration.
+template <FixedText Help, IntSetting Setting>
+inline constexpr OptionSpec kTimeoutOption = {"timeout", 0, "S", kRangedHelp<Help, Setting>.view(),
+                                              kDefaultText<Setting>.view()};
+
+/// --wait S of the commands that follow a session (subscribe, play).
+inline constexpr IntSetting kWaitSetting = {0, 3600, 0};
+inline constexpr OptionSpec kWaitOption = {
+    "wait", 0, "S", kRangedHelp<"if the session does not exist yet, keep asking for up to S seconds", kWaitSetting>.view(),
+    kDefaultText<kWaitSetting>.view()};
+
+/// --from-now of the commands that follow a session: only frames produced after joining.
+inline constexpr OptionSpec kFromNowOption = {"from-now", 0, "", "only frames produced after joining",
+                                              "replay the frames the server still holds, then follow"};
+
+/// Where a follower starts: --from-now, else from the beginning of what the server holds.
+client::v1::SubscribeRequest::Start subscribe_start(const Arguments& arguments);
+
+/// The rule of --wait: a session that does not exist yet (NOT_FOUND) is asked for again, every
+/// kPause, until S seconds after the first ask; any other status, or NOT_FOUND after that, stands.
+class SessionWait {
+ public:
+  static constexpr std::chrono::milliseconds kPause{50};
+
+  /// Reads and checks --wait (UsageError naming it).
+  explicit SessionWait(const Arguments& arguments);
+  /// The S seconds start now: call once, before the first ask.
+  void start();
+  /// Whether a call that ended with `code` is to be made again.
+  bool asks_again(grpc::StatusCode code) const;
+
+ private:
+  std::chrono::seconds wait_;
+  std::chrono::steady_clock::time_point give_up_;
+};
 
 /// --server, checked to be non-empty.
 std::string server_address(const Arguments& arguments);

@@ -39,11 +39,11 @@ namespace lipsync::cli {
 namespace {
 
 constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
-    {"from-now", 0, "", "only frames produced after joining (default: replay what the server holds)", ""},
+    kFromNowOption,
     {"rate", 0, "N", kRangedHelp<"display updates per second", kFpsSetting>.view(), "the track's fps"},
     {"frames", 0, "N", "stop after N display updates, 1 to 10000000", "when the session ends"},
     {"no-tty", 0, "", "print one line per update instead of redrawing one line", "redraw on a terminal"},
-    {"wait", 0, "S", "if the session does not exist yet, keep asking for up to S seconds, 0 to 3600", "0"},
+    kWaitOption,
 }));
 
 constexpr std::string_view kUsage = "lipsync play SESSION [options]";
@@ -141,18 +141,17 @@ int run_play(std::span<const std::string_view> args) {
   }
   const std::string& session = arguments.positional().front();
   const std::string address = server_address(arguments);
-  const auto start = arguments.flag("from-now") ? client::v1::SubscribeRequest::START_FROM_NOW
-                                                : client::v1::SubscribeRequest::START_FROM_BEGINNING;
+  const auto start = subscribe_start(arguments);
   std::optional<int> rate;
   if (const auto text = arguments.value("rate")) rate = parse_int_option("rate", *text, static_cast<int>(kFpsSetting.min), static_cast<int>(kFpsSetting.max));
   std::optional<long> max_updates;
   if (const auto text = arguments.value("frames")) max_updates = parse_int_option("frames", *text, 1, 10'000'000);
   const bool redraw = !arguments.flag("no-tty") && ::isatty(STDOUT_FILENO) == 1;
-  const int wait_s = parse_int_option("wait", arguments.value("wait").value_or("0"), 0, 3600);
+  SessionWait wait(arguments);
 
   const client::AnimationClient connection(address, connection_options(arguments));
   connection.wait_connected();
-  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(wait_s);
+  wait.start();
 
   PlayState state;
   const auto subscribe = [&] {
@@ -179,7 +178,7 @@ int run_play(std::span<const std::string_view> args) {
       std::unique_lock lock(state.mutex);
       if (state.status && !state.buffer) {
         const grpc::Status status = *state.status;
-        if (status.error_code() == grpc::StatusCode::NOT_FOUND && std::chrono::steady_clock::now() < give_up) {
+        if (wait.asks_again(status.error_code())) {
           state.status.reset();
           lock.unlock();
           call = subscribe();

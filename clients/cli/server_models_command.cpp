@@ -17,9 +17,12 @@
 namespace lipsync::cli {
 namespace {
 
+/// --timeout: ListModels and GetModel answer at once.
+constexpr IntSetting kModelsTimeoutSetting = {1, 3600, 5};
+
 constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     {"json", 0, "", "print JSON: {\"models\": [MODEL...]} without NAME, MODEL with it", ""},
-    {"timeout", 0, "S", "give up when the server has not answered after S seconds, 1 to 3600", "5"},
+    kTimeoutOption<"give up when the server has not answered after S seconds", kModelsTimeoutSetting>,
 }));
 
 constexpr std::string_view kUsage = "lipsync server-models [NAME] [options]";
@@ -103,7 +106,7 @@ int run_server_models(std::span<const std::string_view> args) {
     throw UsageError("server-models: the model NAME must not be empty (leave it out to list every model)");
   }
   const std::string address = server_address(arguments);
-  const int timeout_s = parse_int_option("timeout", arguments.value("timeout").value_or("5"), 1, 3600);
+  const int timeout_s = parse_setting_option(arguments, "timeout", kModelsTimeoutSetting);
   const bool json = arguments.flag("json");
 
   client::ClientOptions options = connection_options(arguments);

@@ -22,6 +22,9 @@
 namespace lipsync::cli {
 namespace {
 
+/// --timeout: synthesis and rendering of one text.
+constexpr IntSetting kSpeakTimeoutSetting = {1, 86'400, 600};
+
 constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     kTrackOutputOption,
     kTrackFormatOption,
@@ -32,7 +35,7 @@ constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     kFpsOption,
     kServerModelOption,
     kSessionOption,
-    {"timeout", 0, "S", "give up when the call has not finished after S seconds, 1 to 86400", "600"},
+    kTimeoutOption<"give up when the call has not finished after S seconds", kSpeakTimeoutSetting>,
 }));
 
 constexpr std::string_view kUsage = "lipsync speak TEXT [options]";
@@ -55,7 +58,7 @@ int run_speak(std::span<const std::string_view> args) {
   const TrackFormat format = parse_track_format_option(arguments.value("format").value_or("json"));
   const std::optional<std::string> wav_path = arguments.value("wav");
   if (wav_path && (wav_path->empty() || *wav_path == "-")) throw UsageError("--wav: needs a file name");
-  const int timeout_s = parse_int_option("timeout", arguments.value("timeout").value_or("600"), 1, 86'400);
+  const int timeout_s = parse_setting_option(arguments, "timeout", kSpeakTimeoutSetting);
   const speech::SynthesisOptions synthesis = synthesis_options(arguments);
 
   client::v1::SpeakRequest request;

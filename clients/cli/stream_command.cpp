@@ -34,6 +34,9 @@
 namespace lipsync::cli {
 namespace {
 
+/// --timeout: a stream in real time lasts as long as its speech.
+constexpr IntSetting kStreamTimeoutSetting = {1, 86'400, 3600};
+
 constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     kTrackOutputOption,
     kTrackFormatOption,
@@ -54,7 +57,7 @@ constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
      kRangedHelp<"segments after a frame's own that must be known before it is sent", kLookaheadSetting,
                  " (the maximum is exact)">.view(),
      kDefaultText<kLookaheadSetting>.view()},
-    {"timeout", 0, "S", "give up when the stream has not finished after S seconds, 1 to 86400", "3600"},
+    kTimeoutOption<"give up when the stream has not finished after S seconds", kStreamTimeoutSetting>,
 }));
 
 // On top of the lookahead's release delay: the network, scheduling and the
@@ -83,7 +86,7 @@ int run_stream(std::span<const std::string_view> args) {
   if (arguments.flag("realtime") && arguments.flag("fast")) throw UsageError("choose one of --realtime and --fast");
   const bool realtime = !arguments.flag("fast");
   const int chunk_size = parse_int_option("chunk", arguments.value("chunk").value_or("1"), 1, 10'000);
-  const int timeout_s = parse_int_option("timeout", arguments.value("timeout").value_or("3600"), 1, 86'400);
+  const int timeout_s = parse_setting_option(arguments, "timeout", kStreamTimeoutSetting);
 
   std::optional<InputFormat> input_format;
   if (const auto text = arguments.value("input-format")) input_format = parse_input_format_option(*text);

@@ -18,13 +18,16 @@
 namespace lipsync::cli {
 namespace {
 
+/// --timeout: a session may run for hours.
+constexpr IntSetting kFollowTimeoutSetting = {1, 86'400, 3600};
+
 constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     kTrackOutputOption,
     kTrackFormatOption,
     {"from-beginning", 0, "", "replay the frames the server still holds, then follow (the default)", ""},
-    {"from-now", 0, "", "only frames produced after joining", ""},
-    {"wait", 0, "S", "if the session does not exist yet, keep asking for up to S seconds, 0 to 3600", "0"},
-    {"timeout", 0, "S", "give up when the session has not finished after S seconds, 1 to 86400", "3600"},
+    kFromNowOption,
+    kWaitOption,
+    kTimeoutOption<"give up when the session has not finished after S seconds", kFollowTimeoutSetting>,
 }));
 
 constexpr std::string_view kUsage = "lipsync subscribe SESSION [options]";
@@ -48,24 +51,23 @@ int run_subscribe(std::span<const std::string_view> args) {
   if (arguments.flag("from-beginning") && arguments.flag("from-now")) {
     throw UsageError("choose one of --from-beginning and --from-now");
   }
-  const auto start = arguments.flag("from-now") ? client::v1::SubscribeRequest::START_FROM_NOW
-                                                : client::v1::SubscribeRequest::START_FROM_BEGINNING;
-  const int wait_s = parse_int_option("wait", arguments.value("wait").value_or("0"), 0, 3600);
-  const int timeout_s = parse_int_option("timeout", arguments.value("timeout").value_or("3600"), 1, 86'400);
+  const auto start = subscribe_start(arguments);
+  SessionWait wait(arguments);
+  const int timeout_s = parse_setting_option(arguments, "timeout", kFollowTimeoutSetting);
 
   client::ClientOptions client_options = connection_options(arguments);
   client_options.stream_timeout = std::chrono::seconds(timeout_s);
   const client::AnimationClient connection(address, client_options);
   connection.wait_connected();
-  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(wait_s);
+  wait.start();
   for (;;) {
     try {
       const client::ReceivedTrack received = connection.subscribe(session, start);
       write_received_track(received, format, output, "session '" + session + "'");
       return 0;
     } catch (const client::CallError& error) {
-      if (error.code() != grpc::StatusCode::NOT_FOUND || std::chrono::steady_clock::now() >= give_up) throw;
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      if (!wait.asks_again(error.code())) throw;
+      std::this_thread::sleep_for(SessionWait::kPause);
     }
   }
 }

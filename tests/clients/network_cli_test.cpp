@@ -404,6 +404,36 @@ TEST_F(NetworkCliTest, loadtest_h2_client_sends_the_api_key_and_counts_refusals_
   EXPECT_EQ(keyed.wait(), 0);
 }
 
+// --timeout and --wait are declared once per command (range and default): the range the help
+// states is the one the check enforces, at both ends.
+TEST_F(NetworkCliTest, every_timeout_and_wait_refuses_exactly_outside_the_range_its_help_states) {
+  const std::regex ranged(R"(--(timeout|wait) S\s+[^\n]*?(\d+) to (\d+) \(default: (\d+)\))");
+  int checked = 0;
+  for (const std::string command : {"stream", "speak", "subscribe", "play", "server-models", "health"}) {
+    std::string help = run({command, "--help"}).out;
+    help = std::regex_replace(help, std::regex(R"(\n\s+)"), " ");  // undo the help's line wrapping
+    for (std::sregex_iterator match(help.begin(), help.end(), ranged), end; match != end; ++match) {
+      const std::string option = "--" + (*match)[1].str();
+      const long min = std::stol((*match)[2].str());
+      const long max = std::stol((*match)[3].str());
+      const long fallback = std::stol((*match)[4].str());
+      EXPECT_LE(min, fallback) << command << ' ' << option;
+      EXPECT_LE(fallback, max) << command << ' ' << option;
+      const std::string range = "(" + std::to_string(min) + " to " + std::to_string(max) + ")";
+      for (const long outside : {min - 1, max + 1}) {
+        std::vector<std::string> args = {command, option, std::to_string(outside)};
+        if (command != "health" && command != "server-models") args.insert(args.begin() + 1, "SESSION");
+        const RunResult refused = run(args);
+        EXPECT_EQ(refused.status, 2) << command << ' ' << option << ' ' << outside;
+        EXPECT_THAT(refused.err, HasSubstr(option + ": '" + std::to_string(outside) + "' is out of range " + range))
+            << command;
+      }
+      ++checked;
+    }
+  }
+  EXPECT_EQ(checked, 7);  // --timeout of all but play, --wait of subscribe and play
+}
+
 TEST_F(NetworkCliTest, loadtest_client_choice_is_checked) {
   const RunResult unknown = run({"loadtest", "--server", server(), "--client", "http3"});
   EXPECT_EQ(unknown.status, 2);
