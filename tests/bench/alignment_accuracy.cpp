@@ -31,6 +31,7 @@
 #include <unistd.h>
 
 #include "../speech/boundary_errors.hpp"
+#include "../speech/tts_recordings.hpp"
 #include "lipsync/formats.hpp"
 #include "lipsync/speech/aligner.hpp"
 #include "lipsync/speech/synthesizer.hpp"
@@ -38,41 +39,10 @@
 namespace {
 
 using namespace lipsync;
+using testing::festival_recording;
+using testing::flite_recording;
+using testing::Recording;
 
-
-struct Recording {
-  speech::PcmAudio audio;
-  LabeledUtterance phonemes;
-};
-
-std::optional<Recording> flite_recording(const std::string& text, const std::filesystem::path& wav) {
-  const std::string command = "flite -voice slt -psdur -t \"" + text + "\" -o " + wav.string() + " 2>/dev/null";
-  std::unique_ptr<FILE, int (*)(FILE*)> pipe(::popen(command.c_str(), "r"), ::pclose);
-  if (!pipe) return std::nullopt;
-  std::string output;
-  char buffer[4096];
-  for (std::size_t n; (n = std::fread(buffer, 1, sizeof buffer, pipe.get())) > 0;) output.append(buffer, n);
-  if (output.empty()) return std::nullopt;
-  std::ifstream in(wav, std::ios::binary);
-  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  return Recording{speech::decode_wav(bytes, wav.string()).audio, parse_utterance(output, InputFormat::flite, "flite")};
-}
-
-std::optional<Recording> festival_recording(const std::string& text, const std::filesystem::path& wav) {
-  std::string quoted;  // inside the shell's single quotes: ' is written '\''
-  for (const char c : text) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  const std::string command = "festival -b '(voice_kal_diphone)' '(set! u (SynthText \"" + quoted +
-                              "\"))' '(utt.save.wave u \"" + wav.string() + "\")' '(utt.save.segs u \"-\")' 2>/dev/null";
-  std::unique_ptr<FILE, int (*)(FILE*)> pipe(::popen(command.c_str(), "r"), ::pclose);
-  if (!pipe) return std::nullopt;
-  std::string output;
-  char buffer[4096];
-  for (std::size_t n; (n = std::fread(buffer, 1, sizeof buffer, pipe.get())) > 0;) output.append(buffer, n);
-  if (output.empty()) return std::nullopt;
-  std::ifstream in(wav, std::ios::binary);
-  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  return Recording{speech::decode_wav(bytes, wav.string()).audio, parse_utterance(output, InputFormat::lab, "festival")};
-}
 
 void report(const std::string& name, const testing::BoundaryScore& score, double seconds_audio, double seconds_cpu) {
   std::printf("%-30s boundaries %4zu  median %5.1f ms  p95 %6.1f ms  (signed median %+5.1f ms)  matched %5.1f %%  bilabials %2d/%2d within 20 ms (%5.1f %%, median %5.1f ms, p95 %5.1f ms)  closed at middle %2d/%2d (%5.1f %%)  %.2fx real time\n",

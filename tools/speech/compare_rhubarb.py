@@ -123,6 +123,8 @@ def main():
     parser.add_argument("--lipsync", required=True)
     parser.add_argument("--rhubarb", required=True)
     parser.add_argument("--sentences", type=int, default=10)
+    parser.add_argument("--misses", action="store_true", help="print each miss: speaker, sentence, phone, time, shape shown")
+    parser.add_argument("--no-timing", action="store_true", help="skip the LibriVox wall-time runs")
     args = parser.parse_args()
     for tool in (args.lipsync, args.rhubarb):
         if not os.access(tool, os.X_OK):
@@ -148,14 +150,17 @@ def main():
                             for cls, (phones, wanted) in CLASSES.items():
                                 if name in phones:
                                     per_class[cls][1] += 1
-                                    per_class[cls][0] += shape_at(shapes, (start + end) / 2) in wanted
+                                    shown = shape_at(shapes, (start + end) / 2)
+                                    per_class[cls][0] += shown in wanted
+                                    if args.misses and speaker == key[2] and shown not in wanted:
+                                        print(f"miss: {tool}, {mode}, {speaker} {n + 1}: /{name}/ at {(start + end) / 2:.3f} s shows {shown}")
     print(f"| tool | mode | speech | " + " | ".join(CLASSES) + " |")
     print("|---|---|---|" + "---:|" * len(CLASSES))
     for (tool, mode, speaker), per_class in sorted(score.items(), key=lambda kv: (kv[0][2] != "all", kv[0])):
         cells = [f"{100 * r / max(1, t):.0f} % ({r}/{t})" for r, t in per_class.values()]
         print(f"| {tool} | {mode} | {speaker} | " + " | ".join(cells) + " |")
 
-    if os.path.exists(LIBRIVOX):
+    if os.path.exists(LIBRIVOX) and not args.no_timing:
         text_file = os.path.join(work, "librivox.txt")
         with open(text_file, "w") as f:
             f.write(LIBRIVOX_TEXT + "\n")
