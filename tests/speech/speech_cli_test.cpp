@@ -170,6 +170,7 @@ TEST_F(SpeechCliTest, help_documents_say_and_align) {
   result = run({"align", "--help"});
   ASSERT_EQ(result.status, 0);
   EXPECT_THAT(result.out, HasSubstr("--text-file FILE"));
+  EXPECT_THAT(result.out, HasSubstr("the starts and ends of /p b m f v/ then\nmove to where the sound shows the lips closing"));
   result = run({"--help"});
   EXPECT_THAT(result.out, HasSubstr("  say "));
   EXPECT_THAT(result.out, HasSubstr("  align "));
