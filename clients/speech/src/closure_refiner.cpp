@@ -16,6 +16,7 @@ constexpr double kHighEdgeHz = 3500;   // above: frication and burst noise
 constexpr std::int64_t kStepWindowUs = 10'000;  // each side of a candidate step
 constexpr std::int64_t kCandidateStepUs = 1'000;
 constexpr double kFloorDb = -100;      // digital silence
+constexpr int kLowestRateHz = 8000;    // the band needs its 3500 Hz below Nyquist
 
 // A second-order section, RBJ audio-EQ cookbook form, Q = 1/sqrt(2) (Butterworth).
 struct Biquad {
@@ -38,34 +39,50 @@ struct Biquad {
   }
 };
 
-// Running sum of the formant band's squared samples: energy(a, b) of any span in O(1).
+// The formant band's energy in every millisecond [k ms, k+1 ms) of the audio (summed
+// per millisecond, so a quiet millisecond late in a long recording keeps its
+// precision), with running sums over the milliseconds: the level of any whole-ms
+// span in O(1).
 class BandEnergy {
  public:
-  explicit BandEnergy(const PcmAudio& audio) : rate_hz_(audio.sample_rate_hz) {
-    Biquad high = Biquad::make(kLowEdgeHz, rate_hz_, true);
-    Biquad low = Biquad::make(std::min(kHighEdgeHz, 0.45 * rate_hz_), rate_hz_, false);
-    prefix_.reserve(audio.samples.size() + 1);
-    prefix_.push_back(0);
-    for (const std::int16_t sample : audio.samples) {
-      const double y = low.step(high.step(sample / 32768.0));
-      prefix_.push_back(prefix_.back() + y * y);
+  explicit BandEnergy(const PcmAudio& audio) {
+    const int rate_hz = audio.sample_rate_hz;
+    Biquad high = Biquad::make(kLowEdgeHz, rate_hz, true);
+    Biquad low = Biquad::make(std::min(kHighEdgeHz, 0.45 * rate_hz), rate_hz, false);
+    const auto frames = static_cast<std::int64_t>(audio.samples.size()) * 1000 / rate_hz;
+    prefix_.assign(static_cast<std::size_t>(frames) + 1, 0.0L);
+    samples_per_frame_.assign(static_cast<std::size_t>(frames), 0);
+    std::int64_t i = 0;
+    for (std::int64_t k = 0; k < frames; ++k) {
+      const std::int64_t end = (k + 1) * rate_hz / 1000;
+      double sum = 0;
+      for (; i < end; ++i) {
+        const double y = low.step(high.step(audio.samples[static_cast<std::size_t>(i)] / 32768.0));
+        sum += y * y;
+      }
+      prefix_[static_cast<std::size_t>(k) + 1] = prefix_[static_cast<std::size_t>(k)] + sum;
+      samples_per_frame_[static_cast<std::size_t>(k)] = static_cast<int>(end - k * rate_hz / 1000);
     }
   }
-  std::int64_t samples() const { return static_cast<std::int64_t>(prefix_.size()) - 1; }
-  std::int64_t sample_at(std::int64_t us) const { return us * rate_hz_ / 1'000'000; }
-  // Level of [begin_us, end_us) in dBFS (a full-scale sine in the band is -3 dB).
-  double level_db(std::int64_t begin_us, std::int64_t end_us) const {
-    const std::int64_t a = std::clamp<std::int64_t>(sample_at(begin_us), 0, samples());
-    const std::int64_t b = std::clamp<std::int64_t>(sample_at(end_us), 0, samples());
+  std::int64_t frames() const { return static_cast<std::int64_t>(samples_per_frame_.size()); }
+  // Level of the frames [a, b) in dBFS (a full-scale sine in the band is -3 dB).
+  double level_db(std::int64_t a, std::int64_t b) const {
+    a = std::clamp<std::int64_t>(a, 0, frames());
+    b = std::clamp<std::int64_t>(b, 0, frames());
     if (b <= a) return kFloorDb;
-    const double mean = (prefix_[static_cast<std::size_t>(b)] - prefix_[static_cast<std::size_t>(a)]) / double(b - a);
+    const auto sum = static_cast<double>(prefix_[static_cast<std::size_t>(b)] - prefix_[static_cast<std::size_t>(a)]);
+    const double mean = sum / double(sample_count(a, b));
     return mean > 0 ? std::max(kFloorDb, 10 * std::log10(mean)) : kFloorDb;
   }
-  std::int64_t end_us() const { return samples() * 1'000'000 / rate_hz_; }
 
  private:
-  int rate_hz_;
-  std::vector<double> prefix_;
+  std::int64_t sample_count(std::int64_t a, std::int64_t b) const {
+    std::int64_t n = 0;
+    for (std::int64_t k = a; k < b; ++k) n += samples_per_frame_[static_cast<std::size_t>(k)];
+    return std::max<std::int64_t>(n, 1);
+  }
+  std::vector<long double> prefix_;
+  std::vector<int> samples_per_frame_;
 };
 
 // The formant band's level of every millisecond [k ms, k+1 ms), floored
@@ -80,11 +97,8 @@ constexpr double kRangeDb = 60;
 class LevelTrack {
  public:
   explicit LevelTrack(const BandEnergy& energy) {
-    const std::int64_t frames = energy.end_us() / kCandidateStepUs;
-    std::vector<double> levels(static_cast<std::size_t>(std::max<std::int64_t>(frames, 0)));
-    for (std::int64_t k = 0; k < frames; ++k) {
-      levels[static_cast<std::size_t>(k)] = energy.level_db(k * kCandidateStepUs, (k + 1) * kCandidateStepUs);
-    }
+    std::vector<double> levels(static_cast<std::size_t>(energy.frames()));
+    for (std::int64_t k = 0; k < energy.frames(); ++k) levels[static_cast<std::size_t>(k)] = energy.level_db(k, k + 1);
     const double loudest = levels.empty() ? kFloorDb : *std::max_element(levels.begin(), levels.end());
     prefix_.reserve(levels.size() + 1);
     prefix_.push_back(0);
@@ -138,7 +152,7 @@ bool is_lip_phone(std::string_view arpabet) {
 std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtterance& phones,
                                              const ClosureRefinerOptions& options) {
   std::vector<RefinedBoundary> refined;
-  if (audio.samples.empty() || audio.sample_rate_hz <= 0) return refined;
+  if (audio.samples.empty() || audio.sample_rate_hz < kLowestRateHz) return refined;
   const BandEnergy energy(audio);
   const LevelTrack levels(energy);
   std::vector<LabeledInterval>& intervals = phones.intervals;
@@ -149,10 +163,9 @@ std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtter
       const std::int64_t aligned = intervals[i].start_us;
       const Step step = best_step(levels, aligned, std::max(aligned - options.search_us, previous.start_us + options.min_phone_us),
                                   std::min(aligned + options.search_us, intervals[i].end_us - options.min_phone_us), true, options);
-      const bool moved = step.db >= options.min_step_db;
-      const std::int64_t at = std::clamp(step.at_us - options.closure_lead_us, previous.start_us + options.min_phone_us,
-                                         intervals[i].end_us - options.min_phone_us);
-      if (moved && at > previous.start_us && at < intervals[i].end_us) previous.end_us = intervals[i].start_us = at;
+      const std::int64_t at = std::max(step.at_us - options.closure_lead_us, previous.start_us + options.min_phone_us);
+      const bool moved = step.db >= options.min_step_db && at <= intervals[i].end_us - options.min_phone_us;
+      if (moved) previous.end_us = intervals[i].start_us = at;
       refined.push_back({i, false, aligned, intervals[i].start_us, std::max(0.0, step.db), moved});
     }
     if (i + 1 < intervals.size()) {  // the release: the level rises again
@@ -160,10 +173,9 @@ std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtter
       const std::int64_t aligned = intervals[i].end_us;
       const Step step = best_step(levels, aligned, std::max(aligned - options.search_us, intervals[i].start_us + options.min_phone_us),
                                   std::min(aligned + options.search_us, next.end_us - options.min_phone_us), false, options);
-      const bool moved = step.db >= options.min_step_db;
-      const std::int64_t at = std::clamp(step.at_us + options.release_lag_us, intervals[i].start_us + options.min_phone_us,
-                                         next.end_us - options.min_phone_us);
-      if (moved && at > intervals[i].start_us && at < next.end_us) intervals[i].end_us = next.start_us = at;
+      const std::int64_t at = std::min(step.at_us + options.release_lag_us, next.end_us - options.min_phone_us);
+      const bool moved = step.db >= options.min_step_db && at >= intervals[i].start_us + options.min_phone_us;
+      if (moved) intervals[i].end_us = next.start_us = at;
       refined.push_back({i, true, aligned, intervals[i].end_us, std::max(0.0, step.db), moved});
     }
   }
@@ -172,9 +184,10 @@ std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtter
 
 std::vector<double> formant_band_levels_db(const PcmAudio& audio, std::int64_t window_us, std::int64_t hop_us) {
   std::vector<double> levels;
-  if (audio.samples.empty() || audio.sample_rate_hz <= 0 || window_us <= 0 || hop_us <= 0) return levels;
+  if (audio.samples.empty() || audio.sample_rate_hz < kLowestRateHz) return levels;
   const BandEnergy energy(audio);
-  for (std::int64_t t = 0; t + window_us <= energy.end_us(); t += hop_us) levels.push_back(energy.level_db(t, t + window_us));
+  const std::int64_t window = std::max<std::int64_t>(1, window_us / 1000), hop = std::max<std::int64_t>(1, hop_us / 1000);
+  for (std::int64_t k = 0; k + window <= energy.frames(); k += hop) levels.push_back(energy.level_db(k, k + window));
   return levels;
 }
 

@@ -62,11 +62,13 @@ bool is_lip_phone(std::string_view arpabet);
 
 /// Moves the boundaries of the lip phones of `phones` (ARPAbet, tiling the audio)
 /// to the energy steps of `audio` near them; returns one entry per boundary looked at.
+/// Audio below 8 kHz (whose band would not fit) is left alone: nothing is returned.
 std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtterance& phones,
                                              const ClosureRefinerOptions& options = {});
 
 /// The formant band's level (400 to 3500 Hz) of `audio` in dBFS over windows of
-/// `window_us` every `hop_us` (the first window starts at 0): for plots and tests.
+/// `window_us` every `hop_us`, both in whole milliseconds (rounded down, at least 1 ms;
+/// the first window starts at 0; none below 8 kHz): for plots and tests.
 std::vector<double> formant_band_levels_db(const PcmAudio& audio, std::int64_t window_us, std::int64_t hop_us);
 
 }  // namespace lipsync::speech
