@@ -18,6 +18,9 @@
 // its output.
 //
 // Usage: alignment_accuracy [--espeak-only]
+// With ALIGNMENT_ACCURACY_DUMP=DIR it also writes each recording (16 kHz WAV), its
+// reference phones and the raw alignment (label, start µs, end µs per line) to DIR,
+// for trying refiner settings without decoding again.
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
