@@ -23,6 +23,8 @@ packages=(
   flite festival festvox-kallpc16k
   # lipsync::speech: `lipsync say` (espeak-ng) and `lipsync align` (PocketSphinx and its en-us model)
   libespeak-ng-dev espeak-ng-data libpocketsphinx-dev libsphinxbase-dev pocketsphinx-en-us
+  # recorded human speech with transcripts for the speech tests (LibriVox sentences)
+  pocketsphinx-testdata
   # `lipsync render --video/--still` pipes frames to ffmpeg; the CLI tests check with ffprobe
   ffmpeg
   # the Python client (run with /usr/bin/python3), its pip package test (venv) and the manifest test

@@ -25,7 +25,9 @@ constexpr std::string_view kDescription =
     "Aligns recorded speech with PocketSphinx and writes a Praat TextGrid with the tiers\n"
     "'phones' (ARPAbet, empty labels for pauses) and, with a transcript, 'words'.\n"
     "With --text or --text-file the words are force-aligned; without, the phones are\n"
-    "recognised freely (less exact). The WAV is best 16 kHz mono 16-bit; other rates,\n"
+    "recognised freely (less exact). Either way the starts and ends of /p b m f v/ then\n"
+    "move to where the sound shows the lips closing and opening (the steps of its\n"
+    "400-3500 Hz level, within 30 ms). The WAV is best 16 kHz mono 16-bit; other rates,\n"
     "channel counts and sample sizes are converted (a note on stderr says so). At most\n"
     "120 s of audio; split longer recordings at pauses.";
 

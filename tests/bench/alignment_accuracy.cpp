@@ -4,15 +4,23 @@
 // Each sentence (ten Harvard sentences, public domain) is spoken by espeak-ng
 // through lipsync::speech::synthesize, whose phoneme events give the true
 // boundaries, and, when flite is on PATH, by flite's slt voice (`flite -psdur`
-// prints its segment ends; its audio is 16 kHz already). Each recording is
-// aligned twice: with its transcript (forced alignment) and without (phone
-// recognition). Boundaries are scored as tests/speech/boundary_errors.hpp
-// describes; the tool prints, per source and mode, the median and 95th
-// percentile boundary error in ms, the share of reference phonemes matched,
-// and the share of bilabial closures found within 20 ms. docs/input-formats.md
-// ("Speech in") quotes its output.
+// prints its segment ends; its audio is 16 kHz already), and, when festival is
+// on PATH, by Festival's kal_diphone voice (its segment relation gives the
+// boundaries; 16 kHz). Each recording is aligned twice: with its transcript
+// (forced alignment) and without (phone recognition); each alignment is scored
+// as the recogniser left it ("raw") and after refine_closures moved its lip
+// boundaries to the signal ("refined"), in the same run on the same decode.
+// Boundaries are scored as tests/speech/boundary_errors.hpp describes; the tool
+// prints, per source and mode, the median and 95th percentile boundary error in
+// ms, the share of reference phonemes matched, the share of bilabial closures
+// found within 20 ms, their median and 95th percentile start error, and the
+// share shown closed at their middle. docs/input-formats.md ("Speech in") quotes
+// its output.
 //
 // Usage: alignment_accuracy [--espeak-only]
+// With ALIGNMENT_ACCURACY_DUMP=DIR it also writes each recording (16 kHz WAV), its
+// reference phones and the raw alignment (label, start µs, end µs per line) to DIR,
+// for trying refiner settings without decoding again.
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -26,6 +34,7 @@
 #include <unistd.h>
 
 #include "../speech/boundary_errors.hpp"
+#include "../speech/tts_recordings.hpp"
 #include "lipsync/formats.hpp"
 #include "lipsync/speech/aligner.hpp"
 #include "lipsync/speech/synthesizer.hpp"
@@ -33,32 +42,19 @@
 namespace {
 
 using namespace lipsync;
+using testing::festival_recording;
+using testing::flite_recording;
+using testing::Recording;
 
-
-struct Recording {
-  speech::PcmAudio audio;
-  LabeledUtterance phonemes;
-};
-
-std::optional<Recording> flite_recording(const std::string& text, const std::filesystem::path& wav) {
-  const std::string command = "flite -voice slt -psdur -t \"" + text + "\" -o " + wav.string() + " 2>/dev/null";
-  std::unique_ptr<FILE, int (*)(FILE*)> pipe(::popen(command.c_str(), "r"), ::pclose);
-  if (!pipe) return std::nullopt;
-  std::string output;
-  char buffer[4096];
-  for (std::size_t n; (n = std::fread(buffer, 1, sizeof buffer, pipe.get())) > 0;) output.append(buffer, n);
-  if (output.empty()) return std::nullopt;
-  std::ifstream in(wav, std::ios::binary);
-  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  return Recording{speech::decode_wav(bytes, wav.string()).audio, parse_utterance(output, InputFormat::flite, "flite")};
-}
 
 void report(const std::string& name, const testing::BoundaryScore& score, double seconds_audio, double seconds_cpu) {
-  std::printf("%-22s boundaries %4zu  median %5.1f ms  p95 %6.1f ms  (signed median %+5.1f ms)  matched %5.1f %%  bilabials %2d/%2d within 20 ms (%5.1f %%)  %.2fx real time\n",
+  std::printf("%-30s boundaries %4zu  median %5.1f ms  p95 %6.1f ms  (signed median %+5.1f ms)  matched %5.1f %%  bilabials %2d/%2d within 20 ms (%5.1f %%, median %5.1f ms, p95 %5.1f ms)  closed at middle %2d/%2d (%5.1f %%)  %.2fx real time\n",
               name.c_str(), score.errors_ms.size(), testing::quantile(score.errors_ms, 0.5),
               testing::quantile(score.errors_ms, 0.95),
               testing::quantile(score.signed_errors_ms, 0.5), 100.0 * score.matched_phonemes / std::max(1, score.reference_phonemes),
               score.bilabials_within_20ms, score.bilabials, 100.0 * score.bilabials_within_20ms / std::max(1, score.bilabials),
+              testing::quantile(score.bilabial_errors_ms, 0.5), testing::quantile(score.bilabial_errors_ms, 0.95),
+              score.bilabials_closed_at_middle, score.bilabials, 100.0 * score.bilabials_closed_at_middle / std::max(1, score.bilabials),
               seconds_cpu / seconds_audio);
 }
 
@@ -69,36 +65,55 @@ int main(int argc, char** argv) {
   const ArticulationModel& model = ArticulationModel::builtin();
   const PhoneSet arpabet = *PhoneSet::builtin("arpabet", model);
   const bool have_flite = !espeak_only && std::system("command -v flite >/dev/null 2>&1") == 0;
+  const bool have_festival = !espeak_only && std::system("command -v festival >/dev/null 2>&1") == 0;
   const std::filesystem::path wav = std::filesystem::temp_directory_path() / ("alignment_accuracy-" + std::to_string(::getpid()) + ".wav");
 
-  for (const std::string source : {"espeak-ng", "flite"}) {
+  for (const std::string source : {"espeak-ng", "flite", "festival"}) {
     if (source == "flite" && !have_flite) continue;
-    const PhoneSet reference_set = *PhoneSet::builtin(source == "flite" ? "radio" : "espeak", model);
-    testing::BoundaryScore forced, recognised;
-    double audio_s = 0, forced_s = 0, recognised_s = 0;
+    if (source == "festival" && !have_festival) continue;
+    const PhoneSet reference_set = *PhoneSet::builtin(source == "espeak-ng" ? "espeak" : "radio", model);
+    // [with transcript?][refined?]
+    testing::BoundaryScore scores[2][2];
+    double audio_s = 0, seconds[2] = {0, 0};
+    int n = 0;
     for (const char* sentence : testing::accuracy_sentences()) {
+      ++n;
       std::optional<Recording> recording;
       if (source == "flite") {
         recording = flite_recording(sentence, wav);
+      } else if (source == "festival") {
+        recording = festival_recording(sentence, wav);
       } else {
         speech::Synthesis synthesis = speech::synthesize(sentence);
         recording = Recording{std::move(synthesis.audio), std::move(synthesis.phonemes)};
       }
       if (!recording) continue;
       audio_s += double(recording->audio.duration_us()) / 1e6;
-      speech::AlignmentOptions options;
-      options.transcript = sentence;
-      auto start = std::chrono::steady_clock::now();
-      const speech::Alignment aligned = speech::align_speech(recording->audio, source, options);
-      forced_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      testing::score_alignment(recording->phonemes, reference_set, aligned.phones, arpabet, model, forced);
-      start = std::chrono::steady_clock::now();
-      const speech::Alignment free = speech::align_speech(recording->audio, source, {});
-      recognised_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      testing::score_alignment(recording->phonemes, reference_set, free.phones, arpabet, model, recognised);
+      const speech::PcmAudio at_16k = speech::resample(recording->audio, 16000);
+      for (const int with_text : {1, 0}) {
+        speech::AlignmentOptions options;
+        if (with_text) options.transcript = sentence;
+        options.refine_closures = false;
+        const auto start = std::chrono::steady_clock::now();
+        speech::Alignment aligned = speech::align_speech(recording->audio, source, options);
+        seconds[with_text] += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        testing::score_alignment(recording->phonemes, reference_set, aligned.phones, arpabet, model, scores[with_text][0]);
+        if (const char* dump = std::getenv("ALIGNMENT_ACCURACY_DUMP")) {  // for tuning the refiner offline
+          const std::string stem = std::string(dump) + "/" + source + "-" + std::to_string(n) + (with_text ? "-text" : "-free");
+          std::ofstream wav_out(stem + ".wav", std::ios::binary);
+          speech::write_wav(wav_out, at_16k);
+          std::ofstream ref(stem + ".ref"), raw(stem + ".raw");
+          for (const auto& i : recording->phonemes.intervals) ref << i.label << '\t' << i.start_us << '\t' << i.end_us << '\n';
+          for (const auto& i : aligned.phones.intervals) raw << i.label << '\t' << i.start_us << '\t' << i.end_us << '\n';
+        }
+        speech::refine_closures(at_16k, aligned.phones);
+        testing::score_alignment(recording->phonemes, reference_set, aligned.phones, arpabet, model, scores[with_text][1]);
+      }
     }
-    report(source + " with text", forced, audio_s, forced_s);
-    report(source + " without", recognised, audio_s, recognised_s);
+    report(source + " with text, raw", scores[1][0], audio_s, seconds[1]);
+    report(source + " with text, refined", scores[1][1], audio_s, seconds[1]);
+    report(source + " without, raw", scores[0][0], audio_s, seconds[0]);
+    report(source + " without, refined", scores[0][1], audio_s, seconds[0]);
   }
   std::filesystem::remove(wav);
   return 0;

@@ -10,7 +10,9 @@
 // one, the boundary error is the distance between the two start times (the
 // utterance's first phoneme, starting at 0 in both, is left out). A bilabial
 // closure (/p b m/) of the reference is "found" when it is matched to the same
-// phoneme starting within 20 ms.
+// phoneme starting within 20 ms. Independently of the matching, a reference
+// bilabial is "shown closed" when the alignment has a /p b m/ at the middle of
+// the reference closure (what a viewer sees there, whatever the phone names).
 #pragma once
 
 #include <algorithm>
@@ -39,6 +41,8 @@ struct BoundaryScore {
   int matched_phonemes = 0;       ///< matched to an equal phoneme
   int bilabials = 0;              ///< /p b m/ in the reference
   int bilabials_within_20ms = 0;
+  std::vector<double> bilabial_errors_ms;  ///< start error of each matched reference /p b m/
+  int bilabials_closed_at_middle = 0;  ///< reference /p b m/ whose middle the alignment labels /p b m/
 };
 
 struct MappedPhoneme {
@@ -78,6 +82,16 @@ inline void score_alignment(const LabeledUtterance& reference, const PhoneSet& r
     const std::string& name = model.phonemes()[static_cast<std::size_t>(phoneme)].name;
     return name == "p" || name == "b" || name == "m";
   };
+  for (const LabeledInterval& interval : reference.intervals) {
+    if (!is_bilabial(reference_set.lookup(interval.label).value_or(-1))) continue;
+    const std::int64_t middle_us = (interval.start_us + interval.end_us) / 2;
+    for (const LabeledInterval& at : aligned.intervals) {
+      if (at.start_us <= middle_us && middle_us < at.end_us) {
+        score.bilabials_closed_at_middle += is_bilabial(aligned_set.lookup(at.label).value_or(-1)) ? 1 : 0;
+        break;
+      }
+    }
+  }
   score.reference_phonemes += static_cast<int>(n);
   for (const MappedPhoneme& phoneme : ref) score.bilabials += is_bilabial(phoneme.phoneme) ? 1 : 0;
   for (std::size_t i = n, j = m; i > 0 && j > 0;) {
@@ -90,7 +104,10 @@ inline void score_alignment(const LabeledUtterance& reference, const PhoneSet& r
         score.errors_ms.push_back(error_ms);
         score.signed_errors_ms.push_back(signed_ms);
       }
-      if (is_bilabial(ref[i - 1].phoneme) && error_ms <= 20.0) ++score.bilabials_within_20ms;
+      if (is_bilabial(ref[i - 1].phoneme)) {
+        score.bilabial_errors_ms.push_back(error_ms);
+        if (error_ms <= 20.0) ++score.bilabials_within_20ms;
+      }
       --i, --j;
     } else if (cost[i][j] == cost[i - 1][j - 1] + 1) {
       --i, --j;

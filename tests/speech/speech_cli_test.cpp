@@ -6,7 +6,9 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -123,6 +125,25 @@ TEST_F(SpeechCliTest, bad_input_exits_1_naming_the_file) {
   EXPECT_EQ(listing(), std::vector<std::string>{"notes.wav"});
 }
 
+TEST_F(SpeechCliTest, a_ten_minute_recording_is_refused_quickly_naming_the_file) {
+  // 600 s of a 16 kHz tone (19 MB, written here): refused before any decoding, in bounded time.
+  speech::PcmAudio audio;
+  audio.samples.resize(std::size_t(600) * 16000);
+  for (std::size_t i = 0; i < audio.samples.size(); ++i) audio.samples[i] = static_cast<std::int16_t>((i / 40) % 2 ? 8000 : -8000);
+  {
+    std::ofstream out(dir_ / "long.wav", std::ios::binary);
+    speech::write_wav(out, audio);
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const RunResult result = run({"render", "long.wav", "--text", "a very long reading", "-o", "track.json"});
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(result.status, 1);
+  EXPECT_EQ(result.err,
+            "lipsync: error: long.wav: 600.0 s of audio is longer than the 120 s an alignment accepts; split it at pauses\n");
+  EXPECT_LT(seconds, 20.0) << "the refusal must not wait for a decode";
+  EXPECT_EQ(listing(), std::vector<std::string>{"long.wav"});
+}
+
 TEST_F(SpeechCliTest, bad_command_lines_exit_2) {
   const std::vector<std::vector<std::string>> commands = {
       {"say"},
@@ -149,6 +170,7 @@ TEST_F(SpeechCliTest, help_documents_say_and_align) {
   result = run({"align", "--help"});
   ASSERT_EQ(result.status, 0);
   EXPECT_THAT(result.out, HasSubstr("--text-file FILE"));
+  EXPECT_THAT(result.out, HasSubstr("the starts and ends of /p b m f v/ then\nmove to where the sound shows the lips closing"));
   result = run({"--help"});
   EXPECT_THAT(result.out, HasSubstr("  say "));
   EXPECT_THAT(result.out, HasSubstr("  align "));

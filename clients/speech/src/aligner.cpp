@@ -30,6 +30,9 @@ constexpr std::int64_t kBoundaryOffsetUs = 7'800;
 constexpr const char* kPauseWord = "pause_";
 // Audio whose loudest 20 ms stays below this level holds no speech to align.
 constexpr double kSilenceDbfs = -50.0;
+// Samples this close to full scale count as clipped; above this share of them a note says so.
+constexpr std::int16_t kClippedLevel = 32700;
+constexpr double kMostClippedShare = 0.001;
 
 struct DecoderDeleter {
   void operator()(ps_decoder_t* decoder) const { ps_free(decoder); }
@@ -214,6 +217,14 @@ Alignment align_speech(const PcmAudio& input, std::string_view source_view, cons
     std::snprintf(text, sizeof text, "no speech found: the audio is silent (its loudest 20 ms is at %.0f dBFS)", loudest);
     throw InputError(source, 0, text);
   }
+  const auto clipped = std::count_if(input.samples.begin(), input.samples.end(),
+                                     [](std::int16_t s) { return s >= kClippedLevel || s <= -kClippedLevel; });
+  const double clipped_share = double(clipped) / double(input.samples.size());
+  char clipped_text[96] = "";
+  if (clipped_share > kMostClippedShare) {
+    std::snprintf(clipped_text, sizeof clipped_text, "%.1f %% of the samples are clipped at full scale", 100.0 * clipped_share);
+    result.notes.push_back(std::string(clipped_text) + " (the alignment may be less exact)");
+  }
   if (input.sample_rate_hz != kRateHz) {
     result.notes.push_back("resampled from " + std::to_string(input.sample_rate_hz) + " Hz to 16000 Hz");
   }
@@ -279,12 +290,23 @@ Alignment align_speech(const PcmAudio& input, std::string_view source_view, cons
     phones.insert(phones.begin(), {"", 0, phones.empty() ? end_us : phones.front().start_us, 0});
   }
   if (phones.back().end_us < end_us) phones.push_back({"", phones.back().end_us, end_us, int(phones.size()) + 1});
+  if (options.refine_closures) {
+    result.refined = refine_closures(audio, result.phones, options.refiner);
+    for (const RefinedBoundary& boundary : result.refined) {  // words start and end with their phones
+      if (!boundary.moved) continue;
+      for (LabeledInterval& word : result.words) {
+        if (word.start_us == boundary.aligned_us) word.start_us = boundary.refined_us;
+        if (word.end_us == boundary.aligned_us) word.end_us = boundary.refined_us;
+      }
+    }
+  }
   if (options.transcript) {
     const double share = loud_share_in_pauses(levels, loudest, phones);
     if (share > kMostSpeechInPauses) {
       throw InputError(source, 0, "the transcript does not match the audio (its " + count_words(words.size()) +
                                       " fit only by leaving " + std::to_string(std::lround(100 * share)) +
-                                      " % of the speech unaligned)");
+                                      " % of the speech unaligned)" +
+                                      (clipped_text[0] != 0 ? std::string("; ") + clipped_text + ", which drowns its quiet parts" : ""));
     }
   }
   return result;

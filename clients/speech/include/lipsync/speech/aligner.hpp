@@ -13,6 +13,12 @@
 // "allphone" search). Either way the result is ARPAbet at the recogniser's
 // 10 ms frame step.
 //
+// After decoding, the boundaries of /p b m f v/ move to the energy steps of the signal
+// (closure_refiner.hpp): the recogniser's grid is 10 ms and its model knows nothing of
+// what a lip closure sounds like, while the closure and the release are plain to see
+// in the formant band's level. Where the signal shows no clear step the recogniser's
+// boundary stays.
+//
 // Bounds: the audio is converted to 16 kHz mono when it is not (a note says so),
 // longer audio than `max_duration_s` is refused before decoding (a decode takes
 // about 0.2x real time aligned and 1x recognised, on one core, and its memory grows
@@ -26,6 +32,7 @@
 #include <vector>
 
 #include "lipsync/speech/audio.hpp"
+#include "lipsync/speech/closure_refiner.hpp"
 #include "lipsync/utterance.hpp"
 
 namespace lipsync::speech {
@@ -37,12 +44,16 @@ struct AlignmentOptions {
   std::string model_dir = "/usr/share/pocketsphinx/model/en-us";
   /// Longest audio accepted, seconds.
   double max_duration_s = 120;
+  /// Move the lip phones' boundaries to the signal's energy steps (closure_refiner.hpp).
+  bool refine_closures = true;
+  ClosureRefinerOptions refiner;
 };
 
 struct Alignment {
   LabeledUtterance phones;              ///< phone_set "arpabet"; "" is silence; tiles [0, audio end]
   std::vector<LabeledInterval> words;   ///< transcript words (lower case); empty without a transcript
   std::vector<std::string> notes;       ///< conversions done on the audio, for the user
+  std::vector<RefinedBoundary> refined; ///< what refine_closures did to each lip boundary
 };
 
 /// Aligns `audio` (any rate, converted to 16 kHz); `source` names it in errors.

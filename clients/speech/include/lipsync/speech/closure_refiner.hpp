@@ -1,0 +1,74 @@
+// Lip closures found in the sound itself: the aligner's /p b m f v/ boundaries moved
+// to the acoustic events they stand for.
+//
+// PocketSphinx places boundaries on a 10 ms grid with a model that knows nothing of
+// what a closure sounds like, yet a lip closure is the clearest event in speech:
+// when the lips close for /p b/ the formant energy falls away within a few
+// milliseconds (only a voicing bar below 400 Hz survives in /b/) and comes back with
+// the burst; an /m/'s nasal murmur keeps its low resonance but loses most of the
+// energy above it; /f v/ lose the formants to weak frication. All five therefore
+// show as a step down and a step up of the short-time energy in the formant band
+// (400 to 3500 Hz, two second-order filters), which is all this unit looks at.
+//
+// For each such phone it measures, at every millisecond within `search_us` of the
+// aligner's start, the drop D(t) = level[t-10 ms, t) - level[t, t+10 ms) in dB,
+// and within `search_us` of its end the rise R(t) = level[t, t+10 ms) -
+// level[t-10 ms, t). The boundary moves to the largest step, less a small penalty
+// per ms of distance from the aligner's boundary, when that step reaches
+// `min_step_db`: the step in dB is the move's confidence. Where no step is that
+// clear the aligner's boundary stays. Neighbouring phones keep at least
+// `min_phone_us` and their order; the utterance still tiles the same span. Pure
+// computation on the samples: the same audio and phones give the same result.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "lipsync/speech/audio.hpp"
+#include "lipsync/utterance.hpp"
+
+namespace lipsync::speech {
+
+struct ClosureRefinerOptions {
+  /// How far from the aligner's boundary a step is looked for, µs.
+  std::int64_t search_us = 30'000;
+  /// The smallest step of the formant band's level that moves a boundary, dB.
+  double min_step_db = 10.0;
+  /// How much a step loses per ms of distance from the aligner's boundary, dB/ms.
+  double distance_penalty_db_per_ms = 0.3;
+  /// How far before the steepest fall of the level the closure is placed, µs: the
+  /// level starts to fall while the lips are still closing.
+  std::int64_t closure_lead_us = 8'000;
+  /// How far after the steepest rise the release is placed, µs.
+  std::int64_t release_lag_us = 0;
+  /// The shortest a phone may become, µs.
+  std::int64_t min_phone_us = 10'000;
+};
+
+/// What happened to one boundary of a lip phone.
+struct RefinedBoundary {
+  std::size_t phone = 0;         ///< index into the utterance's intervals
+  bool release = false;          ///< false: the phone's start (closure); true: its end (release)
+  std::int64_t aligned_us = 0;   ///< where the aligner put it
+  std::int64_t refined_us = 0;   ///< where it is now (aligned_us when kept)
+  double step_db = 0;            ///< the energy step found there (the confidence); 0 when none
+  bool moved = false;            ///< step_db reached min_step_db and the boundary moved
+};
+
+/// True for the ARPAbet phones whose boundaries refine_closures moves: P B M F V
+/// (upper or lower case, stress digits ignored).
+bool is_lip_phone(std::string_view arpabet);
+
+/// Moves the boundaries of the lip phones of `phones` (ARPAbet, tiling the audio)
+/// to the energy steps of `audio` near them; returns one entry per boundary looked at.
+/// Audio below 8 kHz (whose band would not fit) is left alone: nothing is returned.
+std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtterance& phones,
+                                             const ClosureRefinerOptions& options = {});
+
+/// The formant band's level (400 to 3500 Hz) of `audio` in dBFS over windows of
+/// `window_us` every `hop_us`, both in whole milliseconds (rounded down, at least 1 ms;
+/// the first window starts at 0; none below 8 kHz): for plots and tests.
+std::vector<double> formant_band_levels_db(const PcmAudio& audio, std::int64_t window_us, std::int64_t hop_us);
+
+}  // namespace lipsync::speech

@@ -1,0 +1,194 @@
+// Lip boundaries moved to the energy steps of the formant band
+// (lipsync/speech/closure_refiner.hpp).
+#include "lipsync/speech/closure_refiner.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <numbers>
+#include <string>
+
+namespace lipsync::speech {
+namespace {
+
+constexpr double kLowEdgeHz = 400;     // below: /b/'s voicing bar and /m/'s nasal resonance
+constexpr double kHighEdgeHz = 3500;   // above: frication and burst noise
+constexpr std::int64_t kStepWindowUs = 10'000;  // each side of a candidate step
+constexpr std::int64_t kCandidateStepUs = 1'000;
+constexpr double kFloorDb = -100;      // digital silence
+constexpr int kLowestRateHz = 8000;    // the band needs its 3500 Hz below Nyquist
+
+// A second-order section, RBJ audio-EQ cookbook form, Q = 1/sqrt(2) (Butterworth).
+struct Biquad {
+  double b0, b1, b2, a1, a2;
+  double x1 = 0, x2 = 0, y1 = 0, y2 = 0;
+
+  static Biquad make(double hz, double rate_hz, bool high_pass) {
+    const double w = 2 * std::numbers::pi * hz / rate_hz;
+    const double alpha = std::sin(w) / (2 * std::numbers::sqrt2 / 2);
+    const double c = std::cos(w);
+    const double a0 = 1 + alpha;
+    const double k = high_pass ? (1 + c) / 2 : (1 - c) / 2;
+    const double b1 = high_pass ? -(1 + c) : 1 - c;
+    return Biquad{k / a0, b1 / a0, k / a0, -2 * c / a0, (1 - alpha) / a0};
+  }
+  double step(double x) {
+    const double y = b0 * x + b1 * x1 + b2 * x2 - a1 * y1 - a2 * y2;
+    x2 = x1, x1 = x, y2 = y1, y1 = y;
+    return y;
+  }
+};
+
+// The formant band's energy in every millisecond [k ms, k+1 ms) of the audio (summed
+// per millisecond, so a quiet millisecond late in a long recording keeps its
+// precision), with running sums over the milliseconds: the level of any whole-ms
+// span in O(1).
+class BandEnergy {
+ public:
+  explicit BandEnergy(const PcmAudio& audio) {
+    const int rate_hz = audio.sample_rate_hz;
+    Biquad high = Biquad::make(kLowEdgeHz, rate_hz, true);
+    Biquad low = Biquad::make(std::min(kHighEdgeHz, 0.45 * rate_hz), rate_hz, false);
+    const auto frames = static_cast<std::int64_t>(audio.samples.size()) * 1000 / rate_hz;
+    prefix_.assign(static_cast<std::size_t>(frames) + 1, 0.0L);
+    samples_per_frame_.assign(static_cast<std::size_t>(frames), 0);
+    std::int64_t i = 0;
+    for (std::int64_t k = 0; k < frames; ++k) {
+      const std::int64_t end = (k + 1) * rate_hz / 1000;
+      double sum = 0;
+      for (; i < end; ++i) {
+        const double y = low.step(high.step(audio.samples[static_cast<std::size_t>(i)] / 32768.0));
+        sum += y * y;
+      }
+      prefix_[static_cast<std::size_t>(k) + 1] = prefix_[static_cast<std::size_t>(k)] + sum;
+      samples_per_frame_[static_cast<std::size_t>(k)] = static_cast<int>(end - k * rate_hz / 1000);
+    }
+  }
+  std::int64_t frames() const { return static_cast<std::int64_t>(samples_per_frame_.size()); }
+  // Level of the frames [a, b) in dBFS (a full-scale sine in the band is -3 dB).
+  double level_db(std::int64_t a, std::int64_t b) const {
+    a = std::clamp<std::int64_t>(a, 0, frames());
+    b = std::clamp<std::int64_t>(b, 0, frames());
+    if (b <= a) return kFloorDb;
+    const auto sum = static_cast<double>(prefix_[static_cast<std::size_t>(b)] - prefix_[static_cast<std::size_t>(a)]);
+    const double mean = sum / double(sample_count(a, b));
+    return mean > 0 ? std::max(kFloorDb, 10 * std::log10(mean)) : kFloorDb;
+  }
+
+ private:
+  std::int64_t sample_count(std::int64_t a, std::int64_t b) const {
+    std::int64_t n = 0;
+    for (std::int64_t k = a; k < b; ++k) n += samples_per_frame_[static_cast<std::size_t>(k)];
+    return std::max<std::int64_t>(n, 1);
+  }
+  std::vector<long double> prefix_;
+  std::vector<int> samples_per_frame_;
+};
+
+// The formant band's level of every millisecond [k ms, k+1 ms), floored
+// kRangeDb below the loudest, and running sums of it: the mean level of any span of
+// milliseconds in O(1). A step is measured between the mean levels (in dB) of the
+// 10 ms before and after a candidate time: for an ideal step of H dB that is a
+// triangle peaking at H exactly at the step (the pitch periods in 1 ms frames
+// average out over ten of them), so the step is located to the millisecond even
+// where one side is digital silence.
+constexpr double kRangeDb = 60;
+
+class LevelTrack {
+ public:
+  explicit LevelTrack(const BandEnergy& energy) {
+    std::vector<double> levels(static_cast<std::size_t>(energy.frames()));
+    for (std::int64_t k = 0; k < energy.frames(); ++k) levels[static_cast<std::size_t>(k)] = energy.level_db(k, k + 1);
+    const double loudest = levels.empty() ? kFloorDb : *std::max_element(levels.begin(), levels.end());
+    prefix_.reserve(levels.size() + 1);
+    prefix_.push_back(0);
+    for (const double level : levels) prefix_.push_back(prefix_.back() + std::max(level, loudest - kRangeDb));
+  }
+  std::int64_t frames() const { return static_cast<std::int64_t>(prefix_.size()) - 1; }
+  // Mean level of frames [a, b), dB.
+  double mean_db(std::int64_t a, std::int64_t b) const {
+    return (prefix_[static_cast<std::size_t>(b)] - prefix_[static_cast<std::size_t>(a)]) / double(b - a);
+  }
+
+ private:
+  std::vector<double> prefix_;
+};
+
+struct Step {
+  std::int64_t at_us = 0;
+  double db = 0;
+};
+
+// The largest step (down when `falling`) within [from_us, to_us], scored against its
+// distance from `aligned_us`.
+Step best_step(const LevelTrack& levels, std::int64_t aligned_us, std::int64_t from_us, std::int64_t to_us, bool falling,
+               const ClosureRefinerOptions& options) {
+  constexpr std::int64_t side = kStepWindowUs / kCandidateStepUs;
+  const std::int64_t first = std::max((from_us + kCandidateStepUs - 1) / kCandidateStepUs, side);
+  const std::int64_t last = std::min(to_us / kCandidateStepUs, levels.frames() - side);
+  Step best;
+  double best_score = -1e300;
+  for (std::int64_t k = first; k <= last; ++k) {
+    const double before = levels.mean_db(k - side, k);
+    const double after = levels.mean_db(k, k + side);
+    const double step = falling ? before - after : after - before;
+    const std::int64_t t = k * kCandidateStepUs;
+    const double score = step - options.distance_penalty_db_per_ms * double(std::abs(t - aligned_us)) / 1000.0;
+    if (score > best_score) best_score = score, best = {t, step};
+  }
+  return best;
+}
+
+}  // namespace
+
+bool is_lip_phone(std::string_view arpabet) {
+  std::string phone;
+  for (const char c : arpabet) {
+    if (std::isalpha(static_cast<unsigned char>(c))) phone += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  }
+  return phone == "P" || phone == "B" || phone == "M" || phone == "F" || phone == "V";
+}
+
+std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtterance& phones,
+                                             const ClosureRefinerOptions& options) {
+  std::vector<RefinedBoundary> refined;
+  if (audio.samples.empty() || audio.sample_rate_hz < kLowestRateHz) return refined;
+  const BandEnergy energy(audio);
+  const LevelTrack levels(energy);
+  std::vector<LabeledInterval>& intervals = phones.intervals;
+  for (std::size_t i = 0; i < intervals.size(); ++i) {
+    if (!is_lip_phone(intervals[i].label)) continue;
+    if (i > 0) {  // the closure: the formant band's level falls
+      LabeledInterval& previous = intervals[i - 1];
+      const std::int64_t aligned = intervals[i].start_us;
+      const Step step = best_step(levels, aligned, std::max(aligned - options.search_us, previous.start_us + options.min_phone_us),
+                                  std::min(aligned + options.search_us, intervals[i].end_us - options.min_phone_us), true, options);
+      const std::int64_t at = std::max(step.at_us - options.closure_lead_us, previous.start_us + options.min_phone_us);
+      const bool moved = step.db >= options.min_step_db && at <= intervals[i].end_us - options.min_phone_us;
+      if (moved) previous.end_us = intervals[i].start_us = at;
+      refined.push_back({i, false, aligned, intervals[i].start_us, std::max(0.0, step.db), moved});
+    }
+    if (i + 1 < intervals.size()) {  // the release: the level rises again
+      LabeledInterval& next = intervals[i + 1];
+      const std::int64_t aligned = intervals[i].end_us;
+      const Step step = best_step(levels, aligned, std::max(aligned - options.search_us, intervals[i].start_us + options.min_phone_us),
+                                  std::min(aligned + options.search_us, next.end_us - options.min_phone_us), false, options);
+      const std::int64_t at = std::min(step.at_us + options.release_lag_us, next.end_us - options.min_phone_us);
+      const bool moved = step.db >= options.min_step_db && at >= intervals[i].start_us + options.min_phone_us;
+      if (moved) intervals[i].end_us = next.start_us = at;
+      refined.push_back({i, true, aligned, intervals[i].end_us, std::max(0.0, step.db), moved});
+    }
+  }
+  return refined;
+}
+
+std::vector<double> formant_band_levels_db(const PcmAudio& audio, std::int64_t window_us, std::int64_t hop_us) {
+  std::vector<double> levels;
+  if (audio.samples.empty() || audio.sample_rate_hz < kLowestRateHz) return levels;
+  const BandEnergy energy(audio);
+  const std::int64_t window = std::max<std::int64_t>(1, window_us / 1000), hop = std::max<std::int64_t>(1, hop_us / 1000);
+  for (std::int64_t k = 0; k + window <= energy.frames(); k += hop) levels.push_back(energy.level_db(k, k + window));
+  return levels;
+}
+
+}  // namespace lipsync::speech

@@ -1,0 +1,147 @@
+// refine_closures on signals whose closures are known to the sample: a vowel-like
+// harmonic sound, then a closure (silence, or a voicing bar below 400 Hz as in
+// /b/, or a low murmur as in /m/), then a burst and the vowel again. The aligner's
+// boundaries are put where PocketSphinx tends to put them (off by 10 to 30 ms);
+// the refiner must find the true ones, leave other phones and signal-less
+// boundaries alone, and keep the phones tiling the audio.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+
+#include "lipsync/speech/closure_refiner.hpp"
+
+namespace lipsync {
+namespace {
+
+constexpr int kRate = 16000;
+
+std::int64_t sample_of(std::int64_t us) { return us * kRate / 1'000'000; }
+
+// A vowel: harmonics of 120 Hz shaped by formants at 700, 1200 and 2600 Hz.
+double vowel(std::int64_t i) {
+  double v = 0;
+  for (int h = 1; h * 120 < 4000; ++h) {
+    const double hz = h * 120.0;
+    double gain = 0;
+    for (const double formant : {700.0, 1200.0, 2600.0}) gain += 1.0 / (1.0 + std::pow((hz - formant) / 120.0, 2));
+    v += gain * std::sin(2 * std::numbers::pi * hz * double(i) / kRate);
+  }
+  return 0.12 * v;
+}
+
+enum class Closure { silent, voiced, nasal };
+
+// [0, close) vowel, [close, release) closure, a 5 ms burst, then vowel to `end`.
+speech::PcmAudio stop(std::int64_t close_us, std::int64_t release_us, std::int64_t end_us, Closure kind) {
+  speech::PcmAudio audio;
+  std::mt19937 noise(7);
+  std::normal_distribution<double> gauss(0, 0.1);
+  for (std::int64_t i = 0; i < sample_of(end_us); ++i) {
+    double v;
+    if (i < sample_of(close_us) || i >= sample_of(release_us) + 80) {
+      v = vowel(i);
+    } else if (i >= sample_of(release_us)) {
+      v = gauss(noise);
+    } else {
+      const double t = double(i) / kRate;
+      v = kind == Closure::silent  ? 0.0
+          : kind == Closure::voiced ? 0.1 * std::sin(2 * std::numbers::pi * 120 * t)
+                                    : 0.08 * std::sin(2 * std::numbers::pi * 250 * t) + 0.004 * std::sin(2 * std::numbers::pi * 2500 * t);
+    }
+    audio.samples.push_back(static_cast<std::int16_t>(std::lround(std::clamp(v, -1.0, 1.0) * 32767)));
+  }
+  return audio;
+}
+
+LabeledUtterance phones_of(std::vector<LabeledInterval> intervals) {
+  LabeledUtterance utterance;
+  utterance.phone_set = "arpabet";
+  utterance.intervals = std::move(intervals);
+  return utterance;
+}
+
+TEST(ClosureRefiner, stop_closure_and_release_move_to_the_energy_steps) {
+  for (const auto& [kind, label] : {std::pair{Closure::silent, "P"}, {Closure::voiced, "B"}, {Closure::nasal, "M"}}) {
+    const speech::PcmAudio audio = stop(300'000, 380'000, 700'000, kind);
+    LabeledUtterance phones = phones_of({{"AA", 0, 320'000, 1}, {label, 320'000, 360'000, 2}, {"AA", 360'000, 700'000, 3}});
+    speech::ClosureRefinerOptions exact;
+    exact.closure_lead_us = 0;  // the energy step itself, not the lead a natural closing gesture gets
+    const std::vector<speech::RefinedBoundary> refined = speech::refine_closures(audio, phones, exact);
+    ASSERT_EQ(refined.size(), 2U) << label;
+    EXPECT_TRUE(refined[0].moved && refined[1].moved) << label;
+    EXPECT_NEAR(double(phones.intervals[1].start_us), 300e3, 2e3) << label;
+    EXPECT_NEAR(double(phones.intervals[1].end_us), 380e3, 2e3) << label;
+    EXPECT_EQ(phones.intervals[0].end_us, phones.intervals[1].start_us) << label;
+    EXPECT_EQ(phones.intervals[2].start_us, phones.intervals[1].end_us) << label;
+    EXPECT_EQ(refined[0].aligned_us, 320'000);
+    EXPECT_EQ(refined[1].aligned_us, 360'000);
+    EXPECT_GE(refined[0].step_db, 12.0) << label << ": a closure is a clear step, well above min_step_db";
+  }
+}
+
+TEST(ClosureRefiner, the_closure_is_placed_its_lead_before_the_steepest_fall) {
+  const speech::PcmAudio audio = stop(300'000, 380'000, 700'000, Closure::silent);
+  LabeledUtterance phones = phones_of({{"AA", 0, 320'000, 1}, {"P", 320'000, 360'000, 2}, {"AA", 360'000, 700'000, 3}});
+  const std::vector<speech::RefinedBoundary> refined = speech::refine_closures(audio, phones);  // default lead: 8 ms
+  ASSERT_EQ(refined.size(), 2U);
+  EXPECT_NEAR(double(phones.intervals[1].start_us), 292e3, 2e3);
+  EXPECT_NEAR(double(phones.intervals[1].end_us), 380e3, 2e3);
+}
+
+TEST(ClosureRefiner, boundaries_stay_where_the_signal_shows_no_step) {
+  speech::PcmAudio audio;
+  for (std::int64_t i = 0; i < sample_of(600'000); ++i) audio.samples.push_back(static_cast<std::int16_t>(std::lround(vowel(i) * 32767)));
+  const LabeledUtterance aligned = phones_of({{"AA", 0, 200'000, 1}, {"M", 200'000, 280'000, 2}, {"AA", 280'000, 600'000, 3}});
+  LabeledUtterance phones = aligned;
+  const std::vector<speech::RefinedBoundary> refined = speech::refine_closures(audio, phones);
+  ASSERT_EQ(refined.size(), 2U);
+  EXPECT_FALSE(refined[0].moved);
+  EXPECT_FALSE(refined[1].moved);
+  EXPECT_LT(refined[0].step_db, 3.0);
+  EXPECT_EQ(phones.intervals[1].start_us, 200'000);
+  EXPECT_EQ(phones.intervals[1].end_us, 280'000);
+}
+
+TEST(ClosureRefiner, only_lip_phones_move_and_only_within_the_search_window) {
+  const speech::PcmAudio audio = stop(300'000, 380'000, 700'000, Closure::silent);
+  // /t/ on the same closure: not a lip phone, so untouched.
+  LabeledUtterance phones = phones_of({{"AA", 0, 320'000, 1}, {"T", 320'000, 360'000, 2}, {"AA", 360'000, 700'000, 3}});
+  EXPECT_TRUE(speech::refine_closures(audio, phones).empty());
+  EXPECT_EQ(phones.intervals[1].start_us, 320'000);
+  // A /p/ placed 60 ms after the true closure, with a 40 ms window: the true step is out of reach.
+  phones = phones_of({{"AA", 0, 360'000, 1}, {"P", 360'000, 440'000, 2}, {"AA", 440'000, 700'000, 3}});
+  speech::ClosureRefinerOptions narrow;
+  narrow.search_us = 40'000;
+  speech::refine_closures(audio, phones, narrow);
+  EXPECT_GE(phones.intervals[1].start_us, 320'000);
+  EXPECT_TRUE(speech::is_lip_phone("b") && speech::is_lip_phone("M1") && speech::is_lip_phone("F") && speech::is_lip_phone("v"));
+  EXPECT_FALSE(speech::is_lip_phone("") || speech::is_lip_phone("TH") || speech::is_lip_phone("AA"));
+}
+
+TEST(ClosureRefiner, phones_keep_their_order_and_minimum_length) {
+  const speech::PcmAudio audio = stop(300'000, 380'000, 700'000, Closure::silent);
+  // A /p/ of 20 ms squeezed between short neighbours: nothing may collapse or cross.
+  LabeledUtterance phones = phones_of({{"", 0, 290'000, 1}, {"AA", 290'000, 305'000, 2}, {"P", 305'000, 325'000, 3},
+                                       {"M", 325'000, 340'000, 4}, {"AA", 340'000, 700'000, 5}});
+  speech::refine_closures(audio, phones);
+  for (std::size_t i = 0; i < phones.intervals.size(); ++i) {
+    EXPECT_GE(phones.intervals[i].end_us - phones.intervals[i].start_us, 10'000) << i;
+    if (i > 0) {
+      EXPECT_EQ(phones.intervals[i].start_us, phones.intervals[i - 1].end_us) << i;
+    }
+  }
+  EXPECT_EQ(phones.intervals.back().end_us, 700'000);
+}
+
+TEST(ClosureRefiner, formant_band_levels_fall_in_a_closure) {
+  const speech::PcmAudio audio = stop(300'000, 380'000, 700'000, Closure::voiced);
+  const std::vector<double> levels = speech::formant_band_levels_db(audio, 10'000, 10'000);
+  ASSERT_EQ(levels.size(), 70U);
+  EXPECT_GT(levels[10] - levels[34], 20.0) << "a /b/ closure keeps only its voicing bar below 400 Hz";
+}
+
+}  // namespace
+}  // namespace lipsync
