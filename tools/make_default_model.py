@@ -958,6 +958,10 @@ IPA_LANGUAGE_ROWS = [
     ("i.", "ih", "espeak-ng apical vowel without IPA (Mandarin zhi, shi)"),
     ("s.", "sh", "espeak-ng retroflex s without IPA (Mandarin)"), ("n^", "n", "espeak-ng palatal nasal without IPA"),
     ("l-", "l", "espeak-ng syllabic l without IPA (ky)"),
+    ("?", "q", "espeak-ng glottal stop without IPA (om)"), ("Φ", "ipa_ɸ", "Greek Phi for ɸ (espeak-ng om)"),
+    ("ä", "ae", "open central a (espeak-ng ja): as a"),
+    ("ᵐ", "m", "prenasalisation printed on its own (espeak-ng si)"), ("ⁿ", "n", "prenasalisation on its own"),
+    ("ᵑ", "ng", "prenasalisation on its own"),
 ]
 # Every symbol of the IPA chart (pulmonic consonants, other symbols, vowels): each has a row.
 IPA_CHART = ("p b t d ʈ ɖ c ɟ k ɡ q ɢ ʔ m ɱ n ɳ ɲ ŋ ɴ ʙ r ʀ ⱱ ɾ ɽ ɸ β f v θ ð s z ʃ ʒ ʂ ʐ ç ʝ x ɣ χ ʁ ħ ʕ h ɦ "
@@ -966,6 +970,7 @@ IPA_CHART = ("p b t d ʈ ɖ c ɟ k ɡ q ɢ ʔ m ɱ n ɳ ɲ ŋ ɴ ʙ r ʀ ⱱ ɾ 
 # Marks removed only when a label is not in the table as written (the fallback, docs/languages.md):
 # length, tones and phonation, articulatory details that do not change the mouth.
 IPA_FALLBACK_IGNORE = ("ːˤˀᵝⁿˡ˞"  # long, pharyngealised, glottalised, compressed, nasal/lateral release, rhotic
+                       "-#.[`^;:!/\""  # the marks of espeak-ng mnemonics it prints for phonemes without IPA (y-)
                        "˥˦˧˨˩"  # tone letters
                        "\u0300\u0301\u0302\u0304\u030b\u030c\u030f"  # tone diacritics
                        "\u0308\u033d\u0339\u031c\u0324\u0330\u033c\u033a\u033b\u0334\u0348")
