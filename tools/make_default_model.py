@@ -962,6 +962,10 @@ IPA_LANGUAGE_ROWS = [
     ("ä", "ae", "open central a (espeak-ng ja): as a"),
     ("ᵐ", "m", "prenasalisation printed on its own (espeak-ng si)"), ("ⁿ", "n", "prenasalisation on its own"),
     ("ᵑ", "ng", "prenasalisation on its own"),
+    # nasal vowels written with a precomposed tilde (one code point): their oral vowel, as the
+    # combining tilde (U+0303) is removed
+    ("ã", "ae", "nasal a (precomposed)"), ("ẽ", "ey", "nasal e (precomposed)"), ("ĩ", "iy", "nasal i (precomposed)"),
+    ("õ", "ow", "nasal o (precomposed)"), ("ũ", "uw", "nasal u (precomposed)"), ("ỹ", "ipa_y", "nasal y (precomposed)"),
 ]
 # Every symbol of the IPA chart (pulmonic consonants, other symbols, vowels): each has a row.
 IPA_CHART = ("p b t d ʈ ɖ c ɟ k ɡ q ɢ ʔ m ɱ n ɳ ɲ ŋ ɴ ʙ r ʀ ⱱ ɾ ɽ ɸ β f v θ ð s z ʃ ʒ ʂ ʐ ç ʝ x ɣ χ ʁ ħ ʕ h ɦ "

@@ -81,6 +81,57 @@ TEST(PhoneSet, IpaAndEspeakMapDiphthongsAndAffricates) {
   EXPECT_EQ(name_of(espeak.lookup("D")), "dh");
 }
 
+TEST(PhoneSet, IpaKnowsEverySymbolOfTheIpaChart) {
+  const PhoneSet ipa = *PhoneSet::builtin("ipa", model());
+  // Pulmonic consonants, other symbols, vowels (IPA chart 2020).
+  for (const char* symbol :
+       {"p", "b", "t", "d", "ʈ", "ɖ", "c", "ɟ", "k", "ɡ", "q", "ɢ", "ʔ", "m", "ɱ", "n", "ɳ", "ɲ", "ŋ", "ɴ", "ʙ", "r",
+        "ʀ", "ⱱ", "ɾ", "ɽ", "ɸ", "β", "f", "v", "θ", "ð", "s", "z", "ʃ", "ʒ", "ʂ", "ʐ", "ç", "ʝ", "x", "ɣ", "χ", "ʁ",
+        "ħ", "ʕ", "h", "ɦ", "ɬ", "ɮ", "ʋ", "ɹ", "ɻ", "j", "ɰ", "l", "ɭ", "ʎ", "ʟ", "ʍ", "w", "ɥ", "ʜ", "ʢ", "ʡ", "ɕ",
+        "ʑ", "ɺ", "ɧ", "i", "y", "ɨ", "ʉ", "ɯ", "u", "ɪ", "ʏ", "ʊ", "e", "ø", "ɘ", "ɵ", "ɤ", "o", "ə", "ɛ", "œ", "ɜ",
+        "ɞ", "ʌ", "ɔ", "æ", "ɐ", "a", "ɶ", "ɑ", "ɒ"}) {
+    EXPECT_TRUE(ipa.lookup(symbol)) << symbol;
+  }
+}
+
+TEST(PhoneSet, IpaGivesOtherLanguagesTheirOwnVowelsAndBilabialFricatives) {
+  const PhoneSet ipa = *PhoneSet::builtin("ipa", model());
+  EXPECT_EQ(name_of(ipa.lookup("y")), "ipa_y");
+  EXPECT_EQ(name_of(ipa.lookup("ø")), "ipa_ø");
+  EXPECT_EQ(name_of(ipa.lookup("ɯ")), "ipa_ɯ");
+  EXPECT_EQ(name_of(ipa.lookup("ɤ")), "ipa_ɤ");
+  // /ɸ β/ are not closures (no sealing key frames); /ɱ ʋ/ are the labiodental closures of f v.
+  EXPECT_EQ(model().phoneme(*ipa.lookup("β")).phoneme_class, PhonemeClass::consonant);
+  EXPECT_EQ(model().phoneme(*ipa.lookup("ɱ")).phoneme_class, PhonemeClass::closure);
+  EXPECT_EQ(model().phoneme(*ipa.lookup("ʋ")).phoneme_class, PhonemeClass::closure);
+  // Nasal vowels are their oral vowels, written with a combining or a precomposed tilde.
+  EXPECT_EQ(name_of(ipa.lookup("ɔ̃")), name_of(ipa.lookup("ɔ")));
+  EXPECT_EQ(name_of(ipa.lookup("ẽ")), name_of(ipa.lookup("e")));
+}
+
+TEST(PhoneSet, IpaFallbackRemovesMarksAndSplitsLabelsIntoSymbols) {
+  const PhoneSet ipa = *PhoneSet::builtin("ipa", model());
+  EXPECT_EQ(name_of(ipa.lookup("yː")), "ipa_y");    // length
+  EXPECT_EQ(name_of(ipa.lookup("ɯᵝ")), "ipa_ɯ");    // compressed (espeak-ng ja)
+  EXPECT_EQ(name_of(ipa.lookup("a˥˩")), "ae");      // tone letters
+  EXPECT_EQ(name_of(ipa.lookup("y-")), "ipa_y");    // an espeak-ng mnemonic mark
+  EXPECT_EQ(name_of(ipa.lookup("tʃʲ")), "ch");      // affricate + palatalisation
+  EXPECT_EQ(name_of(ipa.lookup("pɸ")), "p");        // an affricate: its stop
+  EXPECT_EQ(name_of(ipa.lookup("eu")), "ey");       // a diphthong: its onset
+  EXPECT_EQ(name_of(ipa.lookup("ja")), "ae");       // a glide onset is passed over
+  EXPECT_EQ(name_of(ipa.lookup("ʔi")), "iy");       // so is a glottal one
+  EXPECT_EQ(name_of(ipa.lookup("☃")), "<unknown>");  // not a symbol of the table
+  EXPECT_EQ(name_of(ipa.lookup("aI")), "<unknown>");  // espeak's mnemonic: I is no IPA symbol
+  EXPECT_EQ(name_of(ipa.lookup("ː")), "<unknown>");   // nothing left
+}
+
+TEST(PhoneSet, DetectionStillTellsEspeakMnemonicsFromIpa) {
+  const auto sets = PhoneSet::builtin_all(model());
+  EXPECT_EQ(detect_phone_set(sets, {"h", "@", "l", "oU"}).name(), "espeak");
+  EXPECT_EQ(detect_phone_set(sets, {"b", "ɔ̃", "ʒ", "u", "ʁ"}).name(), "ipa");
+  EXPECT_EQ(detect_phone_set(sets, {"ɡ", "uː", "t", "ə", "n", "pf", "yː"}).name(), "ipa");
+}
+
 TEST(PhoneSet, DetectionPicksTheFirstSetThatKnowsEveryLabel) {
   const auto sets = PhoneSet::builtin_all(model());
   EXPECT_EQ(detect_phone_set(sets, {"HH", "AH0", "L", "OW1"}).name(), "arpabet");
