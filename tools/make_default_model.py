@@ -299,9 +299,9 @@ def consonant_targets(name):
         # them: the sphincter narrows the opening, the mentalis lifts the lower lip less than for a
         # closure (ARKit mouthClose 0.3 · mentalis stays below jawOpen), and the trill leaves a little
         # more room for the lips to vibrate.
-        t["orbicularis_oris_upper"] = 0.3
-        t["orbicularis_oris_lower"] = 0.35
-        t["mentalis"] = 0.15 if manner == "trill" else 0.2
+        t["orbicularis_oris_upper"] = 0.35
+        t["orbicularis_oris_lower"] = 0.42
+        t["mentalis"] = 0.25 if manner == "trill" else 0.3
         if manner == "trill":
             t["jaw_rotation"] += 0.02
     elif place == "bilabial" and cls == "release":
@@ -453,10 +453,11 @@ def dominance_of(name):
         put(SMILE + SPREAD + UPPER_LIP_RAISE + CORNER_DOWN + LOWER_LIP_DOWN, alpha=1.0)
         put(TONGUE, alpha=0.1)
     elif place == "bilabial" and cls == "consonant":
-        # /ɸ β ʙ/: the lips dominate strongly, as strongly as /w/ rounds them, but with no closure
-        # dominance: they come near each other whatever the neighbours, and need not seal.
-        put(LIP_SEAL, alpha=4.0)
-        put(JAW, alpha=2.0)
+        # /ɸ β ʙ/: the lips dominate as strongly as /w/ rounds them and the jaw as a sibilant's (the
+        # most any non-closure has), but with no closure dominance: they come near each other
+        # whatever the neighbours, and need not seal.
+        put(LIP_SEAL, alpha=5.0)
+        put(JAW, alpha=3.0)
         put(TONGUE, alpha=0.1)
     elif place == "bilabial" and cls == "release":
         # /p b/ releases: the lips just part; the engine puts the peak at the start of the release.

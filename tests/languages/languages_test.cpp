@@ -21,11 +21,16 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <sstream>
 
 #include "../support/child_process.hpp"
 #include "../support/closure_frames.hpp"
+#include "../support/lip_measures.hpp"
 #include "lipsync/error.hpp"
+#include "lipsync/face/face_mesh.hpp"
+#include "lipsync/face/face_rig.hpp"
+#include "lipsync/face/face_solver.hpp"
 #include "lipsync/formats.hpp"
 #include "lipsync/renderer.hpp"
 #include "lipsync/segment.hpp"
@@ -221,6 +226,7 @@ struct Measured {
   std::vector<float> arkit;
   float jaw_open = 0, pucker = 0, lip_gap = 0;  // lip_gap: jawOpen - mouthClose
   std::string viseme;   // Oculus viseme with the largest weight
+  std::size_t frame = 0;  // the track frame measured
 };
 
 struct CorpusFile {
@@ -261,6 +267,7 @@ const std::vector<CorpusFile>& corpus() {
           if (std::llabs(file.track.t_us[f] - middle) < std::llabs(file.track.t_us[nearest] - middle)) nearest = f;
         }
         Measured m;
+        m.frame = nearest;
         m.label = interval.label;
         m.phoneme = model().phoneme(*set.lookup(interval.label)).name;
         m.arkit.resize(kArkitNames.size());
@@ -422,6 +429,80 @@ TEST(LanguageCorpus, front_rounded_vowels_get_a_rounded_viseme_and_their_partner
   EXPECT_GE(share(rounded, {"RR", "ou", "oh"}), 0.75);
   EXPECT_EQ(share(rounded, {"ih", "E"}), 0.0);
   EXPECT_GE(share(unrounded, {"ih", "E"}), 0.75);
+}
+
+TEST(LanguageCorpus, on_the_simulated_face_closures_seal_and_rounding_narrows_the_mouth) {
+  // The physics face stepped through each track as lipsyncd's mesh stream does (subdivision 1):
+  // lips sealed (gap <= 0.5 mm) at every bilabial key frame and the lower lip on the upper teeth
+  // (<= 1 mm) at every labiodental one, as tests/face/face_closure_test.cpp measures English; the
+  // mouth narrower (corner to corner, MediaPipe 61-291) at /y ø/ than at /i e/; /β ɸ/ open.
+  using face::FaceMesh;
+  static const FaceMesh mesh = face::build_face_mesh(face::FaceAsset::builtin(), 1);
+  face::FaceSolver solver(mesh, face::FaceRig::builtin());
+  std::size_t bilabial = 0, labiodental = 0;
+  double worst_gap_m = 0, worst_teeth_m = 0;
+  std::map<std::string, std::pair<double, int>> width_m, gap_m;  // phoneme -> sum, count at centres
+  for (const CorpusFile& file : corpus()) {
+    std::map<std::size_t, std::set<testing::ClosurePlace>> closure_at;
+    for (const auto& closure : testing::closure_frames(model(), file.segments, file.track)) {
+      closure_at[closure.frame].insert(closure.place);
+    }
+    std::multimap<std::size_t, const Measured*> centre_at;
+    for (const Measured& m : file.centres) centre_at.emplace(m.frame, &m);
+    solver.reset();
+    std::int64_t previous_us = 0;
+    for (std::size_t f = 0; f < file.track.frame_count(); ++f) {
+      solver.step(file.track.frame_values(f), static_cast<double>(file.track.t_us[f] - previous_us) * 1e-6);
+      previous_us = file.track.t_us[f];
+      const auto x = solver.positions();
+      for (auto [it, end] = centre_at.equal_range(f); it != end; ++it) {
+        auto& width = width_m[it->second->phoneme];
+        width.first += face::distance(x[61], x[291]);
+        ++width.second;
+        auto& gap = gap_m[it->second->phoneme];
+        gap.first += face::lip_gap_m(solver);
+        ++gap.second;
+      }
+      const auto closed = closure_at.find(f);
+      if (closed == closure_at.end()) continue;
+      const std::string where = file.name + " at " + std::to_string(file.track.t_us[f]) + " µs";
+      // A closure at the very first frame (ru_mama starts with its /m/ at 0 µs) finds the face at rest:
+      // the solver has had no time to move it. The channels are closed there (test above).
+      if (file.track.t_us[f] == 0) continue;
+      if (closed->second.contains(testing::ClosurePlace::bilabial)) {
+        ++bilabial;
+        worst_gap_m = std::max(worst_gap_m, face::lip_gap_m(solver));
+        EXPECT_LE(face::lip_gap_m(solver), 0.0005) << where;
+      }
+      if (closed->second.contains(testing::ClosurePlace::labiodental)) {
+        ++labiodental;
+        worst_teeth_m = std::max(worst_teeth_m, face::lower_lip_to_upper_teeth_m(solver));
+        EXPECT_LE(face::lower_lip_to_upper_teeth_m(solver), 0.001) << where;
+      }
+    }
+  }
+  const auto average = [](const std::map<std::string, std::pair<double, int>>& sums, std::initializer_list<const char*> names) {
+    double sum = 0;
+    int count = 0;
+    for (const char* name : names) {
+      if (const auto it = sums.find(name); it != sums.end()) {
+        sum += it->second.first;
+        count += it->second.second;
+      }
+    }
+    return count ? sum / count : 0.0;
+  };
+  const double rounded_width = average(width_m, {"ipa_y", "ipa_ø"});
+  const double spread_width = average(width_m, {"iy", "ey"});
+  std::printf("[ measured ] face: %zu bilabial key frames, widest gap %.3f mm; %zu labiodental, farthest from the "
+              "teeth %.3f mm; mouth width /y ø/ %.1f mm, /i e/ %.1f mm; lip gap /β ɸ/ %.2f mm, open vowels %.2f mm\n",
+              bilabial, 1000 * worst_gap_m, labiodental, 1000 * worst_teeth_m, 1000 * rounded_width, 1000 * spread_width,
+              1000 * average(gap_m, {"ipa_β", "ipa_ɸ"}), 1000 * average(gap_m, {"ae", "aa", "ah"}));
+  EXPECT_GE(bilabial, 30U);
+  EXPECT_LT(rounded_width, spread_width - 0.0015) << "front rounded vowels do not narrow the mouth";
+  EXPECT_GT(average(gap_m, {"ipa_β", "ipa_ɸ"}), 0.0005) << "bilabial fricatives are sealed";
+  EXPECT_LT(average(gap_m, {"ipa_β", "ipa_ɸ"}), 0.5 * average(gap_m, {"ae", "aa", "ah"}))
+      << "bilabial fricatives open the lips like an open vowel";
 }
 
 // --- MFA TextGrids and the command line ------------------------------------------------------
