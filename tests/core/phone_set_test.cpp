@@ -125,6 +125,28 @@ TEST(PhoneSet, IpaFallbackRemovesMarksAndSplitsLabelsIntoSymbols) {
   EXPECT_EQ(name_of(ipa.lookup("ː")), "<unknown>");   // nothing left
 }
 
+TEST(PhoneSet, IpaLookupOfAnyBytesGivesAPhonemeOrNothing) {
+  // Random labels (fixed seed) of IPA symbols, diacritics, espeak-ng marks, ASCII and bytes that are
+  // no UTF-8 at all (stray continuation bytes, cut sequences): the fallback's split never crashes,
+  // loops or names a phoneme the model lacks.
+  const PhoneSet ipa = *PhoneSet::builtin("ipa", model());
+  const std::vector<std::string> pieces = {"a", "y", "t", "ʃ", "ɔ", "\xCC\x83", "ː", "ʲ", "ʰ", "-", "#", "j", "ʔ",
+                                           "ɟʝ", "˥", "\x80", "\xCC", "\xE2\x98", "\xFF", "I", "@", " "};
+  std::uint32_t state = 12345;
+  const auto next = [&] { return state = state * 1664525U + 1013904223U; };
+  std::size_t known = 0;
+  for (int i = 0; i < 20000; ++i) {
+    std::string label;
+    for (std::uint32_t n = next() % 6; n > 0; --n) label += pieces[next() % pieces.size()];
+    if (const auto index = ipa.lookup(label)) {
+      ++known;
+      EXPECT_GE(*index, 0);
+      EXPECT_LT(static_cast<std::size_t>(*index), model().phonemes().size());
+    }
+  }
+  EXPECT_GT(known, 1000U);  // the pieces combine into known labels often
+}
+
 TEST(PhoneSet, DetectionStillTellsEspeakMnemonicsFromIpa) {
   const auto sets = PhoneSet::builtin_all(model());
   EXPECT_EQ(detect_phone_set(sets, {"h", "@", "l", "oU"}).name(), "espeak");
