@@ -3,7 +3,7 @@
 // - Every voice file espeak-ng has (131 in Debian 12's espeak-ng-data) speaks the digits through
 //   lipsync::speech (a fresh espeak-ng process each, as `lipsync say` and Speak use it), and the
 //   phonemes it names (IPA for every voice but English's mnemonics) render without an unknown label.
-// - A sentence in each of 20 languages (tonal Vietnamese and Cantonese, right-to-left Arabic,
+// - A sentence in each of 22 languages (tonal Vietnamese, Cantonese and Mandarin, right-to-left Arabic,
 //   Hebrew and Persian, Cyrillic, Greek, Devanagari, kana, Hangul...): at every bilabial key frame
 //   the lips are sealed, in the channels and in ARKit, as on English speech.
 // - The corpus tests/data/languages (espeak-ng's IPA timings, regenerate.py there), read without a
@@ -165,6 +165,9 @@ TEST(EspeakVoices, a_language_name_from_the_voice_list_selects_its_voice) {
   EXPECT_EQ(speech::phone_set_for_voice("en-us"), "espeak");
   EXPECT_EQ(speech::phone_set_for_voice("en+f3"), "espeak");
   EXPECT_EQ(speech::phone_set_for_voice("English (America)"), "espeak");
+  EXPECT_EQ(speech::phone_set_for_voice("en-gb-x-rp"), "espeak");
+  EXPECT_EQ(speech::phone_set_for_voice("gmw/en-US"), "espeak");
+  EXPECT_EQ(speech::phone_set_for_voice("en-us+f3"), "espeak");
   EXPECT_EQ(speech::phone_set_for_voice("de"), "ipa");
   EXPECT_EQ(speech::phone_set_for_voice("fr-fr"), "ipa");
 }
@@ -174,8 +177,9 @@ struct Sentence {
   const char* text;
 };
 
-// 20 languages: tonal (vi, yue), right to left (ar, he, fa), non-Latin scripts (ru, el, hi, ja, ko,
-// ar, he, fa, yue).
+// 22 languages: tonal (vi, yue, Mandarin in pinyin: Debian's espeak-ng-data has only the short
+// Mandarin dictionary, which spells most characters out), right to left (ar, he, fa), non-Latin
+// scripts (ru, el, hi, ja, ko, ar, he, fa, yue).
 constexpr Sentence kSentences[] = {
     {"de", "Guten Morgen, wie geht es Ihnen? Die Brücke über dem Fluss ist schön."},
     {"fr-fr", "Bonjour, un bon vin blanc. Le petit prince a peur de la lune."},
@@ -191,6 +195,7 @@ constexpr Sentence kSentences[] = {
     {"fi", "Hyvää huomenta, mitä kuuluu? Pöytä on pyöreä."},
     {"hu", "Jó reggelt, hogy van? A tükör fényes."},
     {"vi", "Xin chào, bạn khỏe không? Tôi muốn một bát phở."},
+    {"cmn-latn-pinyin", "ni3 hao3, wo3 men2 ming2 tian1 qu4 bei3 jing1, ma1 ma1 mai3 mi3."},
     {"yue", "你好，我哋聽日去飲茶。"},
     {"ar", "صباح الخير، كيف حالك؟ أنا بخير."},
     {"he", "בוקר טוב, מה שלומך? אבא בבית."},
@@ -200,7 +205,7 @@ constexpr Sentence kSentences[] = {
     {"ko", "안녕하세요, 반갑습니다."},
 };
 
-TEST(EspeakSentences, twenty_languages_render_with_lips_sealed_at_every_bilabial_key_frame) {
+TEST(EspeakSentences, twenty_two_languages_render_with_lips_sealed_at_every_bilabial_key_frame) {
   Closures tally;
   for (const Sentence& sentence : kSentences) {
     SCOPED_TRACE(sentence.voice);
