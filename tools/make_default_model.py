@@ -178,7 +178,9 @@ CONSONANTS = {
     "ipa_ɸ": ("consonant", "Japanese fu", "bilabial", "fricative", "voiceless", {}),
     "ipa_β": ("consonant", "Spanish haba", "bilabial", "fricative", "voiced", {}),
     "ipa_ʙ": ("consonant", "bilabial trill (brr)", "bilabial", "trill", "voiced", {}),
+    "ipa_r": ("consonant", "Spanish perro, Italian, Russian", "alveolar", "trill", "voiced", {}),
     "ipa_q": ("consonant", "Arabic qalb", "uvular", "stop", "voiceless", {}),
+    "ipa_ʁ": ("consonant", "French rouge, German rot", "uvular", "fricative", "voiced", {}),
     "ipa_ħ": ("consonant", "Arabic ḥ", "pharyngeal", "fricative", "voiceless", {}),
     "ipa_ʕ": ("consonant", "Arabic ʿayn", "pharyngeal", "approximant", "voiced", {}),
 }
@@ -324,8 +326,11 @@ def consonant_targets(name):
         set_group(t, LOWER_LIP_DOWN, 0.25)
     elif place == "alveolar":
         # Alveolars raise the tongue tip to the alveolar ridge; the lips are neutral and slightly spread.
-        t["tongue_raise"] = {"stop": 1.0, "nasal": 1.0, "flap": 0.85, "lateral approximant": 0.9,
+        t["tongue_raise"] = {"stop": 1.0, "nasal": 1.0, "flap": 0.85, "trill": 0.85, "lateral approximant": 0.9,
                              "fricative": 0.8}[manner]
+        if manner == "trill":
+            # The tongue tip vibrates against the ridge: a little more room than a flap.
+            t["jaw_rotation"] += 0.05
         set_group(t, SPREAD, 0.3 if sibilant else 0.15)
         if sibilant:
             # /s z/ bare the teeth slightly.
@@ -651,7 +656,9 @@ NOTES = {
     "ipa_ɸ": "bilabial fricative: lips nearly together, not sealed; strong but no closure dominance",
     "ipa_β": "bilabial fricative: lips nearly together, not sealed; strong but no closure dominance",
     "ipa_ʙ": "bilabial trill: lips nearly together and loose enough to vibrate; not sealed",
+    "ipa_r": "alveolar trill: the tongue tip vibrates at the ridge, lips free (English r is rounded: not this one)",
     "ipa_q": "uvular stop: tongue back raised far back, barely visible; lips take the neighbours' shape",
+    "ipa_ʁ": "uvular r (fricative or approximant): the tongue back as for q; lips take the neighbours' shape",
     "ipa_ħ": "pharyngeal fricative: tongue root back, jaw a little open; weak like /hh/",
     "ipa_ʕ": "pharyngeal approximant: tongue root back, jaw a little open; weak like /hh/",
 }
@@ -918,14 +925,16 @@ IPA_CONSONANTS = [
     ("θ", "th", ""), ("ð", "dh", ""), ("s", "s", ""), ("z", "z", ""), ("ʃ", "sh", ""), ("ʒ", "zh", ""),
     ("ʂ", "sh", ""), ("ʐ", "zh", ""), ("ɕ", "sh", ""), ("ʑ", "zh", ""),
     ("ç", "hh", "palatal h (MFA: h before j)"), ("x", "k", "velar fricative (loch): the tongue back of k"),
-    ("ɣ", "g", ""), ("χ", "k", ""), ("ʁ", "r", "uvular r (loan words)"), ("h", "hh", ""), ("ɦ", "hh", ""),
+    ("ɣ", "g", ""), ("χ", "k", ""), ("ʁ", "ipa_ʁ", "uvular r (French, German): the tongue back, lips free"),
+    ("h", "hh", ""), ("ɦ", "hh", ""),
     ("tʃ", "ch", ""), ("ʧ", "ch", "ligature"), ("dʒ", "jh", ""), ("ʤ", "jh", "ligature"),
     ("ts", "t", ""), ("dz", "d", ""), ("tɕ", "ch", ""), ("dʑ", "jh", ""),
     ("w", "w", ""), ("ʍ", "w", "voiceless w (which)"), ("ɥ", "w", ""), ("j", "y", ""),
     ("ʲ", "y", "espeak's palatal glide between i and a vowel, printed on its own"),
     ("l", "l", ""), ("ɫ", "l", "dark l"), ("ɬ", "l", "voiceless lateral (Welsh names)"), ("ɮ", "l", ""),
     ("ʎ", "l", "palatal lateral (MFA, before front vowels)"), ("əl", "l", "espeak's syllabic l: the consonant"),
-    ("ɹ", "r", ""), ("r", "r", ""), ("ɻ", "r", ""), ("ʀ", "r", ""), ("ɾ", "dx", "flap"), ("ɽ", "dx", ""),
+    ("ɹ", "r", ""), ("r", "ipa_r", "alveolar trill (Spanish, Italian, Russian...): lips free; English IPA writes ɹ"),
+    ("ɻ", "r", ""), ("ʀ", "ipa_ʁ", "uvular trill: as the uvular r"), ("ɾ", "dx", "flap"), ("ɽ", "dx", ""),
     # the rest of the IPA chart (docs/languages.md): own phonemes where no English one looks alike
     ("q", "ipa_q", "uvular stop (ARPAbet and TIMIT q is the glottal stop)"), ("ʙ", "ipa_ʙ", "bilabial trill"),
     ("ħ", "ipa_ħ", "pharyngeal fricative"), ("ʕ", "ipa_ʕ", "pharyngeal approximant"),
@@ -1236,6 +1245,12 @@ KNOWN_SHARED_DIFFERENCES = {
     "radio 'y' -> y but ipa 'y' -> ipa_y",
     "timit 'q' -> q but ipa 'q' -> ipa_q",
     "timit 'y' -> y but ipa 'y' -> ipa_y",
+    # IPA r is the alveolar trill; the other sets' r is English r (IPA ɹ), rounded.
+    "radio 'r' -> r but ipa 'r' -> ipa_r",
+    "arpabet 'r' -> r but ipa 'r' -> ipa_r",
+    "timit 'r' -> r but ipa 'r' -> ipa_r",
+    "ipa 'r' -> ipa_r but espeak 'r' -> r",
+    "ipa 'r' -> ipa_r but sampa 'r' -> r",
 }
 
 
@@ -1308,9 +1323,9 @@ def build_phone_sets_doc():
         "  vowels `ɚ ɝ ɜ` and ARPAbet `ER AXR` map to `er`.",
         "- Long vowels map to the tense vowel (`iː` → `iy`, `uː` → `uw`); length itself is not visible.",
         "- Consonants outside English map to the English phoneme with the same visible articulation:",
-        "  `x` → `k`, `ɬ` → `l`, `ʁ` → `r`, `ɱ` → `f`. Symbols no English phoneme looks like (front rounded",
-        "  and back unrounded vowels, bilabial fricatives and trill, uvular `q`, pharyngeals) have phonemes",
-        "  of their own, `ipa_…` (docs/languages.md).",
+        "  `x` → `k`, `ɬ` → `l`, `ɱ` → `f`. Symbols no English phoneme looks like (front rounded and back",
+        "  unrounded vowels, bilabial fricatives and trill, the alveolar trill `r`, uvulars `q ʁ ʀ`,",
+        "  pharyngeals) have phonemes of their own, `ipa_…` (docs/languages.md).",
         "- Unstressed ARPAbet `AH0` is CMUdict's schwa and maps to the weak `ax`; espeak's reduced `a#`",
         "  (about) also maps to `ax`, while IPA `ɐ` (MFA's British STRUT) maps to `ah`.",
         "",

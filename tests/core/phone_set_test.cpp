@@ -104,6 +104,17 @@ TEST(PhoneSet, IpaGivesOtherLanguagesTheirOwnVowelsAndBilabialFricatives) {
   EXPECT_EQ(model().phoneme(*ipa.lookup("β")).phoneme_class, PhonemeClass::consonant);
   EXPECT_EQ(model().phoneme(*ipa.lookup("ɱ")).phoneme_class, PhonemeClass::closure);
   EXPECT_EQ(model().phoneme(*ipa.lookup("ʋ")).phoneme_class, PhonemeClass::closure);
+  // The alveolar trill of Spanish, Italian, Russian... leaves the lips free; English r (IPA ɹ) rounds them.
+  const auto sphincter = [](std::optional<int> phoneme) {
+    const auto& names = model().channels();
+    for (std::size_t c = 0; c < names.size(); ++c) {
+      if (names[c].name == "orbicularis_oris_upper") return model().phoneme(*phoneme).targets[c];
+    }
+    return -1.0;
+  };
+  EXPECT_EQ(name_of(ipa.lookup("r")), "ipa_r");
+  EXPECT_EQ(sphincter(ipa.lookup("r")), 0.0);
+  EXPECT_GT(sphincter(ipa.lookup("ɹ")), 0.5);
   // Nasal vowels are their oral vowels, written with a combining or a precomposed tilde.
   EXPECT_EQ(name_of(ipa.lookup("ɔ̃")), name_of(ipa.lookup("ɔ")));
   EXPECT_EQ(name_of(ipa.lookup("ẽ")), name_of(ipa.lookup("e")));
