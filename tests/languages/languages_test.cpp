@@ -76,8 +76,8 @@ std::string read_file(const std::filesystem::path& path) {
 
 struct Closures {
   std::size_t bilabial = 0;
-  double worst_error = 0;   // largest closing-channel error at a closure key frame, share of range
-  double worst_seal = 1;    // smallest mouthClose - jawOpen at a bilabial key frame
+  double worst_error = 0;  // largest closing-channel error at a closure key frame, share of range
+  double worst_seal = 1;   // smallest mouthClose - jawOpen at a bilabial key frame
 };
 
 /// Checks every /p b m/ and /f v/ key frame of `track` as tests/core/closure_real_speech_test.cpp
@@ -113,9 +113,9 @@ TEST(EspeakVoices, every_voice_speaks_the_digits_and_every_phoneme_it_names_rend
   // Voices whose language has no rules for reading digits (espeak-ng 1.51 says nothing for them):
   // their words for one to five (Cherokee in the Latin transliteration its rules read).
   const std::map<std::string, const char*> number_words = {
-      {"sem/he", "אחת שתיים שלוש ארבע חמש"},  {"trk/cv", "пĕрре иккĕ виççĕ тăваттă пиллĕк"},
-      {"trk/nog", "бир эки уьш дёрт бес"},     {"trk/tk", "bir iki üç dört bäş"},
-      {"iro/chr", "sagwu tali tsoi nvgi hisgi"},       {"art/qya", "minë atta neldë canta lempë"},
+      {"sem/he", "אחת שתיים שלוש ארבע חמש"},     {"trk/cv", "пĕрре иккĕ виççĕ тăваттă пиллĕк"},
+      {"trk/nog", "бир эки уьш дёрт бес"},       {"trk/tk", "bir iki üç dört bäş"},
+      {"iro/chr", "sagwu tali tsoi nvgi hisgi"}, {"art/qya", "minë atta neldë canta lempë"},
       {"art/sjn", "min tad neledh canad leben"}};
   std::size_t ipa_voices = 0, phonemes = 0, worded = 0;
   for (const speech::Voice& voice : voices) {
@@ -150,8 +150,8 @@ TEST(EspeakVoices, every_voice_speaks_the_digits_and_every_phoneme_it_names_rend
       ADD_FAILURE() << error.what();
     }
   }
-  std::printf("[ measured ] %zu voices, %zu of them named in IPA, %zu phonemes; %zu read number words\n",
-              voices.size(), ipa_voices, phonemes, worded);
+  std::printf("[ measured ] %zu voices, %zu of them named in IPA, %zu phonemes; %zu read number words\n", voices.size(),
+              ipa_voices, phonemes, worded);
   EXPECT_GE(ipa_voices, voices.size() - 8);  // all but the English voices
 }
 
@@ -217,9 +217,10 @@ TEST(EspeakSentences, twenty_two_languages_render_with_lips_sealed_at_every_bila
     const Track track = render_speech(speech, segments);
     check_closures(sentence.voice, segments, track, tally);
   }
-  std::printf("[ measured ] %zu languages: %zu bilabial key frames, worst closing channel %.2f %% off, worst "
-              "mouthClose - jawOpen %.3f\n",
-              std::size(kSentences), tally.bilabial, 100 * tally.worst_error, tally.worst_seal);
+  std::printf(
+      "[ measured ] %zu languages: %zu bilabial key frames, worst closing channel %.2f %% off, worst "
+      "mouthClose - jawOpen %.3f\n",
+      std::size(kSentences), tally.bilabial, 100 * tally.worst_error, tally.worst_seal);
   EXPECT_GE(tally.bilabial, 40U);
 }
 
@@ -230,8 +231,8 @@ struct Measured {
   std::string phoneme;  // the model phoneme
   std::vector<float> arkit;
   float jaw_open = 0, pucker = 0, lip_gap = 0;  // lip_gap: jawOpen - mouthClose
-  std::string viseme;   // Oculus viseme with the largest weight
-  std::size_t frame = 0;  // the track frame measured
+  std::string viseme;                           // Oculus viseme with the largest weight
+  std::size_t frame = 0;                        // the track frame measured
 };
 
 struct CorpusFile {
@@ -246,7 +247,8 @@ const std::vector<CorpusFile>& corpus() {
   static const std::vector<CorpusFile> files = [] {
     std::vector<std::filesystem::path> paths;
     for (const auto& entry : std::filesystem::directory_iterator(std::string(LIPSYNC_TEST_DATA_DIR) + "/languages")) {
-      if (entry.path().extension() == ".TextGrid" && entry.path().filename().string().find("mfa") == std::string::npos) {
+      if (entry.path().extension() == ".TextGrid" &&
+          entry.path().filename().string().find("mfa") == std::string::npos) {
         paths.push_back(entry.path());
       }
     }
@@ -318,9 +320,10 @@ TEST(LanguageCorpus, is_read_as_ipa_without_a_phone_set_flag) {
 TEST(LanguageCorpus, lips_are_sealed_at_every_bilabial_key_frame) {
   Closures tally;
   for (const CorpusFile& file : corpus()) check_closures(file.name, file.segments, file.track, tally);
-  std::printf("[ measured ] corpus: %zu bilabial key frames, worst closing channel %.2f %% off, worst "
-              "mouthClose - jawOpen %.3f\n",
-              tally.bilabial, 100 * tally.worst_error, tally.worst_seal);
+  std::printf(
+      "[ measured ] corpus: %zu bilabial key frames, worst closing channel %.2f %% off, worst "
+      "mouthClose - jawOpen %.3f\n",
+      tally.bilabial, 100 * tally.worst_error, tally.worst_seal);
   EXPECT_GE(tally.bilabial, 30U);
 }
 
@@ -339,7 +342,8 @@ TEST(LanguageCorpus, front_rounded_vowels_pucker_more_than_their_unrounded_partn
     EXPECT_GT(mean(r, pucker), mean(u, pucker) + 0.2) << rounded << " vs " << unrounded;
     // Nearly every rounded vowel on its own, whatever its neighbours, puckers more than the
     // unrounded ones do on average (a short reduced /y/ between stops may not).
-    const auto more = std::count_if(r.begin(), r.end(), [&](const Measured* m) { return m->pucker > mean(u, pucker) + 0.05; });
+    const auto more =
+        std::count_if(r.begin(), r.end(), [&](const Measured* m) { return m->pucker > mean(u, pucker) + 0.05; });
     EXPECT_GE(static_cast<double>(more), 0.8 * static_cast<double>(r.size())) << rounded;
   }
   EXPECT_GE(compared, 3U);
@@ -486,7 +490,8 @@ TEST(LanguageCorpus, on_the_simulated_face_closures_seal_and_rounding_narrows_th
       }
     }
   }
-  const auto average = [](const std::map<std::string, std::pair<double, int>>& sums, std::initializer_list<const char*> names) {
+  const auto average = [](const std::map<std::string, std::pair<double, int>>& sums,
+                          std::initializer_list<const char*> names) {
     double sum = 0;
     int count = 0;
     for (const char* name : names) {
@@ -499,10 +504,11 @@ TEST(LanguageCorpus, on_the_simulated_face_closures_seal_and_rounding_narrows_th
   };
   const double rounded_width = average(width_m, {"ipa_y", "ipa_ø"});
   const double spread_width = average(width_m, {"iy", "ey"});
-  std::printf("[ measured ] face: %zu bilabial key frames, widest gap %.3f mm; %zu labiodental, farthest from the "
-              "teeth %.3f mm; mouth width /y ø/ %.1f mm, /i e/ %.1f mm; lip gap /β ɸ/ %.2f mm, open vowels %.2f mm\n",
-              bilabial, 1000 * worst_gap_m, labiodental, 1000 * worst_teeth_m, 1000 * rounded_width, 1000 * spread_width,
-              1000 * average(gap_m, {"ipa_β", "ipa_ɸ"}), 1000 * average(gap_m, {"ae", "aa", "ah"}));
+  std::printf(
+      "[ measured ] face: %zu bilabial key frames, widest gap %.3f mm; %zu labiodental, farthest from the "
+      "teeth %.3f mm; mouth width /y ø/ %.1f mm, /i e/ %.1f mm; lip gap /β ɸ/ %.2f mm, open vowels %.2f mm\n",
+      bilabial, 1000 * worst_gap_m, labiodental, 1000 * worst_teeth_m, 1000 * rounded_width, 1000 * spread_width,
+      1000 * average(gap_m, {"ipa_β", "ipa_ɸ"}), 1000 * average(gap_m, {"ae", "aa", "ah"}));
   EXPECT_GE(bilabial, 30U);
   EXPECT_LT(rounded_width, spread_width - 0.0015) << "front rounded vowels do not narrow the mouth";
   EXPECT_GT(average(gap_m, {"ipa_β", "ipa_ɸ"}), 0.0005) << "bilabial fricatives are sealed";
@@ -530,8 +536,8 @@ class LanguagesCli : public ::testing::Test {
 };
 
 TEST_F(LanguagesCli, mfa_ipa_textgrids_render_with_and_without_the_phone_set_flag) {
-  for (const char* name : {"mfa_english.TextGrid", "mfa_german.TextGrid", "mfa_french.TextGrid",
-                           "mfa_spanish.TextGrid"}) {
+  for (const char* name :
+       {"mfa_english.TextGrid", "mfa_german.TextGrid", "mfa_french.TextGrid", "mfa_spanish.TextGrid"}) {
     SCOPED_TRACE(name);
     const std::string input = std::string(LIPSYNC_TEST_DATA_DIR) + "/languages/" + name;
     const auto detected = run({"render", input, "-o", "a.json"});
@@ -549,7 +555,8 @@ TEST_F(LanguagesCli, an_unknown_symbol_is_an_error_naming_it_its_file_and_line) 
   ASSERT_NE(at, std::string::npos);
   bad.replace(at, std::string("text = \"ʏ\"").size(), "text = \"ʏ☃\"");
   // The reader names the interval's line (its xmin, two lines above the text).
-  const std::size_t line = static_cast<std::size_t>(std::count(bad.begin(), bad.begin() + static_cast<long>(at), '\n')) - 1;
+  const std::size_t line =
+      static_cast<std::size_t>(std::count(bad.begin(), bad.begin() + static_cast<long>(at), '\n')) - 1;
   const auto path = dir_ / "bad.TextGrid";
   std::ofstream(path, std::ios::binary) << bad;
   for (const bool named : {true, false}) {

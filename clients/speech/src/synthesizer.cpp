@@ -129,15 +129,14 @@ std::mutex voice_list_mutex;
 /// else a language), or nullptr. A variant after '+' ("en+f3") does not change the language.
 const Voice* find_voice(std::string_view name) {
   const std::string wanted = lower_ascii(name.substr(0, name.find('+')));
+  std::string spaced = wanted;  // "English_(America)", as espeak-ng --voices writes the name
+  std::replace(spaced.begin(), spaced.end(), '_', ' ');
   const std::vector<Voice>& voices = voice_list();
   for (const Voice& voice : voices) {
-    std::string spaced = wanted;
-    std::replace(spaced.begin(), spaced.end(), '_', ' ');
+    const std::string voice_name = lower_ascii(voice.name);
     const std::string identifier = lower_ascii(voice.identifier);
     const std::string file = identifier.substr(identifier.rfind('/') + 1);
-    if (lower_ascii(voice.name) == wanted || lower_ascii(voice.name) == spaced || identifier == wanted || file == wanted) {
-      return &voice;
-    }
+    if (voice_name == wanted || voice_name == spaced || identifier == wanted || file == wanted) return &voice;
   }
   for (const Voice& voice : voices) {
     for (const std::string& language : voice.languages) {
