@@ -129,6 +129,23 @@ TEST_F(SpeakTest, other_languages_speak_through_the_ipa_phone_set_and_equal_thei
   }
 }
 
+TEST_F(SpeakTest, every_espeak_voice_speaks) {
+  // Every voice espeak-ng has, by its file name, through Speak: audio and frames come back.
+  std::size_t spoken_voices = 0;
+  for (const speech::Voice& voice : speech::list_voices()) {
+    SCOPED_TRACE(voice.identifier);
+    v1::SpeakRequest request = speak_request("1 2 3 sagwu tali");  // Cherokee reads only Latin letters
+    request.set_voice(voice.identifier);
+    const SpeakStream stream = speak_raw(*stub_, request);
+    EXPECT_TRUE(stream.status.ok()) << stream.status.error_message();
+    bool frames = false;
+    for (const v1::SpeakResponse& message : stream.messages) frames = frames || message.has_frames();
+    EXPECT_TRUE(frames);
+    spoken_voices += stream.status.ok() && frames;
+  }
+  EXPECT_GE(spoken_voices, 131U);
+}
+
 TEST_F(SpeakTest, audio_equals_the_samples_espeak_gives_and_is_described_by_the_header) {
   const speech::Synthesis local = spoken_locally(kSentences[0], 30);
   const client::SpokenTrack spoken = speak(speak_request(kSentences[0]));
