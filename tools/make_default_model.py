@@ -992,6 +992,14 @@ IPA_FALLBACK_IGNORE = ("ːˤˀᵝⁿˡ˞"  # long, pharyngealised, glottalised, 
 # velarised/pharyngealised, strong articulation
 # Pieces passed over in a label split into several: a glide or glottal onset before the vowel.
 IPA_FALLBACK_SKIP = "ʔhjwɥʲ"
+# For a model without the ipa_ phonemes (a model of one's own made from an older `lipsync model dump`):
+# the English phoneme each stands in for, so that the ipa set still loads against it, mapping the
+# labels it mapped before as before (ø -> ow, œ -> ao, ʏ -> uh, ɸ -> f, β -> v, r ʁ ʀ -> r).
+IPA_PHONEME_SUBSTITUTES = {
+    "ipa_y": "uw", "ipa_ʏ": "uh", "ipa_ø": "ow", "ipa_œ": "ao", "ipa_ɶ": "ao", "ipa_ɯ": "uw", "ipa_ɤ": "ow",
+    "ipa_ɸ": "f", "ipa_β": "v", "ipa_ʙ": "b", "ipa_r": "r", "ipa_q": "k", "ipa_ʁ": "r", "ipa_ħ": "hh",
+    "ipa_ʕ": "hh",
+}
 # Diacritics and marks removed before lookup. Length (ː) is not among them.
 IPA_IGNORE = ("ˈˌˑ"           # stress marks, half-long
               "\u0361\u035c\u200d"  # tie bars; the zero-width joiner of espeak-ng --ipa=2
@@ -1150,7 +1158,7 @@ PHONE_SETS = [
             "(docs/languages.md)."),
         "case_sensitive": True, "ignore_characters": IPA_IGNORE, "rows": ipa_phones(),
         "fallback_ignore_characters": IPA_FALLBACK_IGNORE, "fallback_split": True,
-        "fallback_skip": IPA_FALLBACK_SKIP,
+        "fallback_skip": IPA_FALLBACK_SKIP, "phoneme_substitutes": IPA_PHONEME_SUBSTITUTES,
         "source": "espeak-ng 1.51 English voices (measured), MFA english_mfa / english_us_mfa / english_uk_mfa "
                   "dictionary phone sets; every symbol of the IPA chart; espeak-ng 1.51's phoneme events in "
                   "all its voices (measured; docs/languages.md)",
@@ -1210,7 +1218,7 @@ def build_phone_set(spec):
         "case_sensitive": spec["case_sensitive"],
         "ignore_characters": spec["ignore_characters"],
     }
-    for key in ("fallback_ignore_characters", "fallback_split", "fallback_skip"):
+    for key in ("fallback_ignore_characters", "fallback_split", "fallback_skip", "phoneme_substitutes"):
         if key in spec:
             table[key] = spec[key]
     table["phones"] = phones
@@ -1301,6 +1309,8 @@ def build_phone_sets_doc():
         "  `fallback_split` (`true`: a label made of several of the table's labels, longest first, is the",
         "  phoneme of the first of them) and `fallback_skip` (labels passed over in such a split when",
         "  another follows: a glide or glottal onset). A label that still matches nothing is unknown.",
+        "- Optional `phoneme_substitutes`: model phoneme → the phoneme used instead when the model lacks",
+        "  it (the `ipa` set's `ipa_…` phonemes → English ones, for models made before they existed).",
         "",
         "Automatic detection tries the sets in the order arpabet, radio, timit, ipa, espeak, sampa and takes",
         "the first that knows every label of the input. Where two sets share a label they map it to the same",
@@ -1575,6 +1585,8 @@ def self_check(model):
         return out
     for closure in (False, True):
         assert largest_alpha(INVENTORY, closure) == largest_alpha(ENGLISH_INVENTORY, closure), closure
+    assert sorted(IPA_PHONEME_SUBSTITUTES) == sorted(n for n in INVENTORY if n.startswith("ipa_"))
+    assert all(v in ENGLISH_INVENTORY for v in IPA_PHONEME_SUBSTITUTES.values())
     labels = {label for label, _, _ in ipa_phones()}
     missing = [symbol for symbol in IPA_CHART if symbol not in labels and symbol.replace("ɡ", "g") not in labels]
     assert not missing, "IPA chart symbols without a row: " + " ".join(missing)

@@ -62,7 +62,8 @@ PhoneSet PhoneSet::from_json(std::string_view json_text, std::string_view source
                                                    "name",           "description",
                                                    "case_sensitive", "ignore_characters",
                                                    "phones",         "fallback_ignore_characters",
-                                                   "fallback_split", "fallback_skip"};
+                                                   "fallback_split", "fallback_skip",
+                                                   "phoneme_substitutes"};
     if (std::find(known.begin(), known.end(), key) == known.end()) fail("unknown field '" + key + "'");
   }
   // Types are checked before values are read: json::value() throws a type_error, not an
@@ -107,10 +108,23 @@ PhoneSet PhoneSet::from_json(std::string_view json_text, std::string_view source
       set.fallback_skip_.push_back(set.normalise(point));
     }
   }
+  // A phoneme the model lacks may have a substitute (the ipa set's ipa_ phonemes have English ones,
+  // for models made before they existed).
+  std::unordered_map<std::string, std::string> substitutes;
+  if (root.contains("phoneme_substitutes")) {
+    if (!root["phoneme_substitutes"].is_object()) fail("field 'phoneme_substitutes' must be an object");
+    for (const auto& [phoneme, substitute] : root["phoneme_substitutes"].items()) {
+      if (!substitute.is_string()) fail("phoneme_substitutes '" + phoneme + "': the substitute must be a string");
+      substitutes.emplace(phoneme, substitute.get<std::string>());
+    }
+  }
   set.silence_phoneme_ = model.silence_phoneme();
   for (const auto& [label, target] : root["phones"].items()) {
     if (!target.is_string()) fail("phones '" + label + "': the model phoneme must be a string");
-    const auto phoneme = model.find_phoneme(target.get<std::string>());
+    auto phoneme = model.find_phoneme(target.get<std::string>());
+    if (const auto substitute = substitutes.find(target.get<std::string>()); !phoneme && substitute != substitutes.end()) {
+      phoneme = model.find_phoneme(substitute->second);
+    }
     if (!phoneme) {
       fail("phones '" + label + "': maps to '" + target.get<std::string>() + "', which model '" +
            model.name() + "' does not have");

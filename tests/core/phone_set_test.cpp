@@ -3,6 +3,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <nlohmann/json.hpp>
+
 #include "lipsync/error.hpp"
 #include "lipsync/model.hpp"
 
@@ -156,6 +158,32 @@ TEST(PhoneSet, IpaLookupOfAnyBytesGivesAPhonemeOrNothing) {
     }
   }
   EXPECT_GT(known, 1000U);  // the pieces combine into known labels often
+}
+
+TEST(PhoneSet, AModelWithoutTheIpaPhonemesKeepsEverySetTheIpaOneWithEnglishSubstitutes) {
+  // A model of one's own made from `lipsync model dump` before the ipa_ phonemes existed: the built-in
+  // sets still load against it (auto detection loads them all), the ipa set mapping what it mapped
+  // before as before.
+  nlohmann::json json = nlohmann::json::parse(ArticulationModel::builtin_json());
+  for (auto it = json["phonemes"].begin(); it != json["phonemes"].end();) {
+    it = it.key().starts_with("ipa_") ? json["phonemes"].erase(it) : std::next(it);
+  }
+  const ArticulationModel english = ArticulationModel::from_json(json.dump(), "english-only.json");
+  ASSERT_FALSE(english.find_phoneme("ipa_y"));
+  EXPECT_EQ(PhoneSet::builtin_all(english).size(), PhoneSet::builtin_names().size());
+  const PhoneSet ipa = *PhoneSet::builtin("ipa", english);
+  const auto name = [&](std::string_view label) {
+    const auto phoneme = ipa.lookup(label);
+    return phoneme ? english.phoneme(*phoneme).name : std::string("<unknown>");
+  };
+  EXPECT_EQ(name("ø"), "ow");
+  EXPECT_EQ(name("œ"), "ao");
+  EXPECT_EQ(name("ɸ"), "f");
+  EXPECT_EQ(name("β"), "v");
+  EXPECT_EQ(name("r"), "r");
+  EXPECT_EQ(name("ʁ"), "r");
+  EXPECT_EQ(name("y"), "uw");
+  EXPECT_EQ(name("ɔ̃"), "ao");
 }
 
 TEST(PhoneSet, DetectionStillTellsEspeakMnemonicsFromIpa) {
