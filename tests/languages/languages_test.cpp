@@ -419,6 +419,30 @@ TEST(LanguageCorpus, bilabial_fricatives_bring_the_lips_near_without_sealing_the
   }
 }
 
+TEST(Targets, bilabial_fricatives_and_trill_bring_the_lips_near_but_only_closures_seal_them) {
+  // At their targets, in ARKit: /ɸ β ʙ/ leave a gap (jawOpen − mouthClose) a fraction of an open
+  // vowel's, /m/ none; /ɱ ʋ ⱱ/ are the labiodental closures of /f v/ (key frames, lower lip on the teeth).
+  const PhoneSet& ipa = phone_set("ipa");
+  const auto gap = [&](std::string_view label) {
+    std::vector<float> values(model().channel_count()), shapes(kArkitNames.size());
+    const PhonemeSpec& spec = model().phoneme(*ipa.lookup(label));
+    std::copy(spec.targets.begin(), spec.targets.end(), values.begin());
+    model().retarget_to_arkit(values, shapes);
+    return shapes[arkit("jawOpen")] - shapes[arkit("mouthClose")];
+  };
+  EXPECT_LE(gap("m"), 0.0F);
+  for (const char* label : {"ɸ", "β", "ʙ"}) {
+    EXPECT_EQ(model().phoneme(*ipa.lookup(label)).phoneme_class, PhonemeClass::consonant) << label;
+    EXPECT_GT(gap(label), 0.01F) << label;
+    EXPECT_LT(gap(label), 0.25F * gap("a")) << label;
+  }
+  for (const char* label : {"ɱ", "ʋ", "ⱱ"}) {
+    const PhonemeSpec& spec = model().phoneme(*ipa.lookup(label));
+    EXPECT_EQ(spec.phoneme_class, PhonemeClass::closure) << label;
+    EXPECT_TRUE(spec.name == "f" || spec.name == "v") << label;
+  }
+}
+
 TEST(LanguageCorpus, front_rounded_vowels_get_a_rounded_viseme_and_their_partners_a_spread_one) {
   // Oculus has no front rounded viseme: /y ø/ fall on RR (slightly rounded lips over a nearly closed
   // jaw, the viseme of /r er/) or on ou/oh, never on the spread ih/E that /i e/ get.
