@@ -132,6 +132,15 @@ VOWELS = {
     "ay": ("bite", (V("open", "central", "unrounded"), V("near-close", "near-front", "unrounded")), {}),
     "aw": ("bout", (V("open", "central", "unrounded"), V("near-close", "near-back", "rounded")), {}),
     "oy": ("boy", (V("open-mid", "back", "rounded"), V("near-close", "near-front", "unrounded")), {}),
+    # Vowels of the IPA chart that no English phoneme looks like (docs/languages.md): their own
+    # phonemes, named ipa_ and their symbol, from the same features and rules as the English ones.
+    "ipa_y": ("French lune, German über", V("close", "front", "rounded"), {"tense": True}),
+    "ipa_ʏ": ("German Hütte", V("near-close", "near-front", "rounded"), {}),
+    "ipa_ø": ("French peu, German schön", V("close-mid", "front", "rounded"), {}),
+    "ipa_œ": ("French peur, German Hölle", V("open-mid", "front", "rounded"), {}),
+    "ipa_ɶ": ("Danish (open front rounded)", V("open", "front", "rounded"), {}),
+    "ipa_ɯ": ("Japanese u, Turkish ı", V("close", "back", "unrounded"), {"tense": True}),
+    "ipa_ɤ": ("Vietnamese ơ, Mandarin e", V("close-mid", "back", "unrounded"), {}),
 }
 
 # name: (class, example, place, manner, voicing, extra)
@@ -164,11 +173,24 @@ CONSONANTS = {
     "y": ("consonant", "yet", "palatal", "approximant", "voiced", {}),
     "dx": ("consonant", "butter (flap)", "alveolar", "flap", "voiced", {}),
     "q": ("consonant", "uh-oh (glottal stop)", "glottal", "stop", "voiceless", {}),
+    # Consonants of the IPA chart that no English phoneme looks like (the others map to the English
+    # phoneme with the same visible articulation: docs/languages.md).
+    "ipa_ɸ": ("consonant", "Japanese fu", "bilabial", "fricative", "voiceless", {}),
+    "ipa_β": ("consonant", "Spanish haba", "bilabial", "fricative", "voiced", {}),
+    "ipa_ʙ": ("consonant", "bilabial trill (brr)", "bilabial", "trill", "voiced", {}),
+    "ipa_r": ("consonant", "Spanish perro, Italian, Russian", "alveolar", "trill", "voiced", {}),
+    "ipa_q": ("consonant", "Arabic qalb", "uvular", "stop", "voiceless", {}),
+    "ipa_ʁ": ("consonant", "French rouge, German rot", "uvular", "fricative", "voiced", {}),
+    "ipa_ħ": ("consonant", "Arabic ḥ", "pharyngeal", "fricative", "voiceless", {}),
+    "ipa_ʕ": ("consonant", "Arabic ʿayn", "pharyngeal", "approximant", "voiced", {}),
 }
 
-INVENTORY = ["sil"] + list(VOWELS) + ["pcl", "bcl", "m", "f", "v", "p", "b"] + [
+INVENTORY = ["sil"] + [v for v in VOWELS if not v.startswith("ipa_")] + ["pcl", "bcl", "m", "f", "v", "p", "b"] + [
     "t", "d", "k", "g", "ch", "jh", "th", "dh", "s", "z", "sh", "zh", "hh", "n", "ng", "l", "r", "w",
     "y", "dx", "q"]
+# The English inventory above, then the phonemes only other languages need.
+ENGLISH_INVENTORY = list(INVENTORY)
+INVENTORY += [name for name in list(VOWELS) + list(CONSONANTS) if name.startswith("ipa_")]
 assert sorted(INVENTORY) == sorted(["sil"] + list(VOWELS) + list(CONSONANTS))
 
 # ---------------------------------------------------------------------------
@@ -241,6 +263,8 @@ JAW_BY_PLACE = {
     "velar": 0.2,          # the tongue back does the work; the jaw is free
     "labial-velar": 0.12,
     "glottal": 0.25,       # no oral constriction: a neutral open mouth
+    "uvular": 0.22,        # the tongue back against the uvula: the jaw is free, a little more open than a velar
+    "pharyngeal": 0.3,     # the tongue root pulled back: no oral constriction, the jaw low
 }
 
 
@@ -272,6 +296,16 @@ def consonant_targets(name):
         t["orbicularis_oris_upper"] = 0.35
         t["orbicularis_oris_lower"] = LOWER_LIP_CLOSURE["orbicularis_oris_lower"] - 0.03
         t["mentalis"] = LOWER_LIP_CLOSURE["mentalis"] + 0.03
+    elif place == "bilabial" and cls == "consonant":
+        # Bilabial fricatives and the trill (/ɸ β ʙ/) bring the lips nearly together without sealing
+        # them: the sphincter narrows the opening, the mentalis lifts the lower lip less than for a
+        # closure (ARKit mouthClose 0.3 · mentalis stays below jawOpen), and the trill leaves a little
+        # more room for the lips to vibrate.
+        t["orbicularis_oris_upper"] = 0.35
+        t["orbicularis_oris_lower"] = 0.42
+        t["mentalis"] = 0.25 if manner == "trill" else 0.3
+        if manner == "trill":
+            t["jaw_rotation"] += 0.02
     elif place == "bilabial" and cls == "release":
         # A /p b/ release: the lips just part, the jaw starts to drop.
         t["orbicularis_oris_upper"] = 0.2
@@ -292,8 +326,11 @@ def consonant_targets(name):
         set_group(t, LOWER_LIP_DOWN, 0.25)
     elif place == "alveolar":
         # Alveolars raise the tongue tip to the alveolar ridge; the lips are neutral and slightly spread.
-        t["tongue_raise"] = {"stop": 1.0, "nasal": 1.0, "flap": 0.85, "lateral approximant": 0.9,
+        t["tongue_raise"] = {"stop": 1.0, "nasal": 1.0, "flap": 0.85, "trill": 0.85, "lateral approximant": 0.9,
                              "fricative": 0.8}[manner]
+        if manner == "trill":
+            # The tongue tip vibrates against the ridge: a little more room than a flap.
+            t["jaw_rotation"] += 0.05
         set_group(t, SPREAD, 0.3 if sibilant else 0.15)
         if sibilant:
             # /s z/ bare the teeth slightly.
@@ -322,6 +359,12 @@ def consonant_targets(name):
     elif place == "labial-velar":
         # /w/ raises the tongue back like a velar.
         t["tongue_raise"] = 0.2
+    elif place == "uvular":
+        # Uvulars raise the tongue back further back than velars: less of it shows.
+        t["tongue_raise"] = 0.2
+    elif place == "pharyngeal":
+        # Pharyngeals pull the tongue root back: the tongue body lowers; the lips are free.
+        t["tongue_raise"] = -0.3
     elif place == "glottal":
         # /hh/ and the glottal stop have no oral target of their own (weak dominance below).
         pass
@@ -414,6 +457,13 @@ def dominance_of(name):
         closure_dominance(put, LIP_SEAL + JAW, CLOSURE_REACH_MS)
         put(SMILE + SPREAD + UPPER_LIP_RAISE + CORNER_DOWN + LOWER_LIP_DOWN, alpha=1.0)
         put(TONGUE, alpha=0.1)
+    elif place == "bilabial" and cls == "consonant":
+        # /ɸ β ʙ/: the lips dominate as strongly as /w/ rounds them and the jaw as a sibilant's (the
+        # most any non-closure has), but with no closure dominance: they come near each other
+        # whatever the neighbours, and need not seal.
+        put(LIP_SEAL, alpha=5.0)
+        put(JAW, alpha=3.0)
+        put(TONGUE, alpha=0.1)
     elif place == "bilabial" and cls == "release":
         # /p b/ releases: the lips just part; the engine puts the peak at the start of the release.
         put(LIP_SEAL, alpha=3.0)
@@ -457,6 +507,14 @@ def dominance_of(name):
         # shape of the neighbours (the rounded /k/ of "coin").
         put(["tongue_raise"] + JAW, alpha=1.0)
         put(LIPS, alpha=0.3)
+    elif place == "uvular":
+        # Uvulars: like velars, little dominance; the lips keep the neighbours' shape.
+        put(["tongue_raise"] + JAW, alpha=1.0)
+        put(LIPS, alpha=0.3)
+    elif place == "pharyngeal":
+        # Pharyngeals: weak like /hh/, with the lowered tongue and open jaw a little stronger.
+        put(CHANNEL_NAMES, alpha=0.2)
+        put(["tongue_raise"] + JAW, alpha=0.8)
     elif place == "labial-velar":
         # /w/ is strongly rounded: lip rounding dominates, anticipated like a rounded vowel.
         put(ROUNDING, alpha=5.0, theta_plus_per_s=15.0, t_off_ms=15.0)
@@ -588,6 +646,21 @@ NOTES = {
     "y": "palatal glide: tongue body high, lips spread like /iy/",
     "dx": "alveolar flap: a brief, weak tap of the tongue tip",
     "q": "glottal stop: no oral target, takes the shape of its neighbours",
+    "ipa_y": "close front rounded: the jaw and tongue of /iy/ with rounded, protruded lips",
+    "ipa_ʏ": "near-close front rounded: the jaw and tongue of /ih/ with rounded lips",
+    "ipa_ø": "close-mid front rounded: a half-closed jaw, tongue forward, rounded lips",
+    "ipa_œ": "open-mid front rounded: the jaw of /eh/ with rounded lips",
+    "ipa_ɶ": "open front rounded: the jaw of /ae/ with rounded lips",
+    "ipa_ɯ": "close back unrounded: the jaw of /uw/, the lips neither rounded nor spread",
+    "ipa_ɤ": "close-mid back unrounded: the jaw of /ow/, the lips neither rounded nor spread",
+    "ipa_ɸ": "bilabial fricative: lips nearly together, not sealed; strong but no closure dominance",
+    "ipa_β": "bilabial fricative: lips nearly together, not sealed; strong but no closure dominance",
+    "ipa_ʙ": "bilabial trill: lips nearly together and loose enough to vibrate; not sealed",
+    "ipa_r": "alveolar trill: the tongue tip vibrates at the ridge, lips free (English r is rounded: not this one)",
+    "ipa_q": "uvular stop: tongue back raised far back, barely visible; lips take the neighbours' shape",
+    "ipa_ʁ": "uvular r (fricative or approximant): the tongue back as for q; lips take the neighbours' shape",
+    "ipa_ħ": "pharyngeal fricative: tongue root back, jaw a little open; weak like /hh/",
+    "ipa_ʕ": "pharyngeal approximant: tongue root back, jaw a little open; weak like /hh/",
 }
 
 
@@ -791,7 +864,10 @@ IPA_VOWELS = [
     ("ʌ", "ah", ""), ("ɑ", "aa", ""), ("ɒ", "aa", "rounded LOT: open back, like aa"), ("ɔ", "ao", ""),
     ("o", "ow", "close-mid back rounded: the quality of ow"), ("ʊ", "uh", ""), ("ɵ", "uh", ""),
     ("u", "uw", ""), ("ʉ", "uw", "fronted u (MFA, espeak en-gb-scotland)"),
-    ("ø", "ow", "front rounded vowels keep their rounding (loan words)"), ("œ", "ao", ""), ("ʏ", "uh", ""),
+    ("y", "ipa_y", "close front rounded"), ("ʏ", "ipa_ʏ", "near-close front rounded"),
+    ("ø", "ipa_ø", "close-mid front rounded"), ("œ", "ipa_œ", "open-mid front rounded"),
+    ("ɶ", "ipa_ɶ", "open front rounded"), ("ɯ", "ipa_ɯ", "close back unrounded"),
+    ("ɤ", "ipa_ɤ", "close-mid back unrounded"),
 ]
 IPA_LONG_OVERRIDES = {"aː": ("aa", "long open a: PALM/START (MFA British English)"),
                       "ɐː": ("aa", "long open a: START (Australian)")}
@@ -843,19 +919,87 @@ IPA_CONSONANTS = [
     ("m", "m", ""), ("ɱ", "f", "labiodental nasal (info): the lower lip touches the teeth as for f"),
     ("n", "n", ""), ("ɳ", "n", ""), ("ɲ", "n", "palatal nasal (MFA, before front vowels)"), ("ŋ", "ng", ""),
     ("ɴ", "ng", ""),
-    ("f", "f", ""), ("v", "v", ""), ("ɸ", "f", ""), ("β", "v", ""), ("ʋ", "v", ""),
+    ("f", "f", ""), ("v", "v", ""), ("ɸ", "ipa_ɸ", "bilabial fricative: lips nearly together, not sealed"),
+    ("β", "ipa_β", "bilabial fricative: lips nearly together, not sealed"),
+    ("ʋ", "v", "labiodental approximant: the lower lip at the upper teeth as for v"),
     ("θ", "th", ""), ("ð", "dh", ""), ("s", "s", ""), ("z", "z", ""), ("ʃ", "sh", ""), ("ʒ", "zh", ""),
     ("ʂ", "sh", ""), ("ʐ", "zh", ""), ("ɕ", "sh", ""), ("ʑ", "zh", ""),
     ("ç", "hh", "palatal h (MFA: h before j)"), ("x", "k", "velar fricative (loch): the tongue back of k"),
-    ("ɣ", "g", ""), ("χ", "k", ""), ("ʁ", "r", "uvular r (loan words)"), ("h", "hh", ""), ("ɦ", "hh", ""),
+    ("ɣ", "g", ""), ("χ", "k", ""), ("ʁ", "ipa_ʁ", "uvular r (French, German): the tongue back, lips free"),
+    ("h", "hh", ""), ("ɦ", "hh", ""),
     ("tʃ", "ch", ""), ("ʧ", "ch", "ligature"), ("dʒ", "jh", ""), ("ʤ", "jh", "ligature"),
     ("ts", "t", ""), ("dz", "d", ""), ("tɕ", "ch", ""), ("dʑ", "jh", ""),
     ("w", "w", ""), ("ʍ", "w", "voiceless w (which)"), ("ɥ", "w", ""), ("j", "y", ""),
     ("ʲ", "y", "espeak's palatal glide between i and a vowel, printed on its own"),
     ("l", "l", ""), ("ɫ", "l", "dark l"), ("ɬ", "l", "voiceless lateral (Welsh names)"), ("ɮ", "l", ""),
     ("ʎ", "l", "palatal lateral (MFA, before front vowels)"), ("əl", "l", "espeak's syllabic l: the consonant"),
-    ("ɹ", "r", ""), ("r", "r", ""), ("ɻ", "r", ""), ("ʀ", "r", ""), ("ɾ", "dx", "flap"), ("ɽ", "dx", ""),
+    ("ɹ", "r", ""), ("r", "ipa_r", "alveolar trill (Spanish, Italian, Russian...): lips free; English IPA writes ɹ"),
+    ("ɻ", "r", ""), ("ʀ", "ipa_ʁ", "uvular trill: as the uvular r"), ("ɾ", "dx", "flap"), ("ɽ", "dx", ""),
+    # the rest of the IPA chart (docs/languages.md): own phonemes where no English one looks alike
+    ("q", "ipa_q", "uvular stop (ARPAbet and TIMIT q is the glottal stop)"), ("ʙ", "ipa_ʙ", "bilabial trill"),
+    ("ħ", "ipa_ħ", "pharyngeal fricative"), ("ʕ", "ipa_ʕ", "pharyngeal approximant"),
+    ("ʜ", "ipa_ħ", "epiglottal fricative: as the pharyngeal"), ("ʢ", "ipa_ʕ", "epiglottal: as the pharyngeal"),
+    ("ʡ", "q", "epiglottal stop: no oral target, as the glottal stop"),
+    ("ʝ", "y", "palatal fricative: the tongue body and spread lips of the palatal glide"),
+    ("ɰ", "g", "velar approximant: the tongue back of a velar, lips free"),
+    ("ɭ", "l", "retroflex lateral: as l"), ("ʟ", "g", "velar lateral: the tongue back of a velar"),
+    ("ɺ", "l", "lateral flap: as l"), ("ⱱ", "v", "labiodental flap: the lower lip strikes the upper teeth as for v"),
+    ("ɧ", "sh", "sj-sound (Swedish): protruded lips as sh"),
 ]
+# Symbols other than English's that front-ends emit as one phoneme: diphthongs, affricates, and the
+# names espeak-ng 1.51 gives phonemes of its non-English tables that have no IPA name (measured: the
+# digits and a sentence in every voice).
+IPA_LANGUAGE_ROWS = [
+    ("ai", "ay", "diphthong (German, Spanish...)"), ("au", "aw", "diphthong"), ("ɔʏ", "oy", "diphthong (German)"),
+    ("ɔy", "oy", "diphthong"), ("oi", "oy", "diphthong"), ("ou", "ow", "diphthong"),
+    ("pf", "p", "affricate (German): its bilabial closure and release; the f is too brief to show"),
+    ("bv", "b", "affricate: its bilabial closure and release"),
+    ("ʈʂ", "ch", "retroflex affricate (Mandarin zh)"), ("ɖʐ", "jh", "retroflex affricate"),
+    ("ɟʝ", "y", "palatal affricate (MFA Spanish): the tongue body and spread lips of the palatal glide"),
+    ("cç", "k", "palatal affricate"), ("tɬ", "t", "lateral affricate"), ("dɮ", "d", "lateral affricate"),
+    ("kx", "k", "velar affricate"), ("ʦ", "t", "ligature ts"), ("ʣ", "d", "ligature dz"),
+    ("ʨ", "ch", "ligature tɕ"), ("ʥ", "jh", "ligature dʑ"),
+    ("ε", "eh", "Greek epsilon for ɛ (espeak-ng)"),
+    ("tS", "ch", "espeak-ng name without IPA (ky)"), ("dZ", "jh", "espeak-ng name without IPA"),
+    ("S", "sh", "espeak-ng name without IPA (ky)"), ("X", "k", "espeak-ng name without IPA (lb): velar fricative"),
+    ("A", "aa", "espeak-ng name without IPA (ga)"), ("t[", "t", "espeak-ng dental t without IPA (ky)"),
+    ("t`", "t", "espeak-ng retroflex t without IPA (am)"), ("r.", "r", "espeak-ng retroflex r without IPA"),
+    ("r#", "r", "espeak-ng voiceless r without IPA (is)"), ("tl#", "t", "espeak-ng voiceless tl without IPA (is)"),
+    ("i.", "ih", "espeak-ng apical vowel without IPA (Mandarin zhi, shi)"),
+    ("s.", "sh", "espeak-ng retroflex s without IPA (Mandarin)"), ("n^", "n", "espeak-ng palatal nasal without IPA"),
+    ("l-", "l", "espeak-ng syllabic l without IPA (ky)"),
+    ("?", "q", "espeak-ng glottal stop without IPA (om)"), ("Φ", "ipa_ɸ", "Greek Phi for ɸ (espeak-ng om)"),
+    ("ä", "ae", "open central a (espeak-ng ja): as a"),
+    ("ᵐ", "m", "prenasalisation printed on its own (espeak-ng si)"), ("ⁿ", "n", "prenasalisation on its own"),
+    ("ᵑ", "ng", "prenasalisation on its own"),
+    # nasal vowels written with a precomposed tilde (one code point): their oral vowel, as the
+    # combining tilde (U+0303) is removed
+    ("ã", "ae", "nasal a (precomposed)"), ("ẽ", "ey", "nasal e (precomposed)"), ("ĩ", "iy", "nasal i (precomposed)"),
+    ("õ", "ow", "nasal o (precomposed)"), ("ũ", "uw", "nasal u (precomposed)"), ("ỹ", "ipa_y", "nasal y (precomposed)"),
+]
+# Every symbol of the IPA chart (pulmonic consonants, other symbols, vowels): each has a row.
+IPA_CHART = ("p b t d ʈ ɖ c ɟ k ɡ q ɢ ʔ m ɱ n ɳ ɲ ŋ ɴ ʙ r ʀ ⱱ ɾ ɽ ɸ β f v θ ð s z ʃ ʒ ʂ ʐ ç ʝ x ɣ χ ʁ ħ ʕ h ɦ "
+             "ɬ ɮ ʋ ɹ ɻ j ɰ l ɭ ʎ ʟ ʍ w ɥ ʜ ʢ ʡ ɕ ʑ ɺ ɧ "
+             "i y ɨ ʉ ɯ u ɪ ʏ ʊ e ø ɘ ɵ ɤ o ə ɛ œ ɜ ɞ ʌ ɔ æ ɐ a ɶ ɑ ɒ").split()
+# Marks removed only when a label is not in the table as written (the fallback, docs/languages.md):
+# length, tones and phonation, articulatory details that do not change the mouth.
+IPA_FALLBACK_IGNORE = ("ːˤˀᵝⁿˡ˞"  # long, pharyngealised, glottalised, compressed, nasal/lateral release, rhotic
+                       "-#.[`^;:!/\""  # the marks of espeak-ng mnemonics it prints for phonemes without IPA (y-)
+                       "˥˦˧˨˩"  # tone letters
+                       "\u0300\u0301\u0302\u0304\u030b\u030c\u030f"  # tone diacritics
+                       "\u0308\u033d\u0339\u031c\u0324\u0330\u033c\u033a\u033b\u0334\u0348")
+# centralised, mid-centralised, more/less rounded, breathy, creaky, linguolabial, apical, laminal,
+# velarised/pharyngealised, strong articulation
+# Pieces passed over in a label split into several: a glide or glottal onset before the vowel.
+IPA_FALLBACK_SKIP = "ʔhjwɥʲ"
+# For a model without the ipa_ phonemes (a model of one's own made from an older `lipsync model dump`):
+# the English phoneme each stands in for, so that the ipa set still loads against it, mapping the
+# labels it mapped before as before (ø -> ow, œ -> ao, ʏ -> uh, ɸ -> f, β -> v, r ʁ ʀ -> r).
+IPA_PHONEME_SUBSTITUTES = {
+    "ipa_y": "uw", "ipa_ʏ": "uh", "ipa_ø": "ow", "ipa_œ": "ao", "ipa_ɶ": "ao", "ipa_ɯ": "uw", "ipa_ɤ": "ow",
+    "ipa_ɸ": "f", "ipa_β": "v", "ipa_ʙ": "b", "ipa_r": "r", "ipa_q": "k", "ipa_ʁ": "r", "ipa_ħ": "hh",
+    "ipa_ʕ": "hh",
+}
 # Diacritics and marks removed before lookup. Length (ː) is not among them.
 IPA_IGNORE = ("ˈˌˑ"           # stress marks, half-long
               "\u0361\u035c\u200d"  # tie bars; the zero-width joiner of espeak-ng --ipa=2
@@ -877,6 +1021,7 @@ def ipa_phones():
             rows.append((long_label, target, "long: as the short vowel"))
     rows += IPA_OTHER_VOWELS
     rows += IPA_CONSONANTS
+    rows += IPA_LANGUAGE_ROWS
     # MFA palatalises consonants before front vowels (bʲ, tʲ, mʲ...): the consonant.
     for label, target, note in IPA_CONSONANTS:
         if len(label) == 1 and label not in ("ʲ", "j", "ʔ", "h", "ɦ", "ç") and target != "sil":
@@ -1004,13 +1149,19 @@ PHONE_SETS = [
     {
         "name": "ipa",
         "description": (
-            "IPA as espeak-ng prints it for its English voices (--ipa, and phoneme events with "
-            "espeakINITIALIZE_PHONEME_IPA) and as the Montreal Forced Aligner english_mfa models write it. Stress "
-            "marks, tie bars, syllabic marks and articulatory diacritics (ʰ ʷ, dental, nasal) are removed before "
-            "lookup; length (ː) is kept."),
+            "IPA as espeak-ng prints it for its voices (--ipa, and phoneme events with "
+            "espeakINITIALIZE_PHONEME_IPA) and as the Montreal Forced Aligner's IPA models write it, with every "
+            "symbol of the IPA chart. Stress marks, tie bars, syllabic marks and articulatory diacritics (ʰ ʷ, "
+            "dental, nasal) are removed before lookup; length (ː) is kept. A label not in the table falls back: "
+            "length, tone and other marks are removed, and a label made of several symbols (an affricate, a "
+            "diphthong) is the phoneme of its first symbol, a glide or glottal onset passed over "
+            "(docs/languages.md)."),
         "case_sensitive": True, "ignore_characters": IPA_IGNORE, "rows": ipa_phones(),
+        "fallback_ignore_characters": IPA_FALLBACK_IGNORE, "fallback_split": True,
+        "fallback_skip": IPA_FALLBACK_SKIP, "phoneme_substitutes": IPA_PHONEME_SUBSTITUTES,
         "source": "espeak-ng 1.51 English voices (measured), MFA english_mfa / english_us_mfa / english_uk_mfa "
-                  "dictionary phone sets",
+                  "dictionary phone sets; every symbol of the IPA chart; espeak-ng 1.51's phoneme events in "
+                  "all its voices (measured; docs/languages.md)",
         "normalisation": "case-sensitive; removed before lookup: stress ˈ ˌ, half-long ˑ, tie bars U+0361 U+035C, "
                          "zero-width joiner U+200D, syllabic U+0329 U+030D, non-syllabic U+032F, ʰ ʷ ˠ ʼ, and the "
                          "diacritics dental U+032A, nasal U+0303, unreleased U+031A, voiceless U+0325 U+030A, "
@@ -1059,15 +1210,19 @@ def build_phone_set(spec):
         assert key not in seen, (spec["name"], label, seen.get(key))
         seen[key] = label
         phones[label] = target
-    return {
+    table = {
         "format": "lipsync-phone-set",
         "version": 1,
         "name": spec["name"],
         "description": spec["description"],
         "case_sensitive": spec["case_sensitive"],
         "ignore_characters": spec["ignore_characters"],
-        "phones": phones,
     }
+    for key in ("fallback_ignore_characters", "fallback_split", "fallback_skip", "phoneme_substitutes"):
+        if key in spec:
+            table[key] = spec[key]
+    table["phones"] = phones
+    return table
 
 
 def check_shared_labels():
@@ -1091,6 +1246,19 @@ def check_shared_labels():
 KNOWN_SHARED_DIFFERENCES = {
     "ipa 'e' -> ey but sampa 'e' -> eh",
     "espeak 'e' -> ey but sampa 'e' -> eh",
+    # IPA y is the close front rounded vowel and q the uvular stop; ARPAbet, radio and TIMIT y is the
+    # palatal glide (IPA j) and q the glottal stop (IPA ʔ).
+    "arpabet 'y' -> y but ipa 'y' -> ipa_y",
+    "arpabet 'q' -> q but ipa 'q' -> ipa_q",
+    "radio 'y' -> y but ipa 'y' -> ipa_y",
+    "timit 'q' -> q but ipa 'q' -> ipa_q",
+    "timit 'y' -> y but ipa 'y' -> ipa_y",
+    # IPA r is the alveolar trill; the other sets' r is English r (IPA ɹ), rounded.
+    "radio 'r' -> r but ipa 'r' -> ipa_r",
+    "arpabet 'r' -> r but ipa 'r' -> ipa_r",
+    "timit 'r' -> r but ipa 'r' -> ipa_r",
+    "ipa 'r' -> ipa_r but espeak 'r' -> r",
+    "ipa 'r' -> ipa_r but sampa 'r' -> r",
 }
 
 
@@ -1136,6 +1304,13 @@ def build_phone_sets_doc():
         "  stress marks. Keys that become equal after normalisation are an error.",
         "- `phones`: label → model phoneme. Every phoneme named must exist in the model.",
         "- An empty label is always silence. A label that is empty only after normalisation is unknown.",
+        "- Optional, for a label the table lacks (the `ipa` set uses them; docs/languages.md):",
+        "  `fallback_ignore_characters` (code points then removed, such as length and tone marks),",
+        "  `fallback_split` (`true`: a label made of several of the table's labels, longest first, is the",
+        "  phoneme of the first of them) and `fallback_skip` (labels passed over in such a split when",
+        "  another follows: a glide or glottal onset). A label that still matches nothing is unknown.",
+        "- Optional `phoneme_substitutes`: model phoneme → the phoneme used instead when the model lacks",
+        "  it (the `ipa` set's `ipa_…` phonemes → English ones, for models made before they existed).",
         "",
         "Automatic detection tries the sets in the order arpabet, radio, timit, ipa, espeak, sampa and takes",
         "the first that knows every label of the input. Where two sets share a label they map it to the same",
@@ -1157,8 +1332,10 @@ def build_phone_sets_doc():
         "- r-coloured vowels written as one symbol (espeak's `ɑːɹ`, `ɪɹ`) map to their vowel; the rhotic",
         "  vowels `ɚ ɝ ɜ` and ARPAbet `ER AXR` map to `er`.",
         "- Long vowels map to the tense vowel (`iː` → `iy`, `uː` → `uw`); length itself is not visible.",
-        "- Consonants outside English (loan words and names that espeak-ng transcribes) map to the English",
-        "  phoneme with the same visible articulation: `x` → `k`, `ɬ` → `l`, `ʁ` → `r`, `ɱ` → `f`.",
+        "- Consonants outside English map to the English phoneme with the same visible articulation:",
+        "  `x` → `k`, `ɬ` → `l`, `ɱ` → `f`. Symbols no English phoneme looks like (front rounded and back",
+        "  unrounded vowels, bilabial fricatives and trill, the alveolar trill `r`, uvulars `q ʁ ʀ`,",
+        "  pharyngeals) have phonemes of their own, `ipa_…` (docs/languages.md).",
         "- Unstressed ARPAbet `AH0` is CMUdict's schwa and maps to the weak `ax`; espeak's reduced `a#`",
         "  (about) also maps to `ax`, while IPA `ɐ` (MFA's British STRUT) maps to `ah`.",
         "",
@@ -1180,6 +1357,83 @@ def build_phone_sets_doc():
             lines.append("| %s | %s | %s |" % (md_code(label), target, md_escape(note)))
         lines.append("")
     return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------
+# docs/languages.md: the generated part (between the markers), the rest is prose.
+# ---------------------------------------------------------------------------
+
+LANGUAGES_BEGIN = "<!-- BEGIN generated by tools/make_default_model.py: edit the script, not this part. -->"
+LANGUAGES_END = "<!-- END generated part -->"
+
+
+def feature_summary(name):
+    f = features_of(name)
+    if f.get("type") == "silence":
+        return "silence"
+    if "place" in f:
+        parts = [f["voicing"], f["place"], f["manner"]]
+        parts += [k for k in ("sibilant", "rhotic") if f.get(k)]
+        if "rounding" in f:
+            parts.append(f["rounding"])
+        return " ".join(parts)
+    if f.get("diphthong"):
+        q = lambda v: "%s %s %s" % (v["height"], v["backness"], v["rounding"])
+        return "diphthong: %s → %s" % (q(f["onset"]), q(f["offglide"]))
+    parts = [f["height"], f["backness"], f["rounding"]]
+    parts += [k for k in ("tense", "reduced", "rhotic") if f.get(k)]
+    return " ".join(parts)
+
+
+# The columns of the feature -> channel table: one per channel group (left and right are equal).
+TABLE_COLUMNS = [
+    ("jaw", "jaw_rotation"), ("tongue raise", "tongue_raise"), ("tongue out", "tongue_protrusion"),
+    ("sphincter upper", OOU), ("sphincter lower", OOL), ("mentalis", MENT),
+    ("spread (risorius)", "risorius_left"), ("smile (zygomaticus)", "zygomaticus_major_left"),
+    ("lower lip down", "depressor_labii_inferioris_left"), ("upper lip up", "levator_labii_superioris_left"),
+    ("corners down", "depressor_anguli_oris_left"),
+]
+
+
+def build_languages_tables():
+    model = build_model()
+    rows = {label: (target, note) for label, target, note in ipa_phones()}
+    lines = [LANGUAGES_BEGIN, "", "### The IPA chart", "",
+             "Every symbol of the chart's pulmonic consonants, other symbols and vowels, the model phoneme the "
+             "`ipa` phone set gives it, and that phoneme's features. Phonemes named `ipa_…` exist for other "
+             "languages only; the others are the English phonemes whose visible articulation the symbol shares.",
+             "", "| symbol | phoneme | its features | note |", "|---|---|---|---|"]
+    for symbol in IPA_CHART:
+        target, note = rows.get(symbol) or rows[symbol.replace("ɡ", "g")]
+        lines.append("| %s | `%s` | %s | %s |" % (md_code(symbol), target, feature_summary(target), md_escape(note)))
+    lines += ["", "### What the features do to the channels", "",
+              "The targets of every phoneme of the default model, as the rules of docs/model.md compute them "
+              "from its features (left and right channels are equal; blank is the channel's rest). Dominance: "
+              "the largest α of the phoneme on any channel (closures 100, docs/coarticulation.md).", "",
+              "| phoneme | class | features | " + " | ".join(c for c, _ in TABLE_COLUMNS) + " | largest α |",
+              "|---|---|---|" + "---|" * (len(TABLE_COLUMNS) + 1)]
+    for name in INVENTORY:
+        p = model["phonemes"][name]
+        cells = []
+        for _, ch in TABLE_COLUMNS:
+            v = p["targets"].get(ch)
+            cells.append("" if v is None else "%.2f" % v)
+        alpha = max(d["alpha"] for d in dominance_of(name).values())
+        lines.append("| `%s` | %s | %s | %s | %g |" % (name, p["class"], feature_summary(name), " | ".join(cells),
+                                                      num(alpha)))
+    lines += ["", LANGUAGES_END]
+    return "\n".join(lines)
+
+
+def languages_doc(root):
+    """docs/languages.md with its generated part replaced; its prose as it is."""
+    path = os.path.join(root, "docs", "languages.md")
+    with open(path, encoding="utf-8") as f:
+        text = f.read()
+    begin, end = text.find(LANGUAGES_BEGIN), text.find(LANGUAGES_END)
+    if begin < 0 or end < begin:
+        raise SystemExit("docs/languages.md lacks the markers of its generated part")
+    return text[:begin] + build_languages_tables() + text[end + len(LANGUAGES_END):]
 
 
 # ---------------------------------------------------------------------------
@@ -1289,8 +1543,9 @@ def dump_json(obj):
     return json.dumps(obj, indent=2, ensure_ascii=False) + "\n"
 
 
-def outputs():
+def outputs(root=ROOT):
     files = [(os.path.join("data", "models", "default.json"), dump_json(build_model()))]
+    files.append((os.path.join("docs", "languages.md"), languages_doc(root)))
     for spec in PHONE_SETS:
         files.append((os.path.join("data", "phonesets", spec["name"] + ".json"), dump_json(build_phone_set(spec))))
     files.append((os.path.join("docs", "phone-sets.md"), build_phone_sets_doc()))
@@ -1317,6 +1572,24 @@ def self_check(model):
             assert math.exp(-min(merged["theta_minus_per_s"], merged["theta_plus_per_s"]) * 0.56) < 0.01, name
         assert (p["class"] == "release") == ("closure" in p), name
     assert model["phonemes"]["sil"]["class"] == "silence"
+    # The phonemes of other languages must not change how English renders: the viseme classifier
+    # weighs a channel by the largest dominance of closure against other phonemes on it
+    # (core/src/visemes.cpp), so no new phoneme may dominate a channel more than an English one does.
+    def largest_alpha(names, closure):
+        out = {}
+        for name in names:
+            if (CONSONANTS.get(name, ("",))[0] == "closure") != closure:
+                continue
+            for ch, d in dominance_of(name).items():
+                out[ch] = max(out.get(ch, 0.0), d["alpha"])
+        return out
+    for closure in (False, True):
+        assert largest_alpha(INVENTORY, closure) == largest_alpha(ENGLISH_INVENTORY, closure), closure
+    assert sorted(IPA_PHONEME_SUBSTITUTES) == sorted(n for n in INVENTORY if n.startswith("ipa_"))
+    assert all(v in ENGLISH_INVENTORY for v in IPA_PHONEME_SUBSTITUTES.values())
+    labels = {label for label, _, _ in ipa_phones()}
+    missing = [symbol for symbol in IPA_CHART if symbol not in labels and symbol.replace("ɡ", "g") not in labels]
+    assert not missing, "IPA chart symbols without a row: " + " ".join(missing)
 
 
 def main():
@@ -1333,7 +1606,7 @@ def main():
         return 2
 
     stale = []
-    for rel, text in outputs():
+    for rel, text in outputs(args.root):
         path = os.path.join(args.root, rel)
         try:
             with open(path, encoding="utf-8") as f:

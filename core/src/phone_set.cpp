@@ -58,8 +58,12 @@ PhoneSet PhoneSet::from_json(std::string_view json_text, std::string_view source
   const auto fail = [&](const std::string& message) { throw InputError(source, 0, message); };
   if (!root.is_object()) fail("a phone set must be a JSON object");
   for (const auto& [key, value] : root.items()) {
-    static const std::vector<std::string> known = {"format", "version", "name", "description",
-                                                   "case_sensitive", "ignore_characters", "phones"};
+    static const std::vector<std::string> known = {"format",         "version",
+                                                   "name",           "description",
+                                                   "case_sensitive", "ignore_characters",
+                                                   "phones",         "fallback_ignore_characters",
+                                                   "fallback_split", "fallback_skip",
+                                                   "phoneme_substitutes"};
     if (std::find(known.begin(), known.end(), key) == known.end()) fail("unknown field '" + key + "'");
   }
   // Types are checked before values are read: json::value() throws a type_error, not an
@@ -90,10 +94,37 @@ PhoneSet PhoneSet::from_json(std::string_view json_text, std::string_view source
       }
     }
   }
+  if (root.contains("fallback_ignore_characters")) {
+    if (!root["fallback_ignore_characters"].is_string()) fail("field 'fallback_ignore_characters' must be a string");
+    set.fallback_ignored_ = code_points(root["fallback_ignore_characters"].get<std::string>());
+  }
+  if (root.contains("fallback_split")) {
+    if (!root["fallback_split"].is_boolean()) fail("field 'fallback_split' must be true or false");
+    set.fallback_split_ = root["fallback_split"].get<bool>();
+  }
+  if (root.contains("fallback_skip")) {
+    if (!root["fallback_skip"].is_string()) fail("field 'fallback_skip' must be a string");
+    for (const std::string& point : code_points(root["fallback_skip"].get<std::string>())) {
+      set.fallback_skip_.push_back(set.normalise(point));
+    }
+  }
+  // A phoneme the model lacks may have a substitute (the ipa set's ipa_ phonemes have English ones,
+  // for models made before they existed).
+  std::unordered_map<std::string, std::string> substitutes;
+  if (root.contains("phoneme_substitutes")) {
+    if (!root["phoneme_substitutes"].is_object()) fail("field 'phoneme_substitutes' must be an object");
+    for (const auto& [phoneme, substitute] : root["phoneme_substitutes"].items()) {
+      if (!substitute.is_string()) fail("phoneme_substitutes '" + phoneme + "': the substitute must be a string");
+      substitutes.emplace(phoneme, substitute.get<std::string>());
+    }
+  }
   set.silence_phoneme_ = model.silence_phoneme();
   for (const auto& [label, target] : root["phones"].items()) {
     if (!target.is_string()) fail("phones '" + label + "': the model phoneme must be a string");
-    const auto phoneme = model.find_phoneme(target.get<std::string>());
+    auto phoneme = model.find_phoneme(target.get<std::string>());
+    if (const auto substitute = substitutes.find(target.get<std::string>()); !phoneme && substitute != substitutes.end()) {
+      phoneme = model.find_phoneme(substitute->second);
+    }
     if (!phoneme) {
       fail("phones '" + label + "': maps to '" + target.get<std::string>() + "', which model '" +
            model.name() + "' does not have");
@@ -103,6 +134,7 @@ PhoneSet PhoneSet::from_json(std::string_view json_text, std::string_view source
     if (!set.phoneme_by_label_.emplace(key, *phoneme).second) {
       fail("phones '" + label + "': duplicates another label after normalisation ('" + key + "')");
     }
+    set.longest_key_bytes_ = std::max(set.longest_key_bytes_, key.size());
   }
   return set;
 }
@@ -152,9 +184,42 @@ std::string PhoneSet::normalise(std::string_view label) const {
 
 std::optional<int> PhoneSet::lookup(std::string_view label) const {
   if (label.empty()) return silence_phoneme_;
-  const auto it = phoneme_by_label_.find(normalise(label));
-  if (it == phoneme_by_label_.end()) return std::nullopt;
-  return it->second;
+  std::string key = normalise(label);
+  const auto it = phoneme_by_label_.find(key);
+  if (it != phoneme_by_label_.end()) return it->second;
+  if (fallback_ignored_.empty() && !fallback_split_) return std::nullopt;
+  return fallback_lookup(key);
+}
+
+std::optional<int> PhoneSet::fallback_lookup(const std::string& normalised) const {
+  // Only labels the table lacks come here (rare), so plain strings and searches do.
+  std::string key;
+  for (std::size_t i = 0; i < normalised.size();) {
+    const std::string_view point = std::string_view(normalised).substr(i, code_point_length(normalised, i));
+    i += point.size();
+    if (std::find(fallback_ignored_.begin(), fallback_ignored_.end(), point) == fallback_ignored_.end()) key += point;
+  }
+  if (key.empty()) return std::nullopt;
+  if (const auto it = phoneme_by_label_.find(key); it != phoneme_by_label_.end()) return it->second;
+  if (!fallback_split_) return std::nullopt;
+  // Split into the table's labels, longest first at each position; every byte must be covered.
+  std::optional<int> first, chosen;
+  for (std::size_t i = 0; i < key.size();) {
+    std::size_t length = std::min(longest_key_bytes_, key.size() - i);
+    std::unordered_map<std::string, int>::const_iterator found = phoneme_by_label_.end();
+    for (; length > 0; --length) {
+      // Only whole code points: the next byte must not be a UTF-8 continuation byte.
+      if (i + length < key.size() && (static_cast<unsigned char>(key[i + length]) & 0xC0) == 0x80) continue;
+      found = phoneme_by_label_.find(key.substr(i, length));
+      if (found != phoneme_by_label_.end()) break;
+    }
+    if (length == 0) return std::nullopt;
+    if (!first) first = found->second;
+    const bool skip = std::find(fallback_skip_.begin(), fallback_skip_.end(), found->first) != fallback_skip_.end();
+    if (!chosen && !skip) chosen = found->second;
+    i += length;
+  }
+  return chosen ? chosen : first;
 }
 
 const PhoneSet& detect_phone_set(const std::vector<PhoneSet>& candidates,

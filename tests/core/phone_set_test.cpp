@@ -3,6 +3,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <nlohmann/json.hpp>
+
 #include "lipsync/error.hpp"
 #include "lipsync/model.hpp"
 
@@ -79,6 +81,116 @@ TEST(PhoneSet, IpaAndEspeakMapDiphthongsAndAffricates) {
   EXPECT_EQ(name_of(espeak.lookup("aI")), "ay");
   EXPECT_EQ(name_of(espeak.lookup("tS")), "ch");
   EXPECT_EQ(name_of(espeak.lookup("D")), "dh");
+}
+
+TEST(PhoneSet, IpaKnowsEverySymbolOfTheIpaChart) {
+  const PhoneSet ipa = *PhoneSet::builtin("ipa", model());
+  // Pulmonic consonants, other symbols, vowels (IPA chart 2020).
+  for (const char* symbol :
+       {"p", "b", "t", "d", "ʈ", "ɖ", "c", "ɟ", "k", "ɡ", "q", "ɢ", "ʔ", "m", "ɱ", "n", "ɳ", "ɲ", "ŋ", "ɴ", "ʙ", "r",
+        "ʀ", "ⱱ", "ɾ", "ɽ", "ɸ", "β", "f", "v", "θ", "ð", "s", "z", "ʃ", "ʒ", "ʂ", "ʐ", "ç", "ʝ", "x", "ɣ", "χ", "ʁ",
+        "ħ", "ʕ", "h", "ɦ", "ɬ", "ɮ", "ʋ", "ɹ", "ɻ", "j", "ɰ", "l", "ɭ", "ʎ", "ʟ", "ʍ", "w", "ɥ", "ʜ", "ʢ", "ʡ", "ɕ",
+        "ʑ", "ɺ", "ɧ", "i", "y", "ɨ", "ʉ", "ɯ", "u", "ɪ", "ʏ", "ʊ", "e", "ø", "ɘ", "ɵ", "ɤ", "o", "ə", "ɛ", "œ", "ɜ",
+        "ɞ", "ʌ", "ɔ", "æ", "ɐ", "a", "ɶ", "ɑ", "ɒ"}) {
+    EXPECT_TRUE(ipa.lookup(symbol)) << symbol;
+  }
+}
+
+TEST(PhoneSet, IpaGivesOtherLanguagesTheirOwnVowelsAndBilabialFricatives) {
+  const PhoneSet ipa = *PhoneSet::builtin("ipa", model());
+  EXPECT_EQ(name_of(ipa.lookup("y")), "ipa_y");
+  EXPECT_EQ(name_of(ipa.lookup("ø")), "ipa_ø");
+  EXPECT_EQ(name_of(ipa.lookup("ɯ")), "ipa_ɯ");
+  EXPECT_EQ(name_of(ipa.lookup("ɤ")), "ipa_ɤ");
+  // /ɸ β/ are not closures (no sealing key frames); /ɱ ʋ/ are the labiodental closures of f v.
+  EXPECT_EQ(model().phoneme(*ipa.lookup("β")).phoneme_class, PhonemeClass::consonant);
+  EXPECT_EQ(model().phoneme(*ipa.lookup("ɱ")).phoneme_class, PhonemeClass::closure);
+  EXPECT_EQ(model().phoneme(*ipa.lookup("ʋ")).phoneme_class, PhonemeClass::closure);
+  // The alveolar trill of Spanish, Italian, Russian... leaves the lips free; English r (IPA ɹ) rounds them.
+  const auto sphincter = [](std::optional<int> phoneme) {
+    const auto& names = model().channels();
+    for (std::size_t c = 0; c < names.size(); ++c) {
+      if (names[c].name == "orbicularis_oris_upper") return model().phoneme(*phoneme).targets[c];
+    }
+    return -1.0;
+  };
+  EXPECT_EQ(name_of(ipa.lookup("r")), "ipa_r");
+  EXPECT_EQ(sphincter(ipa.lookup("r")), 0.0);
+  EXPECT_GT(sphincter(ipa.lookup("ɹ")), 0.5);
+  // Nasal vowels are their oral vowels, written with a combining or a precomposed tilde.
+  EXPECT_EQ(name_of(ipa.lookup("ɔ̃")), name_of(ipa.lookup("ɔ")));
+  EXPECT_EQ(name_of(ipa.lookup("ẽ")), name_of(ipa.lookup("e")));
+}
+
+TEST(PhoneSet, IpaFallbackRemovesMarksAndSplitsLabelsIntoSymbols) {
+  const PhoneSet ipa = *PhoneSet::builtin("ipa", model());
+  EXPECT_EQ(name_of(ipa.lookup("yː")), "ipa_y");    // length
+  EXPECT_EQ(name_of(ipa.lookup("ɯᵝ")), "ipa_ɯ");    // compressed (espeak-ng ja)
+  EXPECT_EQ(name_of(ipa.lookup("a˥˩")), "ae");      // tone letters
+  EXPECT_EQ(name_of(ipa.lookup("y-")), "ipa_y");    // an espeak-ng mnemonic mark
+  EXPECT_EQ(name_of(ipa.lookup("tʃʲ")), "ch");      // affricate + palatalisation
+  EXPECT_EQ(name_of(ipa.lookup("pɸ")), "p");        // an affricate: its stop
+  EXPECT_EQ(name_of(ipa.lookup("eu")), "ey");       // a diphthong: its onset
+  EXPECT_EQ(name_of(ipa.lookup("ja")), "ae");       // a glide onset is passed over
+  EXPECT_EQ(name_of(ipa.lookup("ʔi")), "iy");       // so is a glottal one
+  EXPECT_EQ(name_of(ipa.lookup("☃")), "<unknown>");  // not a symbol of the table
+  EXPECT_EQ(name_of(ipa.lookup("aI")), "<unknown>");  // espeak's mnemonic: I is no IPA symbol
+  EXPECT_EQ(name_of(ipa.lookup("ː")), "<unknown>");   // nothing left
+}
+
+TEST(PhoneSet, IpaLookupOfAnyBytesGivesAPhonemeOrNothing) {
+  // Random labels (fixed seed) of IPA symbols, diacritics, espeak-ng marks, ASCII and bytes that are
+  // no UTF-8 at all (stray continuation bytes, cut sequences): the fallback's split never crashes,
+  // loops or names a phoneme the model lacks.
+  const PhoneSet ipa = *PhoneSet::builtin("ipa", model());
+  const std::vector<std::string> pieces = {"a", "y", "t", "ʃ", "ɔ", "\xCC\x83", "ː", "ʲ", "ʰ", "-", "#", "j", "ʔ",
+                                           "ɟʝ", "˥", "\x80", "\xCC", "\xE2\x98", "\xFF", "I", "@", " "};
+  std::uint32_t state = 12345;
+  const auto next = [&] { return state = state * 1664525U + 1013904223U; };
+  std::size_t known = 0;
+  for (int i = 0; i < 20000; ++i) {
+    std::string label;
+    for (std::uint32_t n = next() % 6; n > 0; --n) label += pieces[next() % pieces.size()];
+    if (const auto index = ipa.lookup(label)) {
+      ++known;
+      EXPECT_GE(*index, 0);
+      EXPECT_LT(static_cast<std::size_t>(*index), model().phonemes().size());
+    }
+  }
+  EXPECT_GT(known, 1000U);  // the pieces combine into known labels often
+}
+
+TEST(PhoneSet, AModelWithoutTheIpaPhonemesKeepsEverySetTheIpaOneWithEnglishSubstitutes) {
+  // A model of one's own made from `lipsync model dump` before the ipa_ phonemes existed: the built-in
+  // sets still load against it (auto detection loads them all), the ipa set mapping what it mapped
+  // before as before.
+  nlohmann::json json = nlohmann::json::parse(ArticulationModel::builtin_json());
+  for (auto it = json["phonemes"].begin(); it != json["phonemes"].end();) {
+    it = it.key().starts_with("ipa_") ? json["phonemes"].erase(it) : std::next(it);
+  }
+  const ArticulationModel english = ArticulationModel::from_json(json.dump(), "english-only.json");
+  ASSERT_FALSE(english.find_phoneme("ipa_y"));
+  EXPECT_EQ(PhoneSet::builtin_all(english).size(), PhoneSet::builtin_names().size());
+  const PhoneSet ipa = *PhoneSet::builtin("ipa", english);
+  const auto name = [&](std::string_view label) {
+    const auto phoneme = ipa.lookup(label);
+    return phoneme ? english.phoneme(*phoneme).name : std::string("<unknown>");
+  };
+  EXPECT_EQ(name("ø"), "ow");
+  EXPECT_EQ(name("œ"), "ao");
+  EXPECT_EQ(name("ɸ"), "f");
+  EXPECT_EQ(name("β"), "v");
+  EXPECT_EQ(name("r"), "r");
+  EXPECT_EQ(name("ʁ"), "r");
+  EXPECT_EQ(name("y"), "uw");
+  EXPECT_EQ(name("ɔ̃"), "ao");
+}
+
+TEST(PhoneSet, DetectionStillTellsEspeakMnemonicsFromIpa) {
+  const auto sets = PhoneSet::builtin_all(model());
+  EXPECT_EQ(detect_phone_set(sets, {"h", "@", "l", "oU"}).name(), "espeak");
+  EXPECT_EQ(detect_phone_set(sets, {"b", "ɔ̃", "ʒ", "u", "ʁ"}).name(), "ipa");
+  EXPECT_EQ(detect_phone_set(sets, {"ɡ", "uː", "t", "ə", "n", "pf", "yː"}).name(), "ipa");
 }
 
 TEST(PhoneSet, DetectionPicksTheFirstSetThatKnowsEveryLabel) {

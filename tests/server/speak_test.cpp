@@ -103,6 +103,49 @@ TEST_F(SpeakTest, frames_equal_the_offline_render_of_the_phonemes_espeak_reports
   }
 }
 
+TEST_F(SpeakTest, other_languages_speak_through_the_ipa_phone_set_and_equal_their_offline_render) {
+  // Non-English voices name their phonemes in IPA (docs/languages.md); Speak renders them with the
+  // ipa set, and asking for espeak's mnemonics with such a voice is refused naming the right set.
+  const ArticulationModel& model = ArticulationModel::builtin();
+  const PhoneSet ipa = *PhoneSet::builtin("ipa", model);
+  for (const auto& [voice, text] : {std::pair{"de", "Guten Morgen, wie geht es Ihnen?"},
+                                    std::pair{"fr-fr", "Un bon vin blanc."}, std::pair{"ru", "Мама мыла раму."}}) {
+    SCOPED_TRACE(voice);
+    speech::SynthesisOptions options;
+    options.voice = voice;
+    speech::Synthesis local = speech::synthesize(text, options);
+    EXPECT_EQ(local.phonemes.phone_set, "ipa");
+    speech::cover_audio(local.phonemes, local.audio.duration_us(), 30);
+    const Track offline = render_track(model, build_segments(local.phonemes, model, ipa));
+    v1::SpeakRequest request = speak_request(text);
+    request.set_voice(voice);
+    const client::SpokenTrack spoken = speak(request);
+    EXPECT_EQ(spoken.header.phonemes_size(), static_cast<int>(local.phonemes.intervals.size()));
+    EXPECT_THAT(spoken.track.track.values, ElementsAreArray(offline.values));
+    request.mutable_settings()->set_phone_set("espeak");
+    const SpeakStream refused = speak_raw(*stub_, request);
+    EXPECT_EQ(refused.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_THAT(refused.status.error_message(), HasSubstr("leave it empty or 'ipa'"));
+  }
+}
+
+TEST_F(SpeakTest, every_espeak_voice_speaks) {
+  // Every voice espeak-ng has, by its file name, through Speak: audio and frames come back.
+  std::size_t spoken_voices = 0;
+  for (const speech::Voice& voice : speech::list_voices()) {
+    SCOPED_TRACE(voice.identifier);
+    v1::SpeakRequest request = speak_request("1 2 3 sagwu tali");  // Cherokee reads only Latin letters
+    request.set_voice(voice.identifier);
+    const SpeakStream stream = speak_raw(*stub_, request);
+    EXPECT_TRUE(stream.status.ok()) << stream.status.error_message();
+    bool frames = false;
+    for (const v1::SpeakResponse& message : stream.messages) frames = frames || message.has_frames();
+    EXPECT_TRUE(frames);
+    spoken_voices += stream.status.ok() && frames;
+  }
+  EXPECT_GE(spoken_voices, 131U);
+}
+
 TEST_F(SpeakTest, audio_equals_the_samples_espeak_gives_and_is_described_by_the_header) {
   const speech::Synthesis local = spoken_locally(kSentences[0], 30);
   const client::SpokenTrack spoken = speak(speak_request(kSentences[0]));

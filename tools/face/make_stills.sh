@@ -19,7 +19,7 @@ still() {
   shift 2
   printf '#\n' > "$work/$name.lab"
   for line in "$@"; do printf '%s\n' "$line" >> "$work/$name.lab"; done
-  "$lipsync" render "$work/$name.lab" --mesh-subdivision 1 \
+  "$lipsync" render "$work/$name.lab" ${phone_set:+--phone-set "$phone_set"} --mesh-subdivision 1 \
     --still "$out/face-$name.png" --still-at "$at"
 }
 
@@ -29,3 +29,10 @@ still aa 0.60 '0.40 100 pau' '0.80 100 aa' '1.20 100 pau'
 still uw 0.60 '0.40 100 pau' '0.80 100 uw' '1.20 100 pau'
 still f 0.68 '0.40 100 pau' '0.55 100 aa' '0.80 100 f' '1.20 100 pau'
 still m-held 1.05 '0.40 100 pau' '0.55 100 aa' '1.55 100 m' '1.95 100 pau'
+
+# Other languages (docs/languages.md): French /i/ against /y/ (the jaw and tongue of /i/, rounded
+# lips) and nasal /ɔ̃/ (the mouth of /ɔ/); IPA labels, so the ipa set is named (y is ARPAbet's glide).
+phone_set=ipa
+still ipa-i 0.60 '0.40 100 sil' '0.80 100 i' '1.20 100 sil'
+still ipa-y 0.60 '0.40 100 sil' '0.80 100 y' '1.20 100 sil'
+still ipa-nasal-o 0.60 '0.40 100 sil' '0.80 100 ɔ̃' '1.20 100 sil'

@@ -567,8 +567,8 @@ class Client:
     ) -> Speech:
         """Has the server speak `text` with espeak-ng (Speak) and returns the audio and the
         track of what it spoke. voice: an espeak-ng voice ("" = en-us); words_per_minute:
-        80..450 (0 = 175); settings as for animate (phone_set must stay "" or "espeak"; no
-        mesh), session publishes the frames for subscribers."""
+        80..450 (0 = 175); settings as for animate (phone_set must stay "" or the voice's:
+        "espeak" for English voices, "ipa" for the others; no mesh), session publishes the frames for subscribers."""
         request = lipsync_pb2.SpeakRequest(
             text=text, voice=voice, words_per_minute=words_per_minute, settings=make_settings(**settings)
         )

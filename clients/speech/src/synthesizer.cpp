@@ -23,8 +23,19 @@
 // standard input (a memfd the asker wrote), writes the result to its standard
 // output (a pipe) and _exits, so none of the program's own start-up runs.
 // Starting a process costs a few milliseconds beside the synthesis's tens.
+//
+// Phoneme names: espeak-ng names the phonemes of its events with the mnemonics
+// of each language's phoneme table (`Y:`, `z2`, ...), which differ between
+// tables, or, initialised with espeakINITIALIZE_PHONEME_IPA, with their IPA
+// symbols, one vocabulary for all languages. English voices keep the mnemonics
+// and the 'espeak' phone set (so English speech renders as it always did); every
+// other voice speaks IPA, rendered through the 'ipa' phone set. Which one a voice
+// is comes from its language in espeak-ng's voice list, read before
+// initialisation (espeak_ListVoices needs only the data path), so the worker can
+// initialise with the right flag (docs/languages.md).
 #include "lipsync/speech/synthesizer.hpp"
 
+#include <espeak-ng/espeak_ng.h>
 #include <espeak-ng/speak_lib.h>
 #include <fcntl.h>
 #include <poll.h>
@@ -82,10 +93,93 @@ int collect(short* wav, int sample_count, espeak_EVENT* events) {
   return 0;  // continue synthesis
 }
 
-void initialise_once() {
+std::string lower_ascii(std::string_view text) {
+  std::string out(text);
+  for (char& c : out) {
+    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
+  }
+  return out;
+}
+
+/// espeak-ng's voice list (the voice files of espeak-ng-data), read once per process. It needs only
+/// the data path, not espeak_Initialize: safe in the asking process too.
+const std::vector<Voice>& voice_list() {
+  static const std::vector<Voice> voices = [] {
+    std::vector<Voice> out;
+    espeak_ng_InitializePath(nullptr);
+    const espeak_VOICE** listed = espeak_ListVoices(nullptr);
+    for (std::size_t i = 0; listed != nullptr && listed[i] != nullptr; ++i) {
+      Voice voice;
+      voice.name = listed[i]->name != nullptr ? listed[i]->name : "";
+      voice.identifier = listed[i]->identifier != nullptr ? listed[i]->identifier : "";
+      // languages: a priority byte, a language name and its zero, ..., and a final zero.
+      for (const char* language = listed[i]->languages; language != nullptr && language[0] != 0;
+           language += std::strlen(language + 1) + 2) {
+        voice.languages.emplace_back(language + 1);
+      }
+      out.push_back(std::move(voice));
+    }
+    return out;
+  }();
+  return voices;
+}
+std::mutex voice_list_mutex;
+
+/// The voice espeak-ng would choose for `name` (as its own command line does: a voice name or file,
+/// else a language), or nullptr. A variant after '+' ("en+f3") does not change the language.
+const Voice* find_voice(std::string_view name) {
+  const std::string wanted = lower_ascii(name.substr(0, name.find('+')));
+  std::string spaced = wanted;  // "English_(America)", as espeak-ng --voices writes the name
+  std::replace(spaced.begin(), spaced.end(), '_', ' ');
+  const std::vector<Voice>& voices = voice_list();
+  for (const Voice& voice : voices) {
+    const std::string voice_name = lower_ascii(voice.name);
+    const std::string identifier = lower_ascii(voice.identifier);
+    const std::string file = identifier.substr(identifier.rfind('/') + 1);
+    if (voice_name == wanted || voice_name == spaced || identifier == wanted || file == wanted) return &voice;
+  }
+  for (const Voice& voice : voices) {
+    for (const std::string& language : voice.languages) {
+      if (lower_ascii(language) == wanted) return &voice;
+    }
+  }
+  return nullptr;
+}
+
+bool speaks_english(std::string_view voice_name) {
+  const Voice* voice = find_voice(voice_name);
+  if (voice == nullptr || voice->languages.empty()) return false;
+  const std::string language = lower_ascii(voice->languages.front());
+  return language == "en" || language.starts_with("en-");
+}
+
+/// espeak-ng's IPA names mark a switch to another language's phonemes ("(en)" inside a Greek
+/// text) as a phoneme of its own: silence, as its mnemonic _^_ is in the 'espeak' set.
+bool is_language_switch(std::string_view name) {
+  return name.size() >= 3 && name.front() == '(' && name.back() == ')';
+}
+
+/// A length mark or a combining diacritic that espeak-ng's IPA names give as a phoneme of its own
+/// (lv, ltg, kok: "ː"; bpy: U+0303): it lengthens or colours the phoneme before it, so it extends
+/// that phoneme's interval instead of starting one.
+bool is_lone_mark(std::string_view name) {
+  if (name == "ː" || name == "ˑ") return true;
+  if (name.empty() || name.size() % 2 != 0) return false;
+  for (std::size_t i = 0; i < name.size(); i += 2) {  // U+0300..U+036F: CC 80..BF, CD 80..AF
+    const auto lead = static_cast<unsigned char>(name[i]);
+    const auto next = static_cast<unsigned char>(name[i + 1]);
+    if (!((lead == 0xCC && next >= 0x80 && next <= 0xBF) || (lead == 0xCD && next >= 0x80 && next <= 0xAF))) {
+      return false;
+    }
+  }
+  return true;
+}
+
+void initialise_once(bool ipa) {
   if (espeak_rate_hz > 0) return;
   const int rate = espeak_Initialize(AUDIO_OUTPUT_SYNCHRONOUS, 0, nullptr,
-                                     espeakINITIALIZE_PHONEME_EVENTS | espeakINITIALIZE_DONT_EXIT);
+                                     espeakINITIALIZE_PHONEME_EVENTS | espeakINITIALIZE_DONT_EXIT |
+                                         (ipa ? espeakINITIALIZE_PHONEME_IPA : 0));
   if (rate <= 0) {
     throw InputError(std::string(kSource), 0,
                      "cannot initialise espeak-ng (is espeak-ng-data installed? 'apt-get install espeak-ng-data')");
@@ -98,8 +192,17 @@ void initialise_once() {
 /// The synthesis itself, in the child process.
 Synthesis synthesize_here(std::string_view text, const SynthesisOptions& options) {
   const std::string source(kSource);
-  initialise_once();
-  if (espeak_SetVoiceByName(options.voice.c_str()) != EE_OK) {
+  const bool english = speaks_english(options.voice);
+  initialise_once(!english);
+  // A voice name or file, else a language ("en-gb", "fr-fr": the Language column of espeak-ng
+  // --voices, which espeak_SetVoiceByName alone refuses) resolved to its voice file.
+  bool found = espeak_SetVoiceByName(options.voice.c_str()) == EE_OK;
+  if (const Voice* voice = found ? nullptr : find_voice(options.voice)) {
+    const std::size_t plus = options.voice.find('+');
+    const std::string variant = plus == std::string::npos ? "" : options.voice.substr(plus);
+    found = espeak_SetVoiceByName((voice->identifier + variant).c_str()) == EE_OK;
+  }
+  if (!found) {
     throw InputError(source, 0, "unknown voice '" + options.voice + "' (see 'espeak-ng --voices')");
   }
   espeak_SetParameter(espeakRATE, options.words_per_minute, 0);
@@ -117,7 +220,7 @@ Synthesis synthesize_here(std::string_view text, const SynthesisOptions& options
   result.audio.sample_rate_hz = espeak_rate_hz;
   result.audio.samples = std::move(collector.samples);
   result.phonemes.source = source;
-  result.phonemes.phone_set = "espeak";
+  result.phonemes.phone_set = english ? "espeak" : "ipa";
   const auto total = static_cast<std::int64_t>(result.audio.samples.size());
   const auto to_us = [&](std::int64_t sample) { return sample * 1'000'000 / espeak_rate_hz; };
   std::int64_t previous_start = 0;
@@ -128,8 +231,13 @@ Synthesis synthesize_here(std::string_view text, const SynthesisOptions& options
                                  : total;
     previous_start = start;
     if (end <= start) continue;  // a zero-length event (espeak marks some stress changes this way)
+    const std::string& name = collector.phonemes[i].name;
+    if (!english && is_lone_mark(name) && !result.phonemes.intervals.empty()) {
+      result.phonemes.intervals.back().end_us = to_us(end);
+      continue;
+    }
     result.phonemes.intervals.push_back(
-        {collector.phonemes[i].name, to_us(start), to_us(end), static_cast<int>(i) + 1});
+        {!english && is_language_switch(name) ? std::string() : name, to_us(start), to_us(end), static_cast<int>(i) + 1});
   }
   if (result.phonemes.intervals.empty()) throw InputError(source, 0, "espeak-ng produced no phonemes for the text");
   // The first phoneme starts at sample 0 and the phonemes tile the audio.
@@ -158,6 +266,7 @@ void put_string(std::string& out, const std::string& text) {
 
 std::string encode(const Synthesis& synthesis) {
   std::string out(1, kOk);
+  put_string(out, synthesis.phonemes.phone_set);
   put(out, synthesis.audio.sample_rate_hz);
   put(out, static_cast<std::uint64_t>(synthesis.audio.samples.size()));
   out.append(reinterpret_cast<const char*>(synthesis.audio.samples.data()),
@@ -200,12 +309,12 @@ Synthesis decode(std::string_view bytes) {
   if (kind == kInputError) throw InputError(std::string(kSource), 0, in.get_string());
   if (kind != kOk) throw std::runtime_error("espeak-ng: " + in.get_string());
   Synthesis result;
+  result.phonemes.phone_set = in.get_string();
   result.audio.sample_rate_hz = in.get<int>();
   result.audio.samples.resize(in.get<std::uint64_t>());
   const std::string_view samples = in.take(result.audio.samples.size() * sizeof(std::int16_t));
   std::memcpy(result.audio.samples.data(), samples.data(), samples.size());
   result.phonemes.source = std::string(kSource);
-  result.phonemes.phone_set = "espeak";
   const auto count = in.get<std::uint64_t>();
   for (std::uint64_t i = 0; i < count; ++i) {
     LabeledInterval interval;
@@ -383,6 +492,16 @@ Synthesis synthesize_in_worker(std::string_view text, const SynthesisOptions& op
 }
 
 }  // namespace
+
+std::vector<Voice> list_voices() {
+  const std::lock_guard lock(voice_list_mutex);
+  return voice_list();
+}
+
+std::string phone_set_for_voice(std::string_view voice) {
+  const std::lock_guard lock(voice_list_mutex);
+  return speaks_english(voice) ? "espeak" : "ipa";
+}
 
 Synthesis synthesize(std::string_view text, const SynthesisOptions& options) {
   const std::string source(kSource);

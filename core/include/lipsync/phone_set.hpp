@@ -35,10 +35,16 @@ class PhoneSet {
 
   /// The model phoneme index for an input label, after this set's normalisation
   /// (case folding, stress digits). An empty label is silence. nullopt if unknown.
+  /// A label the table lacks goes through the set's fallback, if it has one
+  /// (docs/languages.md): its fallback characters are removed and, with
+  /// fallback_split, a label made of several of the table's labels (an
+  /// affricate, a diphthong) is the phoneme of the first that is not a
+  /// fallback_skip label (a glide or glottal onset), or of the first if all are.
   std::optional<int> lookup(std::string_view label) const;
 
  private:
   std::string normalise(std::string_view label) const;
+  std::optional<int> fallback_lookup(const std::string& normalised) const;
 
   std::string name_;
   std::string description_;
@@ -47,6 +53,11 @@ class PhoneSet {
   std::array<bool, 128> ignored_ascii_{};  // the one-byte ones among them, by byte
   std::unordered_map<std::string, int> phoneme_by_label_;
   int silence_phoneme_ = -1;
+  // The fallback for labels the table lacks (all empty/false: none).
+  std::vector<std::string> fallback_ignored_;  // code points removed
+  bool fallback_split_ = false;                 // split into the table's labels
+  std::vector<std::string> fallback_skip_;      // labels passed over when another follows
+  std::size_t longest_key_bytes_ = 0;
 };
 
 /// Picks the built-in phone set that knows every label of `labels` (in

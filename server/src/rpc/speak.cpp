@@ -86,13 +86,16 @@ grpc::Status synthesis_options(const v1::SpeakRequest& request, speech::Synthesi
   return grpc::Status::OK;
 }
 
-/// Speak's settings: Animate's, with the espeak phone set and without the mesh.
-grpc::Status speak_settings(const v1::AnimationSettings& requested, v1::AnimationSettings& settings) {
+/// Speak's settings: Animate's, with the phone set of the voice's phonemes (espeak for English
+/// voices, ipa for the others) and without the mesh.
+grpc::Status speak_settings(const v1::AnimationSettings& requested, const speech::SynthesisOptions& options,
+                            v1::AnimationSettings& settings) {
   settings = requested;
-  if (settings.phone_set().empty()) settings.set_phone_set("espeak");
-  if (settings.phone_set() != "espeak") {
+  const std::string phone_set = speech::phone_set_for_voice(options.voice);
+  if (settings.phone_set().empty()) settings.set_phone_set(phone_set);
+  if (settings.phone_set() != phone_set) {
     return invalid("settings.phone_set: '" + settings.phone_set() +
-                   "' given, but Speak animates espeak-ng's phonemes (leave it empty or 'espeak')");
+                   "' given, but Speak animates espeak-ng's phonemes (leave it empty or '" + phone_set + "')");
   }
   if (wants_mesh(settings)) {
     return invalid("settings.outputs.mesh: not offered by Speak (its solver would hold up the speech thread); "
@@ -181,7 +184,7 @@ class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::Sp
     if (auto status = check_text(request_.text()); !status.ok()) return status;
     if (auto status = synthesis_options(request_, options_); !status.ok()) return status;
     v1::AnimationSettings settings;
-    if (auto status = speak_settings(request_.settings(), settings); !status.ok()) return status;
+    if (auto status = speak_settings(request_.settings(), options_, settings); !status.ok()) return status;
     if (auto status = service_.routing().check_metadata(*context_, settings.session()); !status.ok()) return status;
     if (auto status = resolve_settings(settings, service_.catalog(), true, plan_); !status.ok()) return status;
     if (!settings.session().empty()) {

@@ -2,8 +2,9 @@
 // phonemes espeak-ng spoke, timed on that audio's own sample clock.
 //
 // espeak-ng reports each phoneme as an espeakEVENT_PHONEME event carrying its
-// mnemonic (`id.string`, the espeak phone set of data/phonesets/espeak.json) and
-// the sample at which it starts; a phoneme ends where the next one starts, the
+// name (`id.string`: for English voices its mnemonic, the espeak phone set of
+// data/phonesets/espeak.json; for every other voice its IPA symbol, the ipa
+// phone set) and the sample at which it starts; a phoneme ends where the next one starts, the
 // last one where the audio ends. So the phoneme times are the synthesiser's
 // own, exact to the sample (45 µs at 22 050 Hz), not an estimate.
 //
@@ -19,6 +20,7 @@
 
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "lipsync/speech/audio.hpp"
 #include "lipsync/utterance.hpp"
@@ -32,8 +34,22 @@ struct SynthesisOptions {
 
 struct Synthesis {
   PcmAudio audio;              ///< mono 16-bit at espeak-ng's rate (22 050 Hz)
-  LabeledUtterance phonemes;   ///< phone_set "espeak"; covers [0, audio end] without gaps
+  LabeledUtterance phonemes;   ///< phone_set_for_voice(voice); covers [0, audio end] without gaps
 };
+
+/// One voice file of espeak-ng-data, as `espeak-ng --voices` lists it.
+struct Voice {
+  std::string name;                    ///< e.g. "German"
+  std::string identifier;              ///< the file, e.g. "gmw/de"; a valid SynthesisOptions::voice
+  std::vector<std::string> languages;  ///< e.g. {"de"}; the first is the voice's own
+};
+
+/// Every voice espeak-ng has (read from its data, without initialising it: safe in any process).
+std::vector<Voice> list_voices();
+
+/// The phone set of the phonemes synthesize() reports for `voice`: "espeak" (mnemonics) for an
+/// English voice, "ipa" for every other (and for a name espeak-ng does not know).
+std::string phone_set_for_voice(std::string_view voice);
 
 /// Speaks `text` (UTF-8) in a fresh espeak-ng (a process of its own). Throws InputError
 /// (source "espeak-ng") for an empty text, an unknown voice or a failed synthesis;
