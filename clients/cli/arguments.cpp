@@ -46,8 +46,7 @@ Arguments Arguments::parse(std::span<const std::string_view> args, std::span<con
 int parse_int_option(std::string_view option, std::string_view text, int min, int max) {
   const std::optional<std::int64_t> number = whole_number(option, text);
   if (!number || *number < min || *number > max) {
-    throw UsageError("--" + std::string(option) + ": " + in_quotes(text) + " is out of range (" +
-                     std::to_string(min) + " to " + std::to_string(max) + ")");
+    throw UsageError(out_of_range_text("--" + std::string(option), text, range_text(IntSetting{min, max, 0}, false)));
   }
   return static_cast<int>(*number);
 }

@@ -16,19 +16,34 @@ std::string shortest(double value) {
 }
 
 [[noreturn]] void out_of_range(std::string_view field, const std::string& value, const std::string& range) {
-  throw SettingError(std::string(field), "'" + value + "' is out of range (" + range + ")");
+  throw SettingError(std::string(field), out_of_range_message(value, range));
 }
 
 int checked_int(std::int64_t value, const IntSetting& setting, std::string_view field) {
-  if (value < setting.min || value > setting.max) {
-    out_of_range(field, std::to_string(value),
-                 std::to_string(setting.min) + " to " + std::to_string(setting.max) + ", default " +
-                     std::to_string(setting.default_value));
-  }
+  if (value < setting.min || value > setting.max) out_of_range(field, std::to_string(value), range_text(setting));
   return static_cast<int>(value);
 }
 
 }  // namespace
+
+std::string out_of_range_message(std::string_view value, std::string_view range) {
+  std::string text = "'";
+  text += value;
+  text += "' is out of range (";
+  text += range;
+  text += ')';
+  return text;
+}
+
+std::string out_of_range_text(std::string_view field, std::string_view value, std::string_view range) {
+  return std::string(field) + ": " + out_of_range_message(value, range);
+}
+
+std::string range_text(const IntSetting& setting, bool with_default) {
+  std::string text = std::to_string(setting.min) + " to " + std::to_string(setting.max);
+  if (with_default) text += ", default " + std::to_string(setting.default_value);
+  return text;
+}
 
 SettingError::SettingError(std::string field, const std::string& message)
     : std::invalid_argument(field + ": " + message), field_(std::move(field)) {}

@@ -10,6 +10,7 @@
 #include "lipsync/server/config.hpp"
 
 #include "lipsync/options/command_line.hpp"
+#include "lipsync/setting_ranges.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -36,8 +37,7 @@ std::int64_t parse_integer(const Setting& setting, std::int64_t min, std::int64_
   }
   const std::int64_t value = number.value;
   if (value < min || value > max) {
-    throw ConfigError(setting.name + ": " + setting.value + " is out of range [" +
-                      std::to_string(min) + ", " + std::to_string(max) + "]");
+    throw ConfigError(out_of_range_text(setting.name, setting.value, range_text(IntSetting{min, max, 0}, false)));
   }
   return value;
 }

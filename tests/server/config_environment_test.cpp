@@ -108,7 +108,7 @@ TEST(ConfigFlags, MistakesNameTheFlagInLipsyncdsWords) {
   EXPECT_EQ(flag_error_of({"stray"}), "stray: unknown flag (see --help)");
   EXPECT_EQ(flag_error_of({"--max-streams", "4", "--listen"}), "--listen: missing value");
   EXPECT_EQ(flag_error_of({"--listen", "--max-streams", "4"}), "--listen: missing value");
-  EXPECT_EQ(flag_error_of({"--max-streams=-3"}), "--max-streams: -3 is out of range [1, 2147483647]");
+  EXPECT_EQ(flag_error_of({"--max-streams=-3"}), "--max-streams: '-3' is out of range (1 to 2147483647)");
 }
 
 TEST(ConfigFlags, EqualsFormRepeatedModelsAndEmptyValues) {
@@ -135,7 +135,7 @@ TEST(LipsyncdEnvironment, TheBinaryTakesItsSettingsFromTheEnvironmentAndAFlagWin
   ::setenv("LIPSYNCD_MAX_STREAMS", "-3", 1);
   const testing::RunResult bad = testing::run_program({LIPSYNCD_PATH}, dir, dir);
   EXPECT_EQ(bad.status, 2);
-  EXPECT_THAT(bad.err, HasSubstr("LIPSYNCD_MAX_STREAMS: -3 is out of range"));
+  EXPECT_THAT(bad.err, HasSubstr("LIPSYNCD_MAX_STREAMS: '-3' is out of range (1 to 2147483647)"));
   {
     testing::ChildProcess server({LIPSYNCD_PATH, "--max-streams", "4"}, dir, dir / "out", dir / "err");
     const std::string address = testing::wait_for_listening_address(dir / "out");

@@ -46,6 +46,15 @@ class SettingError : public std::invalid_argument {
   std::string field_;
 };
 
+/// The one wording of a value outside its range, for every check in lipsyncd and lipsync (render
+/// settings, command-line options, the server's configuration, Speak's rate):
+/// "<field>: '<value>' is out of range (<range>)".
+std::string out_of_range_text(std::string_view field, std::string_view value, std::string_view range);
+/// The same without the field: "'<value>' is out of range (<range>)".
+std::string out_of_range_message(std::string_view value, std::string_view range);
+/// "<min> to <max>", and ", default <d>" after it when `with_default`.
+std::string range_text(const IntSetting& setting, bool with_default = true);
+
 /// Each returns the value if it is in range, else throws SettingError naming `field`.
 int checked_fps(std::int64_t fps, std::string_view field);
 int checked_lookahead(std::int64_t lookahead, std::string_view field);
