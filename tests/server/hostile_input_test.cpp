@@ -18,6 +18,7 @@
 #include "../support/child_process.hpp"
 #include "../support/json_log.hpp"
 #include "../support/server_harness.hpp"
+#include "transport_quota.hpp"
 
 namespace lipsync::server {
 namespace {
@@ -138,6 +139,21 @@ long status_kib(pid_t pid, const std::string& field) {
     if (line.rfind(field + ":", 0) == 0) return std::stol(line.substr(field.size() + 1));
   }
   return -1;
+}
+
+TEST(LipsyncdMemory, TheDefaultTransportQuotaGrowsWithTheCallsInProgressAndShrinksBack) {
+  constexpr std::size_t kLimit = 4 << 20, kKiB = 1024, kMiB = 1024 * 1024;
+  TransportQuota quota(TransportQuota::base_for(kLimit), true);
+  EXPECT_EQ(quota.size_bytes(), 2 * kLimit + 4 * kMiB + 8 * kKiB * 1'024);  // idle: 20 MiB
+  quota.follow(1);
+  EXPECT_EQ(quota.size_bytes(), 20 * kMiB + 8 * kKiB * 256);  // rounded up to 256 calls
+  quota.follow(10'000);  // --max-streams: 10,240 calls and 1,024 of headroom at 8 KiB
+  EXPECT_EQ(quota.size_bytes(), 12 * kMiB + 8 * kKiB * (10'240 + 1'024));  // 100 MiB
+  quota.follow(0);
+  EXPECT_EQ(quota.size_bytes(), 20 * kMiB);
+  TransportQuota fixed(64 * kMiB, false);
+  fixed.follow(10'000);
+  EXPECT_EQ(fixed.size_bytes(), 64 * kMiB);
 }
 
 TEST(LipsyncdMemory, OneOversizeMessageCostsAFewMegabytesMoreThanTheLimitAtTheDefaults) {
