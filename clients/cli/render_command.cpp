@@ -293,19 +293,19 @@ void render_outputs(const OutputRequest& out, LabeledUtterance utterance) {
   const face::FaceRig rig = out.model_path
                                 ? face::FaceRig::from_json(face::FaceRig::builtin_json(), "rig.json", model)
                                 : face::FaceRig::builtin();
-  // The face is driven by the uniform grid only (as with --fixed-rate), rendered at the solver's
-  // step rate (one step per frame from 30 fps up, ⌈30 / fps⌉ below) so that every step sees the
-  // engine's own values; poses are kept at --fps.
-  TrackRequest face_request = request;
-  face_request.render.fixed_rate = true;
-  face_request.render.fps = request.render.fps * ((30 + request.render.fps - 1) / request.render.fps);
-  const Track face_track = render_utterance(utterance, model, phone_set, face_request);
-  const face::FaceAnimation animation = face::simulate_face_animation(mesh, rig, face_track, request.render.fps);
+  // One face per input: the track's own frames (key frames included) stepped as lipsyncd steps its
+  // mesh output (face::FaceTrackStepper); the glb keeps those poses, the video and the still show
+  // them on the --fps grid, linear between frames as a glTF player does.
+  const face::FaceAnimation track_faces = face::simulate_track_frames(mesh, rig, track);
   if (out.mesh_path) {
     AtomicOutputFile file(*out.mesh_path);
-    face::write_face_glb(file.stream(), mesh, animation);
+    // Keys within 0.01 mm of every track frame: the glb plays the streamed poses (docs/face.md).
+    face::write_face_glb(file.stream(), mesh, track_faces, {.key_tolerance_m = 0.00001});
     file.commit();
   }
+  const face::FaceAnimation animation = (out.video_path || out.still_path)
+                                            ? face::resample_face_animation(track_faces, request.render.fps)
+                                            : face::FaceAnimation{};
   face::RasterOptions raster;
   std::vector<std::uint8_t> rgb;
   if (out.video_path) {

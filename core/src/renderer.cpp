@@ -5,6 +5,7 @@
 #include "lipsync/renderer.hpp"
 
 #include <algorithm>
+#include <limits>
 #include <stdexcept>
 
 namespace lipsync {
@@ -31,6 +32,34 @@ WindowRange window_range(std::size_t frame_segment, std::size_t known, int looka
   return {first, last};
 }
 
+/// What the phonemes of `window` say about the frame at `t_us` in window[current]
+/// (FrameArticulation): the closures whose hold contains it, and its distance to speech in a pause.
+/// Both renderers hand the same window for a frame, so they agree on this too.
+FrameArticulation articulation_at(std::span<const Segment> window, std::size_t current, std::int64_t t_us) {
+  FrameArticulation out;
+  const auto holds = [t_us](const Segment& s) {
+    return s.phoneme_class == PhonemeClass::closure && s.start_us <= t_us && t_us <= s.end_us;
+  };
+  if (current > 0 && holds(window[current - 1])) out.closure = window[current - 1].phoneme;
+  if (holds(window[current])) {
+    (out.closure == FrameArticulation::kNoPhoneme ? out.closure : out.meeting_closure) = window[current].phoneme;
+  }
+  if (window[current].phoneme_class == PhonemeClass::silence) {
+    out.pause_us = std::numeric_limits<std::int64_t>::max();
+    for (std::size_t s = current; s-- > 0;) {
+      if (window[s].phoneme_class == PhonemeClass::silence) continue;
+      out.pause_us = t_us - window[s].end_us;
+      break;
+    }
+    for (std::size_t s = current + 1; s < window.size(); ++s) {
+      if (window[s].phoneme_class == PhonemeClass::silence) continue;
+      out.pause_us = std::min(out.pause_us, window[s].start_us - t_us);
+      break;
+    }
+  }
+  return out;
+}
+
 /// Appends the frames [begin, end), all in segment window[current], to `out`:
 /// one call of the evaluator for all of them.
 template <typename FrameIterator>
@@ -40,6 +69,7 @@ void append_frames(Track& out, FrameIterator begin, FrameIterator end, Coarticul
   for (FrameIterator frame = begin; frame != end; ++frame) {
     out.t_us.push_back(frame->t_us);
     out.kinds.push_back(frame->kind);
+    out.articulation.push_back(articulation_at(window, current, frame->t_us));
   }
   const std::size_t count = out.t_us.size() - first_frame;
   const std::size_t offset = out.values.size();
@@ -76,6 +106,7 @@ Track render_track(std::shared_ptr<const CoarticulationTables> tables, const std
   track.fps = options.fps;
   track.t_us.reserve(frames.size());
   track.kinds.reserve(frames.size());
+  track.articulation.reserve(frames.size());
   track.values.reserve(frames.size() * track.channel_count);
   CoarticulationEvaluator evaluator(std::move(tables));
   const std::span<const Segment> all(segments);

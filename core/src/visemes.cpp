@@ -222,6 +222,16 @@ VisemeClassifier::VisemeClassifier(const ArticulationModel& model, const VisemeO
     if (!options.rhubarb_shapes.x) fold_into_[kRhubarbX] = kRhubarbA;
     silence_ = fold_into_[kRhubarbX];
   }
+  // The viseme each closure phoneme stands for (the row that lists it), for the frames it holds.
+  closure_viseme_.assign(model.phonemes().size(), -1);
+  for (std::uint32_t v = 0; v < count; ++v) {
+    for (const std::string_view phoneme : table[v].phonemes) {
+      const auto index = model.find_phoneme(phoneme);
+      if (index && model.phoneme(*index).phoneme_class == PhonemeClass::closure) {
+        closure_viseme_[*index] = static_cast<std::int32_t>(fold_into_[v]);
+      }
+    }
+  }
 
   // Temperature from the prototypes' spacing (all shapes, whichever are kept).
   std::vector<double> nearest;
@@ -279,6 +289,26 @@ std::uint32_t VisemeClassifier::winner(std::span<const float> weights) {
   return best;
 }
 
+std::uint32_t VisemeClassifier::winner(std::span<const float> weights, const FrameArticulation& articulation) const {
+  const auto closure_viseme = [this](std::int32_t phoneme) {
+    return phoneme >= 0 && static_cast<std::size_t>(phoneme) < closure_viseme_.size()
+               ? closure_viseme_[static_cast<std::size_t>(phoneme)]
+               : -1;
+  };
+  const std::int32_t held = closure_viseme(articulation.closure);
+  const std::int32_t meeting = closure_viseme(articulation.meeting_closure);
+  if (held >= 0 || meeting >= 0) {
+    if (held < 0) return static_cast<std::uint32_t>(meeting);
+    if (meeting < 0) return static_cast<std::uint32_t>(held);
+    const float held_weight = weights[static_cast<std::size_t>(held)];
+    const float meeting_weight = weights[static_cast<std::size_t>(meeting)];
+    const bool held_wins = held_weight > meeting_weight || (held_weight == meeting_weight && held < meeting);
+    return static_cast<std::uint32_t>(held_wins ? held : meeting);
+  }
+  if (articulation.pause_us >= kPauseSpeechReachUs) return silence_;
+  return winner(weights);
+}
+
 std::optional<VisemeEvent> VisemeEventDetector::next(std::int64_t t_us, std::uint32_t winner) {
   if (current_ && *current_ == winner) return std::nullopt;
   current_ = winner;
@@ -299,7 +329,7 @@ VisemeTrack compute_visemes(const VisemeClassifier& classifier, const Track& tra
   for (std::size_t f = 0; f < track.frame_count(); ++f) {
     const std::span<float> weights(out.weights.data() + f * out.viseme_count, out.viseme_count);
     classifier.weigh(track.frame_values(f), weights);
-    out.winners[f] = VisemeClassifier::winner(weights);
+    out.winners[f] = classifier.winner(weights, track.frame_articulation(f));
     if (const auto event = detector.next(track.t_us[f], out.winners[f])) out.events.push_back(*event);
   }
   return out;

@@ -103,11 +103,15 @@ const std::vector<Option>& options() {
       {"--max-message-bytes", "BYTES", "largest request message",
        [](ServerConfig& c, const Setting& s) { c.max_message_bytes = parse_count(s, 1024); },
        [](const ServerConfig& c) { return std::to_string(c.max_message_bytes); }},
-      {"--transport-memory-bytes", "BYTES", "gRPC's memory quota for all connections' buffers (0: none)",
+      {"--transport-memory-bytes", "BYTES",
+       "gRPC's memory quota for all connections' buffers and calls (0: none; unset: 2 x --max-message-bytes "
+       "+ 4 MiB + 8 KiB per call in progress and 1024 more, resized as calls come and go)",
        [](ServerConfig& c, const Setting& s) {
          c.transport_memory_bytes = static_cast<std::size_t>(parse_integer(s, 0, std::int64_t{1} << 40));
        },
-       [](const ServerConfig& c) { return std::to_string(c.transport_memory_bytes); }},
+       [](const ServerConfig& c) {
+         return c.transport_memory_bytes ? std::to_string(*c.transport_memory_bytes) : std::string("unset");
+       }},
       {"--replay-frames", "N", "frames a session keeps for subscribers that start from the beginning",
        [](ServerConfig& c, const Setting& s) { c.replay_frames = parse_count(s, 0); },
        [](const ServerConfig& c) { return std::to_string(c.replay_frames); }},

@@ -31,6 +31,8 @@ void expect_identical(const Track& actual, const Track& expected) {
   ASSERT_EQ(actual.frame_count(), expected.frame_count());
   EXPECT_EQ(actual.t_us, expected.t_us);
   EXPECT_EQ(actual.kinds, expected.kinds);
+  EXPECT_EQ(actual.articulation.size(), actual.frame_count());
+  EXPECT_EQ(actual.articulation, expected.articulation);  // closures and pauses too (visemes read them)
   // Bitwise: memcmp-equal floats, not "near".
   ASSERT_EQ(actual.values.size(), expected.values.size());
   EXPECT_EQ(0, std::memcmp(actual.values.data(), expected.values.data(), actual.values.size() * sizeof(float)));

@@ -10,11 +10,15 @@
 
 #include <signal.h>
 
+#include <cstdio>
+#include <sstream>
+
 #include <nlohmann/json.hpp>
 
 #include "../support/child_process.hpp"
 #include "../support/json_log.hpp"
 #include "../support/server_harness.hpp"
+#include "transport/transport_quota.hpp"
 
 namespace lipsync::server {
 namespace {
@@ -126,6 +130,81 @@ TEST(LipsyncdLogs, JsonLinesSayWhatTheClientReceivedWithExcerpts) {
   EXPECT_TRUE((*animate_end)["duration_us"].is_number_integer());
   EXPECT_THAT((*animate_end)["peer"].get<std::string>(), HasSubstr("ipv4:127.0.0.1:"));
   EXPECT_EQ((*animate_end)["tenant"], "");
+}
+
+/// A field of /proc/PID/status ("VmRSS", "VmHWM") in kB; -1 if absent.
+long status_kib(pid_t pid, const std::string& field) {
+  std::istringstream status(lipsync::testing::read_text("/proc/" + std::to_string(pid) + "/status"));
+  for (std::string line; std::getline(status, line);) {
+    if (line.rfind(field + ":", 0) == 0) return std::stol(line.substr(field.size() + 1));
+  }
+  return -1;
+}
+
+TEST(LipsyncdMemory, TheDefaultTransportQuotaGrowsWithTheCallsInProgressAndShrinksBack) {
+  constexpr std::size_t kLimit = 4 << 20, kKiB = 1024, kMiB = 1024 * 1024;
+  TransportQuota quota(TransportQuota::base_for(kLimit), true);
+  EXPECT_EQ(quota.size_bytes(), 2 * kLimit + 4 * kMiB + 8 * kKiB * 1'024);  // idle: 20 MiB
+  quota.follow(1);
+  EXPECT_EQ(quota.size_bytes(), 20 * kMiB + 8 * kKiB * 256);  // rounded up to 256 calls
+  quota.follow(10'000);  // --max-streams: 10,240 calls and 1,024 of headroom at 8 KiB
+  EXPECT_EQ(quota.size_bytes(), 12 * kMiB + 8 * kKiB * (10'240 + 1'024));  // 100 MiB
+  quota.follow(0);
+  EXPECT_EQ(quota.size_bytes(), 20 * kMiB);
+  TransportQuota fixed(64 * kMiB, false);
+  fixed.follow(10'000);
+  EXPECT_EQ(fixed.size_bytes(), 64 * kMiB);
+}
+
+TEST(LipsyncdMemory, OneOversizeMessageCostsAFewMegabytesMoreThanTheLimitAtTheDefaults) {
+  // gRPC 1.51 buffers a message whole before checking its size (the transport opens the stream's
+  // window to the length the message announces); the default transport quota ends a larger one
+  // before it is all in. Before, one 100 MB message raised the peak by about 100 MB.
+  const auto dir = lipsync::testing::make_temp_dir("lipsyncd-oversize-");
+  lipsync::testing::ChildProcess child({LIPSYNCD_PATH, "--listen", "127.0.0.1:0", "--log-level", "warn"}, dir,
+                                       dir / "out", dir / "err");
+  const std::string address = lipsync::testing::wait_for_listening_address(dir / "out");
+  ASSERT_FALSE(address.empty());
+  grpc::ChannelArguments args;
+  args.SetMaxSendMessageSize(-1);
+  auto stub = v1::LipSync::NewStub(grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args));
+  // The server at work first (one small stream), so that the baseline holds its steady buffers.
+  EXPECT_TRUE(animate(*stub, whole({}, utterance(50), 10)).status.ok());
+  const long before_kib = status_kib(child.pid(), "VmRSS");
+  ASSERT_GT(before_kib, 0);
+
+  constexpr std::size_t kMessageBytes = 100'000'000;
+  constexpr long kLimitBytes = 4'194'304;  // --max-message-bytes' default
+  v1::AnimateRequest huge;
+  huge.mutable_settings()->set_model(std::string(kMessageBytes, 'x'));
+  grpc::ClientContext context;
+  set_deadline(context);
+  auto stream = stub->Animate(&context);
+  stream->Write(huge);
+  stream->WritesDone();
+  v1::TrackMessage message;
+  while (stream->Read(&message)) {
+  }
+  const grpc::Status status = stream->Finish();
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << status.error_message();
+
+  const long peak_kib = status_kib(child.pid(), "VmHWM");
+  const long growth_mb = (peak_kib - before_kib) / 1024;
+  std::printf("[ measured ] one 100 MB message over the 4 MiB limit: resident %ld MB before, peak %ld MB (+%ld MB)\n",
+              before_kib / 1024, peak_kib / 1024, growth_mb);
+  EXPECT_LT((peak_kib - before_kib) * 1024, kLimitBytes + 32'000'000) << "peak grew by " << growth_mb << " MB";
+
+  // The server goes on: a legitimate message of most of a megabyte (one chunk of 25,000 phonemes) is served
+  // on the same channel.
+  const auto requests = whole({}, utterance(25'000), 25'000);
+  EXPECT_GT(requests[1].ByteSizeLong(), 400'000U);
+  EXPECT_LT(requests[1].ByteSizeLong(), static_cast<std::size_t>(kLimitBytes));
+  const Received served = animate(*stub, requests);
+  EXPECT_TRUE(served.status.ok()) << served.status.error_message();
+  EXPECT_GT(served.frames.t_us.size(), 25'000U);
+  stub.reset();
+  child.terminate();
+  EXPECT_EQ(child.wait(), 0);
 }
 
 }  // namespace

@@ -19,7 +19,9 @@
 #include <thread>
 
 #include <grpcpp/grpcpp.h>
+#include <nlohmann/json.hpp>
 
+#include "lipsync/face/face_animation.hpp"
 #include "lipsync/face/face_mesh.hpp"
 #include "lipsync/face/face_rig.hpp"
 #include "lipsync/face/face_solver.hpp"
@@ -32,6 +34,7 @@
 #include "lipsync/server/server.hpp"
 #include "lipsync/synthetic.hpp"
 #include "lipsync/v1/lipsync.grpc.pb.h"
+#include "../support/child_process.hpp"
 #include "../support/lip_measures.hpp"
 #include "../support/server_harness.hpp"
 
@@ -577,6 +580,136 @@ TEST_F(MeshTest, StreamedMeshAndArkitAreClosedAtEveryClosureKeyFrameOfRealSpeech
   }
   EXPECT_GE(bilabial, 10U);
   EXPECT_GE(labiodental, 4U);
+}
+
+/// The poses a glb holds: its key times (float seconds) and, per key, base + displacement.
+struct GlbPoses {
+  std::vector<float> times_s;
+  std::vector<std::vector<double>> poses;  // per key: x y z per vertex
+};
+
+GlbPoses read_glb_poses(const std::string& bytes) {
+  GlbPoses out;
+  const auto u32 = [&](std::size_t at) {
+    std::uint32_t v = 0;
+    std::memcpy(&v, bytes.data() + at, 4);
+    return v;
+  };
+  const std::uint32_t json_length = u32(12);
+  const auto json = nlohmann::json::parse(bytes.substr(20, json_length));
+  const std::size_t bin_at = 20 + json_length + 8;
+  const auto floats = [&](std::size_t accessor) {
+    const auto& a = json["accessors"][accessor];
+    const auto& view = json["bufferViews"][a["bufferView"].get<std::size_t>()];
+    const std::size_t components = a["type"] == "VEC3" ? 3 : 1;
+    std::vector<float> values(a["count"].get<std::size_t>() * components);
+    std::memcpy(values.data(), bytes.data() + bin_at + view["byteOffset"].get<std::size_t>(), values.size() * 4);
+    return values;
+  };
+  const auto& primitive = json["meshes"][0]["primitives"][0];
+  const std::vector<float> base = floats(primitive["attributes"]["POSITION"].get<std::size_t>());
+  out.times_s = floats(json["animations"][0]["samplers"][0]["input"].get<std::size_t>());
+  for (const auto& target : primitive["targets"]) {
+    const std::vector<float> displacement = floats(target["POSITION"].get<std::size_t>());
+    std::vector<double> pose(base.size());
+    for (std::size_t i = 0; i < base.size(); ++i) pose[i] = static_cast<double>(base[i]) + displacement[i];
+    out.poses.push_back(std::move(pose));
+  }
+  return out;
+}
+
+// One input, one face: `lipsync render --mesh` (the real CLI, default settings) writes the poses
+// lipsyncd streams for the same phonemes and settings, and the video's frames are those poses on the
+// --fps grid (face::resample_face_animation, what the CLI's --video and --still draw). Real speech:
+// recorded LibriVox read speech aligned by PocketSphinx (before issue 31: up to 5 mm apart), TTS
+// timings and an aligned TTS sentence.
+TEST_F(MeshTest, TheGlbTheVideoAndTheStreamedMeshAreOneFaceOnRealSpeech) {
+  const auto dir = lipsync::testing::make_temp_dir("lipsync-one-face-");
+  std::size_t compared_keys = 0;
+  for (const std::string name : {"librivox/sense_and_sensibility_0870.TextGrid", "librivox/sense_and_sensibility_0920.TextGrid",
+                                 "closures/festival_2.lab", "closures/aligned_flite_3.TextGrid"}) {
+    const std::string path = std::string(LIPSYNC_TEST_DATA_DIR) + "/" + name;
+    std::ifstream file(path);
+    std::stringstream text;
+    text << file.rdbuf();
+    const InputFormat format = detect_input_format(name, text.str());
+    const auto intervals = parse_utterance(text.str(), format, name).intervals;
+    v1::AnimationSettings settings = mesh_settings(1);
+    settings.set_phone_set(format == InputFormat::textgrid ? "arpabet" : "radio");
+    const Received received = animate(settings, intervals);
+    ASSERT_TRUE(received.status.ok()) << name << ": " << received.status.error_message();
+    const std::vector<float> streamed = received.positions();
+    std::vector<std::int64_t> t_us;
+    for (const auto& batch : received.batches) t_us.insert(t_us.end(), batch.t_us().begin(), batch.t_us().end());
+    const std::size_t values_per_pose = streamed.size() / t_us.size();
+
+    const auto run = lipsync::testing::run_program(
+        {LIPSYNC_CLI_BINARY, "render", path, "--mesh", (dir / "face.glb").string(), "--phone-set",
+         format == InputFormat::textgrid ? "arpabet" : "radio"},
+        dir, dir);
+    ASSERT_EQ(run.status, 0) << run.err;
+    const GlbPoses glb = read_glb_poses(lipsync::testing::read_text(dir / "face.glb"));
+    ASSERT_GE(glb.poses.size(), 10U) << name;
+    // Its keys are streamed frames, their poses the streamed ones to float rounding.
+    double worst_key_m = 0;
+    std::size_t frame = 0;
+    for (std::size_t k = 0; k < glb.poses.size(); ++k) {
+      while (frame + 1 < t_us.size() && static_cast<float>(static_cast<double>(t_us[frame]) * 1e-6) < glb.times_s[k]) {
+        ++frame;
+      }
+      ASSERT_EQ(static_cast<float>(static_cast<double>(t_us[frame]) * 1e-6), glb.times_s[k]) << name << " key " << k;
+      ASSERT_EQ(glb.poses[k].size(), values_per_pose);
+      for (std::size_t i = 0; i < values_per_pose; ++i) {
+        worst_key_m = std::max(worst_key_m, std::abs(glb.poses[k][i] - streamed[frame * values_per_pose + i]));
+      }
+    }
+    compared_keys += glb.poses.size();
+    EXPECT_LT(worst_key_m, 1e-7) << name << ": the glb's poses are not the streamed ones";
+
+    // Played as a glTF player plays it (linear between keys), the glb shows every streamed frame, and
+    // every frame of the video (the streamed poses on the 30 fps grid, linear between streamed frames,
+    // face::resample_face_animation as --video and --still draw them), within the CLI's key tolerance.
+    const auto played = [&](double t_s, std::size_t i) {
+      const auto after = std::upper_bound(glb.times_s.begin(), glb.times_s.end(), static_cast<float>(t_s));
+      if (after == glb.times_s.begin()) return glb.poses.front()[i];
+      if (after == glb.times_s.end()) return glb.poses.back()[i];
+      const auto b = static_cast<std::size_t>(after - glb.times_s.begin()), a = b - 1;
+      const double w = (t_s - glb.times_s[a]) / (glb.times_s[b] - glb.times_s[a]);
+      return (1 - w) * glb.poses[a][i] + w * glb.poses[b][i];
+    };
+    double worst_frame_m = 0, worst_video_m = 0;
+    for (std::size_t f = 0; f < t_us.size(); ++f) {
+      for (std::size_t i = 0; i < values_per_pose; ++i) {
+        worst_frame_m = std::max(worst_frame_m,
+                                 std::abs(played(static_cast<double>(t_us[f]) * 1e-6, i) - streamed[f * values_per_pose + i]));
+      }
+    }
+    face::FaceAnimation stream_faces;
+    stream_faces.vertex_count = values_per_pose / 3;
+    stream_faces.t_us = t_us;
+    for (std::size_t i = 0; i < streamed.size(); i += 3) {
+      stream_faces.positions.push_back({streamed[i], streamed[i + 1], streamed[i + 2]});
+    }
+    const face::FaceAnimation video = face::resample_face_animation(stream_faces, 30);
+    EXPECT_GE(video.t_us.back(), t_us.back());
+    EXPECT_LT(video.t_us.back(), t_us.back() + 33'334);
+    for (std::size_t k = 0; k < video.frame_count(); ++k) {
+      const auto shown = video.frame(k);
+      for (std::size_t v = 0; v < shown.size(); ++v) {
+        const double t_s = static_cast<double>(video.t_us[k]) * 1e-6;
+        worst_video_m = std::max({worst_video_m, std::abs(shown[v].x - played(t_s, 3 * v)),
+                                  std::abs(shown[v].y - played(t_s, 3 * v + 1)),
+                                  std::abs(shown[v].z - played(t_s, 3 * v + 2))});
+      }
+    }
+    std::printf("[ measured ] %s: %zu glb keys of %zu streamed frames; keys vs streamed poses %.1g mm, the glb "
+                "played at every streamed frame %.3f mm, at every video frame %.3f mm\n",
+                name.c_str(), glb.poses.size(), t_us.size(), worst_key_m * 1e3, worst_frame_m * 1e3,
+                worst_video_m * 1e3);
+    EXPECT_LT(worst_frame_m, 0.000011) << name;  // the CLI's key tolerance, 0.01 mm
+    EXPECT_LT(worst_video_m, 0.000011) << name;
+  }
+  EXPECT_GE(compared_keys, 200U);
 }
 
 }  // namespace

@@ -97,10 +97,12 @@ struct TimedUtterance {
 
 /// The closure corpus in tests/data/closures (regenerate.sh there), as segments of `model`, in
 /// file-name order: Festival's and flite's own timings (the "radio" phone set) and the same voices
-/// force-aligned by PocketSphinx (TextGrids, "arpabet").
-inline std::vector<TimedUtterance> load_closure_corpus(const std::string& data_dir, const ArticulationModel& model) {
+/// force-aligned by PocketSphinx (TextGrids, "arpabet"). `folder` names another folder of
+/// tests/data read the same way ("librivox": recorded speech aligned by PocketSphinx).
+inline std::vector<TimedUtterance> load_closure_corpus(const std::string& data_dir, const ArticulationModel& model,
+                                                       const std::string& folder = "closures") {
   std::vector<std::filesystem::path> files;
-  for (const auto& entry : std::filesystem::directory_iterator(data_dir + "/closures")) {
+  for (const auto& entry : std::filesystem::directory_iterator(data_dir + "/" + folder)) {
     if (entry.path().extension() != ".sh") files.push_back(entry.path());
   }
   std::sort(files.begin(), files.end());

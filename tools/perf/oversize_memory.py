@@ -11,6 +11,9 @@ the status each client received. Extra lipsyncd flags follow `--`.
   PYTHONPATH=build/clients/python/generated /usr/bin/python3 tools/perf/oversize_memory.py \\
       --lipsyncd build/server/lipsyncd --runs 3 -- --transport-memory-bytes 67108864
 
+lipsyncd's default quota follows the calls in progress (server/src/transport/transport_quota.hpp);
+`-- --transport-memory-bytes 0` runs it without one, as before issue 31.
+
 Figures: docs/server.md, "Memory for oversize messages".
 """
 import argparse

@@ -19,9 +19,22 @@
 // prototype: a frame on a prototype gives that viseme about e⁴ ≈ 55 times the weight of the nearest
 // other one, whatever the model's scale.
 //
-// Events: a new event (viseme, start_us) at every frame whose winner (largest weight, lowest index on
-// a tie) differs from the previous frame's; the first frame always starts one. VisemeEventDetector
-// does this frame by frame, so a stream cut into batches gives the same events as a whole track.
+// Known shapes. The weights say what the channels look like; the frame's viseme (its winner) also
+// uses what the phonemes say (Track::articulation, filled by the renderers). Near a closure the
+// channels can look like the wrong closure: at a /v/ before /ax w/ the upper lip already follows
+// the rounding to come and the frame lies nearer the bilabial prototype than the labiodental one;
+// in a pause the channels already anticipate the next phoneme. So:
+//   - at a frame inside the hold of a /p b m f v/ closure (its key frames), the winner is the viseme
+//     that stands for that closure phoneme (PP / 21 / p / A for pcl bcl m, FF / 18 / f / G for f v);
+//     where two closures meet ("of my") the one of the two with the larger weight;
+//   - at a frame in a pause at least kPauseSpeechReachUs from the speech on both sides (a leading or
+//     trailing pause, the middle of a long one), the winner is the silence viseme;
+//   - elsewhere the largest weight (the lowest index on a tie).
+// The weights are left as the channels give them.
+//
+// Events: a new event (viseme, start_us) at every frame whose winner differs from the previous
+// frame's; the first frame always starts one. VisemeEventDetector does this frame by frame, so a
+// stream cut into batches gives the same events as a whole track.
 #pragma once
 
 #include <cstddef>
@@ -99,6 +112,11 @@ class VisemeClassifier {
 
   /// The index of the largest weight (the lowest index on a tie).
   static std::uint32_t winner(std::span<const float> weights);
+  /// The frame's viseme: the winner given what the phonemes say about it ("Known shapes" above).
+  std::uint32_t winner(std::span<const float> weights, const FrameArticulation& articulation) const;
+
+  /// A pause frame this far (µs) from speech on both sides shows the silence viseme.
+  static constexpr std::int64_t kPauseSpeechReachUs = 60'000;
 
  private:
   VisemeOptions options_;
@@ -108,6 +126,7 @@ class VisemeClassifier {
   std::vector<double> prototypes_;      // viseme × channel
   std::vector<double> channel_scale_;   // w_c / range_c²
   std::vector<std::uint32_t> fold_into_;  // viseme whose weight this one's goes to (itself if kept)
+  std::vector<std::int32_t> closure_viseme_;  // per model phoneme: the viseme a closure phoneme stands for, or −1
   double temperature_ = 1.0;
 };
 
@@ -130,7 +149,7 @@ struct VisemeTrack {
 };
 
 /// Weighs every frame of `track` (which must have the classifier's channel count; else
-/// std::invalid_argument) and derives the events.
+/// std::invalid_argument), chooses each frame's viseme with its articulation and derives the events.
 VisemeTrack compute_visemes(const VisemeClassifier& classifier, const Track& track);
 
 }  // namespace lipsync

@@ -110,6 +110,60 @@ FaceAnimation simulate_face_animation(const FaceMesh& mesh, const FaceRig& rig, 
   return animation;
 }
 
+std::span<const Vec3> FaceTrackStepper::step(std::int64_t t_us, std::span<const float> channel_values) {
+  solver_.step(channel_values, static_cast<double>(t_us - previous_t_us_) * 1e-6);
+  previous_t_us_ = t_us;
+  return solver_.positions();
+}
+
+FaceAnimation simulate_track_frames(const FaceMesh& mesh, const FaceRig& rig, const Track& track,
+                                    const FaceSolverParams& params) {
+  if (track.channel_count != rig.channel_count())
+    throw std::invalid_argument("simulate_track_frames: the track's channels are not the rig's model's");
+  FaceSolver solver(mesh, rig, params);
+  FaceTrackStepper stepper(solver);
+  FaceAnimation animation;
+  animation.vertex_count = mesh.vertex_count();
+  animation.t_us = track.t_us;
+  animation.positions.reserve(track.frame_count() * mesh.vertex_count());
+  for (std::size_t frame = 0; frame < track.frame_count(); ++frame) {
+    const auto x = stepper.step(track.t_us[frame], track.frame_values(frame));
+    animation.positions.insert(animation.positions.end(), x.begin(), x.end());
+  }
+  return animation;
+}
+
+FaceAnimation resample_face_animation(const FaceAnimation& animation, int fps) {
+  checked_fps(fps, "resample_face_animation: fps");
+  if (animation.frame_count() == 0) throw std::invalid_argument("resample_face_animation: the animation has no frames");
+  const std::size_t nv = animation.vertex_count;
+  const std::int64_t end_us = animation.t_us.back();
+  const auto frame_time = [&](std::int64_t k) {
+    return static_cast<std::int64_t>(std::llround(static_cast<double>(k) * 1e6 / fps));
+  };
+  FaceAnimation out;
+  out.vertex_count = nv;
+  std::size_t next = 0;  // the first frame after t
+  for (std::int64_t k = 0; k == 0 || frame_time(k - 1) < end_us; ++k) {
+    const std::int64_t t_us = frame_time(k);
+    while (next < animation.frame_count() && animation.t_us[next] <= t_us) ++next;
+    out.t_us.push_back(t_us);
+    if (next == 0 || next == animation.frame_count() || animation.t_us[next - 1] == t_us) {
+      const auto pose = animation.frame(next == 0 ? 0 : next - 1);
+      out.positions.insert(out.positions.end(), pose.begin(), pose.end());
+      continue;
+    }
+    const auto p0 = animation.frame(next - 1), p1 = animation.frame(next);
+    const double a = static_cast<double>(t_us - animation.t_us[next - 1]) /
+                     static_cast<double>(animation.t_us[next] - animation.t_us[next - 1]);
+    for (std::size_t v = 0; v < nv; ++v) {
+      out.positions.push_back({p0[v].x + a * (p1[v].x - p0[v].x), p0[v].y + a * (p1[v].y - p0[v].y),
+                               p0[v].z + a * (p1[v].z - p0[v].z)});
+    }
+  }
+  return out;
+}
+
 namespace {
 
 // Greedy key selection: from the last key, extend the span as far as every intermediate frame is

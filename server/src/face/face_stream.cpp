@@ -111,7 +111,7 @@ void FaceLibrary::SolverReturn::operator()(face::FaceSolver* solver) const {
 }
 
 FaceStream::FaceStream(const FaceTopology& topology, FaceLibrary::PooledSolver solver, v1::MeshEncoding encoding)
-    : topology_(topology), solver_(std::move(solver)), encoding_(encoding) {}
+    : topology_(topology), solver_(std::move(solver)), encoding_(encoding), stepper_(*solver_) {}
 
 v1::MeshTopology header_topology(const FaceTopology& topology, v1::MeshEncoding encoding) {
   v1::MeshTopology wire = topology.wire;
@@ -134,10 +134,7 @@ void FaceStream::encode(const Track& track, std::size_t begin, std::size_t end, 
     batch.mutable_mesh_positions()->Reserve(batch.mesh_positions_size() + static_cast<int>(count * vertices * 3));
   }
   for (std::size_t frame = begin; frame < end; ++frame) {
-    const std::int64_t t_us = track.t_us[frame];
-    solver_->step(track.frame_values(frame), static_cast<double>(t_us - previous_t_us_) * 1e-6);
-    previous_t_us_ = t_us;
-    for (const face::Vec3& p : solver_->positions()) {
+    for (const face::Vec3& p : stepper_.step(track.t_us[frame], track.frame_values(frame))) {
       const std::array<double, 3> xyz{p.x, p.y, p.z};
       for (int axis = 0; axis < 3; ++axis) {
         if (int16) {

@@ -9,7 +9,8 @@
 // is one stream's FaceSolver (its own state: the face moves with that stream
 // only); it steps once per released frame with dt = t_i − t_{i−1} (t_{−1} = 0:
 // key frames make the steps uneven; FaceSolver simulates each dt exactly, in
-// substeps of at most its 1/30 s step) and appends the positions as float32 or
+// substeps of at most its 1/30 s step), by face::FaceTrackStepper, the rule
+// `lipsync render --mesh/--video` follows too (one face per input), and appends the positions as float32 or
 // int16 (MeshTopology documents the quantisation). It runs on the face threads
 // (face_workers.hpp). Streams that do not ask for the mesh never touch any of this.
 #pragma once
@@ -23,6 +24,7 @@
 #include <utility>
 #include <vector>
 
+#include "lipsync/face/face_animation.hpp"
 #include "lipsync/face/face_mesh.hpp"
 #include "lipsync/face/face_rig.hpp"
 #include "lipsync/face/face_solver.hpp"
@@ -101,7 +103,7 @@ class FaceStream {
   const FaceTopology& topology_;
   FaceLibrary::PooledSolver solver_;
   const v1::MeshEncoding encoding_;
-  std::int64_t previous_t_us_ = 0;
+  face::FaceTrackStepper stepper_;
 };
 
 }  // namespace lipsync::server

@@ -77,7 +77,7 @@ void encode_frames(const Plan& plan, const Track& track, std::size_t begin, std:
     for (std::size_t frame = begin; frame < end; ++frame) {
       const std::span<float> frame_weights(weights.mutable_data() + (frame - begin) * visemes, visemes);
       plan.visemes->weigh(track.frame_values(frame), frame_weights);
-      const std::uint32_t winner = VisemeClassifier::winner(frame_weights);
+      const std::uint32_t winner = plan.visemes->winner(frame_weights, track.frame_articulation(frame));
       if (const auto event = stream.viseme_detector.next(track.t_us[frame], winner)) {
         v1::VisemeEvent* wire_event = batch.add_viseme_events();
         wire_event->set_viseme(event->viseme);

@@ -8,14 +8,15 @@
 namespace lipsync::server {
 
 grpc::Status Admission::admit_call(std::string_view peer) {
-  ++calls_in_progress_;
+  const std::size_t calls = ++calls_in_progress_;
+  if (observer_) observer_(calls);
   const auto first_call_of_connection_accepted_at = connections_.first_call(peer);
   if (draining_) {
     const bool balancer_session_on_its_way =
         first_call_of_connection_accepted_at &&
         *first_call_of_connection_accepted_at >= drain_started_.load() - kFirstCallWindow;
     if (!balancer_session_on_its_way) {
-      --calls_in_progress_;
+      call_ended();
       return {grpc::StatusCode::UNAVAILABLE, "the server is shutting down"};
     }
   }
@@ -38,7 +39,7 @@ grpc::Status Admission::admit_stream(std::string_view peer) {
   std::size_t open = active_streams_.load();
   do {
     if (open >= max_streams_) {
-      --calls_in_progress_;
+      call_ended();
       return {grpc::StatusCode::RESOURCE_EXHAUSTED,
               "the server already has " + std::to_string(open) + " open streams (--max-streams=" +
                   std::to_string(max_streams_) + ")"};

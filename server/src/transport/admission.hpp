@@ -12,6 +12,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstddef>
+#include <functional>
 #include <string_view>
 
 #include <grpcpp/support/status.h>
@@ -33,11 +34,14 @@ class Admission {
   grpc::Status admit_stream(std::string_view peer);
   void release_stream() {
     --active_streams_;
-    --calls_in_progress_;
+    call_ended();
   }
   /// Render calls: counted for the drain only (they are not streams).
   grpc::Status admit_render(std::string_view peer);
-  void release_render() { --calls_in_progress_; }
+  void release_render() { call_ended(); }
+  /// Called with the calls in progress each time they change (the transport quota follows them:
+  /// transport_quota.hpp). Set once, before the server takes calls.
+  void follow_calls(std::function<void(std::size_t)> observer) { observer_ = std::move(observer); }
 
   /// From now on new calls are refused with UNAVAILABLE (but for first calls, above).
   void begin_drain();
@@ -54,6 +58,10 @@ class Admission {
  private:
   /// Counts a call in unless the server is draining.
   grpc::Status admit_call(std::string_view peer);
+  void call_ended() {
+    const std::size_t calls = --calls_in_progress_;
+    if (observer_) observer_(calls);
+  }
 
   const std::size_t max_streams_;
   std::atomic<std::size_t> active_streams_{0};
@@ -61,6 +69,7 @@ class Admission {
   std::atomic<bool> draining_{false};
   std::atomic<ConnectionLedger::Clock::time_point> drain_started_{ConnectionLedger::Clock::time_point::max()};
   ConnectionLedger connections_;
+  std::function<void(std::size_t)> observer_;
 };
 
 }  // namespace lipsync::server

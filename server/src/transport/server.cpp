@@ -32,6 +32,7 @@
 #include "http/metrics_http.hpp"
 #include "rpc/service.hpp"
 #include "transport/tls.hpp"
+#include "transport/transport_quota.hpp"
 
 namespace lipsync::server {
 namespace {
@@ -45,8 +46,10 @@ constexpr auto kAbortedGrace = std::chrono::milliseconds(1000);
 
 struct Server::Impl {
   explicit Impl(ServerConfig config_in)
-      : config(std::move(config_in)), catalog(config.models), service(config, catalog) {}
+      : transport_quota(), config(std::move(config_in)), catalog(config.models), service(config, catalog) {}
 
+  // First, so that it goes last: the service's admission calls into it until the calls are gone.
+  std::unique_ptr<TransportQuota> transport_quota;  // none with --transport-memory-bytes 0
   ServerConfig config;
   ModelCatalog catalog;
   LipSyncService service;
@@ -89,11 +92,16 @@ Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(con
     builder.AddListeningPort(impl_->config.listen, impl_->tls->server_credentials(), &impl_->port);
   }
   builder.SetMaxReceiveMessageSize(static_cast<int>(impl_->config.max_message_bytes));
-  if (impl_->config.transport_memory_bytes > 0) {
-    grpc::ResourceQuota quota("lipsyncd");
-    quota.Resize(impl_->config.transport_memory_bytes);
-    builder.SetResourceQuota(quota);
+  // The transport quota also bounds what a message over the limit costs (transport_quota.hpp).
+  if (!impl_->config.transport_memory_bytes) {
+    impl_->transport_quota =
+        std::make_unique<TransportQuota>(TransportQuota::base_for(impl_->config.max_message_bytes), true);
+    impl_->service.admission().follow_calls(
+        [quota = impl_->transport_quota.get()](std::size_t calls) { quota->follow(calls); });
+  } else if (*impl_->config.transport_memory_bytes > 0) {
+    impl_->transport_quota = std::make_unique<TransportQuota>(*impl_->config.transport_memory_bytes, false);
   }
+  if (impl_->transport_quota) builder.SetResourceQuota(impl_->transport_quota->resource_quota());
   builder.RegisterService(&impl_->service);
   handoff_release(&impl_->service);  // gRPC calls its handlers on its own threads from now on
   impl_->server = builder.BuildAndStart();

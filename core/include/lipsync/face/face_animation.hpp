@@ -50,6 +50,36 @@ void sample_track(const Track& track, std::int64_t t_us, std::span<float> out);
 FaceAnimation simulate_face_animation(const FaceMesh& mesh, const FaceRig& rig, const Track& track, int fps,
                                       FaceSolverParams params = {});
 
+/// The face of a track's frames, one frame at a time: the rule every path that shows a track's face
+/// follows (lipsyncd's mesh output, `lipsync render --mesh / --video / --still`), so that one input
+/// and one set of settings give one face. From rest, one solver step per frame with
+/// dt = t_i − t_{i−1} (t_{−1} = 0) and the channels held at the frame's values (FaceSolver::step
+/// divides dt into substeps of at most its time step); the first frame, at t = 0, takes the
+/// channels and moves no skin.
+class FaceTrackStepper {
+ public:
+  /// `solver` must be at rest (new or reset) and outlive the stepper.
+  explicit FaceTrackStepper(FaceSolver& solver) : solver_(solver) {}
+  /// Steps to the frame at `t_us` (after the previous one) with `channel_values`; returns the pose.
+  std::span<const Vec3> step(std::int64_t t_us, std::span<const float> channel_values);
+
+ private:
+  FaceSolver& solver_;
+  std::int64_t previous_t_us_ = 0;
+};
+
+/// The poses of every frame of `track` by FaceTrackStepper (the animation's times are the track's).
+/// Throws std::invalid_argument for a track whose channel count differs from the rig's.
+FaceAnimation simulate_track_frames(const FaceMesh& mesh, const FaceRig& rig, const Track& track,
+                                    const FaceSolverParams& params = {});
+
+/// `animation` seen on a uniform grid, as a video shows it: frames k = 0 … at
+/// t = round(k · 10⁶ / fps) µs, the last one the first at or after the animation's last time; each
+/// pose linear between the two frames around it (what a glTF player shows between two keys), held
+/// after the end. Throws SettingError for fps outside kFpsSetting, std::invalid_argument for an
+/// empty animation.
+FaceAnimation resample_face_animation(const FaceAnimation& animation, int fps);
+
 struct GlbOptions {
   /// A frame becomes a key when linear interpolation from the previous key misses any vertex of an
   /// intermediate frame by more than this (0 keeps every frame).

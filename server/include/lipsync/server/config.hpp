@@ -45,8 +45,10 @@ struct ServerConfig {
   std::size_t max_phonemes = 100'000;             ///< phonemes per utterance
   std::int64_t max_utterance_ms = 3'600'000;      ///< utterance length (end of the last phoneme)
   std::size_t max_message_bytes = 4 * 1024 * 1024;  ///< largest request message
-  /// gRPC's memory quota for the transport (read buffers of every connection); 0 = unbounded.
-  std::size_t transport_memory_bytes = 0;
+  /// gRPC's memory quota for the transport (read buffers of every connection, call arenas);
+  /// 0 = unbounded; unset = sized from max_message_bytes and the calls in progress
+  /// (server/src/transport/transport_quota.hpp: a message over the limit then costs about 20 MB at idle).
+  std::optional<std::size_t> transport_memory_bytes;
 
   // Sessions and fan-out.
   std::size_t replay_frames = 1'800;            ///< frames a session keeps for late joiners (1 min at 30 fps)
