@@ -3,6 +3,7 @@
 #include <sys/socket.h>
 
 #include <chrono>
+#include <optional>
 #include <stdexcept>
 #include <thread>
 
@@ -56,6 +57,8 @@ http::status http_status(grpc::StatusCode code) {
     case grpc::StatusCode::NOT_FOUND: return http::status::not_found;
     case grpc::StatusCode::ALREADY_EXISTS: return http::status::conflict;
     case grpc::StatusCode::RESOURCE_EXHAUSTED: return http::status::too_many_requests;
+    case grpc::StatusCode::UNAUTHENTICATED: return http::status::unauthorized;
+    case grpc::StatusCode::PERMISSION_DENIED: return http::status::forbidden;
     case grpc::StatusCode::UNAVAILABLE: return http::status::service_unavailable;
     default: return http::status::internal_server_error;
   }
@@ -140,12 +143,60 @@ class CallRegistration {
 
 /// The caller's API key on the in-process call (docs/viewer.md): the request's own
 /// `Authorization` header, else `?key=` (a browser's WebSocket cannot set headers).
-void forward_api_key(const Request& request, const QueryParameters& query, grpc::ClientContext& context) {
+std::optional<std::string> authorization_value(const Request& request, const QueryParameters& query) {
   if (const auto header = request.find(http::field::authorization); header != request.end()) {
-    context.AddMetadata("authorization", std::string(header->value()));
-  } else if (const auto key = query.find("key"); key != query.end() && !key->second.empty()) {
-    context.AddMetadata("authorization", "Bearer " + key->second);
+    return std::string(header->value());
   }
+  if (const auto key = query.find("key"); key != query.end() && !key->second.empty()) return "Bearer " + key->second;
+  return std::nullopt;
+}
+
+void forward_api_key(const Request& request, const QueryParameters& query, grpc::ClientContext& context) {
+  if (const auto value = authorization_value(request, query)) context.AddMetadata("authorization", *value);
+}
+
+/// GET /audio?session=NAME: the session's WAV, from the bytes the session keeps (no copy).
+bool serve_audio(tcp::socket& socket, const Request& request, const QueryParameters& query,
+                 const SessionAudioLookup& lookup) {
+  const auto fail = [&](http::status status, const std::string& code, const std::string& message) {
+    beast::error_code error;
+    http::write(socket, text_response(request, status, error_json(code, message), "application/json"), error);
+    return !error && request.keep_alive();
+  };
+  if (request.method() != http::verb::get && request.method() != http::verb::head) {
+    Response response = text_response(request, http::status::method_not_allowed, "/audio: only GET\n");
+    response.set(http::field::allow, "GET, HEAD");
+    beast::error_code error;
+    http::write(socket, response, error);
+    return !error && request.keep_alive();
+  }
+  const auto session = query.find("session");
+  if (session == query.end() || session->second.empty()) {
+    return fail(http::status::bad_request, "INVALID_ARGUMENT", "/audio needs a session: /audio?session=NAME");
+  }
+  std::shared_ptr<const std::string> wav;
+  grpc::Status status(grpc::StatusCode::NOT_FOUND,
+                      "session '" + session->second + "' has no audio (this lipsyncd keeps none)");
+  if (lookup) {
+    const std::optional<std::string> authorization = authorization_value(request, query);
+    const std::string_view value = authorization ? std::string_view(*authorization) : std::string_view();
+    status = lookup(authorization ? &value : nullptr, session->second, wav);
+  }
+  if (!status.ok()) return fail(http_status(status.error_code()), code_name(status.error_code()), status.error_message());
+  http::response<http::span_body<const char>> response(http::status::ok, request.version());
+  response.set(http::field::server, "lipsyncd");
+  response.set(http::field::content_type, "audio/wav");
+  response.set(http::field::cache_control, "no-store");
+  response.keep_alive(request.keep_alive());
+  if (request.method() == http::verb::head) {
+    response.content_length(wav->size());
+  } else {
+    response.body() = http::span_body<const char>::value_type(wav->data(), wav->size());
+    response.prepare_payload();
+  }
+  beast::error_code error;
+  http::write(socket, response, error);
+  return !error && request.keep_alive();
 }
 
 /// GET /ws: the session's messages, one binary WebSocket message each, through a Subscribe call.
@@ -258,8 +309,8 @@ Response serve_asset(const Request& request, const std::string& path) {
 }  // namespace
 
 HttpViewer::HttpViewer(const std::string& host_port, std::shared_ptr<grpc::Channel> service,
-                       const ModelCatalog& catalog)
-    : service_(std::move(service)), catalog_(catalog), acceptor_(io_) {
+                       const ModelCatalog& catalog, SessionAudioLookup session_audio)
+    : service_(std::move(service)), catalog_(catalog), session_audio_(std::move(session_audio)), acceptor_(io_) {
   const tcp::endpoint endpoint = resolve(io_, host_port, host_);
   beast::error_code error;
   acceptor_.open(endpoint.protocol(), error);
@@ -365,6 +416,11 @@ void HttpViewer::serve(Connection& connection) {
                    std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - started)
                        .count());
       break;
+    }
+
+    if (path == "/audio") {
+      if (!serve_audio(connection.socket, request, query, session_audio_)) break;
+      continue;
     }
 
     Response response;
