@@ -70,7 +70,7 @@ const kEyes = [[33, 246, 161, 160, 159, 158, 157, 173, 133, 155, 154, 153, 145, 
 const kUpperLidPoints = 9;
 // Eyebrows: the upper edge, then the lower edge back.
 const kBrows = [[70, 63, 105, 66, 107, 55, 65, 52, 53, 46], [300, 293, 334, 296, 336, 285, 295, 282, 283, 276]];
-const kPaintTexels = 1024;  // the paint texture's side
+const kPaintTexels = 512;   // the paint texture's side (3.4 texels per mm)
 const kIrisRadiusM = 0.0056, kPupilRadiusM = 0.0022;
 // The relaxed rest (blendshapes): the fitted face's lips are 5.5 mm apart at rest (its teeth
 // show). The page closes them with a displacement of the lips toward each other (kRestClosure*),
@@ -351,7 +351,7 @@ function computeNormals(g) {
 
 // ---------------------------------------------------------------- WebGL
 
-const gl = canvas.getContext("webgl", { preserveDrawingBuffer: true, antialias: false });
+const gl = canvas.getContext("webgl", { antialias: false });
 const program = gl && makeProgram(`
   attribute vec3 position; attribute vec3 normal; attribute vec3 colour; attribute float lit;
   attribute vec2 uv; attribute float painted;
