@@ -110,6 +110,7 @@ const viewer = {
   resyncs: 0,            // reschedules (Web Audio) or seeks (element) after the start
   audioPath: null,       // "webaudio" (decoded, on the AudioContext's clock) or "element" (the fallback)
   audioContextState: null,
+  audioNote: null,       // why the audio plays through the <audio> element (the fallback), if it does
   audioLoadedAtMs: null, // performance.now() when the audio was decoded
   audioDurationUs: null,
   audioStartedAtUs: null, // utterance time of the first drift measured (the audio heard)
@@ -572,8 +573,9 @@ async function loadAudio(source, name, { quietNotFound = false } = {}) {
       // Not readable from this page (CORS) or not reachable: the media element may still play it.
       sound.path = "element";
       viewer.audioPath = "element";
-      setStatus("audio: " + name + " is not readable from this page (no CORS header?): played by the audio element, " +
-                "which needs a server with byte ranges", true);
+      viewer.audioNote = name + " is not readable from this page (no CORS header?): played by the audio element, " +
+                         "which needs a server with byte ranges";
+      setStatus("audio: " + viewer.audioNote, true);
       audio.src = source;
       return;
     }

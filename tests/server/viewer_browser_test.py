@@ -246,6 +246,13 @@ class QuietHandler(http.server.SimpleHTTPRequestHandler):
         return super().send_head()
 
 
+class NoCorsHandler(http.server.SimpleHTTPRequestHandler):
+    """`python3 -m http.server` as it is: no Access-Control-Allow-Origin, so the page may not read it."""
+
+    def log_message(self, *args):
+        pass
+
+
 class RangeHandler(QuietHandler):
     """The same with byte ranges (206 Partial Content), as most web servers."""
 
@@ -311,6 +318,7 @@ class ViewerInChromium(unittest.TestCase):
         cls.audio_server = serve_directory(cls.workdir, QuietHandler)
         cls.range_server = serve_directory(cls.workdir, RangeHandler)
         cls.slow_server = serve_directory(cls.workdir, SlowHandler)
+        cls.no_cors_server = serve_directory(cls.workdir, NoCorsHandler)
         cls.lipsyncd, cls.grpc_address, cls.viewer_url = start_lipsyncd()
         cls.browser = DevTools(cls.workdir)
         cls.client = Client(cls.grpc_address)
@@ -332,7 +340,7 @@ class ViewerInChromium(unittest.TestCase):
         cls.browser.close()
         cls.lipsyncd.terminate()
         cls.lipsyncd.wait()
-        for server in (cls.audio_server, cls.range_server, cls.slow_server):
+        for server in (cls.audio_server, cls.range_server, cls.slow_server, cls.no_cors_server):
             server.shutdown()
         shutil.rmtree(cls.workdir, ignore_errors=True)
 
@@ -552,6 +560,20 @@ class ViewerInChromium(unittest.TestCase):
     def test_4_audio_that_arrives_late_starts_in_the_middle_and_locks(self):
         viewer = self.check_session("papa-slow", "blendshapes", self.audio_url(self.slow_server), mouth=False)
         self.assertGreater(viewer["audioStartedAtUs"], 200_000, "the slow file was not late")
+
+    def test_6_audio_the_page_may_not_read_falls_back_to_the_audio_element_and_says_so(self):
+        self.open_page("nobody-yet", self.audio_url(self.no_cors_server))
+        deadline, state = time.time() + 20, {}
+        while time.time() < deadline:
+            state = json.loads(self.browser.evaluate(
+                "JSON.stringify(window.lipsyncViewer ? {path: lipsyncViewer.audioPath, note: lipsyncViewer.audioNote,"
+                " src: document.getElementById('audio').src, status: document.getElementById('status').textContent} : {})"))
+            if state.get("path"):
+                break
+            time.sleep(0.05)
+        self.assertEqual(state.get("path"), "element", state)
+        self.assertEqual(state["src"], self.audio_url(self.no_cors_server))
+        self.assertIn("not readable from this page", state["note"])
 
     def test_5_a_speak_sessions_voice_plays_from_lipsyncd_in_sync(self):
         viewer = self.check_session("spoken", "blendshapes", speak=True, mouth=False)
