@@ -289,6 +289,36 @@ Response quick_try(const Request& request, v1::LipSync::Stub& stub, const QuickT
   return text_response(request, http::status::ok, body.dump(), "application/json");
 }
 
+/// POST /sessions?speak=1: one Speak call with the posted text; answers once it has spoken.
+Response quick_speak(const Request& request, v1::LipSync::Stub& stub, const v1::SpeakRequest& speak,
+                     grpc::ClientContext& context) {
+  auto reader = stub.Speak(&context, speak);
+  v1::SpeakResponse message;
+  std::uint64_t frames = 0, phonemes = 0;
+  std::int64_t audio_us = 0;
+  while (reader->Read(&message)) {
+    if (message.has_header()) {
+      phonemes = static_cast<std::uint64_t>(message.header().phonemes_size());
+      audio_us = message.header().audio_duration_us();
+    }
+    if (message.has_summary()) frames = message.summary().track().frames();
+  }
+  const grpc::Status status = reader->Finish();
+  if (!status.ok()) {
+    return text_response(request, http_status(status.error_code()),
+                         error_json(code_name(status.error_code()), status.error_message()), "application/json");
+  }
+  const std::string& session = speak.settings().session();
+  const nlohmann::json body = {{"session", session},
+                               {"phonemes", phonemes},
+                               {"frames", frames},
+                               {"audio_duration_us", audio_us},
+                               {"audio", "/audio?session=" + session},
+                               {"utterance_zero_us", speak.settings().media_clock().utterance_zero_us()},
+                               {"view", "/view?session=" + session}};
+  return text_response(request, http::status::ok, body.dump(), "application/json");
+}
+
 Response serve_asset(const Request& request, const std::string& path) {
   const std::string wanted = path == "/" ? "/view" : path;
   for (const WebAsset& asset : web_assets()) {
@@ -430,14 +460,22 @@ void HttpViewer::serve(Connection& connection) {
         response.set(http::field::allow, "POST");
       } else {
         try {
-          const QuickTry plan = plan_quick_try(query, request.body(), catalog_, unix_now_us());
+          const auto speak = query.find("speak");
+          const bool speaking = speak != query.end() && speak->second == "1";
+          if (speak != query.end() && !speaking && speak->second != "0") {
+            throw QuickTryError("speak: expected 1 (speak the text with espeak-ng) or 0, got '" + speak->second + "'");
+          }
+          const QuickTry plan = speaking ? QuickTry{} : plan_quick_try(query, request.body(), catalog_, unix_now_us());
+          const v1::SpeakRequest spoken =
+              speaking ? plan_quick_speak(query, request.body(), unix_now_us()) : v1::SpeakRequest{};
           grpc::ClientContext context;
           forward_api_key(request, query, context);
           CallRegistration registration(connection.call_mutex, connection.call, context, closing_);
-          response = registration.admitted
-                         ? quick_try(request, *stub, plan, context)
-                         : text_response(request, http::status::service_unavailable,
-                                         error_json("UNAVAILABLE", "lipsyncd is shutting down"), "application/json");
+          response = !registration.admitted
+                         ? text_response(request, http::status::service_unavailable,
+                                         error_json("UNAVAILABLE", "lipsyncd is shutting down"), "application/json")
+                     : speaking ? quick_speak(request, *stub, spoken, context)
+                                : quick_try(request, *stub, plan, context);
         } catch (const InputError& bad) {
           response = text_response(request, http::status::bad_request, error_json("INVALID_ARGUMENT", bad.what()),
                                    "application/json");

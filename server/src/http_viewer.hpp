@@ -10,7 +10,8 @@
 //                                       {"code":"NOT_FOUND","message":"..."} and close code
 //                                       4000 + the gRPC status code with the message as reason
 //   POST /sessions?session=NAME&...     body: phoneme text in any format the CLI reads; the
-//                                       server animates it as a session (a quick try)
+//                                       server animates it as a session (a quick try); with
+//                                       speak=1 the body is text that a Speak call speaks into it
 //   GET  /audio?session=NAME            the session's sound as a WAV file (a Speak session's
 //                                       voice, kept by the session); 404 when it has none
 //

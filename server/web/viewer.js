@@ -948,13 +948,16 @@ document.getElementById("audio-file").addEventListener("change", (event) => {
   loadAudio(file, file.name);
 });
 
-document.getElementById("try-form").addEventListener("submit", async (event) => {
-  event.preventDefault();
+/// POST /sessions: the pasted phonemes animated (Animate), or with `speak` the text spoken (Speak,
+/// whose session then carries its voice: the page plays it from /audio).
+async function quickTry(speak) {
   const query = new URLSearchParams();
   const session = document.getElementById("session-input").value.trim();
   if (session) query.set("session", session);
-  if (document.getElementById("try-mesh").checked) query.set("mesh", "1");
+  if (speak) query.set("speak", "1");
+  else if (document.getElementById("try-mesh").checked) query.set("mesh", "1");
   if (apiKey) query.set("key", apiKey);
+  elements["try-result"].textContent = speak ? "speaking…" : "animating…";
   const response = await fetch("/sessions?" + query.toString(),
                                { method: "POST", body: document.getElementById("try-text").value });
   const answer = await response.json();
@@ -962,8 +965,14 @@ document.getElementById("try-form").addEventListener("submit", async (event) => 
     elements["try-result"].textContent = answer.code + ": " + answer.message;
     return;
   }
-  navigate(answer.session, viewer.audio && !viewer.audio.startsWith("blob:") ? params.get("audio") : "");
+  navigate(answer.session, !speak && viewer.audio && !viewer.audio.startsWith("blob:") ? params.get("audio") : "");
+}
+
+document.getElementById("try-form").addEventListener("submit", (event) => {
+  event.preventDefault();
+  quickTry(false);
 });
+document.getElementById("try-speak").addEventListener("click", () => quickTry(true));
 
 if (viewer.audio) loadAudio(viewer.audio, viewer.audio);
 document.getElementById("session-input").value = viewer.session || "";

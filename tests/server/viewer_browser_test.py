@@ -25,7 +25,9 @@ and checks:
     show a closed and an open mouth: pixels of the open-mouth colours (cavity, teeth, tongue,
     drawn flat by the page) are counted on the PNG;
   * the same with the server's simulated mesh (mode "mesh");
-  * phonemes pasted into the page's quick-try box start a session that the page then follows.
+  * phonemes pasted into the page's quick-try box start a session that the page then follows, and
+    a sentence typed there and spoken (Speak) plays its voice from lipsyncd, locked;
+  * a URL the page may not read (no CORS header) falls back to the audio element and says so.
 
 Screenshots of the page (face, readouts, bars) are written to $LIPSYNC_VIEWER_SCREENSHOTS when it is set (the
 pictures in docs/images/ come from there).
@@ -556,6 +558,30 @@ class ViewerInChromium(unittest.TestCase):
                                     mesh=True, mesh_subdivision=0)
         self.assertGreater(viewer["audioStartedAtUs"], 0, "the page did not join the session in progress")
         self.assertEqual(QuietHandler.requests, [("RangeHandler", "/papa.wav", None)])  # never a range
+
+    def test_3b_text_spoken_from_the_quick_try_box_plays_its_voice_from_lipsyncd(self):
+        self.browser.call("Page.navigate", url=f"{self.viewer_url}/view")
+        while not self.browser.evaluate("!!(window.lipsyncViewer && document.readyState === 'complete')"):
+            time.sleep(0.05)
+        self.browser.evaluate(f"document.getElementById('try-text').value = {json.dumps(SENTENCE)};"
+                              " document.getElementById('try-speak').click()")
+        deadline, state = time.time() + 20, {}
+        while time.time() < deadline:
+            state = json.loads(self.browser.evaluate(
+                "JSON.stringify(window.lipsyncViewer ? {session: lipsyncViewer.session, ended: lipsyncViewer.ended,"
+                " audio: lipsyncViewer.audio, path: lipsyncViewer.audioPath, locked: lipsyncViewer.locked,"
+                " drift: lipsyncViewer.drift, t: lipsyncViewer.utteranceTime, error: lipsyncViewer.error,"
+                " audioError: lipsyncViewer.audioError} : {})"))
+            if state.get("ended") and state.get("locked"):
+                break
+            time.sleep(0.1)
+        print(f"spoken from the page: {state}", flush=True)
+        self.assertRegex(state.get("session") or "", r"^try-[0-9a-f]{8}$", state)
+        self.assertEqual(state["audio"], f"/audio?session={state['session']}")
+        self.assertEqual(state["path"], "webaudio")
+        self.assertTrue(state["locked"], state)
+        self.assertIsNone(state["error"])
+        self.assertIsNone(state["audioError"])
 
     def test_4_audio_that_arrives_late_starts_in_the_middle_and_locks(self):
         viewer = self.check_session("papa-slow", "blendshapes", self.audio_url(self.slow_server), mouth=False)

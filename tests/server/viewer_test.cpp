@@ -358,6 +358,35 @@ TEST_F(ViewerTest, audio_is_404_naming_a_session_without_audio_or_unknown_and_40
   EXPECT_EQ(request(http::verb::post, "/audio?session=animated").status, 405u);
 }
 
+TEST_F(ViewerTest, quick_try_with_speak_speaks_the_text_into_a_session_that_carries_its_voice) {
+  const HttpReply reply = request(http::verb::post, "/sessions?session=said&speak=1", "Papa parked the car.");
+  ASSERT_EQ(reply.status, 200u) << reply.body;
+  const auto answer = nlohmann::json::parse(reply.body);
+  EXPECT_EQ(answer["session"], "said");
+  EXPECT_EQ(answer["audio"], "/audio?session=said");
+  EXPECT_GT(answer["audio_duration_us"].get<std::int64_t>(), 500'000);
+  const Received followed = subscribe_all(*stub_, "said");
+  ASSERT_TRUE(followed.status.ok()) << followed.status.error_message();
+  EXPECT_EQ(followed.header->media_clock().clock(), "unix");
+  EXPECT_EQ(followed.header->media_clock().utterance_zero_us(), answer["utterance_zero_us"].get<std::int64_t>());
+  EXPECT_EQ(answer["frames"], followed.frames.t_us.size());
+  const HttpReply audio = request(http::verb::get, "/audio?session=said");
+  ASSERT_EQ(audio.status, 200u);
+  // 16-bit mono: a 44-byte header (the rate at byte 24, little-endian) and the audio's samples.
+  ASSERT_GT(audio.body.size(), 44u);
+  std::uint32_t rate = 0;
+  for (int i = 3; i >= 0; --i) rate = rate << 8 | static_cast<std::uint8_t>(audio.body[24 + i]);
+  const auto samples = static_cast<double>(audio.body.size() - 44) / 2;
+  EXPECT_NEAR(samples * 1e6 / rate, answer["audio_duration_us"].get<double>(), 100.0);
+
+  HttpReply bad = request(http::verb::post, "/sessions?speak=2", "Papa.");
+  EXPECT_EQ(bad.status, 400u);
+  EXPECT_THAT(bad.body, ::testing::HasSubstr("speak: expected 1"));
+  bad = request(http::verb::post, "/sessions?speak=1", "   ");
+  EXPECT_EQ(bad.status, 400u);
+  EXPECT_THAT(bad.body, ::testing::HasSubstr("text: empty"));
+}
+
 // With --api-keys, /audio is a Subscribe's business: a key that may Subscribe, and only its tenant's sessions.
 class ViewerWithKeysTest : public ViewerTest {
  protected:
