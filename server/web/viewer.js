@@ -873,7 +873,13 @@ function askSessionAudio(session, state) {
   if (params.get("audio") || (viewer.audio && sessionAudio === null)) return;
   sessionAudio = state;
   loadAudio("/audio?session=" + encodeURIComponent(session), "/audio?session=" + session, { quietNotFound: true })
-    .then((found) => { if (found === false && sessionAudio === "asked") sessionAudio = "absent"; else if (found) sessionAudio = "loaded"; });
+    .then((found) => {
+      if (found) sessionAudio = "loaded";
+      else if (found === false && sessionAudio === "asked") {
+        // Frames that arrived while it was asked for come after a Speak session's audio: once more.
+        if (track.frames.length) askSessionAudio(session, "retried"); else sessionAudio = "absent";
+      }
+    });
 }
 
 function connect(session) {
