@@ -696,6 +696,7 @@ function steerSound(nowUs) {
                        positionUs: Math.round(positionS * 1e6), utteranceUs: Math.round(utteranceUs),
                        currentTimeS: context.currentTime, baseLatencyS: context.baseLatency ?? null,
                        outputLatencyS: context.outputLatency ?? null };
+  noteLock(drift, nowUs);  // every measurement, the ones about to be rescheduled too
   if (Math.abs(drift) > kRescheduleUs) {
     if (++sound.outOfBand >= kRescheduleSamples) {
       viewer.resyncs += 1;
@@ -713,7 +714,6 @@ function steerSound(nowUs) {
     while (pieces.length > 2 && pieces[1].contextS < clock.contextS) pieces.shift();
     sound.schedule.source.playbackRate.setValueAtTime(rate, at);
   }
-  noteLock(drift, nowUs);
 }
 
 /// Lock bookkeeping, for both paths: kLockSamples measurements in a row within kLockUs.

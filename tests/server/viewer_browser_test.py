@@ -28,6 +28,7 @@ and checks:
   * phonemes pasted into the page's quick-try box start a session that the page then follows, and
     a sentence typed there and spoken (Speak) plays its voice from lipsyncd, locked;
   * a URL the page may not read (no CORS header) falls back to the audio element and says so.
+  * an AudioContext stalled for 150 ms while locked is rescheduled onto the anchor and locks again.
 
 Screenshots of the page (face, readouts, bars) are written to $LIPSYNC_VIEWER_SCREENSHOTS when it is set (the
 pictures in docs/images/ come from there).
@@ -388,7 +389,8 @@ class ViewerInChromium(unittest.TestCase):
         query = f"session={session}" + (f"&audio={audio_url}" if audio_url else "")
         self.browser.call("Page.navigate", url=f"{self.viewer_url}/view?{query}")
 
-    def follow_and_measure(self, session, audio_url=None, open_page="before", speak=False, **settings):
+    def follow_and_measure(self, session, audio_url=None, open_page="before", speak=False, page_script=None,
+                           **settings):
         """The page follows `session` while a producer makes it, opened before the session starts
         (it waits) or after (it joins in the middle); samples the page's state every 50 ms."""
         if open_page == "before":
@@ -399,6 +401,8 @@ class ViewerInChromium(unittest.TestCase):
             while not self.browser.evaluate("!!(window.lipsyncViewer && lipsyncViewer.waiting)"):
                 self.assertLess(time.time(), deadline, "the page never waited for the session")
                 time.sleep(0.05)
+            if page_script:
+                self.browser.evaluate(page_script)
         if speak:
             producer, zero_us = self.speak(session)
         else:
@@ -600,6 +604,27 @@ class ViewerInChromium(unittest.TestCase):
         self.assertEqual(state.get("path"), "element", state)
         self.assertEqual(state["src"], self.audio_url(self.no_cors_server))
         self.assertIn("not readable from this page", state["note"])
+
+    def test_7_a_stalled_audio_context_is_rescheduled_onto_the_anchor(self):
+        # 0.8 s into the utterance, once locked, the page's AudioContext is suspended for 150 ms (as a
+        # context starved of CPU would stall): its sound falls 150 ms behind the anchor.
+        stall = ("const stall = setInterval(() => { if (lipsyncViewer.locked && lipsyncViewer.utteranceTime > 800000) {"
+                 " clearInterval(stall); window.stalledAtUs = lipsyncViewer.utteranceTime;"
+                 " sound.context.suspend().then(() => setTimeout(() => sound.context.resume(), 150)); } }, 5)")
+        samples, viewer, _ = self.follow_and_measure("papa-stall", self.audio_url(self.audio_server), page_script=stall)
+        stalled_at = self.browser.evaluate("window.stalledAtUs")
+        drifts = [(s["t"], s["drift"]) for s in samples if s.get("drift") is not None]
+        print(f"papa-stall: stalled at {stalled_at} us; drift series (t, us): {drifts}", flush=True)
+        print(f"papa-stall: {viewer['resyncs']} reschedules, locked again at {viewer['lockedAtUs']} us, "
+              f"largest locked |drift| {viewer['maxAbsDrift']} us", flush=True)
+        self.assertIsNotNone(stalled_at, "the stall never happened")
+        self.assertLess(min(d for _, d in drifts), -100_000, "the page did not see the sound fall behind")
+        self.assertGreaterEqual(viewer["resyncs"], 1)
+        self.assertGreater(viewer["lockedAtUs"], stalled_at)
+        self.assertLess(viewer["lockedAtUs"], stalled_at + 1_000_000, "not locked again within 1 s of the stall")
+        after = [d for t, d in drifts if t > viewer["lockedAtUs"]]
+        self.assertGreater(len(after), 3)
+        self.assertLess(max(map(abs, after)), FRAME_US, after)
 
     def test_5_a_speak_sessions_voice_plays_from_lipsyncd_in_sync(self):
         viewer = self.check_session("spoken", "blendshapes", speak=True, mouth=False)
