@@ -6,34 +6,44 @@
 //   (the producer's wall clock; lipsyncd's quick try uses it) the page shows frame t at wall time
 //   utterance_zero_us + t, so every viewer of a session shows the same frame at the same moment.
 //   With another clock, or none, the page starts utterance time 0 when the header arrives.
-// - Audio. An audio file or URL (?audio=URL, or chosen on the page) plays slaved to that clock: it
-//   starts at utterance time 0 (or at the current time when the page joins late), and every
-//   kSteerIntervalMs its position is compared with the anchor's (the drift, shown in #drift) and
-//   steered: the playback rate is trimmed in proportion to the drift; a start or seek whose
-//   pipeline restart left the audio more than kSeekUnlockedUs behind is seeked again ahead by the
-//   lag measured; kLockSamples measurements in a row within kLockUs lock it, and a locked audio
-//   is seeked only beyond kResyncUs. The face follows the anchor, not the audio, so that a stalled
-//   audio element never freezes the face.
+// - Audio. An audio file or URL (?audio=URL, a file chosen on the page, or, for a Speak session,
+//   lipsyncd's own /audio?session=NAME) is fetched whole, decoded, and played on the Web Audio
+//   clock: an AudioBufferSourceNode started at the context time whose sample leaves the speakers
+//   when the anchor plays that buffer position (getOutputTimestamp). Every kSteerIntervalMs the
+//   sound leaving the speakers is compared with the anchor's time on screen (the drift, #drift);
+//   a small drift is trimmed by the playback rate, a large one rescheduled. No byte ranges are
+//   needed. A cross-origin URL the page may not read (no CORS header) falls back to the <audio>
+//   element, steered by seeks (it needs byte ranges). The face follows the anchor, not the audio,
+//   so that a stalled or missing audio never freezes the face.
 // - The face. With the mesh output (the header carries a MeshTopology) the page draws the server's
 //   simulated vertices. Otherwise it poses the viewer's face (/face.json, data/face/
 //   viewer_face.json: the physics face fitted as ARKit blendshapes by tools/face/make_viewer_face)
-//   with the frame's ARKit weights: rest + Σ w_k Δ_k. Skin and lips are lit; the mouth cavity, teeth
-//   and tongue are drawn in flat colours (kOpenMouthColours) so an open mouth can be measured on a
-//   screenshot.
+//   with the frame's ARKit weights: rest + Σ w_k Δ_k, with the lips closed at rest (restClosure).
+//   Skin and lips are lit, the skin painted from landmark contours (lips, eyes, brows) in a
+//   texture laid on the rest pose; the mouth cavity, teeth and tongue are drawn in flat colours
+//   (kOpenMouthColours) so an open mouth can be measured on a screenshot.
 //
 // Its state is on window.lipsyncViewer and in the elements #frame-time (µs), #viseme and #drift.
 "use strict";
 
+// The Web Audio path (the default: the whole file decoded, scheduled on the AudioContext's clock).
+const kScheduleAheadS = 0.1;     // a (re)schedule starts the sound this far ahead of the context's time
+const kRescheduleUs = 25000;     // |drift| beyond this, kRescheduleSamples times in a row: rescheduled
+const kRescheduleSamples = 3;
+const kMaxRateTrim = 0.01;       // playback-rate trim of a small drift (1 %: a sixth of a semitone)
+const kCrossfadeS = 0.005;       // a rescheduled sound fades in over this while the old one fades out
+// Both paths: kLockSamples measurements in a row within kLockUs lock the audio.
+const kLockUs = 30000;
+const kLockSamples = 5;
+const kRateGainPerSecond = 4;   // playback-rate trim per second of drift
+const kSteerIntervalMs = 20;
+// The <audio> element's fallback (cross-origin audio the page may not read).
 const kResyncUs = 100000;       // locked audio further than this from the anchor is seeked
 const kSeekUnlockedUs = 60000;  // a started or seeked audio further than this is seeked again
-const kLockUs = 30000;          // ... and locked after kLockSamples measurements in a row within this
-const kLockSamples = 5;
 const kMaxLeadUs = 500000;
-const kSteerIntervalMs = 20;
-const kRetryNotFoundMs = 250;   // a session not (yet) there is asked for again this often
-const kRateGainPerSecond = 4;   // playback-rate trim per second of drift
-const kMaxRateTrim = 0.15;
+const kMaxElementRateTrim = 0.15;
 const kSettleAfterStartMs = 60; // after a start or seek, drift is measured once the audio runs again, and this long after
+const kRetryNotFoundMs = 250;   // a session not (yet) there is asked for again this often
 
 // Mesh parts (lipsync.v1.MeshPart) and their colours, linear-ish RGB 0..1.
 const kPartColours = [
@@ -44,13 +54,30 @@ const kPartColours = [
   [0.96, 0.95, 0.88],  // lower teeth (flat)
   [0.85, 0.30, 0.40],  // tongue (flat)
 ];
-const kLipColour = [0.76, 0.42, 0.44];
+const kLipColour = [0.76, 0.42, 0.44];  // the vermilion, painted inside kOuterLip
 const kNotFoundCloseCode = 4005;  // 4000 + gRPC NOT_FOUND
 const kLitParts = new Set([0, 1]);
 /// What an open mouth shows on a screenshot (8-bit sRGB as drawn): cavity, teeth, tongue.
 const kOpenMouthColours = [2, 3, 5].map((p) => kPartColours[p].map((c) => Math.round(c * 255)));
-// Outer lip contour (MediaPipe landmark ids): skin inside it is drawn in the lip colour.
+// Landmark contours of the MediaPipe canonical face mesh (vertex ids): the skin is painted from
+// them in the rest pose's x-y plane (a texture), so the paint follows the face as it moves and its
+// edges are those of the contours, however large the mesh's triangles are.
+// Outer lip contour: the vermilion (lip colour) inside it.
 const kOuterLip = [61, 185, 40, 39, 37, 0, 267, 269, 270, 409, 291, 375, 321, 405, 314, 17, 84, 181, 91, 146];
+// Eye contours, the upper lid first (corner to corner), then the lower lid back.
+const kEyes = [[33, 246, 161, 160, 159, 158, 157, 173, 133, 155, 154, 153, 145, 144, 163, 7],
+               [263, 466, 388, 387, 386, 385, 384, 398, 362, 382, 381, 380, 374, 373, 390, 249]];
+const kUpperLidPoints = 9;
+// Eyebrows: the upper edge, then the lower edge back.
+const kBrows = [[70, 63, 105, 66, 107, 55, 65, 52, 53, 46], [300, 293, 334, 296, 336, 285, 295, 282, 283, 276]];
+const kPaintTexels = 512;   // the paint texture's side (3.4 texels per mm)
+const kIrisRadiusM = 0.0056, kPupilRadiusM = 0.0022;
+// The relaxed rest (blendshapes): the fitted face's lips are 5.5 mm apart at rest (its teeth
+// show). The page closes them with a displacement of the lips toward each other (kRestClosure*),
+// in full while the fitted gap is at most its rest value, fading out as the mouth opens further
+// (gone at kRestClosureFadeGaps times the rest gap), so that an /aa/ opens as fitted.
+const kRestClosureFadeGaps = 4;
+const kRestClosureLipHeightM = 0.008;  // moved in full within this of the lip line, fading to 0 at 3x
 const kUpperInnerLip = 13, kLowerInnerLip = 14;
 
 const params = new URLSearchParams(location.search);
@@ -73,18 +100,27 @@ const viewer = {
   frameTime: null,       // µs of the frame on screen
   frameIndex: null,
   viseme: null,
-  drift: null,           // µs: audio position − anchor position (null: no audio playing)
-  locked: false,         // the audio reached the anchor (|drift| < kLockUs) since its last seek
+  drift: null,           // µs: the sound leaving the speakers − the anchor's time on screen (null: none plays)
+  locked: false,         // the audio reached the anchor (|drift| < kLockUs) since its last (re)schedule
   lockedAtUs: null,      // utterance time when it did
   maxAbsDrift: null,     // µs, over the measurements while locked
   lockedDrifts: [],      // µs, |drift| of the last 1,000 measurements while locked
   driftSamples: 0,
   lockedSamples: 0,      // measurements while locked
-  resyncs: 0,            // seeks after the start (the start's own lag, or a drift beyond kResyncUs)
+  resyncs: 0,            // reschedules (Web Audio) or seeks (element) after the start
+  audioPath: null,       // "webaudio" (decoded, on the AudioContext's clock) or "element" (the fallback)
+  audioContextState: null,
+  audioNote: null,       // why the audio plays through the <audio> element (the fallback), if it does
+  audioLoadedAtMs: null, // performance.now() when the audio was decoded
+  audioDurationUs: null,
+  audioStartedAtUs: null, // utterance time of the first drift measured (the audio heard)
+  audioClock: null,      // "timestamp" (getOutputTimestamp) or "latency" (currentTime + latencies)
+  lastClock: null,       // the last measurement: context and performance times, position, utterance time
   mouthOpen: null,       // mm between the inner lips (landmarks 13 and 14) on screen
   mouthRect: null,       // {x, y, width, height}: the mouth region in CSS pixels of the page
   openMouthColours: kOpenMouthColours,
   frames: 0,
+  framesDrawn: 0,        // pictures drawn (a new frame on screen), for the frame rate
   ended: false,
   error: null,
   closeCode: null,
@@ -94,9 +130,11 @@ const viewer = {
   audioError: null,
   held: null,
   /// Freezes the picture at utterance time `tUs` (for screenshots and people), audio paused.
-  hold(tUs) { this.held = tUs; this.drift = null; audio.pause(); },
+  hold(tUs) { this.held = tUs; this.drift = null; audio.pause(); if (sound.context) stopSound(); },
   /// Back to following the clock.
   release() { this.held = null; },
+  /// Where the face's outer lip contour and eye contours are on the page now (CSS pixels).
+  contours() { return { lip: onPage(kOuterLip), eyes: kEyes.map(onPage) }; },
 };
 window.lipsyncViewer = viewer;
 
@@ -156,29 +194,123 @@ let geometry = null;  // {rest, triangles, parts, colours, shapeIndex: ARKit ind
 
 function buildGeometry(rest, triangles, parts, shapes) {
   const n = rest.length / 3;
-  const colours = new Float32Array(n * 3), lit = new Float32Array(n);
-  const lip = kOuterLip.map((id) => [rest[3 * id], rest[3 * id + 1]]);
+  const colours = new Float32Array(n * 3), lit = new Float32Array(n), painted = new Float32Array(n);
   for (let v = 0; v < n; ++v) {
     const part = parts[v] || 0;
-    let colour = kPartColours[part] || kPartColours[0];
-    if (part === 0 && insidePolygon(rest[3 * v], rest[3 * v + 1], lip) && rest[3 * v + 2] > rest[3 * kUpperInnerLip + 2] - 0.004) {
-      colour = kLipColour;
-    }
-    colours.set(colour, 3 * v);
+    colours.set(kPartColours[part] || kPartColours[0], 3 * v);
     lit[v] = kLitParts.has(part) ? 1 : 0;
+    painted[v] = part === 0 ? 1 : 0;
   }
   const shapeIndex = shapes.map((s) => track.header.arkitNames.indexOf(s.name));
-  return { rest, triangles: Uint16Array.from(triangles), parts, colours, lit, shapes, shapeIndex,
+  const box = skinBox(rest, parts);
+  const uv = new Float32Array(2 * n);
+  for (let v = 0; v < n; ++v) {
+    uv[2 * v] = (rest[3 * v] - box.min[0]) / (box.max[0] - box.min[0]);
+    uv[2 * v + 1] = (box.max[1] - rest[3 * v + 1]) / (box.max[1] - box.min[1]);  // the texture's rows go down
+  }
+  return { rest, triangles: Uint16Array.from(triangles), parts, colours, lit, painted, uv, box, shapes, shapeIndex,
+           closure: shapes.length ? restClosure(rest, parts) : null,
            positions: Float32Array.from(rest), normals: new Float32Array(rest.length) };
 }
 
-function insidePolygon(x, y, polygon) {
-  let inside = false;
-  for (let i = 0, j = polygon.length - 1; i < polygon.length; j = i++) {
-    const [xi, yi] = polygon[i], [xj, yj] = polygon[j];
-    if ((yi > y) !== (yj > y) && x < ((xj - xi) * (y - yi)) / (yj - yi) + xi) inside = !inside;
+/// The skin's bounding box at rest (metres).
+function skinBox(rest, parts) {
+  const min = [Infinity, Infinity, Infinity], max = [-Infinity, -Infinity, -Infinity];
+  for (let v = 0; v < rest.length / 3; ++v) {
+    if (parts[v]) continue;
+    for (let a = 0; a < 3; ++a) { min[a] = Math.min(min[a], rest[3 * v + a]); max[a] = Math.max(max[a], rest[3 * v + a]); }
   }
-  return inside;
+  return { min, max };
+}
+
+/// The displacement that closes the rest pose's lips (y only; skin and inner lips): the upper lip
+/// down and the lower lip up by half the rest gap each, in full near the lip line and between the
+/// mouth corners, fading out toward the nose, the chin and the cheeks.
+function restClosure(rest, parts) {
+  const yUpper = rest[3 * kUpperInnerLip + 1], yLower = rest[3 * kLowerInnerLip + 1];
+  const half = (yUpper - yLower) / 2, lineY = (yUpper + yLower) / 2;
+  const cornerX = Math.abs(rest[3 * kOuterLip[0]]);
+  const smooth = (t) => { const c = Math.max(0, Math.min(1, t)); return c * c * (3 - 2 * c); };
+  const closure = new Float32Array(rest.length);
+  for (let v = 0; v < rest.length / 3; ++v) {
+    if (parts[v] > 1) continue;  // cavity, teeth and tongue stay
+    const dy = rest[3 * v + 1] - lineY;
+    const across = smooth((1.3 * cornerX - Math.abs(rest[3 * v])) / (0.5 * cornerX));
+    const along = smooth((3 * kRestClosureLipHeightM - Math.abs(dy)) / (2 * kRestClosureLipHeightM));
+    closure[3 * v + 1] = -Math.sign(dy) * half * Math.min(1, Math.abs(dy) / half) * across * along;
+  }
+  return { vector: closure, gapM: 2 * half };
+}
+
+/// The paint of the skin (RGBA pixels), in the rest pose's x-y plane: the vermilion inside the outer lip contour,
+/// the eyes (white, iris, pupil, a lid shadow and lash line) inside the eye contours, the brows.
+function paintTexture(rest, box) {
+  const canvas2d = document.createElement("canvas");
+  canvas2d.width = canvas2d.height = kPaintTexels;
+  const c = canvas2d.getContext("2d", { willReadFrequently: true });  // a CPU canvas: read once for the texture
+  const scaleX = kPaintTexels / (box.max[0] - box.min[0]), scaleY = kPaintTexels / (box.max[1] - box.min[1]);
+  const at = (id) => [(rest[3 * id] - box.min[0]) * scaleX, (box.max[1] - rest[3 * id + 1]) * scaleY];
+  const path = (ids, from = 0, to = ids.length) => {
+    c.beginPath();
+    ids.slice(from, to).forEach((id, i) => { const [x, y] = at(id); if (i) c.lineTo(x, y); else c.moveTo(x, y); });
+  };
+  const rgb = (colour, alpha = 1) => `rgba(${colour.map((v) => Math.round(v * 255)).join(",")},${alpha})`;
+  const mm = scaleX / 1000;
+  // Lips: exactly the outer contour (its edge anti-aliased).
+  path(kOuterLip);
+  c.closePath();
+  c.fillStyle = rgb(kLipColour);
+  c.fill();
+  // Brows.
+  for (const brow of kBrows) {
+    path(brow);
+    c.closePath();
+    c.fillStyle = "rgba(92,66,50,0.85)";
+    c.fill();
+  }
+  for (const eye of kEyes) {
+    const points = eye.map(at);
+    const xs = points.map((p) => p[0]), ys = points.map((p) => p[1]);
+    const centre = [(Math.min(...xs) + Math.max(...xs)) / 2, (Math.min(...ys) + Math.max(...ys)) / 2 + 0.4 * mm];
+    c.save();
+    path(eye);
+    c.closePath();
+    c.clip();
+    c.fillStyle = "rgb(236,232,226)";
+    c.fill();
+    const iris = c.createRadialGradient(centre[0], centre[1], kPupilRadiusM * 1000 * mm, centre[0], centre[1], kIrisRadiusM * 1000 * mm);
+    iris.addColorStop(0, "rgb(96,72,48)");
+    iris.addColorStop(1, "rgb(58,42,30)");
+    c.fillStyle = iris;
+    c.beginPath();
+    c.arc(centre[0], centre[1], kIrisRadiusM * 1000 * mm, 0, 2 * Math.PI);
+    c.fill();
+    c.fillStyle = "rgb(16,12,12)";
+    c.beginPath();
+    c.arc(centre[0], centre[1], kPupilRadiusM * 1000 * mm, 0, 2 * Math.PI);
+    c.fill();
+    c.fillStyle = "rgba(255,255,255,0.85)";
+    c.beginPath();
+    c.arc(centre[0] - 1.2 * mm, centre[1] - 1.2 * mm, 0.7 * mm, 0, 2 * Math.PI);
+    c.fill();
+    // The upper lid's shadow on the eye.
+    path(eye, 0, kUpperLidPoints);
+    c.strokeStyle = "rgba(60,40,32,0.6)";
+    c.lineWidth = 1.6 * mm;
+    c.stroke();
+    c.restore();
+    // Lash line along the upper lid, a thinner line along the lower.
+    path(eye, 0, kUpperLidPoints);
+    c.strokeStyle = "rgb(40,28,24)";
+    c.lineWidth = 0.9 * mm;
+    c.lineJoin = c.lineCap = "round";
+    c.stroke();
+    path([...eye.slice(kUpperLidPoints - 1), eye[0]]);
+    c.strokeStyle = "rgba(120,80,66,0.7)";
+    c.lineWidth = 0.4 * mm;
+    c.stroke();
+  }
+  return c.getImageData(0, 0, kPaintTexels, kPaintTexels);
 }
 
 function pose(frame) {
@@ -193,6 +325,13 @@ function pose(frame) {
         if (!w) return;
         for (let c = 0; c < shape.deltas.length; ++c) g.positions[c] += w * shape.deltas[c];
       });
+    }
+    if (g.closure) {  // the relaxed rest: lips together while the fitted face holds them at most as far apart as at rest
+      const gap = g.positions[3 * kUpperInnerLip + 1] - g.positions[3 * kLowerInnerLip + 1], rest = g.closure.gapM;
+      const amount = gap <= rest ? Math.max(0, gap / rest)
+                                 : Math.max(0, (kRestClosureFadeGaps * rest - gap) / ((kRestClosureFadeGaps - 1) * rest));
+      const closure = g.closure.vector;
+      if (amount > 0) for (let c = 1; c < closure.length; c += 3) g.positions[c] += amount * closure[c];
     }
   }
   viewer.mouthOpen = Math.round(
@@ -213,21 +352,31 @@ function computeNormals(g) {
 
 // ---------------------------------------------------------------- WebGL
 
-const gl = canvas.getContext("webgl", { preserveDrawingBuffer: true, antialias: false });
+const gl = canvas.getContext("webgl", { antialias: false });
 const program = gl && makeProgram(`
   attribute vec3 position; attribute vec3 normal; attribute vec3 colour; attribute float lit;
+  attribute vec2 uv; attribute float painted;
   uniform vec3 centre; uniform vec3 scale;
-  varying vec3 vColour;
+  varying vec3 vColour; varying float vLight; varying vec2 vUv; varying float vPainted;
   void main() {
     vec3 n = normalize(normal + vec3(0.0, 0.0, 1e-9));
     float light = 0.35 + 0.65 * abs(dot(n, normalize(vec3(0.2, 0.35, 1.0))));
-    vColour = colour * mix(1.0, light, lit);
+    vColour = colour;
+    vLight = mix(1.0, light, lit);
+    vUv = uv;
+    vPainted = painted;
     gl_Position = vec4((position - centre) * scale, 1.0);
   }`, `
-  precision mediump float; varying vec3 vColour;
-  void main() { gl_FragColor = vec4(vColour, 1.0); }`);
+  precision mediump float;
+  varying vec3 vColour; varying float vLight; varying vec2 vUv; varying float vPainted;
+  uniform sampler2D paint;
+  void main() {
+    vec4 p = texture2D(paint, vUv);
+    gl_FragColor = vec4(mix(vColour, p.rgb, p.a * vPainted) * vLight, 1.0);
+  }`);
 const buffers = gl ? { position: gl.createBuffer(), normal: gl.createBuffer(), colour: gl.createBuffer(),
-                       lit: gl.createBuffer(), index: gl.createBuffer() } : null;
+                       lit: gl.createBuffer(), uv: gl.createBuffer(), painted: gl.createBuffer(),
+                       index: gl.createBuffer(), paint: gl.createTexture() } : null;
 let view = null;  // centre and scale of the orthographic front view
 
 function makeProgram(vertexSource, fragmentSource) {
@@ -250,14 +399,20 @@ function uploadStatic(g) {
   gl.bufferData(gl.ARRAY_BUFFER, g.colours, gl.STATIC_DRAW);
   gl.bindBuffer(gl.ARRAY_BUFFER, buffers.lit);
   gl.bufferData(gl.ARRAY_BUFFER, g.lit, gl.STATIC_DRAW);
+  gl.bindBuffer(gl.ARRAY_BUFFER, buffers.uv);
+  gl.bufferData(gl.ARRAY_BUFFER, g.uv, gl.STATIC_DRAW);
+  gl.bindBuffer(gl.ARRAY_BUFFER, buffers.painted);
+  gl.bufferData(gl.ARRAY_BUFFER, g.painted, gl.STATIC_DRAW);
+  gl.bindTexture(gl.TEXTURE_2D, buffers.paint);
+  gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA, gl.RGBA, gl.UNSIGNED_BYTE, paintTexture(g.rest, g.box));
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.LINEAR);
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
   gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, buffers.index);
   gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, g.triangles, gl.STATIC_DRAW);
   // Front view of the skin's bounding box with a margin; z mapped into the clip range (near = +z).
-  const min = [Infinity, Infinity, Infinity], max = [-Infinity, -Infinity, -Infinity];
-  for (let v = 0; v < g.rest.length / 3; ++v) {
-    if (g.parts[v]) continue;
-    for (let a = 0; a < 3; ++a) { min[a] = Math.min(min[a], g.rest[3 * v + a]); max[a] = Math.max(max[a], g.rest[3 * v + a]); }
-  }
+  const { min, max } = g.box;
   const half = [0, 1, 2].map((a) => (max[a] - min[a]) / 2);
   const fit = 0.92 / Math.max(half[0] * canvas.height / canvas.width, half[1]);
   view = { centre: [0, 1, 2].map((a) => (min[a] + max[a]) / 2),
@@ -273,8 +428,18 @@ function uploadStatic(g) {
                        width: Math.round(right - left), height: Math.round(bottom - top) };
 }
 
+/// Landmarks `ids` of the pose drawn, in CSS pixels of the page: [[x, y], ...].
+function onPage(ids) {
+  if (!geometry || !view) return null;
+  const box = canvas.getBoundingClientRect();
+  return ids.map((id) => [
+    box.left + window.scrollX + ((geometry.positions[3 * id] - view.centre[0]) * view.scale[0] + 1) / 2 * canvas.clientWidth,
+    box.top + window.scrollY + (1 - (geometry.positions[3 * id + 1] - view.centre[1]) * view.scale[1]) / 2 * canvas.clientHeight]);
+}
+
 function draw() {
   if (!gl || !geometry) return;
+  viewer.framesDrawn += 1;
   computeNormals(geometry);
   gl.viewport(0, 0, canvas.width, canvas.height);
   gl.clearColor(0.875, 0.89, 0.91, 1);
@@ -292,6 +457,11 @@ function draw() {
   attribute("normal", buffers.normal, geometry.normals, 3);
   attribute("colour", buffers.colour, null, 3);
   attribute("lit", buffers.lit, null, 1);
+  attribute("uv", buffers.uv, null, 2);
+  attribute("painted", buffers.painted, null, 1);
+  gl.activeTexture(gl.TEXTURE0);
+  gl.bindTexture(gl.TEXTURE_2D, buffers.paint);
+  gl.uniform1i(gl.getUniformLocation(program, "paint"), 0);
   gl.uniform3fv(gl.getUniformLocation(program, "centre"), view.centre);
   gl.uniform3fv(gl.getUniformLocation(program, "scale"), view.scale);
   gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, buffers.index);
@@ -340,17 +510,246 @@ function setStatus(text, isError) {
   elements.status.className = isError ? "error" : "";
 }
 
-// ---------------------------------------------------------------- audio slaved to the anchor
+// ---------------------------------------------------------------- audio on the Web Audio clock
 
-// After a start or a seek: the position it aimed at; drift is measured again only once the audio
-// has moved past it (its pipeline runs again) and kSettleAfterStartMs more.
+// The whole file is fetched and decoded (no byte ranges needed) and played by an
+// AudioBufferSourceNode scheduled on the AudioContext's clock: started at the context time whose
+// sample leaves the speakers when the anchor says that buffer position plays. The context's
+// getOutputTimestamp() pairs a context time with the performance.now() at which that sample
+// reaches the output (its latency included); before it has one, currentTime plus baseLatency and
+// outputLatency stand in. Every kSteerIntervalMs the page reads where the sound leaving the
+// speakers is in the buffer and compares it with the anchor's utterance time at that instant
+// (what the screen shows): the drift. A small drift is trimmed by the source's playback rate
+// (at most kMaxRateTrim); beyond kRescheduleUs, kRescheduleSamples times in a row, the sound is
+// rescheduled (a new source on the anchor, crossfaded over kCrossfadeS).
+const sound = {
+  context: null,
+  buffer: null,      // the decoded AudioBuffer
+  path: null,        // "webaudio", or "element" (cross-origin audio without CORS: the <audio> element)
+  schedule: null,    // {source, gain, startContextS, pieces: [{contextS, positionS, rate}]}
+  outOfBand: 0,      // measurements in a row beyond kRescheduleUs
+  loadId: 0,
+};
+
+function audioContext() {
+  if (!sound.context) {
+    sound.context = new AudioContext({ latencyHint: "interactive" });
+    sound.context.onstatechange = () => { viewer.audioContextState = sound.context.state; };
+    viewer.audioContextState = sound.context.state;
+  }
+  return sound.context;
+}
+
+/// Fetches and decodes `source` (a URL, or a File chosen on the page). A URL the browser may not
+/// read (another origin without Access-Control-Allow-Origin) falls back to the <audio> element.
+async function loadAudio(source, name, { quietNotFound = false } = {}) {
+  const id = ++sound.loadId;
+  stopSound();
+  sound.buffer = null;
+  sound.path = null;
+  viewer.audio = name;
+  viewer.audioError = null;
+  viewer.audioLoadedAtMs = null;
+  const context = audioContext();
+  let bytes;
+  try {
+    if (typeof source === "string") {
+      const response = await fetch(source, apiKey && source.startsWith("/") ? { headers: { Authorization: "Bearer " + apiKey } } : {});
+      if (!response.ok && response.status === 404 && quietNotFound) {
+        if (id === sound.loadId) viewer.audio = null;
+        return false;
+      }
+      if (!response.ok) {
+        const text = (await response.text()).trim();
+        throw new Error(name + ": HTTP " + response.status + (text ? " (" + text + ")" : ""));
+      }
+      bytes = await response.arrayBuffer();
+    } else {
+      bytes = await source.arrayBuffer();
+    }
+  } catch (error) {
+    if (id !== sound.loadId) return;
+    if (error instanceof TypeError && typeof source === "string") {
+      // Not readable from this page (CORS) or not reachable: the media element may still play it.
+      sound.path = "element";
+      viewer.audioPath = "element";
+      viewer.audioNote = name + " is not readable from this page (no CORS header?): played by the audio element, " +
+                         "which needs a server with byte ranges";
+      setStatus("audio: " + viewer.audioNote, true);
+      audio.src = source;
+      return;
+    }
+    viewer.audioError = error.message;
+    setStatus("audio: " + error.message, true);
+    return;
+  }
+  let buffer;
+  try {
+    buffer = await context.decodeAudioData(bytes);
+  } catch (error) {
+    if (id !== sound.loadId) return;
+    viewer.audioError = name + ": not audio the browser can decode (" + error.message + ")";
+    setStatus("audio: " + viewer.audioError, true);
+    return;
+  }
+  if (id !== sound.loadId) return;
+  sound.buffer = buffer;
+  sound.path = "webaudio";
+  viewer.audioPath = "webaudio";
+  viewer.audioDurationUs = Math.round(buffer.duration * 1e6);
+  viewer.audioLoadedAtMs = performance.now();
+  if (!quietNotFound) setStatus(track.header ? "following " + track.header.session : elements.status.textContent);
+  if (context.state !== "running") {
+    context.resume().catch(() => {});
+    if (context.state !== "running") {
+      viewer.audioError = "the browser holds the audio until the page is clicked";
+      setStatus("audio: click the page to allow it", true);
+    }
+  }
+  return true;
+}
+
+/// A context time and the performance.now() (ms) at which its sample leaves the speakers.
+function outputClock(context) {
+  const stamp = context.getOutputTimestamp ? context.getOutputTimestamp() : null;
+  if (stamp && stamp.performanceTime > 0) {
+    return { contextS: stamp.contextTime, performanceMs: stamp.performanceTime, from: "timestamp" };
+  }
+  const latencyS = (context.baseLatency || 0) + (context.outputLatency || 0);
+  return { contextS: context.currentTime - latencyS, performanceMs: performance.now(), from: "latency" };
+}
+
+/// µs of utterance time at performance.now() = `performanceMs`, on the anchor's clock.
+function utteranceAtUs(performanceMs) {
+  return (performance.timeOrigin + performanceMs) * 1000 - viewer.utteranceZeroUs;
+}
+
+/// Seconds into the buffer of the sample played at context time `contextS` (null before the start).
+function positionAt(schedule, contextS) {
+  if (contextS < schedule.startContextS) return null;
+  let piece = schedule.pieces[0];
+  for (const p of schedule.pieces) if (p.contextS <= contextS) piece = p;
+  return piece.positionS + (contextS - piece.contextS) * piece.rate;
+}
+
+function stopSound(atS) {
+  const schedule = sound.schedule;
+  sound.schedule = null;
+  viewer.audioPlaying = false;
+  if (!schedule) return;
+  const context = sound.context;
+  const at = Math.max(atS ?? context.currentTime, context.currentTime);
+  schedule.gain.gain.setValueAtTime(1, at);
+  schedule.gain.gain.linearRampToValueAtTime(0, at + kCrossfadeS);
+  try { schedule.source.stop(at + kCrossfadeS); } catch (e) { /* never started */ }
+}
+
+/// Starts the buffer on the anchor: the sample of utterance time t leaves the speakers at t.
+function scheduleSound() {
+  const context = sound.context;
+  const clock = outputClock(context);
+  const whenS = context.currentTime + kScheduleAheadS;
+  // The utterance time at which the sample rendered at `whenS` is heard.
+  const heardUs = utteranceAtUs(clock.performanceMs + (whenS - clock.contextS) * 1000);
+  let startS = whenS, offsetS = heardUs / 1e6;
+  if (offsetS < 0) { startS -= offsetS; offsetS = 0; }  // utterance time 0 is still to come
+  if (offsetS >= sound.buffer.duration) return;
+  const previous = sound.schedule;
+  if (previous) stopSound(startS);
+  const source = context.createBufferSource();
+  const gain = context.createGain();
+  source.buffer = sound.buffer;
+  source.connect(gain).connect(context.destination);
+  gain.gain.setValueAtTime(previous ? 0 : 1, startS);
+  if (previous) gain.gain.linearRampToValueAtTime(1, startS + kCrossfadeS);
+  source.start(startS, offsetS);
+  sound.schedule = { source, gain, startContextS: startS, pieces: [{ contextS: startS, positionS: offsetS, rate: 1 }] };
+  sound.outOfBand = 0;
+  viewer.locked = false;
+  audioInBand = 0;
+  viewer.audioClock = clock.from;
+}
+
+function steerSound(nowUs) {
+  const context = sound.context;
+  viewer.audioContextState = context.state;
+  if (viewer.held !== null || nowUs === null || context.state !== "running") return;
+  if (!sound.schedule) {
+    if (nowUs < sound.buffer.duration * 1e6) scheduleSound();
+    return;
+  }
+  const clock = outputClock(context);
+  const positionS = positionAt(sound.schedule, clock.contextS);
+  if (positionS === null || positionS >= sound.buffer.duration) {
+    viewer.audioPlaying = false;
+    viewer.drift = null;
+    return;
+  }
+  viewer.audioPlaying = true;
+  const utteranceUs = utteranceAtUs(clock.performanceMs);
+  const drift = Math.round(positionS * 1e6 - utteranceUs);
+  viewer.drift = drift;
+  elements.drift.textContent = (drift / 1000).toFixed(1) + " ms";
+  viewer.driftSamples += 1;
+  viewer.audioStartedAtUs ??= Math.round(utteranceUs);
+  viewer.lastClock = { contextS: clock.contextS, performanceMs: clock.performanceMs, from: clock.from,
+                       positionUs: Math.round(positionS * 1e6), utteranceUs: Math.round(utteranceUs),
+                       currentTimeS: context.currentTime, baseLatencyS: context.baseLatency ?? null,
+                       outputLatencyS: context.outputLatency ?? null };
+  noteLock(drift, nowUs);  // every measurement, the ones about to be rescheduled too
+  if (Math.abs(drift) > kRescheduleUs) {
+    if (++sound.outOfBand >= kRescheduleSamples) {
+      viewer.resyncs += 1;
+      scheduleSound();
+    }
+    return;
+  }
+  sound.outOfBand = 0;
+  // Trim: a rate below 1 while the sound is ahead, above 1 while it is behind.
+  const rate = 1 - Math.max(-kMaxRateTrim, Math.min(kMaxRateTrim, (drift / 1e6) * kRateGainPerSecond));
+  const pieces = sound.schedule.pieces;
+  if (Math.abs(rate - pieces[pieces.length - 1].rate) > 1e-4) {
+    const at = Math.max(context.currentTime, sound.schedule.startContextS);
+    pieces.push({ contextS: at, positionS: positionAt(sound.schedule, at), rate });
+    while (pieces.length > 2 && pieces[1].contextS < clock.contextS) pieces.shift();
+    sound.schedule.source.playbackRate.setValueAtTime(rate, at);
+  }
+}
+
+/// Lock bookkeeping, for both paths: kLockSamples measurements in a row within kLockUs.
+function noteLock(drift, nowUs) {
+  if (viewer.locked) {
+    viewer.maxAbsDrift = Math.max(viewer.maxAbsDrift ?? 0, Math.abs(drift));
+    viewer.lockedDrifts.push(Math.abs(drift));
+    if (viewer.lockedDrifts.length > 1000) viewer.lockedDrifts.shift();
+    viewer.lockedSamples += 1;
+    return;
+  }
+  audioInBand = Math.abs(drift) < kLockUs ? audioInBand + 1 : 0;
+  if (audioInBand >= kLockSamples) {
+    viewer.locked = true;
+    viewer.lockedAtUs = nowUs;
+  }
+}
+
+/// Every kSteerIntervalMs: the drift measured and steered, on whichever path plays the audio.
+function steer(nowUs) {
+  if (sound.path === "webaudio") steerSound(nowUs);
+  else if (sound.path === "element") steerElement(nowUs);
+}
+
+// ---------------------------------------------------------------- fallback: the <audio> element
+
+// For a cross-origin URL the page may not read, the media element plays it (it needs a server with
+// byte ranges to seek). After a start or a seek: the position it aimed at; drift is measured again
+// only once the audio has moved past it (its pipeline runs again) and kSettleAfterStartMs more.
 let audioRestart = null;  // {fromS, runningSinceMs}
 let audioInBand = 0;      // consecutive measurements within kLockUs while not locked
 let audioLeadUs = 0;  // how far ahead of the anchor a seek aims (the pipeline's restart lag)
 let audioStarting = false;
 
-function steerAudio(nowUs) {
-  if (!viewer.audio || viewer.held !== null || nowUs === null) return;
+function steerElement(nowUs) {
+  if (viewer.held !== null || nowUs === null) return;
   const duration = audio.duration;
   if (nowUs < 0 || !(duration > 0) || nowUs / 1e6 >= duration) {
     viewer.audioPlaying = false;
@@ -379,34 +778,20 @@ function steerAudio(nowUs) {
   }
   const drift = Math.round(audio.currentTime * 1e6 - nowUs);
   viewer.drift = drift;
+  elements.drift.textContent = (drift / 1000).toFixed(1) + " ms";
   viewer.driftSamples += 1;
-  const trim = Math.max(-kMaxRateTrim, Math.min(kMaxRateTrim, (drift / 1e6) * kRateGainPerSecond));
+  const trim = Math.max(-kMaxElementRateTrim, Math.min(kMaxElementRateTrim, (drift / 1e6) * kRateGainPerSecond));
   audio.playbackRate = 1 - trim;
-  if (viewer.locked) {
-    if (Math.abs(drift) > kResyncUs) {
-      seekAudio(nowUs, drift);
-      return;
-    }
-    viewer.maxAbsDrift = Math.max(viewer.maxAbsDrift ?? 0, Math.abs(drift));
-    viewer.lockedDrifts.push(Math.abs(drift));
-    if (viewer.lockedDrifts.length > 1000) viewer.lockedDrifts.shift();
-    viewer.lockedSamples += 1;
+  if (viewer.locked ? Math.abs(drift) > kResyncUs : Math.abs(drift) > kSeekUnlockedUs) {
+    seekElement(nowUs, drift);
     return;
   }
-  if (Math.abs(drift) > kSeekUnlockedUs) {
-    seekAudio(nowUs, drift);
-    return;
-  }
-  audioInBand = Math.abs(drift) < kLockUs ? audioInBand + 1 : 0;
-  if (audioInBand >= kLockSamples) {
-    viewer.locked = true;
-    viewer.lockedAtUs = nowUs;
-  }
+  noteLock(drift, nowUs);
 }
 
 /// A start or a seek costs the media pipeline a restart, which the audio spends behind the anchor:
 /// seek ahead by the lag measured after the last one, so that it lands on the anchor.
-function seekAudio(nowUs, drift) {
+function seekElement(nowUs, drift) {
   audioLeadUs = Math.max(0, Math.min(kMaxLeadUs, audioLeadUs - drift));
   audio.currentTime = (nowUs + audioLeadUs) / 1e6;
   audioRestart = { fromS: audio.currentTime, runningSinceMs: null };
@@ -445,13 +830,15 @@ function tick() {
 
 // The audio is steered on a timer of its own: a page that draws slowly (software WebGL on a busy
 // machine) still measures and corrects its drift every kSteerIntervalMs.
-setInterval(() => { if (track.header) steerAudio(utteranceNowUs()); }, kSteerIntervalMs);
+setInterval(() => { if (track.header) steer(utteranceNowUs()); }, kSteerIntervalMs);
 
 // ---------------------------------------------------------------- the WebSocket
 
 function onHeader(header) {
   viewer.waiting = false;
   if (viewer.audio && audio.ended) audio.currentTime = 0;  // a new track: the audio may play again
+  if (sound.context) stopSound();
+  if (sessionAudio === null) askSessionAudio(header.session, "asked");
   setStatus("following " + header.session);
   track.header = header;
   track.frames = [];
@@ -477,6 +864,24 @@ function onHeader(header) {
   makeBars(header.channels.length ? header.channels : header.arkitNames);
 }
 
+// Without ?audio= or a chosen file, the page plays the session's own audio from lipsyncd
+// (/audio?session=NAME: a Speak session's voice); a session without audio answers 404 and the page
+// stays silent.
+let sessionAudio = null;  // null, "asked", "absent" (404 once), "retried", "loaded"
+
+function askSessionAudio(session, state) {
+  if (params.get("audio") || (viewer.audio && sessionAudio === null)) return;
+  sessionAudio = state;
+  loadAudio("/audio?session=" + encodeURIComponent(session), "/audio?session=" + session, { quietNotFound: true })
+    .then((found) => {
+      if (found) sessionAudio = "loaded";
+      else if (found === false && sessionAudio === "asked") {
+        // Frames that arrived while it was asked for come after a Speak session's audio: once more.
+        if (track.frames.length) askSessionAudio(session, "retried"); else sessionAudio = "absent";
+      }
+    });
+}
+
 function connect(session) {
   const start = params.get("start");
   const url = (location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws?session=" +
@@ -497,7 +902,11 @@ function connect(session) {
     }
     const message = decodeTrackMessage(new Uint8Array(event.data));
     if (message.header) onHeader(message.header);
-    if (message.frames && track.header) addBatch(message.frames);
+    if (message.frames && track.header) {
+      addBatch(message.frames);
+      // A Speak session's audio is stored before its first frames: asked for again if the header was too early.
+      if (sessionAudio === "absent") askSessionAudio(session, "retried");
+    }
     if (message.summary) {
       track.summary = message.summary;
       viewer.ended = true;
@@ -542,17 +951,19 @@ document.getElementById("follow-form").addEventListener("submit", (event) => {
 document.getElementById("audio-file").addEventListener("change", (event) => {
   const file = event.target.files[0];
   if (!file) return;
-  audio.src = URL.createObjectURL(file);
-  viewer.audio = file.name;
+  loadAudio(file, file.name);
 });
 
-document.getElementById("try-form").addEventListener("submit", async (event) => {
-  event.preventDefault();
+/// POST /sessions: the pasted phonemes animated (Animate), or with `speak` the text spoken (Speak,
+/// whose session then carries its voice: the page plays it from /audio).
+async function quickTry(speak) {
   const query = new URLSearchParams();
   const session = document.getElementById("session-input").value.trim();
   if (session) query.set("session", session);
-  if (document.getElementById("try-mesh").checked) query.set("mesh", "1");
+  if (speak) query.set("speak", "1");
+  else if (document.getElementById("try-mesh").checked) query.set("mesh", "1");
   if (apiKey) query.set("key", apiKey);
+  elements["try-result"].textContent = speak ? "speaking…" : "animating…";
   const response = await fetch("/sessions?" + query.toString(),
                                { method: "POST", body: document.getElementById("try-text").value });
   const answer = await response.json();
@@ -560,13 +971,22 @@ document.getElementById("try-form").addEventListener("submit", async (event) => 
     elements["try-result"].textContent = answer.code + ": " + answer.message;
     return;
   }
-  navigate(answer.session, viewer.audio && !viewer.audio.startsWith("blob:") ? params.get("audio") : "");
-});
+  navigate(answer.session, !speak && viewer.audio && !viewer.audio.startsWith("blob:") ? params.get("audio") : "");
+}
 
-if (viewer.audio) audio.src = viewer.audio;
+document.getElementById("try-form").addEventListener("submit", (event) => {
+  event.preventDefault();
+  quickTry(false);
+});
+document.getElementById("try-speak").addEventListener("click", () => quickTry(true));
+
+if (viewer.audio) loadAudio(viewer.audio, viewer.audio);
 document.getElementById("session-input").value = viewer.session || "";
 document.getElementById("audio-input").value = viewer.audio || "";
-document.addEventListener("click", () => { if (viewer.audioError) { viewer.audioError = null; audio.play().catch(() => {}); } });
+document.addEventListener("click", () => {
+  if (sound.context && sound.context.state !== "running") sound.context.resume().then(() => { viewer.audioError = null; });
+  if (sound.path === "element" && viewer.audioError) { viewer.audioError = null; audio.play().catch(() => {}); }
+});
 if (!gl) setStatus("this browser has no WebGL: readouts only", true);
 
 faceAssetLoaded.then(() => {

@@ -2,7 +2,8 @@
 // 127.0.0.1:0) and real clients over real sockets (Beast's HTTP and WebSocket clients, gRPC).
 // A WebSocket follower receives exactly the messages a gRPC Subscribe receives, byte for byte; bad
 // requests get a status or close reason that names what was wrong; the page, its scripts and its
-// face are served; a quick try animates pasted text as a session equal to a Render of it.
+// face are served; a quick try animates pasted text as a session equal to a Render of it; a Speak
+// session's voice is served as a WAV (/audio), to the callers that may follow the session.
 // The page itself, in Chromium, is tests/server/viewer_browser_test.py.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -21,6 +22,9 @@
 #include <nlohmann/json.hpp>
 
 #include "lipsync/formats.hpp"
+#include "lipsync/speech/audio.hpp"
+#include "tenants.hpp"
+#include "../support/child_process.hpp"
 #include "../support/server_harness.hpp"
 
 namespace lipsync::server {
@@ -133,6 +137,49 @@ class ViewerTest : public LiveServerTest {
   void produce_papa(const std::string& session) {
     const Received produced = animate(*stub_, whole(papa_settings(session), flite_papa(), 3));
     ASSERT_TRUE(produced.status.ok()) << produced.status.error_message();
+  }
+
+  /// `authorization`, if not empty, is sent as the Authorization header.
+  HttpReply request(http::verb verb, const std::string& target, const std::string& body,
+                    const std::string& authorization) {
+    tcp::socket socket = connect_http();
+    http::request<http::string_body> req(verb, target, 11);
+    req.set(http::field::host, http_host_);
+    if (!authorization.empty()) req.set(http::field::authorization, authorization);
+    req.body() = body;
+    req.prepare_payload();
+    http::write(socket, req);
+    beast::flat_buffer buffer;
+    http::response<http::string_body> response;
+    http::read(socket, buffer, response);
+    return {response.result_int(), std::string(response[http::field::content_type]), response.body()};
+  }
+
+  /// A Speak call of `text` into `session`: the WAV of the audio it sent (what /audio must serve).
+  std::string speak_wav(const std::string& text, const std::string& session, const std::string& key = "") {
+    grpc::ClientContext context;
+    set_deadline(context);
+    if (!key.empty()) context.AddMetadata("authorization", "Bearer " + key);
+    v1::SpeakRequest request;
+    request.set_text(text);
+    request.mutable_settings()->set_session(session);
+    auto reader = stub_->Speak(&context, request);
+    speech::PcmAudio audio;
+    v1::SpeakResponse message;
+    while (reader->Read(&message)) {
+      if (message.has_header()) audio.sample_rate_hz = static_cast<int>(message.header().sample_rate_hz());
+      if (!message.has_audio()) continue;
+      const std::string& pcm = message.audio().pcm();
+      for (std::size_t i = 0; i + 1 < pcm.size(); i += 2) {
+        audio.samples.push_back(static_cast<std::int16_t>(static_cast<std::uint8_t>(pcm[i]) |
+                                                          static_cast<std::uint8_t>(pcm[i + 1]) << 8));
+      }
+    }
+    const grpc::Status status = reader->Finish();
+    EXPECT_TRUE(status.ok()) << status.error_message();
+    std::ostringstream wav;
+    speech::write_wav(wav, audio);
+    return wav.str();
   }
 
   boost::asio::io_context io_;
@@ -283,6 +330,94 @@ TEST_F(ViewerTest, quick_try_reports_bad_text_bad_parameters_and_taken_names) {
   EXPECT_EQ(reply.status, 409u);
   EXPECT_EQ(nlohmann::json::parse(reply.body)["code"], "ALREADY_EXISTS");
   context.TryCancel();
+}
+
+TEST_F(ViewerTest, audio_serves_a_speak_sessions_own_voice_as_the_wav_speak_sent) {
+  const std::string expected = speak_wav("Papa parked the car.", "spoken");
+  ASSERT_GT(expected.size(), 44u + 2 * 8000);  // a header and over a quarter of a second at 16 kHz or more
+  const HttpReply reply = request(http::verb::get, "/audio?session=spoken");
+  ASSERT_EQ(reply.status, 200u) << reply.body;
+  EXPECT_EQ(reply.content_type, "audio/wav");
+  EXPECT_EQ(reply.body, expected);  // byte for byte: the samples Speak streamed, as a WAV
+}
+
+TEST_F(ViewerTest, audio_is_404_naming_a_session_without_audio_or_unknown_and_400_without_a_name) {
+  produce_papa("animated");
+  HttpReply reply = request(http::verb::get, "/audio?session=animated");
+  EXPECT_EQ(reply.status, 404u);
+  EXPECT_EQ(reply.content_type, "application/json");
+  auto error = nlohmann::json::parse(reply.body);
+  EXPECT_EQ(error["code"], "NOT_FOUND");
+  EXPECT_THAT(error["message"].get<std::string>(), ::testing::HasSubstr("session 'animated' has no audio"));
+  reply = request(http::verb::get, "/audio?session=nobody-here");
+  EXPECT_EQ(reply.status, 404u);
+  EXPECT_THAT(nlohmann::json::parse(reply.body)["message"].get<std::string>(), ::testing::HasSubstr("'nobody-here'"));
+  reply = request(http::verb::get, "/audio");
+  EXPECT_EQ(reply.status, 400u);
+  EXPECT_THAT(reply.body, ::testing::HasSubstr("/audio?session=NAME"));
+  EXPECT_EQ(request(http::verb::post, "/audio?session=animated").status, 405u);
+}
+
+TEST_F(ViewerTest, quick_try_with_speak_speaks_the_text_into_a_session_that_carries_its_voice) {
+  const HttpReply reply = request(http::verb::post, "/sessions?session=said&speak=1", "Papa parked the car.");
+  ASSERT_EQ(reply.status, 200u) << reply.body;
+  const auto answer = nlohmann::json::parse(reply.body);
+  EXPECT_EQ(answer["session"], "said");
+  EXPECT_EQ(answer["audio"], "/audio?session=said");
+  EXPECT_GT(answer["audio_duration_us"].get<std::int64_t>(), 500'000);
+  const Received followed = subscribe_all(*stub_, "said");
+  ASSERT_TRUE(followed.status.ok()) << followed.status.error_message();
+  EXPECT_EQ(followed.header->media_clock().clock(), "unix");
+  EXPECT_EQ(followed.header->media_clock().utterance_zero_us(), answer["utterance_zero_us"].get<std::int64_t>());
+  EXPECT_EQ(answer["frames"], followed.frames.t_us.size());
+  const HttpReply audio = request(http::verb::get, "/audio?session=said");
+  ASSERT_EQ(audio.status, 200u);
+  // 16-bit mono: a 44-byte header (the rate at byte 24, little-endian) and the audio's samples.
+  ASSERT_GT(audio.body.size(), 44u);
+  std::uint32_t rate = 0;
+  for (int i = 3; i >= 0; --i) rate = rate << 8 | static_cast<std::uint8_t>(audio.body[24 + i]);
+  const auto samples = static_cast<double>(audio.body.size() - 44) / 2;
+  EXPECT_NEAR(samples * 1e6 / rate, answer["audio_duration_us"].get<double>(), 100.0);
+
+  HttpReply bad = request(http::verb::post, "/sessions?speak=2", "Papa.");
+  EXPECT_EQ(bad.status, 400u);
+  EXPECT_THAT(bad.body, ::testing::HasSubstr("speak: expected 1"));
+  bad = request(http::verb::post, "/sessions?speak=1", "   ");
+  EXPECT_EQ(bad.status, 400u);
+  EXPECT_THAT(bad.body, ::testing::HasSubstr("text: empty"));
+}
+
+// With --api-keys, /audio is a Subscribe's business: a key that may Subscribe, and only its tenant's sessions.
+class ViewerWithKeysTest : public ViewerTest {
+ protected:
+  void SetUp() override {
+    lipsync::testing::write_text(
+        key_file_, R"({"tenants": {"a": {}, "b": {}}, "keys": [)"
+                   R"({"tenant": "a", "sha256": ")" + sha256_hex("key-a") + R"("},)"
+                   R"({"tenant": "a", "calls": ["Animate"], "sha256": ")" + sha256_hex("key-a-animate") + R"("},)"
+                   R"({"tenant": "b", "sha256": ")" + sha256_hex("key-b") + R"("}]})");
+    ServerConfig config;
+    config.http_listen = "127.0.0.1:0";
+    config.api_keys = key_file_.string();
+    start(config);
+    const std::string address = server_->http_address();
+    http_host_ = address.substr(0, address.rfind(':'));
+    http_port_ = address.substr(address.rfind(':') + 1);
+  }
+  std::filesystem::path key_file_ = lipsync::testing::make_temp_dir("lipsync-viewer-keys-") / "keys.json";
+};
+
+TEST_F(ViewerWithKeysTest, audio_needs_a_key_that_may_subscribe_and_finds_only_its_tenants_sessions) {
+  const std::string expected = speak_wav("Bob bought maps.", "spoken", "key-a");
+  EXPECT_EQ(request(http::verb::get, "/audio?session=spoken").status, 401u);
+  EXPECT_EQ(request(http::verb::get, "/audio?session=spoken&key=key-a-animate").status, 403u);
+  EXPECT_EQ(request(http::verb::get, "/audio?session=spoken&key=key-b").status, 404u);  // another tenant's
+  HttpReply reply = request(http::verb::get, "/audio?session=spoken&key=key-a");
+  EXPECT_EQ(reply.status, 200u);
+  EXPECT_EQ(reply.body, expected);
+  reply = request(http::verb::get, "/audio?session=spoken", "", "Bearer key-a");
+  EXPECT_EQ(reply.status, 200u);
+  EXPECT_EQ(reply.body, expected);
 }
 
 TEST_F(ViewerTest, follower_hears_aborted_when_the_producer_goes_away) {

@@ -3,6 +3,7 @@
 #include <sys/socket.h>
 
 #include <chrono>
+#include <optional>
 #include <stdexcept>
 #include <thread>
 
@@ -56,6 +57,8 @@ http::status http_status(grpc::StatusCode code) {
     case grpc::StatusCode::NOT_FOUND: return http::status::not_found;
     case grpc::StatusCode::ALREADY_EXISTS: return http::status::conflict;
     case grpc::StatusCode::RESOURCE_EXHAUSTED: return http::status::too_many_requests;
+    case grpc::StatusCode::UNAUTHENTICATED: return http::status::unauthorized;
+    case grpc::StatusCode::PERMISSION_DENIED: return http::status::forbidden;
     case grpc::StatusCode::UNAVAILABLE: return http::status::service_unavailable;
     default: return http::status::internal_server_error;
   }
@@ -134,12 +137,60 @@ class CallRegistration {
 
 /// The caller's API key on the in-process call (docs/viewer.md): the request's own
 /// `Authorization` header, else `?key=` (a browser's WebSocket cannot set headers).
-void forward_api_key(const Request& request, const QueryParameters& query, grpc::ClientContext& context) {
+std::optional<std::string> authorization_value(const Request& request, const QueryParameters& query) {
   if (const auto header = request.find(http::field::authorization); header != request.end()) {
-    context.AddMetadata("authorization", std::string(header->value()));
-  } else if (const auto key = query.find("key"); key != query.end() && !key->second.empty()) {
-    context.AddMetadata("authorization", "Bearer " + key->second);
+    return std::string(header->value());
   }
+  if (const auto key = query.find("key"); key != query.end() && !key->second.empty()) return "Bearer " + key->second;
+  return std::nullopt;
+}
+
+void forward_api_key(const Request& request, const QueryParameters& query, grpc::ClientContext& context) {
+  if (const auto value = authorization_value(request, query)) context.AddMetadata("authorization", *value);
+}
+
+/// GET /audio?session=NAME: the session's WAV, from the bytes the session keeps (no copy).
+bool serve_audio(tcp::socket& socket, const Request& request, const QueryParameters& query,
+                 const SessionAudioLookup& lookup) {
+  const auto fail = [&](http::status status, const std::string& code, const std::string& message) {
+    beast::error_code error;
+    http::write(socket, text_response(request, status, error_json(code, message), "application/json"), error);
+    return !error && request.keep_alive();
+  };
+  if (request.method() != http::verb::get && request.method() != http::verb::head) {
+    Response response = text_response(request, http::status::method_not_allowed, "/audio: only GET\n");
+    response.set(http::field::allow, "GET, HEAD");
+    beast::error_code error;
+    http::write(socket, response, error);
+    return !error && request.keep_alive();
+  }
+  const auto session = query.find("session");
+  if (session == query.end() || session->second.empty()) {
+    return fail(http::status::bad_request, "INVALID_ARGUMENT", "/audio needs a session: /audio?session=NAME");
+  }
+  std::shared_ptr<const std::string> wav;
+  grpc::Status status(grpc::StatusCode::NOT_FOUND,
+                      "session '" + session->second + "' has no audio (this lipsyncd keeps none)");
+  if (lookup) {
+    const std::optional<std::string> authorization = authorization_value(request, query);
+    const std::string_view value = authorization ? std::string_view(*authorization) : std::string_view();
+    status = lookup(authorization ? &value : nullptr, session->second, wav);
+  }
+  if (!status.ok()) return fail(http_status(status.error_code()), code_name(status.error_code()), status.error_message());
+  http::response<http::span_body<const char>> response(http::status::ok, request.version());
+  response.set(http::field::server, "lipsyncd");
+  response.set(http::field::content_type, "audio/wav");
+  response.set(http::field::cache_control, "no-store");
+  response.keep_alive(request.keep_alive());
+  if (request.method() == http::verb::head) {
+    response.content_length(wav->size());
+  } else {
+    response.body() = http::span_body<const char>::value_type(wav->data(), wav->size());
+    response.prepare_payload();
+  }
+  beast::error_code error;
+  http::write(socket, response, error);
+  return !error && request.keep_alive();
 }
 
 /// GET /ws: the session's messages, one binary WebSocket message each, through a Subscribe call.
@@ -232,6 +283,36 @@ Response quick_try(const Request& request, v1::LipSync::Stub& stub, const QuickT
   return text_response(request, http::status::ok, body.dump(), "application/json");
 }
 
+/// POST /sessions?speak=1: one Speak call with the posted text; answers once it has spoken.
+Response quick_speak(const Request& request, v1::LipSync::Stub& stub, const v1::SpeakRequest& speak,
+                     grpc::ClientContext& context) {
+  auto reader = stub.Speak(&context, speak);
+  v1::SpeakResponse message;
+  std::uint64_t frames = 0, phonemes = 0;
+  std::int64_t audio_us = 0;
+  while (reader->Read(&message)) {
+    if (message.has_header()) {
+      phonemes = static_cast<std::uint64_t>(message.header().phonemes_size());
+      audio_us = message.header().audio_duration_us();
+    }
+    if (message.has_summary()) frames = message.summary().track().frames();
+  }
+  const grpc::Status status = reader->Finish();
+  if (!status.ok()) {
+    return text_response(request, http_status(status.error_code()),
+                         error_json(code_name(status.error_code()), status.error_message()), "application/json");
+  }
+  const std::string& session = speak.settings().session();
+  const nlohmann::json body = {{"session", session},
+                               {"phonemes", phonemes},
+                               {"frames", frames},
+                               {"audio_duration_us", audio_us},
+                               {"audio", "/audio?session=" + session},
+                               {"utterance_zero_us", speak.settings().media_clock().utterance_zero_us()},
+                               {"view", "/view?session=" + session}};
+  return text_response(request, http::status::ok, body.dump(), "application/json");
+}
+
 Response serve_asset(const Request& request, const std::string& path) {
   const std::string wanted = path == "/" ? "/view" : path;
   for (const WebAsset& asset : web_assets()) {
@@ -252,8 +333,8 @@ Response serve_asset(const Request& request, const std::string& path) {
 }  // namespace
 
 HttpViewer::HttpViewer(const std::string& host_port, std::shared_ptr<grpc::Channel> service,
-                       const ModelCatalog& catalog)
-    : service_(std::move(service)), catalog_(catalog), acceptor_(io_) {
+                       const ModelCatalog& catalog, SessionAudioLookup session_audio)
+    : service_(std::move(service)), catalog_(catalog), session_audio_(std::move(session_audio)), acceptor_(io_) {
   const tcp::endpoint endpoint = resolve(io_, host_port, host_);
   beast::error_code error;
   acceptor_.open(endpoint.protocol(), error);
@@ -361,6 +442,11 @@ void HttpViewer::serve(Connection& connection) {
       break;
     }
 
+    if (path == "/audio") {
+      if (!serve_audio(connection.socket, request, query, session_audio_)) break;
+      continue;
+    }
+
     Response response;
     if (path == "/sessions") {
       if (request.method() != http::verb::post) {
@@ -368,14 +454,22 @@ void HttpViewer::serve(Connection& connection) {
         response.set(http::field::allow, "POST");
       } else {
         try {
-          const QuickTry plan = plan_quick_try(query, request.body(), catalog_, unix_now_us());
+          const auto speak = query.find("speak");
+          const bool speaking = speak != query.end() && speak->second == "1";
+          if (speak != query.end() && !speaking && speak->second != "0") {
+            throw QuickTryError("speak: expected 1 (speak the text with espeak-ng) or 0, got '" + speak->second + "'");
+          }
+          const QuickTry plan = speaking ? QuickTry{} : plan_quick_try(query, request.body(), catalog_, unix_now_us());
+          const v1::SpeakRequest spoken =
+              speaking ? plan_quick_speak(query, request.body(), unix_now_us()) : v1::SpeakRequest{};
           grpc::ClientContext context;
           forward_api_key(request, query, context);
           CallRegistration registration(connection.call_mutex, connection.call, context, closing_);
-          response = registration.admitted
-                         ? quick_try(request, *stub, plan, context)
-                         : text_response(request, http::status::service_unavailable,
-                                         error_json("UNAVAILABLE", "lipsyncd is shutting down"), "application/json");
+          response = !registration.admitted
+                         ? text_response(request, http::status::service_unavailable,
+                                         error_json("UNAVAILABLE", "lipsyncd is shutting down"), "application/json")
+                     : speaking ? quick_speak(request, *stub, spoken, context)
+                                : quick_try(request, *stub, plan, context);
         } catch (const InputError& bad) {
           response = text_response(request, http::status::bad_request, error_json("INVALID_ARGUMENT", bad.what()),
                                    "application/json");

@@ -10,7 +10,10 @@
 //                                       {"code":"NOT_FOUND","message":"..."} and close code
 //                                       4000 + the gRPC status code with the message as reason
 //   POST /sessions?session=NAME&...     body: phoneme text in any format the CLI reads; the
-//                                       server animates it as a session (a quick try)
+//                                       server animates it as a session (a quick try); with
+//                                       speak=1 the body is text that a Speak call speaks into it
+//   GET  /audio?session=NAME            the session's sound as a WAV file (a Speak session's
+//                                       voice, kept by the session); 404 when it has none
 //
 // Nothing here duplicates the service: a follower is a Subscribe call and a quick try is an
 // Animate call, both made over the gRPC server's in-process channel, so admission, limits,
@@ -20,6 +23,7 @@
 #pragma once
 
 #include <atomic>
+#include <functional>
 #include <list>
 #include <memory>
 #include <mutex>
@@ -27,6 +31,7 @@
 #include <thread>
 
 #include <boost/asio/ip/tcp.hpp>
+#include <grpcpp/support/status.h>
 
 namespace grpc {
 class Channel;
@@ -37,12 +42,21 @@ namespace lipsync::server {
 
 class ModelCatalog;
 
+/// A session's WAV for GET /audio: authenticates `authorization` (the request's `Authorization`
+/// value, null if none) as a Subscribe would, finds `session` in the caller's tenant and sets
+/// `wav`; NOT_FOUND when there is no such session or it has no audio.
+using SessionAudioLookup = std::function<grpc::Status(const std::string_view* authorization,
+                                                      const std::string& session,
+                                                      std::shared_ptr<const std::string>& wav)>;
+
 class HttpViewer {
  public:
   /// Binds `host_port` (port 0 picks a free one) and starts accepting. `service` is a channel to
   /// the LipSync service (the gRPC server's in-process channel); `catalog` chooses the phone set of
-  /// pasted text. Throws std::runtime_error saying why it cannot listen.
-  HttpViewer(const std::string& host_port, std::shared_ptr<grpc::Channel> service, const ModelCatalog& catalog);
+  /// pasted text; `session_audio` serves /audio (without it, /audio answers 404).
+  /// Throws std::runtime_error saying why it cannot listen.
+  HttpViewer(const std::string& host_port, std::shared_ptr<grpc::Channel> service, const ModelCatalog& catalog,
+             SessionAudioLookup session_audio = {});
   ~HttpViewer();
   HttpViewer(const HttpViewer&) = delete;
   HttpViewer& operator=(const HttpViewer&) = delete;
@@ -64,6 +78,7 @@ class HttpViewer {
   std::string host_;
   std::shared_ptr<grpc::Channel> service_;
   const ModelCatalog& catalog_;
+  SessionAudioLookup session_audio_;
   boost::asio::io_context io_;
   boost::asio::ip::tcp::acceptor acceptor_;
   int port_ = 0;

@@ -109,10 +109,11 @@ std::string split_request_target(std::string_view target, QueryParameters& query
   return path;
 }
 
-QuickTry plan_quick_try(const QueryParameters& query, std::string_view text, const ModelCatalog& catalog,
-                        std::int64_t now_unix_us) {
-  QuickTry plan;
-  v1::AnimationSettings& settings = plan.settings;
+namespace {
+
+/// The settings both quick tries take from the query: session, model, fps, mesh, visemes, lead_ms.
+v1::AnimationSettings quick_try_settings(const QueryParameters& query, std::int64_t now_unix_us) {
+  v1::AnimationSettings settings;
   const std::string* session = parameter(query, "session");
   settings.set_session(session && !session->empty() ? *session : random_session_name());
   if (const std::string* model = parameter(query, "model")) settings.set_model(*model);
@@ -128,6 +129,16 @@ QuickTry plan_quick_try(const QueryParameters& query, std::string_view text, con
   const std::int64_t lead_ms = integer_parameter(query, "lead_ms", 0, 60'000, 1'000);
   settings.mutable_media_clock()->set_clock("unix");
   settings.mutable_media_clock()->set_utterance_zero_us(now_unix_us + lead_ms * 1000);
+  return settings;
+}
+
+}  // namespace
+
+QuickTry plan_quick_try(const QueryParameters& query, std::string_view text, const ModelCatalog& catalog,
+                        std::int64_t now_unix_us) {
+  QuickTry plan;
+  v1::AnimationSettings& settings = plan.settings;
+  settings = quick_try_settings(query, now_unix_us);
 
   InputFormat format{};
   if (const std::string* name = parameter(query, "format"); name && !name->empty()) {
@@ -155,6 +166,14 @@ QuickTry plan_quick_try(const QueryParameters& query, std::string_view text, con
     phoneme.set_end_us(interval.end_us);
   }
   return plan;
+}
+
+v1::SpeakRequest plan_quick_speak(const QueryParameters& query, std::string_view text, std::int64_t now_unix_us) {
+  v1::SpeakRequest request;
+  *request.mutable_settings() = quick_try_settings(query, now_unix_us);
+  request.set_text(std::string(text));
+  if (const std::string* voice = parameter(query, "voice")) request.set_voice(*voice);
+  return request;
 }
 
 }  // namespace lipsync::server

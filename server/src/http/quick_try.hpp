@@ -46,4 +46,9 @@ struct QuickTry {
 QuickTry plan_quick_try(const QueryParameters& query, std::string_view text, const ModelCatalog& catalog,
                         std::int64_t now_unix_us);
 
+/// `POST /sessions?speak=1`: the body is text for espeak-ng, spoken by a Speak call into the session
+/// (its audio then served by /audio). The same parameters, and voice (an espeak-ng voice). Throws
+/// QuickTryError for a bad parameter; the text is checked by Speak.
+v1::SpeakRequest plan_quick_speak(const QueryParameters& query, std::string_view text, std::int64_t now_unix_us);
+
 }  // namespace lipsync::server

@@ -12,6 +12,8 @@
 //      StreamingRenderer as Animate's, and each released frame batch through the
 //      same wire encoding and, with a session name, to the session as it is
 //      produced, so subscribers follow a Speak exactly as they follow an Animate.
+//      The session also keeps the audio as a WAV file (stored before the first
+//      frames), which the browser viewer serves as /audio?session=NAME.
 // The frames therefore equal an offline render of the header's phonemes bit for
 // bit (lookahead 7, the default). The caller's messages, prepared meanwhile in
 // utterance-time order (each audio chunk before the frames at or after its
@@ -33,6 +35,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -265,6 +268,11 @@ class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::Sp
     if (auto status = caller_.take_phonemes(speech.phonemes.intervals.size()); !status.ok()) return status;
     audio_ = std::move(speech.audio);
     speech::cover_audio(speech.phonemes, audio_.duration_us(), plan_.engine.render.fps);
+    if (session_) {  // the viewer plays it (GET /audio?session=NAME), before the first frames are published
+      std::ostringstream wav;
+      speech::write_wav(wav, audio_);
+      session_->set_audio_wav(std::make_shared<const std::string>(std::move(wav).str()));
+    }
 
     v1::SpeakHeader& header = *responses_.emplace_back().mutable_header();
     header.set_sample_rate_hz(static_cast<std::uint32_t>(audio_.sample_rate_hz));

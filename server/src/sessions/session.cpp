@@ -116,6 +116,16 @@ void Session::detach(const Outbox* outbox) {
   std::erase_if(subscribers_, [&](const std::shared_ptr<Outbox>& held) { return held.get() == outbox; });
 }
 
+void Session::set_audio_wav(std::shared_ptr<const std::string> wav) {
+  std::lock_guard lock(mutex_);
+  audio_wav_ = std::move(wav);
+}
+
+std::shared_ptr<const std::string> Session::audio_wav() const {
+  std::lock_guard lock(mutex_);
+  return audio_wav_;
+}
+
 bool Session::live() const {
   std::lock_guard lock(mutex_);
   return state_ == State::live;

@@ -85,6 +85,11 @@ class Session : public std::enable_shared_from_this<Session> {
   bool live() const;
   std::size_t subscriber_count() const;
 
+  /// The session's sound as a WAV file (a Speak session's voice, for the viewer's /audio), kept
+  /// as long as the session; null when it has none.
+  void set_audio_wav(std::shared_ptr<const std::string> wav);
+  std::shared_ptr<const std::string> audio_wav() const;
+
  private:
   enum class State { live, finished, failed };
 
@@ -105,6 +110,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::string failure_;
   std::chrono::steady_clock::time_point ended_at_;
   std::vector<std::shared_ptr<Outbox>> subscribers_;
+  std::shared_ptr<const std::string> audio_wav_;
 };
 
 class SessionRegistry {

@@ -118,9 +118,26 @@ Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(con
                                            : std::string("plaintext (no --tls-cert)"));
   spdlog::info("callers: {}", impl_->service.tenants().describe());
   if (!impl_->config.http_listen.empty()) {
+    // /audio: a session's sound, for whoever may Subscribe to it (the same key, tenant and retention).
+    auto session_audio = [&service = impl_->service](const std::string_view* authorization, const std::string& session,
+                                                      std::shared_ptr<const std::string>& wav) {
+      Caller caller;
+      if (auto status = service.tenants().authenticate_value(authorization, "Subscribe", caller); !status.ok()) {
+        return status;
+      }
+      const std::shared_ptr<Session> found = service.sessions().find(caller.session_key(session));
+      if (!found) return service.routing().not_held(session, service.config().session_retention_ms);
+      wav = found->audio_wav();
+      if (!wav) {
+        return grpc::Status(grpc::StatusCode::NOT_FOUND,
+                            "session '" + session + "' has no audio: only a session made by Speak keeps its sound "
+                            "(give the page ?audio=URL for the others)");
+      }
+      return grpc::Status::OK;
+    };
     impl_->viewer = std::make_unique<HttpViewer>(impl_->config.http_listen,
                                                  impl_->server->InProcessChannel(grpc::ChannelArguments()),
-                                                 impl_->catalog);
+                                                 impl_->catalog, std::move(session_audio));
   }
   if (!impl_->config.metrics_listen.empty()) {
     impl_->metrics = std::make_unique<MetricsEndpoint>(

@@ -294,11 +294,19 @@ grpc::Status Tenants::authenticate(const grpc::CallbackServerContext& context, s
   if (open()) return grpc::Status::OK;
   const auto& metadata = context.client_metadata();
   const auto found = metadata.find(kMetadataKey);
-  if (found == metadata.end()) {
+  if (found == metadata.end()) return authenticate_value(nullptr, method, caller);
+  const std::string_view value(found->second.data(), found->second.size());
+  return authenticate_value(&value, method, caller);
+}
+
+grpc::Status Tenants::authenticate_value(const std::string_view* authorization, std::string_view method,
+                                         Caller& caller) const {
+  if (open()) return grpc::Status::OK;
+  if (!authorization) {
     return {grpc::StatusCode::UNAUTHENTICATED,
             "this server needs an API key: send the metadata `authorization: Bearer <key>`"};
   }
-  const std::string_view value(found->second.data(), found->second.size());
+  const std::string_view value = *authorization;
   constexpr std::string_view kScheme = "bearer ";
   const bool bearer = value.size() > kScheme.size() &&
                       std::equal(kScheme.begin(), kScheme.end(), value.begin(),
