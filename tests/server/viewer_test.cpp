@@ -23,7 +23,7 @@
 
 #include "lipsync/formats.hpp"
 #include "lipsync/speech/audio.hpp"
-#include "tenants.hpp"
+#include "transport/tenants.hpp"
 #include "../support/child_process.hpp"
 #include "../support/server_harness.hpp"
 
