@@ -1,7 +1,8 @@
 // Admission control: which calls the server takes on. Animate and Subscribe
 // streams count against --max-streams (RESOURCE_EXHAUSTED beyond it); every
-// Animate, Subscribe and Render call counts as "in progress" so that a drain
-// (SIGTERM) can wait for them; once draining, new calls get UNAVAILABLE, except
+// Animate, Subscribe and Render call (and ListModels and GetModel, never refused)
+// counts as "in progress" so that a drain (SIGTERM) can wait for them, and the
+// service outlives everything they touch; once draining, new calls get UNAVAILABLE, except
 // the first call of a connection accepted just before or while the listener
 // closed (connection_ledger.hpp: a balancer's new session already on its way).
 // The callback thread pool cannot be tuned in gRPC 1.51, so these counts are
@@ -39,6 +40,13 @@ class Admission {
   /// Render calls: counted for the drain only (they are not streams).
   grpc::Status admit_render(std::string_view peer);
   void release_render() { call_ended(); }
+  /// ListModels and GetModel: counted so that the drain waits for their end (their access line
+  /// and metrics), never refused (they change nothing and answer at once).
+  void count_query() {
+    const std::size_t calls = ++calls_in_progress_;
+    if (observer_) observer_(calls);
+  }
+  void release_query() { call_ended(); }
   /// Called with the calls in progress each time they change (the transport quota follows them:
   /// transport_quota.hpp). Set once, before the server takes calls.
   void follow_calls(std::function<void(std::size_t)> observer) { observer_ = std::move(observer); }
@@ -52,7 +60,7 @@ class Admission {
   ConnectionLedger& connections() { return connections_; }
   /// Animate and Subscribe streams open.
   std::size_t active_streams() const { return active_streams_.load(); }
-  /// Animate, Subscribe and Render calls running.
+  /// Animate, Subscribe, Render, ListModels and GetModel calls running.
   std::size_t calls_in_progress() const { return calls_in_progress_.load(); }
 
  private:
