@@ -14,7 +14,7 @@ speech::SynthesisOptions synthesis_options(const Arguments& arguments) {
     if (voice->empty()) throw UsageError("--voice: the name must not be empty");
     options.voice = *voice;
   }
-  if (const auto rate = arguments.value("rate")) options.words_per_minute = parse_int_option("rate", *rate, 80, 450);
+  options.words_per_minute = parse_setting_option(arguments, "rate", speech::kWordsPerMinuteSetting);
   return options;
 }
 

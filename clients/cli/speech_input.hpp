@@ -12,6 +12,7 @@
 #include "arguments.hpp"
 #include "lipsync/speech/aligner.hpp"
 #include "lipsync/speech/synthesizer.hpp"
+#include "setting_help.hpp"
 
 namespace lipsync::cli {
 
@@ -22,7 +23,9 @@ inline constexpr OptionSpec kTextFileOption = {"text-file", 0, "FILE", "the tran
 
 inline constexpr OptionSpec kVoiceOption = {"voice", 0, "NAME", "espeak-ng voice ('espeak-ng --voices' lists them)",
     "en-us"};
-inline constexpr OptionSpec kRateOption = {"rate", 0, "WPM", "speaking rate in words per minute, 80 to 450", "175"};
+inline constexpr OptionSpec kRateOption = {"rate", 0, "WPM",
+                                           kRangedHelp<"speaking rate in words per minute", speech::kWordsPerMinuteSetting>.view(),
+                                           kDefaultText<speech::kWordsPerMinuteSetting>.view()};
 
 /// The synthesis options from --voice and --rate (UsageError for an empty voice or a rate out of range).
 speech::SynthesisOptions synthesis_options(const Arguments& arguments);

@@ -506,9 +506,10 @@ std::string phone_set_for_voice(std::string_view voice) {
 Synthesis synthesize(std::string_view text, const SynthesisOptions& options) {
   const std::string source(kSource);
   if (text.find_first_not_of(" \t\r\n") == std::string_view::npos) throw InputError(source, 0, "the text is empty");
-  if (options.words_per_minute < 80 || options.words_per_minute > 450) {
-    throw InputError(source, 0, "speaking rate " + std::to_string(options.words_per_minute) +
-                                    " words per minute is out of range (80 to 450)");
+  if (options.words_per_minute < kWordsPerMinuteSetting.min || options.words_per_minute > kWordsPerMinuteSetting.max) {
+    throw InputError(source, 0, out_of_range_text("speaking rate (words per minute)",
+                                                  std::to_string(options.words_per_minute),
+                                                  range_text(kWordsPerMinuteSetting)));
   }
   const std::lock_guard lock(espeak_mutex);
   return synthesize_in_worker(text, options);

@@ -81,9 +81,10 @@ grpc::Status synthesis_options(const v1::SpeakRequest& request, speech::Synthesi
   }
   if (!request.voice().empty()) options.voice = request.voice();
   const std::uint32_t rate = request.words_per_minute();
-  if (rate != 0 && (rate < 80 || rate > 450)) {
-    return invalid("words_per_minute: " + std::to_string(rate) + " is out of range (80 to 450; 0 = " +
-                   std::to_string(speech::SynthesisOptions{}.words_per_minute) + ")");
+  const IntSetting& setting = speech::kWordsPerMinuteSetting;
+  if (rate != 0 && (rate < setting.min || rate > setting.max)) {
+    return invalid(out_of_range_text("words_per_minute", std::to_string(rate),
+                                     range_text(setting, false) + "; 0 = " + std::to_string(setting.default_value)));
   }
   if (rate != 0) options.words_per_minute = static_cast<int>(rate);
   return grpc::Status::OK;

@@ -22,14 +22,19 @@
 #include <string_view>
 #include <vector>
 
+#include "lipsync/setting_ranges.hpp"
 #include "lipsync/speech/audio.hpp"
 #include "lipsync/utterance.hpp"
 
 namespace lipsync::speech {
 
+/// espeak-ng's speaking rate in words per minute: its range and default, stated once for the
+/// synthesiser's check, `lipsync say/speak --rate` (help and check) and Speak's words_per_minute.
+inline constexpr IntSetting kWordsPerMinuteSetting = {80, 450, 175};
+
 struct SynthesisOptions {
   std::string voice = "en-us";  ///< an espeak-ng voice name ("espeak-ng --voices" lists them)
-  int words_per_minute = 175;   ///< espeak-ng's speaking rate, 80 to 450
+  int words_per_minute = static_cast<int>(kWordsPerMinuteSetting.default_value);  ///< kWordsPerMinuteSetting
 };
 
 struct Synthesis {
