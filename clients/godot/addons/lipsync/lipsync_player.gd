@@ -229,11 +229,23 @@ func current_time_us():
 	return OS.get_ticks_usec() - _start_ticks_us
 
 
-# What the listener hears now of `player`'s stream, µs: Godot's audio-sync recipe.
+# What the listener hears now of `player`'s stream, µs: Godot's audio-sync recipe (playback position
+# plus the time since the last mix, minus the output latency). The mixer runs on a thread of its own
+# and moves the position and the time of the last mix one after the other, so a read that straddles
+# a mix could pair the old position with the new time, or the reverse: one mix buffer (about 12 ms)
+# off. The two are read until no mix came between: the time since the last mix did not restart and
+# the position did not move.
 static func audio_clock_us(player):
-	var seconds = player.get_playback_position()
-	if player.playing and not player.stream_paused:
-		seconds += AudioServer.get_time_since_last_mix() - AudioServer.get_output_latency()
+	if not player.playing or player.stream_paused:
+		return int(round(player.get_playback_position() * 1000000.0))
+	var seconds = 0.0
+	for _attempt in range(16):
+		var since_before = AudioServer.get_time_since_last_mix()
+		var position = player.get_playback_position()
+		var since = AudioServer.get_time_since_last_mix()
+		seconds = position + since - AudioServer.get_output_latency()
+		if since >= since_before and player.get_playback_position() == position:
+			break
 	return int(round(seconds * 1000000.0))
 
 
