@@ -10,7 +10,7 @@ packages=(
   build-essential cmake ninja-build
   # libraries
   nlohmann-json3-dev libeigen3-dev libspdlog-dev libboost-dev
-  # the command lines of lipsyncd and lipsync (clients/options/)
+  # the command lines of lipsyncd and lipsync (core/options/)
   libcli11-dev
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   # the load generator's own HTTP/2 client (tools/loadtest/h2_grpc_connection.cpp)

@@ -4,7 +4,7 @@
 Each sentence is spoken by espeak-ng's C library (libespeak-ng, the library `lipsync say` uses),
 initialised with espeakINITIALIZE_PHONEME_IPA so that its phoneme events carry IPA symbols; each
 event's sample position is the phoneme's start, the next event's its end, as in
-clients/speech/src/synthesizer.cpp. The phonemes are written as a Praat TextGrid (one "phones"
+core/speech/src/synthesizer.cpp. The phonemes are written as a Praat TextGrid (one "phones"
 tier, IPA labels as espeak-ng names them, stress marks and all), read back by the tests without a
 phone-set flag: detection must pick the ipa set.
 
