@@ -95,8 +95,7 @@ std::string wrap_text(std::string_view text, std::size_t indent, std::size_t lin
   return wrapped;
 }
 
-std::string format_help(std::string_view usage, std::string_view description,
-                        std::span<const OptionSpec> options) {
+std::string format_help(std::string_view usage, std::string_view description, std::span<const OptionSpec> options) {
   std::string help = "Usage: " + std::string(usage) + "\n\n" + std::string(description) + "\n\nOptions:\n";
   const auto left_column = [](const OptionSpec& spec) {
     std::string text = spec.short_name != 0 ? std::string("-") + spec.short_name + ", " : "    ";

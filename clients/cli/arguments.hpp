@@ -20,8 +20,8 @@
 
 namespace lipsync::cli {
 
-using options::OptionSpec;
 using options::join;
+using options::OptionSpec;
 
 class Arguments : public options::ParsedArguments {
  public:
@@ -54,8 +54,7 @@ double parse_double_option(std::string_view option, std::string_view text);
 std::string wrap_text(std::string_view text, std::size_t indent, std::size_t line_width = 80);
 
 /// The --help text: usage line, description, then one line per option.
-std::string format_help(std::string_view usage, std::string_view description,
-                        std::span<const OptionSpec> options);
+std::string format_help(std::string_view usage, std::string_view description, std::span<const OptionSpec> options);
 
 /// If `arguments` asked for --help, writes the command's help (format_help) to
 /// `out` and returns true: the command then exits 0 without doing anything else.

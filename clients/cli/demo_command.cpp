@@ -12,8 +12,8 @@
 #include "arguments.hpp"
 #include "cli_error.hpp"
 #include "commands.hpp"
-#include "pipeline.hpp"
 #include "lipsync/time.hpp"
+#include "pipeline.hpp"
 
 namespace lipsync::cli {
 namespace {
@@ -60,9 +60,12 @@ constexpr std::string_view kDescription =
 
 std::string default_output(TrackFormat format) {
   switch (format) {
-    case TrackFormat::json: return "lipsync-demo.json";
-    case TrackFormat::csv: return "lipsync-demo.csv";
-    case TrackFormat::arkit_csv: return "lipsync-demo.arkit.csv";
+    case TrackFormat::json:
+      return "lipsync-demo.json";
+    case TrackFormat::csv:
+      return "lipsync-demo.csv";
+    case TrackFormat::arkit_csv:
+      return "lipsync-demo.arkit.csv";
   }
   return "lipsync-demo";
 }

@@ -3,13 +3,13 @@
 // unreachable, or no answer in time). For container health checks (Dockerfile) and scripts.
 // Debian ships no generated health stubs, so the two tiny messages are encoded by hand:
 // HealthCheckRequest{service = ""} is empty; HealthCheckResponse{status} is field 1, a varint.
+#include <grpcpp/generic/generic_stub.h>
+#include <grpcpp/grpcpp.h>
+
 #include <array>
 #include <chrono>
 #include <future>
 #include <iostream>
-
-#include <grpcpp/generic/generic_stub.h>
-#include <grpcpp/grpcpp.h>
 
 #include "arguments.hpp"
 #include "cli_error.hpp"
@@ -22,9 +22,11 @@ namespace {
 /// --timeout: a health check answers at once or not at all.
 constexpr IntSetting kHealthTimeoutSetting = {1, 3600, 3};
 
-constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
-    kTimeoutOption<"give up when the server has not answered after S seconds", kHealthTimeoutSetting>,
-}));
+constexpr auto kOptions =
+    join(kConnectionOptions,
+         std::to_array<OptionSpec>({
+             kTimeoutOption<"give up when the server has not answered after S seconds", kHealthTimeoutSetting>,
+         }));
 
 constexpr std::string_view kUsage = "lipsync health [options]";
 constexpr std::string_view kDescription =
@@ -48,7 +50,7 @@ int run_health(std::span<const std::string_view> args) {
   grpc::ClientContext context;
   context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(timeout_s));
   context.set_wait_for_ready(true);  // a server still starting up gets the whole timeout
-  const grpc::Slice nothing;  // HealthCheckRequest{service = ""}: no bytes (yet a valid buffer)
+  const grpc::Slice nothing;         // HealthCheckRequest{service = ""}: no bytes (yet a valid buffer)
   const grpc::ByteBuffer request(&nothing, 1);
   grpc::ByteBuffer response;
   std::promise<grpc::Status> done;
@@ -56,8 +58,8 @@ int run_health(std::span<const std::string_view> args) {
                  [&done](grpc::Status status) { done.set_value(std::move(status)); });
   const grpc::Status status = done.get_future().get();
   if (!status.ok()) {
-    std::cerr << "lipsync: lipsyncd at " << address << " did not answer: "
-              << client::status_code_name(status.error_code()) << ": " << status.error_message();
+    std::cerr << "lipsync: lipsyncd at " << address
+              << " did not answer: " << client::status_code_name(status.error_code()) << ": " << status.error_message();
     const bool unreachable = status.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED ||
                              status.error_code() == grpc::StatusCode::UNAVAILABLE;
     if (unreachable) std::cerr << ' ' << client::unreachable_hint(options.tls);

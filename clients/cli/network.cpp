@@ -18,7 +18,8 @@ void set_track_request_options(const Arguments& arguments, TrackFormat format,
   settings.mutable_outputs()->set_channels(true);
   settings.mutable_outputs()->set_arkit(format != TrackFormat::csv);  // the server's retargeting for its model
   if (const auto model_name = arguments.value("server-model")) {
-    if (model_name->empty()) throw UsageError("--server-model: the name must not be empty (see 'lipsync server-models')");
+    if (model_name->empty())
+      throw UsageError("--server-model: the name must not be empty (see 'lipsync server-models')");
     settings.set_model(*model_name);
   }
   if (const auto session = arguments.value("session")) {
@@ -33,7 +34,8 @@ client::v1::SubscribeRequest::Start subscribe_start(const Arguments& arguments) 
 }
 
 SessionWait::SessionWait(const Arguments& arguments)
-    : wait_(parse_setting_option(arguments, "wait", kWaitSetting)), give_up_(std::chrono::steady_clock::now() + wait_) {}
+    : wait_(parse_setting_option(arguments, "wait", kWaitSetting)),
+      give_up_(std::chrono::steady_clock::now() + wait_) {}
 
 void SessionWait::start() { give_up_ = std::chrono::steady_clock::now() + wait_; }
 
@@ -44,8 +46,8 @@ bool SessionWait::asks_again(grpc::StatusCode code) const {
 client::ClientOptions connection_options(const Arguments& arguments) {
   client::ClientOptions options;
   options.tls.enabled = arguments.flag("tls");
-  for (const auto& [name, file] : {std::pair{"ca", &options.tls.ca_file}, {"cert", &options.tls.cert_file},
-                                   {"key", &options.tls.key_file}}) {
+  for (const auto& [name, file] :
+       {std::pair{"ca", &options.tls.ca_file}, {"cert", &options.tls.cert_file}, {"key", &options.tls.key_file}}) {
     if (const auto value = arguments.value(name)) {
       if (value->empty()) throw UsageError("--" + std::string(name) + ": the file name must not be empty");
       *file = *value;

@@ -20,19 +20,18 @@ namespace lipsync::cli {
 
 inline constexpr std::string_view kDefaultServer = "127.0.0.1:50051";
 
-inline constexpr OptionSpec kServerOption = {"server", 0, "ADDR", "lipsyncd address, HOST:PORT",
-                                             kDefaultServer};
+inline constexpr OptionSpec kServerOption = {"server", 0, "ADDR", "lipsyncd address, HOST:PORT", kDefaultServer};
 
-inline constexpr OptionSpec kServerModelOption = {"server-model", 0, "NAME",
+inline constexpr OptionSpec kServerModelOption = {
+    "server-model", 0, "NAME",
     "the server's model to animate with (see 'lipsync server-models'); the output is named after its channels",
     "the server's default model"};
 inline constexpr OptionSpec kSessionOption = {"session", 0, "NAME",
-    "publish the frames under this session name for subscribers", "private"};
+                                              "publish the frames under this session name for subscribers", "private"};
 
 /// Into `settings`: the outputs a track written in `format` needs (channels, and the
 /// server's ARKit weights unless csv), --server-model and --session (UsageError if empty).
-void set_track_request_options(const Arguments& arguments, TrackFormat format,
-                               client::v1::AnimationSettings& settings);
+void set_track_request_options(const Arguments& arguments, TrackFormat format, client::v1::AnimationSettings& settings);
 
 /// How to reach a server that uses TLS or API keys (docs/security.md), in kConnectionOptions
 /// after kServerOption. The API key may also come from LIPSYNC_API_KEY (kept out of `ps`).
@@ -43,8 +42,7 @@ inline constexpr OptionSpec kCaOption = {"ca", 0, "FILE", "PEM CA bundle that si
 inline constexpr OptionSpec kCertOption = {"cert", 0, "FILE",
                                            "PEM client certificate, for a server that requires one (with --key)", ""};
 inline constexpr OptionSpec kKeyOption = {"key", 0, "FILE", "PEM private key of --cert", ""};
-inline constexpr OptionSpec kApiKeyOption = {"api-key", 0, "KEY",
-                                             "API key, sent as `authorization: Bearer KEY`",
+inline constexpr OptionSpec kApiKeyOption = {"api-key", 0, "KEY", "API key, sent as `authorization: Bearer KEY`",
                                              "$LIPSYNC_API_KEY, else none"};
 
 /// The options every network command takes first: where lipsyncd is and how to reach it.
@@ -61,7 +59,8 @@ inline constexpr OptionSpec kTimeoutOption = {"timeout", 0, "S", kRangedHelp<Hel
 /// --wait S of the commands that follow a session (subscribe, play).
 inline constexpr IntSetting kWaitSetting = {0, 3600, 0};
 inline constexpr OptionSpec kWaitOption = {
-    "wait", 0, "S", kRangedHelp<"if the session does not exist yet, keep asking for up to S seconds", kWaitSetting>.view(),
+    "wait", 0, "S",
+    kRangedHelp<"if the session does not exist yet, keep asking for up to S seconds", kWaitSetting>.view(),
     kDefaultText<kWaitSetting>.view()};
 
 /// --from-now of the commands that follow a session: only frames produced after joining.

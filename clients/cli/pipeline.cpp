@@ -77,9 +77,8 @@ std::string phone_set_choices() {
   return names + "auto";
 }
 
-const PhoneSet& choose_phone_set(const std::optional<std::string>& requested,
-                                 const LabeledUtterance& utterance, const ArticulationModel& model,
-                                 std::vector<PhoneSet>& candidates) {
+const PhoneSet& choose_phone_set(const std::optional<std::string>& requested, const LabeledUtterance& utterance,
+                                 const ArticulationModel& model, std::vector<PhoneSet>& candidates) {
   candidates.clear();
   const std::string name = requested ? *requested : utterance.phone_set;
   if (!name.empty() && name != "auto") {
@@ -99,8 +98,8 @@ const PhoneSet& choose_phone_set(const std::optional<std::string>& requested,
   return detect_phone_set(candidates, labels);
 }
 
-Track render_utterance(const LabeledUtterance& utterance, const ArticulationModel& model,
-                       const PhoneSet& phone_set, const TrackRequest& request) {
+Track render_utterance(const LabeledUtterance& utterance, const ArticulationModel& model, const PhoneSet& phone_set,
+                       const TrackRequest& request) {
   if (!request.incremental) {
     return render_track(model, build_segments(utterance, model, phone_set, request.segments), request.render);
   }
@@ -120,8 +119,7 @@ Track render_utterance(const LabeledUtterance& utterance, const ArticulationMode
   return track;
 }
 
-void write_output(const Track& track, const ArticulationModel& model, TrackFormat format,
-                  const std::string& output) {
+void write_output(const Track& track, const ArticulationModel& model, TrackFormat format, const std::string& output) {
   if (output == "-") {
     write_track(track, model, format, std::cout);
     std::cout.flush();

@@ -30,27 +30,35 @@
 namespace lipsync::cli {
 
 // Options shared by the commands that read phoneme files or write tracks.
-inline constexpr OptionSpec kTrackOutputOption = {"output", 'o', "FILE", "write the track to FILE (all or nothing, via a temporary file); - for stdout",
-    "stdout"};
-inline constexpr OptionSpec kTrackFormatOption = {"format", 0, "FORMAT", "track format: json, csv or arkit-csv (Unreal Live Link Face CSV)", "json"};
-inline constexpr OptionSpec kRenderFormatOption = {"format", 0, "FORMAT",
+inline constexpr OptionSpec kTrackOutputOption = {
+    "output", 'o', "FILE", "write the track to FILE (all or nothing, via a temporary file); - for stdout", "stdout"};
+inline constexpr OptionSpec kTrackFormatOption = {
+    "format", 0, "FORMAT", "track format: json, csv or arkit-csv (Unreal Live Link Face CSV)", "json"};
+inline constexpr OptionSpec kRenderFormatOption = {
+    "format", 0, "FORMAT",
     "track format: json, csv, arkit-csv (Unreal Live Link Face CSV), or visemes: visemes-oculus, visemes-azure, "
     "visemes-polly, rhubarb-tsv, rhubarb-json, or moho-dat (Moho/OpenToonz/Papagayo switch data, Preston Blair mouths)",
     "json"};
-inline constexpr OptionSpec kMohoFpsOption = {"moho-fps", 0, "N",
+inline constexpr OptionSpec kMohoFpsOption = {
+    "moho-fps", 0, "N",
     "frames per second of --format moho-dat's frame numbers (the Moho project's frame rate), 1 to 1000", "24"};
-inline constexpr OptionSpec kExtendedShapesOption = {"extended-shapes", 0, "LETTERS",
+inline constexpr OptionSpec kExtendedShapesOption = {
+    "extended-shapes", 0, "LETTERS",
     "which of Rhubarb's optional mouth shapes G, H and X the rhubarb formats use (its extendedShapes option); "
     "\"\" for none",
     "GHX"};
-inline constexpr OptionSpec kFpsOption = {"fps", 0, "N", kRangedHelp<"frames per second of the uniform grid", kFpsSetting>.view(),
+inline constexpr OptionSpec kFpsOption = {"fps", 0, "N",
+                                          kRangedHelp<"frames per second of the uniform grid", kFpsSetting>.view(),
                                           kDefaultText<kFpsSetting>.view()};
-inline constexpr OptionSpec kPhoneSetOption = {"phone-set", 0, "NAME", "phone set of the labels (see 'lipsync phone-sets'), or auto to detect it",
+inline constexpr OptionSpec kPhoneSetOption = {
+    "phone-set", 0, "NAME", "phone set of the labels (see 'lipsync phone-sets'), or auto to detect it",
     "the set the file declares, else auto"};
-inline constexpr OptionSpec kInputFormatOption = {"input-format", 0, "FORMAT", "json, textgrid, timit, lab, pho or flite",
-    "detected from the content, then the file extension"};
+inline constexpr OptionSpec kInputFormatOption = {"input-format", 0, "FORMAT",
+                                                  "json, textgrid, timit, lab, pho or flite",
+                                                  "detected from the content, then the file extension"};
 inline constexpr OptionSpec kTierOption = {"tier", 0, "NAME", "TextGrid tier that holds the phonemes", "phones"};
-inline constexpr OptionSpec kSampleRateOption = {"sample-rate", 0, "HZ", "sample rate of the sample numbers in a TIMIT .PHN file, > 0", "16000"};
+inline constexpr OptionSpec kSampleRateOption = {
+    "sample-rate", 0, "HZ", "sample rate of the sample numbers in a TIMIT .PHN file, > 0", "16000"};
 
 /// The built-in model, or `path` read and validated (errors name the file).
 class ModelSource {
@@ -87,9 +95,8 @@ std::string phone_set_choices();
 /// the set the file declares, else detection over all built-in sets. Throws
 /// UsageError for an unknown requested name, InputError for an unknown
 /// declared name. The result points into `candidates`.
-const PhoneSet& choose_phone_set(const std::optional<std::string>& requested,
-                                 const LabeledUtterance& utterance, const ArticulationModel& model,
-                                 std::vector<PhoneSet>& candidates);
+const PhoneSet& choose_phone_set(const std::optional<std::string>& requested, const LabeledUtterance& utterance,
+                                 const ArticulationModel& model, std::vector<PhoneSet>& candidates);
 
 /// The render settings a command was given (--fps, --lookahead, --fixed-rate,
 /// --closure-fraction, --mesh-subdivision: those in its table; the others keep
@@ -104,12 +111,11 @@ struct TrackRequest {
 };
 
 /// Segments and renders `utterance`. Throws InputError for bad timing or labels.
-Track render_utterance(const LabeledUtterance& utterance, const ArticulationModel& model,
-                       const PhoneSet& phone_set, const TrackRequest& request);
+Track render_utterance(const LabeledUtterance& utterance, const ArticulationModel& model, const PhoneSet& phone_set,
+                       const TrackRequest& request);
 
 /// Writes `track` to `output` ("-" for standard output) atomically. Throws FileError.
-void write_output(const Track& track, const ArticulationModel& model, TrackFormat format,
-                  const std::string& output);
+void write_output(const Track& track, const ArticulationModel& model, TrackFormat format, const std::string& output);
 
 /// Writes the visemes of `track` (an utterance ending at `end_us`) in `format` to `output`
 /// atomically. Throws FileError.

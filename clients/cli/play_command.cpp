@@ -16,10 +16,10 @@
 // otherwise arrive after they are due (playback_buffer.hpp); with a producer
 // whose playout delay covers the lookahead (lipsync stream's default) the
 // offset is 0. The summary line reports it.
-#include <array>
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <chrono>
@@ -38,13 +38,15 @@
 namespace lipsync::cli {
 namespace {
 
-constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
-    kFromNowOption,
-    {"rate", 0, "N", kRangedHelp<"display updates per second", kFpsSetting>.view(), "the track's fps"},
-    {"frames", 0, "N", "stop after N display updates, 1 to 10000000", "when the session ends"},
-    {"no-tty", 0, "", "print one line per update instead of redrawing one line", "redraw on a terminal"},
-    kWaitOption,
-}));
+constexpr auto kOptions =
+    join(kConnectionOptions,
+         std::to_array<OptionSpec>({
+             kFromNowOption,
+             {"rate", 0, "N", kRangedHelp<"display updates per second", kFpsSetting>.view(), "the track's fps"},
+             {"frames", 0, "N", "stop after N display updates, 1 to 10000000", "when the session ends"},
+             {"no-tty", 0, "", "print one line per update instead of redrawing one line", "redraw on a terminal"},
+             kWaitOption,
+         }));
 
 constexpr std::string_view kUsage = "lipsync play SESSION [options]";
 constexpr std::string_view kDescription =
@@ -114,7 +116,8 @@ struct PlayState {
 
 std::string bar(double fraction) {
   const int filled = static_cast<int>(std::clamp(fraction, 0.0, 1.0) * kBarWidth + 0.5);
-  return std::string(static_cast<std::size_t>(filled), '#') + std::string(static_cast<std::size_t>(kBarWidth - filled), '.');
+  return std::string(static_cast<std::size_t>(filled), '#') +
+         std::string(static_cast<std::size_t>(kBarWidth - filled), '.');
 }
 
 double mean_of(const std::vector<float>& values, const std::vector<int>& channels) {
@@ -143,7 +146,8 @@ int run_play(std::span<const std::string_view> args) {
   const std::string address = server_address(arguments);
   const auto start = subscribe_start(arguments);
   std::optional<int> rate;
-  if (const auto text = arguments.value("rate")) rate = parse_int_option("rate", *text, static_cast<int>(kFpsSetting.min), static_cast<int>(kFpsSetting.max));
+  if (const auto text = arguments.value("rate"))
+    rate = parse_int_option("rate", *text, static_cast<int>(kFpsSetting.min), static_cast<int>(kFpsSetting.max));
   std::optional<long> max_updates;
   if (const auto text = arguments.value("frames")) max_updates = parse_int_option("frames", *text, 1, 10'000'000);
   const bool redraw = !arguments.flag("no-tty") && ::isatty(STDOUT_FILENO) == 1;
@@ -184,8 +188,8 @@ int run_play(std::span<const std::string_view> args) {
           call = subscribe();
           lock.lock();
         } else {
-          failure = status.ok() ? grpc::Status(grpc::StatusCode::INTERNAL, "the session ended without a header")
-                                : status;
+          failure =
+              status.ok() ? grpc::Status(grpc::StatusCode::INTERNAL, "the session ended without a header") : status;
           stop = true;
         }
       }
@@ -236,8 +240,9 @@ int run_play(std::span<const std::string_view> args) {
   });
   io.run();
   call.reset();
-  if (failure) throw client::CallError("Subscribe to session '" + session + "' on " + address,
-                                       failure->error_code(), failure->error_message());
+  if (failure)
+    throw client::CallError("Subscribe to session '" + session + "' on " + address, failure->error_code(),
+                            failure->error_message());
   return 0;
 }
 

@@ -27,11 +27,11 @@ namespace lipsync::cli {
 
 /// A track with the names that go with its values.
 struct NamedTrack {
-  std::string model;                        ///< the server's model name
-  std::vector<std::string> channel_names;   ///< one per track channel
-  std::vector<std::string> arkit_names;     ///< empty when there are no ARKit weights
+  std::string model;                       ///< the server's model name
+  std::vector<std::string> channel_names;  ///< one per track channel
+  std::vector<std::string> arkit_names;    ///< empty when there are no ARKit weights
   Track track;
-  std::vector<float> arkit;                 ///< frame_count() × arkit_names.size()
+  std::vector<float> arkit;  ///< frame_count() × arkit_names.size()
 };
 
 /// The received frames with the header's names. ARKit weights: the server's,

@@ -90,12 +90,23 @@ class FfmpegWriter {
                const std::vector<std::string>& extra_inputs, const std::vector<std::string>& output_args)
       : destination_(destination) {
     const std::filesystem::path target(destination);
-    temp_path_ = (target.parent_path() / ("." + target.filename().string() + ".tmp-" + std::to_string(::getpid())))
-                     .string();
-    std::vector<std::string> args = {ffmpeg, "-hide_banner", "-loglevel", "error", "-y",
-                                     "-f", "rawvideo", "-pix_fmt", "rgb24", "-s",
-                                     std::to_string(width) + "x" + std::to_string(height), "-r", std::to_string(fps),
-                                     "-i", "pipe:0"};
+    temp_path_ =
+        (target.parent_path() / ("." + target.filename().string() + ".tmp-" + std::to_string(::getpid()))).string();
+    std::vector<std::string> args = {ffmpeg,
+                                     "-hide_banner",
+                                     "-loglevel",
+                                     "error",
+                                     "-y",
+                                     "-f",
+                                     "rawvideo",
+                                     "-pix_fmt",
+                                     "rgb24",
+                                     "-s",
+                                     std::to_string(width) + "x" + std::to_string(height),
+                                     "-r",
+                                     std::to_string(fps),
+                                     "-i",
+                                     "pipe:0"};
     args.insert(args.end(), extra_inputs.begin(), extra_inputs.end());
     args.insert(args.end(), output_args.begin(), output_args.end());
     args.push_back(temp_path_);
@@ -209,7 +220,8 @@ OutputRequest parse_output_request(const Arguments& arguments) {
     if (out.visemes.vocabulary != VisemeVocabulary::rhubarb || !out.format.visemes)
       throw UsageError("--extended-shapes needs --format rhubarb-tsv or rhubarb-json");
     const auto shapes = rhubarb_shapes_from_string(*letters);
-    if (!shapes) throw UsageError("--extended-shapes: '" + *letters + "' is not a set of G, H and X (e.g. GHX, GX or \"\")");
+    if (!shapes)
+      throw UsageError("--extended-shapes: '" + *letters + "' is not a set of G, H and X (e.g. GHX, GX or \"\")");
     out.visemes.rhubarb_shapes = *shapes;
   }
   TrackRequest& request = out.track;
@@ -227,14 +239,17 @@ OutputRequest parse_output_request(const Arguments& arguments) {
   out.subdivision = plan.mesh_subdivision;
   if (const auto text = arguments.value("still-at")) {
     out.still_at_s = parse_double_option("still-at", *text);
-    if (!(out.still_at_s >= 0.0 && std::isfinite(out.still_at_s))) throw UsageError("--still-at: '" + *text + "' must be >= 0");
+    if (!(out.still_at_s >= 0.0 && std::isfinite(out.still_at_s)))
+      throw UsageError("--still-at: '" + *text + "' must be >= 0");
     if (!out.still_path) throw UsageError("--still-at needs --still FILE");
   }
   if (out.audio_path && !out.video_path) throw UsageError("--audio needs --video FILE");
   const bool face_outputs = out.mesh_path || out.video_path || out.still_path;
 #ifndef LIPSYNC_WITH_FACE
   if (face_outputs) {
-    throw UsageError(std::string(out.mesh_path ? "--mesh" : out.video_path ? "--video" : "--still") +
+    throw UsageError(std::string(out.mesh_path    ? "--mesh"
+                                 : out.video_path ? "--video"
+                                                  : "--still") +
                      ": this lipsync was built without the physics face (LIPSYNC_BUILD_FACE=OFF)");
   }
 #endif
@@ -290,9 +305,8 @@ void render_outputs(const OutputRequest& out, LabeledUtterance utterance) {
 #ifdef LIPSYNC_WITH_FACE
   // The face: simulated once on the uniform grid, then exported and/or rendered.
   const face::FaceMesh mesh = face::build_face_mesh(face::FaceAsset::builtin(), out.subdivision);
-  const face::FaceRig rig = out.model_path
-                                ? face::FaceRig::from_json(face::FaceRig::builtin_json(), "rig.json", model)
-                                : face::FaceRig::builtin();
+  const face::FaceRig rig = out.model_path ? face::FaceRig::from_json(face::FaceRig::builtin_json(), "rig.json", model)
+                                           : face::FaceRig::builtin();
   // One face per input: the track's own frames (key frames included) stepped as lipsyncd steps its
   // mesh output (face::FaceTrackStepper); the glb keeps those poses, the video and the still show
   // them on the --fps grid, linear between frames as a glTF player does.

@@ -12,37 +12,43 @@
 namespace lipsync::cli {
 
 // The options of these outputs, shared by the commands that render.
-inline constexpr OptionSpec kModelOption = {"model", 0, "FILE", "articulation model JSON (see 'lipsync model dump')", "the built-in model"};
+inline constexpr OptionSpec kModelOption = {"model", 0, "FILE", "articulation model JSON (see 'lipsync model dump')",
+                                            "the built-in model"};
 // A fraction has no compile-time decimal form here: its default is written out and checked.
 static_assert(kDefaultClosureFraction == 0.6, "update the default shown by --help for --closure-fraction");
-inline constexpr OptionSpec kClosureFractionOption = {"closure-fraction", 0, "F",
-     "share of a /p b/ given to its closure when the input has no closure label, in (0, 1)", "0.6"};
-inline constexpr OptionSpec kFixedRateOption = {"fixed-rate", 0, "", "uniform grid only: no key frames at closures and short phonemes", "off"};
-inline constexpr OptionSpec kIncrementalOption = {"incremental", 0, "",
-     "feed the phonemes one at a time through the streaming renderer (output identical to offline)", "off"};
+inline constexpr OptionSpec kClosureFractionOption = {
+    "closure-fraction", 0, "F", "share of a /p b/ given to its closure when the input has no closure label, in (0, 1)",
+    "0.6"};
+inline constexpr OptionSpec kFixedRateOption = {
+    "fixed-rate", 0, "", "uniform grid only: no key frames at closures and short phonemes", "off"};
+inline constexpr OptionSpec kIncrementalOption = {
+    "incremental", 0, "",
+    "feed the phonemes one at a time through the streaming renderer (output identical to offline)", "off"};
 inline constexpr OptionSpec kLookaheadOption = {
     "lookahead", 0, "N",
     kRangedHelp<"segments after a frame's own that must be known before it is computed", kLookaheadSetting,
                 " (the maximum is exact)">.view(),
     kDefaultText<kLookaheadSetting>.view()};
-inline constexpr OptionSpec kMeshOption = {"mesh", 0, "FILE",
-     "also simulate the physics face and write it as a glTF binary (.glb: mesh and morph-target animation)",
-     "no mesh"};
+inline constexpr OptionSpec kMeshOption = {
+    "mesh", 0, "FILE",
+    "also simulate the physics face and write it as a glTF binary (.glb: mesh and morph-target animation)", "no mesh"};
 inline constexpr OptionSpec kMeshSubdivisionOption = {
     "mesh-subdivision", 0, "N",
     kRangedHelp<"face mesh subdivision level for --mesh, --video and --still", kMeshSubdivisionSetting>.view(),
     kDefaultText<kMeshSubdivisionSetting>.view()};
-inline constexpr OptionSpec kVideoOption = {"video", 0, "FILE", "also render a software preview of the face to FILE (.mp4, H.264; needs ffmpeg)",
-     "no video"};
-inline constexpr OptionSpec kStillOption = {"still", 0, "FILE", "also render one preview frame of the face to FILE (.png; needs ffmpeg)", "no still"};
-inline constexpr OptionSpec kStillAtOption = {"still-at", 0, "SECONDS", "time of the --still frame, >= 0 (the nearest --fps frame)", "0"};
+inline constexpr OptionSpec kVideoOption = {
+    "video", 0, "FILE", "also render a software preview of the face to FILE (.mp4, H.264; needs ffmpeg)", "no video"};
+inline constexpr OptionSpec kStillOption = {
+    "still", 0, "FILE", "also render one preview frame of the face to FILE (.png; needs ffmpeg)", "no still"};
+inline constexpr OptionSpec kStillAtOption = {"still-at", 0, "SECONDS",
+                                              "time of the --still frame, >= 0 (the nearest --fps frame)", "0"};
 
 struct OutputRequest {
   std::string output = "-";  ///< -o, "-" for stdout
   bool output_given = false;
   RenderFormat format{TrackFormat::json, std::nullopt};  ///< --format: a track or a viseme format
-  VisemeOptions visemes;                                  ///< with a viseme format: vocabulary, Rhubarb shapes
-  int moho_fps = 24;                                      ///< --moho-fps, with --format moho-dat
+  VisemeOptions visemes;                                 ///< with a viseme format: vocabulary, Rhubarb shapes
+  int moho_fps = 24;                                     ///< --moho-fps, with --format moho-dat
   TrackRequest track;
   std::optional<std::string> phone_set_name, model_path;
   std::optional<std::string> mesh_path, video_path, audio_path, still_path;

@@ -2,8 +2,8 @@
 // (ListModels), or one of them (GetModel), as text for a person or --json for
 // scripts. Unlike `lipsync model dump`, which prints the local built-in model
 // file, this asks a server, which may hold models loaded with --model NAME=FILE.
-#include <array>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstdio>
 #include <iostream>
@@ -20,10 +20,12 @@ namespace {
 /// --timeout: ListModels and GetModel answer at once.
 constexpr IntSetting kModelsTimeoutSetting = {1, 3600, 5};
 
-constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
-    {"json", 0, "", "print JSON: {\"models\": [MODEL...]} without NAME, MODEL with it", ""},
-    kTimeoutOption<"give up when the server has not answered after S seconds", kModelsTimeoutSetting>,
-}));
+constexpr auto kOptions =
+    join(kConnectionOptions,
+         std::to_array<OptionSpec>({
+             {"json", 0, "", "print JSON: {\"models\": [MODEL...]} without NAME, MODEL with it", ""},
+             kTimeoutOption<"give up when the server has not answered after S seconds", kModelsTimeoutSetting>,
+         }));
 
 constexpr std::string_view kUsage = "lipsync server-models [NAME] [options]";
 constexpr std::string_view kDescription =
@@ -54,8 +56,8 @@ void print_model(const client::v1::ModelInfo& info, std::ostream& out) {
     kind_width = std::max(kind_width, channel.kind().size());
   }
   out << "  channels: " << info.channels_size() << '\n';
-  const auto row = [&](const std::string& name, const std::string& kind, const std::string& min,
-                       const std::string& max, const std::string& rest, const std::string& description) {
+  const auto row = [&](const std::string& name, const std::string& kind, const std::string& min, const std::string& max,
+                       const std::string& rest, const std::string& description) {
     char cells[64];
     std::snprintf(cells, sizeof cells, "  %8s %8s %8s  ", min.c_str(), max.c_str(), rest.c_str());
     const std::string left = "    " + name + std::string(name_width - name.size() + 2, ' ') + kind +

@@ -25,18 +25,20 @@ namespace {
 /// --timeout: synthesis and rendering of one text.
 constexpr IntSetting kSpeakTimeoutSetting = {1, 86'400, 600};
 
-constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
-    kTrackOutputOption,
-    kTrackFormatOption,
-    {"wav", 0, "FILE", "also write the speech to FILE (16-bit mono PCM WAV at the server's rate, 22050 Hz)",
-     "no WAV"},
-    kVoiceOption,
-    kRateOption,
-    kFpsOption,
-    kServerModelOption,
-    kSessionOption,
-    kTimeoutOption<"give up when the call has not finished after S seconds", kSpeakTimeoutSetting>,
-}));
+constexpr auto kOptions =
+    join(kConnectionOptions,
+         std::to_array<OptionSpec>({
+             kTrackOutputOption,
+             kTrackFormatOption,
+             {"wav", 0, "FILE", "also write the speech to FILE (16-bit mono PCM WAV at the server's rate, 22050 Hz)",
+              "no WAV"},
+             kVoiceOption,
+             kRateOption,
+             kFpsOption,
+             kServerModelOption,
+             kSessionOption,
+             kTimeoutOption<"give up when the call has not finished after S seconds", kSpeakTimeoutSetting>,
+         }));
 
 constexpr std::string_view kUsage = "lipsync speak TEXT [options]";
 constexpr std::string_view kDescription =

@@ -16,16 +16,15 @@
 
 namespace lipsync::cli {
 
-inline constexpr OptionSpec kTextOption = {"text", 0, "WORDS",
-    "transcript of a WAV INPUT, for forced alignment (phones are recognised without one)", "none"};
-inline constexpr OptionSpec kTextFileOption = {"text-file", 0, "FILE", "the transcript read from FILE (UTF-8)",
-    "none"};
+inline constexpr OptionSpec kTextOption = {
+    "text", 0, "WORDS", "transcript of a WAV INPUT, for forced alignment (phones are recognised without one)", "none"};
+inline constexpr OptionSpec kTextFileOption = {"text-file", 0, "FILE", "the transcript read from FILE (UTF-8)", "none"};
 
 inline constexpr OptionSpec kVoiceOption = {"voice", 0, "NAME", "espeak-ng voice ('espeak-ng --voices' lists them)",
-    "en-us"};
-inline constexpr OptionSpec kRateOption = {"rate", 0, "WPM",
-                                           kRangedHelp<"speaking rate in words per minute", speech::kWordsPerMinuteSetting>.view(),
-                                           kDefaultText<speech::kWordsPerMinuteSetting>.view()};
+                                            "en-us"};
+inline constexpr OptionSpec kRateOption = {
+    "rate", 0, "WPM", kRangedHelp<"speaking rate in words per minute", speech::kWordsPerMinuteSetting>.view(),
+    kDefaultText<speech::kWordsPerMinuteSetting>.view()};
 
 /// The synthesis options from --voice and --rate (UsageError for an empty voice or a rate out of range).
 speech::SynthesisOptions synthesis_options(const Arguments& arguments);

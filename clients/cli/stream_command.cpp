@@ -14,11 +14,11 @@
 // --playout-delay after the stream starts, on the "unix" clock; by default
 // that is the lookahead's release delay on read speech (release_delay.hpp)
 // plus a margin, so that players on that clock get every frame in time.
-#include <array>
 #include <algorithm>
+#include <array>
 #include <chrono>
-#include <mutex>
 #include <iostream>
+#include <mutex>
 #include <thread>
 
 #include "arguments.hpp"

@@ -21,14 +21,16 @@ namespace {
 /// --timeout: a session may run for hours.
 constexpr IntSetting kFollowTimeoutSetting = {1, 86'400, 3600};
 
-constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
-    kTrackOutputOption,
-    kTrackFormatOption,
-    {"from-beginning", 0, "", "replay the frames the server still holds, then follow (the default)", ""},
-    kFromNowOption,
-    kWaitOption,
-    kTimeoutOption<"give up when the session has not finished after S seconds", kFollowTimeoutSetting>,
-}));
+constexpr auto kOptions =
+    join(kConnectionOptions,
+         std::to_array<OptionSpec>({
+             kTrackOutputOption,
+             kTrackFormatOption,
+             {"from-beginning", 0, "", "replay the frames the server still holds, then follow (the default)", ""},
+             kFromNowOption,
+             kWaitOption,
+             kTimeoutOption<"give up when the session has not finished after S seconds", kFollowTimeoutSetting>,
+         }));
 
 constexpr std::string_view kUsage = "lipsync subscribe SESSION [options]";
 constexpr std::string_view kDescription =

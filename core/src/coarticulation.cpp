@@ -144,7 +144,7 @@ struct FrameSums {
   const std::size_t* slot_row;      // per slot: where its shape's row starts in alpha and alpha_target
   const std::size_t* slot_targets;  // per slot: where its segment's phoneme's row starts in target
   std::size_t slots;
-  double* numerator;                // per padded channel, written
+  double* numerator;  // per padded channel, written
   double* denominator;
   double* low;
   double* high;
@@ -308,7 +308,7 @@ LIPSYNC_VECTOR_CLONES void shape_weights(const double* __restrict log_shape, con
 /// Pass 1 of an evaluation for up to kLanes instants in one segment, one per lane.
 struct WindowLogs {
   const Segment* window;
-  std::size_t first;                 // the window's segments [first, last] are those the instants see
+  std::size_t first;  // the window's segments [first, last] are those the instants see
   std::size_t last;
   std::size_t current;               // the segment that contains them
   const DominanceParams* shapes;     // the tables' shapes (α = 1)
@@ -482,7 +482,8 @@ CoarticulationTables::CoarticulationTables(const ArticulationModel& model)
     // and for the padding.
     for (std::size_t k = first_shape; k < shapes_.size(); ++k) {
       for (std::size_t c = 0; c < padded_channels_; ++c) {
-        const bool in_shape = c < channels_ && channel_shape_[channel_shape_.size() - padded_channels_ + c] == k - first_shape;
+        const bool in_shape =
+            c < channels_ && channel_shape_[channel_shape_.size() - padded_channels_ + c] == k - first_shape;
         alpha_.push_back(in_shape ? phoneme.dominance[c].alpha : 0.0);
         alpha_target_.push_back(in_shape ? phoneme.dominance[c].alpha * phoneme.targets[c] : 0.0);
       }
@@ -654,8 +655,8 @@ void CoarticulationEvaluator::evaluate_channel_in_log_space(Scratch& scratch, st
   scratch.high[channel] = high;
 }
 
-void evaluate_unwindowed(const ArticulationModel& model, std::span<const Segment> segments,
-                         std::int64_t t_us, std::span<float> out) {
+void evaluate_unwindowed(const ArticulationModel& model, std::span<const Segment> segments, std::int64_t t_us,
+                         std::span<float> out) {
   const std::size_t channels = model.channel_count();
   std::vector<double> log_weight(segments.size() * channels);
   std::vector<double> max_log(channels, kNegativeInfinity);

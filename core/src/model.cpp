@@ -16,19 +16,24 @@
 namespace lipsync {
 
 const std::array<std::string_view, 52> kArkitNames = {
-    "eyeBlinkLeft",       "eyeLookDownLeft",    "eyeLookInLeft",       "eyeLookOutLeft",
-    "eyeLookUpLeft",      "eyeSquintLeft",      "eyeWideLeft",         "eyeBlinkRight",
-    "eyeLookDownRight",   "eyeLookInRight",     "eyeLookOutRight",     "eyeLookUpRight",
-    "eyeSquintRight",     "eyeWideRight",       "jawForward",          "jawLeft",
-    "jawRight",           "jawOpen",            "mouthClose",          "mouthFunnel",
-    "mouthPucker",        "mouthLeft",          "mouthRight",          "mouthSmileLeft",
-    "mouthSmileRight",    "mouthFrownLeft",     "mouthFrownRight",     "mouthDimpleLeft",
-    "mouthDimpleRight",   "mouthStretchLeft",   "mouthStretchRight",   "mouthRollLower",
-    "mouthRollUpper",     "mouthShrugLower",    "mouthShrugUpper",     "mouthPressLeft",
-    "mouthPressRight",    "mouthLowerDownLeft", "mouthLowerDownRight", "mouthUpperUpLeft",
-    "mouthUpperUpRight",  "browDownLeft",       "browDownRight",       "browInnerUp",
-    "browOuterUpLeft",    "browOuterUpRight",   "cheekPuff",           "cheekSquintLeft",
-    "cheekSquintRight",   "noseSneerLeft",      "noseSneerRight",      "tongueOut",
+    "eyeBlinkLeft",      "eyeLookDownLeft",    "eyeLookInLeft",
+    "eyeLookOutLeft",    "eyeLookUpLeft",      "eyeSquintLeft",
+    "eyeWideLeft",       "eyeBlinkRight",      "eyeLookDownRight",
+    "eyeLookInRight",    "eyeLookOutRight",    "eyeLookUpRight",
+    "eyeSquintRight",    "eyeWideRight",       "jawForward",
+    "jawLeft",           "jawRight",           "jawOpen",
+    "mouthClose",        "mouthFunnel",        "mouthPucker",
+    "mouthLeft",         "mouthRight",         "mouthSmileLeft",
+    "mouthSmileRight",   "mouthFrownLeft",     "mouthFrownRight",
+    "mouthDimpleLeft",   "mouthDimpleRight",   "mouthStretchLeft",
+    "mouthStretchRight", "mouthRollLower",     "mouthRollUpper",
+    "mouthShrugLower",   "mouthShrugUpper",    "mouthPressLeft",
+    "mouthPressRight",   "mouthLowerDownLeft", "mouthLowerDownRight",
+    "mouthUpperUpLeft",  "mouthUpperUpRight",  "browDownLeft",
+    "browDownRight",     "browInnerUp",        "browOuterUpLeft",
+    "browOuterUpRight",  "cheekPuff",          "cheekSquintLeft",
+    "cheekSquintRight",  "noseSneerLeft",      "noseSneerRight",
+    "tongueOut",
 };
 
 namespace {
@@ -38,18 +43,23 @@ constexpr std::size_t kArkitMouthClose = 18;
 
 std::string_view to_string(PhonemeClass phoneme_class) {
   switch (phoneme_class) {
-    case PhonemeClass::vowel: return "vowel";
-    case PhonemeClass::consonant: return "consonant";
-    case PhonemeClass::closure: return "closure";
-    case PhonemeClass::release: return "release";
-    case PhonemeClass::silence: return "silence";
+    case PhonemeClass::vowel:
+      return "vowel";
+    case PhonemeClass::consonant:
+      return "consonant";
+    case PhonemeClass::closure:
+      return "closure";
+    case PhonemeClass::release:
+      return "release";
+    case PhonemeClass::silence:
+      return "silence";
   }
   return "?";
 }
 
 std::optional<PhonemeClass> phoneme_class_from_string(std::string_view name) {
-  for (auto cls : {PhonemeClass::vowel, PhonemeClass::consonant, PhonemeClass::closure,
-                   PhonemeClass::release, PhonemeClass::silence}) {
+  for (auto cls : {PhonemeClass::vowel, PhonemeClass::consonant, PhonemeClass::closure, PhonemeClass::release,
+                   PhonemeClass::silence}) {
     if (to_string(cls) == name) return cls;
   }
   return std::nullopt;
@@ -71,9 +81,7 @@ class ObjectReader {
     if (!object_.is_object()) fail("must be a JSON object");
   }
 
-  [[noreturn]] void fail(const std::string& message) const {
-    throw InputError(source_, 0, where_ + ": " + message);
-  }
+  [[noreturn]] void fail(const std::string& message) const { throw InputError(source_, 0, where_ + ": " + message); }
   [[noreturn]] void fail_field(std::string_view key, const std::string& message) const {
     throw InputError(source_, 0, where_ + ", field '" + std::string(key) + "': " + message);
   }
@@ -282,8 +290,8 @@ ArticulationModel ArticulationModel::from_json(std::string_view json_text, std::
       throw InputError(source, 0, "phoneme '" + release_name + "', field 'closure': unknown phoneme '" + closure + "'");
     }
     if (model.phonemes_[static_cast<std::size_t>(*closure_index)].phoneme_class != PhonemeClass::closure) {
-      throw InputError(source, 0, "phoneme '" + release_name + "', field 'closure': '" + closure +
-                                      "' is not of class closure");
+      throw InputError(source, 0,
+                       "phoneme '" + release_name + "', field 'closure': '" + closure + "' is not of class closure");
     }
     model.phonemes_[release].closure_phoneme = *closure_index;
   }
@@ -334,8 +342,7 @@ std::optional<int> ArticulationModel::find_phoneme(std::string_view name) const 
   return std::nullopt;
 }
 
-void ArticulationModel::retarget_to_arkit(std::span<const float> channel_values,
-                                          std::span<float> arkit_out) const {
+void ArticulationModel::retarget_to_arkit(std::span<const float> channel_values, std::span<float> arkit_out) const {
   const std::size_t channels = channels_.size();
   for (std::size_t shape = 0; shape < kArkitNames.size(); ++shape) {
     const double* row = arkit_matrix_.data() + shape * channels;

@@ -23,9 +23,12 @@ using nlohmann::json;
 std::size_t code_point_length(std::string_view text, std::size_t i) {
   const auto lead = static_cast<unsigned char>(text[i]);
   std::size_t length = 1;
-  if (lead >= 0xF0) length = 4;
-  else if (lead >= 0xE0) length = 3;
-  else if (lead >= 0xC0) length = 2;
+  if (lead >= 0xF0)
+    length = 4;
+  else if (lead >= 0xE0)
+    length = 3;
+  else if (lead >= 0xC0)
+    length = 2;
   return std::min(length, text.size() - i);
 }
 
@@ -46,8 +49,7 @@ constexpr std::string_view kDetectionOrder[] = {"arpabet", "radio", "timit", "ip
 
 }  // namespace
 
-PhoneSet PhoneSet::from_json(std::string_view json_text, std::string_view source_name,
-                             const ArticulationModel& model) {
+PhoneSet PhoneSet::from_json(std::string_view json_text, std::string_view source_name, const ArticulationModel& model) {
   const std::string source(source_name);
   json root;
   try {
@@ -58,11 +60,16 @@ PhoneSet PhoneSet::from_json(std::string_view json_text, std::string_view source
   const auto fail = [&](const std::string& message) { throw InputError(source, 0, message); };
   if (!root.is_object()) fail("a phone set must be a JSON object");
   for (const auto& [key, value] : root.items()) {
-    static const std::vector<std::string> known = {"format",         "version",
-                                                   "name",           "description",
-                                                   "case_sensitive", "ignore_characters",
-                                                   "phones",         "fallback_ignore_characters",
-                                                   "fallback_split", "fallback_skip",
+    static const std::vector<std::string> known = {"format",
+                                                   "version",
+                                                   "name",
+                                                   "description",
+                                                   "case_sensitive",
+                                                   "ignore_characters",
+                                                   "phones",
+                                                   "fallback_ignore_characters",
+                                                   "fallback_split",
+                                                   "fallback_skip",
                                                    "phoneme_substitutes"};
     if (std::find(known.begin(), known.end(), key) == known.end()) fail("unknown field '" + key + "'");
   }
@@ -122,12 +129,13 @@ PhoneSet PhoneSet::from_json(std::string_view json_text, std::string_view source
   for (const auto& [label, target] : root["phones"].items()) {
     if (!target.is_string()) fail("phones '" + label + "': the model phoneme must be a string");
     auto phoneme = model.find_phoneme(target.get<std::string>());
-    if (const auto substitute = substitutes.find(target.get<std::string>()); !phoneme && substitute != substitutes.end()) {
+    if (const auto substitute = substitutes.find(target.get<std::string>());
+        !phoneme && substitute != substitutes.end()) {
       phoneme = model.find_phoneme(substitute->second);
     }
     if (!phoneme) {
-      fail("phones '" + label + "': maps to '" + target.get<std::string>() + "', which model '" +
-           model.name() + "' does not have");
+      fail("phones '" + label + "': maps to '" + target.get<std::string>() + "', which model '" + model.name() +
+           "' does not have");
     }
     const std::string key = set.normalise(label);
     if (key.empty()) fail("phones '" + label + "': the label is empty after normalisation");
@@ -139,9 +147,7 @@ PhoneSet PhoneSet::from_json(std::string_view json_text, std::string_view source
   return set;
 }
 
-std::vector<std::string> PhoneSet::builtin_names() {
-  return {std::begin(kDetectionOrder), std::end(kDetectionOrder)};
-}
+std::vector<std::string> PhoneSet::builtin_names() { return {std::begin(kDetectionOrder), std::end(kDetectionOrder)}; }
 
 std::vector<PhoneSet> PhoneSet::builtin_all(const ArticulationModel& model) {
   std::vector<PhoneSet> sets;
@@ -222,8 +228,7 @@ std::optional<int> PhoneSet::fallback_lookup(const std::string& normalised) cons
   return chosen ? chosen : first;
 }
 
-const PhoneSet& detect_phone_set(const std::vector<PhoneSet>& candidates,
-                                 const std::vector<std::string_view>& labels) {
+const PhoneSet& detect_phone_set(const std::vector<PhoneSet>& candidates, const std::vector<std::string_view>& labels) {
   const PhoneSet* best = &candidates.front();
   std::size_t best_unknown = labels.size() + 1;
   for (const PhoneSet& set : candidates) {

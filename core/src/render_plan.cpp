@@ -56,8 +56,7 @@ int checked_lookahead(std::int64_t lookahead, std::string_view field) {
 
 double checked_closure_fraction(double fraction, std::string_view field) {
   if (!(fraction > 0.0 && fraction < 1.0)) {
-    out_of_range(field, shortest(fraction),
-                 "strictly between 0 and 1, default " + shortest(kDefaultClosureFraction));
+    out_of_range(field, shortest(fraction), "strictly between 0 and 1, default " + shortest(kDefaultClosureFraction));
   }
   return fraction;
 }
@@ -72,8 +71,8 @@ RenderPlan resolve_render_plan(const RenderSettings& settings, const SettingName
   plan.render.fixed_rate = settings.fixed_rate;
   plan.render.lookahead =
       checked_lookahead(settings.lookahead.value_or(kLookaheadSetting.default_value), names.lookahead);
-  plan.segments.closure_fraction = checked_closure_fraction(
-      settings.closure_fraction.value_or(kDefaultClosureFraction), names.closure_fraction);
+  plan.segments.closure_fraction =
+      checked_closure_fraction(settings.closure_fraction.value_or(kDefaultClosureFraction), names.closure_fraction);
   plan.mesh_subdivision = checked_mesh_subdivision(
       settings.mesh_subdivision.value_or(kMeshSubdivisionSetting.default_value), names.mesh_subdivision);
   return plan;

@@ -88,8 +88,7 @@ FrameIterator same_segment_end(FrameIterator begin, FrameIterator end) {
 
 }  // namespace
 
-Track render_track(const ArticulationModel& model, const std::vector<Segment>& segments,
-                   const RenderOptions& options) {
+Track render_track(const ArticulationModel& model, const std::vector<Segment>& segments, const RenderOptions& options) {
   return render_track(std::make_shared<const CoarticulationTables>(model), segments, options);
 }
 
@@ -122,11 +121,8 @@ Track render_track(std::shared_ptr<const CoarticulationTables> tables, const std
 StreamingRenderer::StreamingRenderer(const ArticulationModel& model, const RenderOptions& options)
     : StreamingRenderer(std::make_shared<const CoarticulationTables>(model), options) {}
 
-StreamingRenderer::StreamingRenderer(std::shared_ptr<const CoarticulationTables> tables,
-                                     const RenderOptions& options)
-    : options_(options),
-      scheduler_(tables->model(), schedule_options(options)),
-      evaluator_(std::move(tables)) {
+StreamingRenderer::StreamingRenderer(std::shared_ptr<const CoarticulationTables> tables, const RenderOptions& options)
+    : options_(options), scheduler_(tables->model(), schedule_options(options)), evaluator_(std::move(tables)) {
   window_.reserve(2 * kWindowRadius + 2);  // the most it holds (renderer.hpp)
 }
 

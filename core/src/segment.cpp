@@ -17,8 +17,8 @@ std::string seconds(std::int64_t time_us) { return format_seconds(time_us) + " s
 
 }  // namespace
 
-SegmentBuilder::SegmentBuilder(const ArticulationModel& model, const PhoneSet& phone_set,
-                               std::string source, SegmentOptions options)
+SegmentBuilder::SegmentBuilder(const ArticulationModel& model, const PhoneSet& phone_set, std::string source,
+                               SegmentOptions options)
     : model_(model), phone_set_(phone_set), source_(std::move(source)), options_(options) {
   checked_closure_fraction(options_.closure_fraction, "closure_fraction");
 }
@@ -30,8 +30,7 @@ void SegmentBuilder::push(std::string_view label, std::int64_t start_us, std::in
   };
   if (start_us < 0) fail("start time " + seconds(start_us) + " is negative");
   if (end_us > kMaxTimeUs || start_us > kMaxTimeUs) {
-    fail("time " + seconds(std::max(start_us, end_us)) +
-         " is beyond 24 hours; are the times in the right unit?");
+    fail("time " + seconds(std::max(start_us, end_us)) + " is beyond 24 hours; are the times in the right unit?");
   }
   if (end_us == start_us) {
     fail("zero duration (starts and ends at " + seconds(start_us) + ")");
@@ -41,8 +40,8 @@ void SegmentBuilder::push(std::string_view label, std::int64_t start_us, std::in
   }
   if (start_us < end_us_) {
     std::string previous = last_line_ > 0 ? " (line " + std::to_string(last_line_) + ")" : "";
-    fail("starts at " + seconds(start_us) + ", before the previous phoneme" + previous +
-         " ends at " + seconds(end_us_) + ": phonemes must be in time order and must not overlap");
+    fail("starts at " + seconds(start_us) + ", before the previous phoneme" + previous + " ends at " +
+         seconds(end_us_) + ": phonemes must be in time order and must not overlap");
   }
   const auto phoneme = phone_set_.lookup(label);
   if (!phoneme) fail("unknown label in phone set '" + phone_set_.name() + "'");
@@ -56,8 +55,8 @@ void SegmentBuilder::push(std::string_view label, std::int64_t start_us, std::in
   const std::int64_t duration_us = end_us - start_us;
   if (spec.phoneme_class == PhonemeClass::release && spec.closure_phoneme >= 0 &&
       last_phoneme_ != spec.closure_phoneme && duration_us >= 2) {
-    auto closure_us = static_cast<std::int64_t>(
-        std::llround(static_cast<double>(duration_us) * options_.closure_fraction));
+    auto closure_us =
+        static_cast<std::int64_t>(std::llround(static_cast<double>(duration_us) * options_.closure_fraction));
     closure_us = std::clamp<std::int64_t>(closure_us, 1, duration_us - 1);
     out.push_back({spec.closure_phoneme, PhonemeClass::closure, start_us, start_us + closure_us, line});
     phoneme_start_us += closure_us;

@@ -23,7 +23,9 @@ class Random {
     return low + static_cast<std::int64_t>(next() % static_cast<std::uint64_t>(high - low + 1));
   }
   template <typename T, std::size_t N>
-  const T& pick(const std::array<T, N>& items) { return items[next() % N]; }
+  const T& pick(const std::array<T, N>& items) {
+    return items[next() % N];
+  }
 
  private:
   std::uint64_t state_;
@@ -58,8 +60,7 @@ std::vector<LabeledInterval> synthesize_utterance(const SyntheticOptions& option
     bool pause = i > 0 && random.unit() < options.pause_share;
     if (pause) {
       label = "SIL";
-      duration_ms = random.unit() < options.long_pause_share ? random.between(1000, 3000)
-                                                              : random.between(100, 500);
+      duration_ms = random.unit() < options.long_pause_share ? random.between(1000, 3000) : random.between(100, 500);
     } else if (vowel_next) {
       label = std::string(random.pick(kVowels)) + static_cast<char>('0' + random.between(0, 2));
       // Sum of two uniforms: more mid-length vowels than extremes.
@@ -68,8 +69,8 @@ std::vector<LabeledInterval> synthesize_utterance(const SyntheticOptions& option
     } else {
       const PhoneClass& cls = *random.pick(kConsonantClasses);
       label = std::string(cls.labels[random.next() % cls.count]);
-      duration_ms = random.unit() < options.short_share ? random.between(5, 25)
-                                                        : random.between(cls.min_ms, cls.max_ms);
+      duration_ms =
+          random.unit() < options.short_share ? random.between(5, 25) : random.between(cls.min_ms, cls.max_ms);
       vowel_next = random.unit() < 0.7;  // consonant clusters are common
     }
     const std::int64_t duration_us = duration_ms * 1000 + random.between(0, 999);

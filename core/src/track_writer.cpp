@@ -71,11 +71,21 @@ class TextBuffer {
     text_.push_back('"');
     for (const char ch : text) {
       switch (ch) {
-        case '"': text_.append("\\\""); break;
-        case '\\': text_.append("\\\\"); break;
-        case '\n': text_.append("\\n"); break;
-        case '\r': text_.append("\\r"); break;
-        case '\t': text_.append("\\t"); break;
+        case '"':
+          text_.append("\\\"");
+          break;
+        case '\\':
+          text_.append("\\\\");
+          break;
+        case '\n':
+          text_.append("\\n");
+          break;
+        case '\r':
+          text_.append("\\r");
+          break;
+        case '\t':
+          text_.append("\\t");
+          break;
         default:
           if (static_cast<unsigned char>(ch) < 0x20) {
             constexpr char kHex[] = "0123456789abcdef";
@@ -196,25 +206,64 @@ void write_csv(const NamedTrackView& view, std::ostream& out) {
 
 // Live Link Face blendshape columns, in the order of its CSV header.
 constexpr std::array<std::string_view, 52> kLiveLinkFaceShapes = {
-    "EyeBlinkLeft",     "EyeLookDownLeft",    "EyeLookInLeft",       "EyeLookOutLeft",
-    "EyeLookUpLeft",    "EyeSquintLeft",      "EyeWideLeft",         "EyeBlinkRight",
-    "EyeLookDownRight", "EyeLookInRight",     "EyeLookOutRight",     "EyeLookUpRight",
-    "EyeSquintRight",   "EyeWideRight",       "JawForward",          "JawRight",
-    "JawLeft",          "JawOpen",            "MouthClose",          "MouthFunnel",
-    "MouthPucker",      "MouthRight",         "MouthLeft",           "MouthSmileLeft",
-    "MouthSmileRight",  "MouthFrownLeft",     "MouthFrownRight",     "MouthDimpleLeft",
-    "MouthDimpleRight", "MouthStretchLeft",   "MouthStretchRight",   "MouthRollLower",
-    "MouthRollUpper",   "MouthShrugLower",    "MouthShrugUpper",     "MouthPressLeft",
-    "MouthPressRight",  "MouthLowerDownLeft", "MouthLowerDownRight", "MouthUpperUpLeft",
-    "MouthUpperUpRight", "BrowDownLeft",      "BrowDownRight",       "BrowInnerUp",
-    "BrowOuterUpLeft",  "BrowOuterUpRight",   "CheekPuff",           "CheekSquintLeft",
-    "CheekSquintRight", "NoseSneerLeft",      "NoseSneerRight",      "TongueOut",
+    "EyeBlinkLeft",
+    "EyeLookDownLeft",
+    "EyeLookInLeft",
+    "EyeLookOutLeft",
+    "EyeLookUpLeft",
+    "EyeSquintLeft",
+    "EyeWideLeft",
+    "EyeBlinkRight",
+    "EyeLookDownRight",
+    "EyeLookInRight",
+    "EyeLookOutRight",
+    "EyeLookUpRight",
+    "EyeSquintRight",
+    "EyeWideRight",
+    "JawForward",
+    "JawRight",
+    "JawLeft",
+    "JawOpen",
+    "MouthClose",
+    "MouthFunnel",
+    "MouthPucker",
+    "MouthRight",
+    "MouthLeft",
+    "MouthSmileLeft",
+    "MouthSmileRight",
+    "MouthFrownLeft",
+    "MouthFrownRight",
+    "MouthDimpleLeft",
+    "MouthDimpleRight",
+    "MouthStretchLeft",
+    "MouthStretchRight",
+    "MouthRollLower",
+    "MouthRollUpper",
+    "MouthShrugLower",
+    "MouthShrugUpper",
+    "MouthPressLeft",
+    "MouthPressRight",
+    "MouthLowerDownLeft",
+    "MouthLowerDownRight",
+    "MouthUpperUpLeft",
+    "MouthUpperUpRight",
+    "BrowDownLeft",
+    "BrowDownRight",
+    "BrowInnerUp",
+    "BrowOuterUpLeft",
+    "BrowOuterUpRight",
+    "CheekPuff",
+    "CheekSquintLeft",
+    "CheekSquintRight",
+    "NoseSneerLeft",
+    "NoseSneerRight",
+    "TongueOut",
 };
 
 // Head and eye rotations that follow the blendshapes; lipsyncd writes 0.
 constexpr std::array<std::string_view, 9> kLiveLinkFaceRotations = {
-    "HeadYaw",     "HeadPitch",     "HeadRoll",     "LeftEyeYaw", "LeftEyePitch",
-    "LeftEyeRoll", "RightEyeYaw",   "RightEyePitch", "RightEyeRoll",
+    "HeadYaw",     "HeadPitch",   "HeadRoll",      "LeftEyeYaw",   "LeftEyePitch",
+    "LeftEyeRoll", "RightEyeYaw", "RightEyePitch", "RightEyeRoll",
 };
 
 constexpr std::size_t kLiveLinkFaceCount = kLiveLinkFaceShapes.size() + kLiveLinkFaceRotations.size();
@@ -298,11 +347,10 @@ void write_arkit_csv(const NamedTrackView& view, std::ostream& out) {
 
 /// Throws std::invalid_argument unless the track's times, kinds and values agree.
 void check_track_arrays(const Track& track) {
-  if (track.kinds.size() != track.frame_count() ||
-      track.values.size() != track.frame_count() * track.channel_count) {
-    throw std::invalid_argument("track arrays disagree: " + std::to_string(track.frame_count()) +
-                                " times, " + std::to_string(track.kinds.size()) + " kinds, " +
-                                std::to_string(track.values.size()) + " values");
+  if (track.kinds.size() != track.frame_count() || track.values.size() != track.frame_count() * track.channel_count) {
+    throw std::invalid_argument("track arrays disagree: " + std::to_string(track.frame_count()) + " times, " +
+                                std::to_string(track.kinds.size()) + " kinds, " + std::to_string(track.values.size()) +
+                                " values");
   }
 }
 
@@ -310,9 +358,12 @@ void check_track_arrays(const Track& track) {
 
 std::string_view to_string(TrackFormat format) {
   switch (format) {
-    case TrackFormat::json: return "json";
-    case TrackFormat::csv: return "csv";
-    case TrackFormat::arkit_csv: return "arkit-csv";
+    case TrackFormat::json:
+      return "json";
+    case TrackFormat::csv:
+      return "csv";
+    case TrackFormat::arkit_csv:
+      return "arkit-csv";
   }
   return "?";
 }
@@ -337,18 +388,22 @@ void write_track(const NamedTrackView& view, TrackFormat format, std::ostream& o
                                 std::to_string(view.arkit.size()) + " weights were given");
   }
   switch (format) {
-    case TrackFormat::json: write_json(view, out); return;
-    case TrackFormat::csv: write_csv(view, out); return;
-    case TrackFormat::arkit_csv: write_arkit_csv(view, out); return;
+    case TrackFormat::json:
+      write_json(view, out);
+      return;
+    case TrackFormat::csv:
+      write_csv(view, out);
+      return;
+    case TrackFormat::arkit_csv:
+      write_arkit_csv(view, out);
+      return;
   }
 }
 
-void write_track(const Track& track, const ArticulationModel& model, TrackFormat format,
-                 std::ostream& out) {
+void write_track(const Track& track, const ArticulationModel& model, TrackFormat format, std::ostream& out) {
   if (track.channel_count != model.channel_count()) {
-    throw std::invalid_argument("track has " + std::to_string(track.channel_count) +
-                                " channels but model '" + model.name() + "' has " +
-                                std::to_string(model.channel_count()));
+    throw std::invalid_argument("track has " + std::to_string(track.channel_count) + " channels but model '" +
+                                model.name() + "' has " + std::to_string(model.channel_count()));
   }
   check_track_arrays(track);  // before retargeting reads every frame
   std::vector<std::string_view> channel_names;

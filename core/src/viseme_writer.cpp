@@ -131,9 +131,7 @@ void write_polly(const VisemeTrackView& view, std::ostream& out) {
   flush(text, out);
 }
 
-std::string_view rhubarb_rest(const VisemeClassifier& classifier) {
-  return classifier.names()[classifier.silence()];
-}
+std::string_view rhubarb_rest(const VisemeClassifier& classifier) { return classifier.names()[classifier.silence()]; }
 
 void write_rhubarb_tsv(const VisemeTrackView& view, std::ostream& out) {
   std::string text;
@@ -177,11 +175,16 @@ void write_rhubarb_json(const VisemeTrackView& view, std::ostream& out) {
 
 std::string_view to_string(VisemeFormat format) {
   switch (format) {
-    case VisemeFormat::oculus: return "visemes-oculus";
-    case VisemeFormat::azure: return "visemes-azure";
-    case VisemeFormat::polly: return "visemes-polly";
-    case VisemeFormat::rhubarb_tsv: return "rhubarb-tsv";
-    case VisemeFormat::rhubarb_json: return "rhubarb-json";
+    case VisemeFormat::oculus:
+      return "visemes-oculus";
+    case VisemeFormat::azure:
+      return "visemes-azure";
+    case VisemeFormat::polly:
+      return "visemes-polly";
+    case VisemeFormat::rhubarb_tsv:
+      return "rhubarb-tsv";
+    case VisemeFormat::rhubarb_json:
+      return "rhubarb-json";
   }
   return "?";
 }
@@ -196,11 +199,15 @@ std::optional<VisemeFormat> viseme_format_from_string(std::string_view name) {
 
 VisemeVocabulary vocabulary_of(VisemeFormat format) {
   switch (format) {
-    case VisemeFormat::oculus: return VisemeVocabulary::oculus;
-    case VisemeFormat::azure: return VisemeVocabulary::azure;
-    case VisemeFormat::polly: return VisemeVocabulary::polly;
+    case VisemeFormat::oculus:
+      return VisemeVocabulary::oculus;
+    case VisemeFormat::azure:
+      return VisemeVocabulary::azure;
+    case VisemeFormat::polly:
+      return VisemeVocabulary::polly;
     case VisemeFormat::rhubarb_tsv:
-    case VisemeFormat::rhubarb_json: return VisemeVocabulary::rhubarb;
+    case VisemeFormat::rhubarb_json:
+      return VisemeVocabulary::rhubarb;
   }
   return VisemeVocabulary::oculus;
 }
@@ -240,10 +247,18 @@ void write_visemes(const VisemeTrackView& view, VisemeFormat format, std::ostrea
   }
   switch (format) {
     case VisemeFormat::oculus:
-    case VisemeFormat::azure: write_lipsync_visemes(view, out); return;
-    case VisemeFormat::polly: write_polly(view, out); return;
-    case VisemeFormat::rhubarb_tsv: write_rhubarb_tsv(view, out); return;
-    case VisemeFormat::rhubarb_json: write_rhubarb_json(view, out); return;
+    case VisemeFormat::azure:
+      write_lipsync_visemes(view, out);
+      return;
+    case VisemeFormat::polly:
+      write_polly(view, out);
+      return;
+    case VisemeFormat::rhubarb_tsv:
+      write_rhubarb_tsv(view, out);
+      return;
+    case VisemeFormat::rhubarb_json:
+      write_rhubarb_json(view, out);
+      return;
   }
 }
 

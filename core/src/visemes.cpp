@@ -34,7 +34,7 @@ const VisemeRow kOculus[] = {
     {"CH", {"ch", "jh", "sh", "zh"}},
     {"SS", {"s", "z"}},
     {"nn", {"n", "l"}},
-    {"RR", {"r", "er"}},              // r-coloured vowel with /r/, as OVRLipSync's examples do
+    {"RR", {"r", "er"}},  // r-coloured vowel with /r/, as OVRLipSync's examples do
     {"aa", {"aa", "ae", "ah", "ay", "aw"}},
     {"E", {"eh", "ey", "ax"}},
     {"ih", {"ih", "iy", "y"}},
@@ -91,16 +91,17 @@ const VisemeRow kPolly[] = {
 
 // Rhubarb Lip Sync's shapes, in its order, after its README's descriptions.
 const VisemeRow kRhubarb[] = {
-    {"A", {"pcl", "bcl", "m"}},                                       // closed, slight pressure
-    {"B", {"t", "d", "k", "g", "ng", "s", "z", "sh", "zh", "ch", "jh", "th", "dh", "n", "y", "iy", "ih", "dx",
-           "hh"}},                                                    // clenched teeth: most consonants, EE
-    {"C", {"eh", "ae", "ah", "ax", "ey"}},                            // open: men, bat
-    {"D", {"aa", "ay", "aw"}},                                        // wide open: father
-    {"E", {"ao", "er", "r"}},                                         // slightly rounded: off, bird
-    {"F", {"uw", "ow", "w", "uh", "oy"}},                             // puckered: you, show, way
-    {"G", {"f", "v"}},                                                // upper teeth on the lower lip
-    {"H", {"l"}},                                                     // long L, tongue raised
-    {"X", {"sil"}},                                                   // idle
+    {"A", {"pcl", "bcl", "m"}},  // closed, slight pressure
+    {"B",
+     {"t", "d", "k", "g", "ng", "s", "z", "sh", "zh", "ch", "jh", "th", "dh", "n", "y", "iy", "ih", "dx",
+      "hh"}},                               // clenched teeth: most consonants, EE
+    {"C", {"eh", "ae", "ah", "ax", "ey"}},  // open: men, bat
+    {"D", {"aa", "ay", "aw"}},              // wide open: father
+    {"E", {"ao", "er", "r"}},               // slightly rounded: off, bird
+    {"F", {"uw", "ow", "w", "uh", "oy"}},   // puckered: you, show, way
+    {"G", {"f", "v"}},                      // upper teeth on the lower lip
+    {"H", {"l"}},                           // long L, tongue raised
+    {"X", {"sil"}},                         // idle
 };
 // The largest vocabulary (Azure) has 22.
 constexpr std::size_t kMaxVisemes = 22;
@@ -108,20 +109,24 @@ constexpr std::uint32_t kRhubarbA = 0, kRhubarbB = 1, kRhubarbC = 2, kRhubarbG =
 
 std::span<const VisemeRow> rows(VisemeVocabulary vocabulary) {
   switch (vocabulary) {
-    case VisemeVocabulary::oculus: return kOculus;
-    case VisemeVocabulary::azure: return kAzure;
-    case VisemeVocabulary::polly: return kPolly;
-    case VisemeVocabulary::rhubarb: return kRhubarb;
+    case VisemeVocabulary::oculus:
+      return kOculus;
+    case VisemeVocabulary::azure:
+      return kAzure;
+    case VisemeVocabulary::polly:
+      return kPolly;
+    case VisemeVocabulary::rhubarb:
+      return kRhubarb;
   }
   return {};
 }
 
 // Channel weights w_c before range normalisation.
-constexpr double kVisibleWeight = 1.0;   // lips, cheeks, jaw
-constexpr double kTongueWeight = 0.5;    // seen only through the open mouth
-constexpr double kClosingWeight = 4.0;   // channels a closure phoneme dominates
+constexpr double kVisibleWeight = 1.0;  // lips, cheeks, jaw
+constexpr double kTongueWeight = 0.5;   // seen only through the open mouth
+constexpr double kClosingWeight = 4.0;  // channels a closure phoneme dominates
 constexpr double kClosingAlphaRatio = 10.0;
-constexpr double kShapingWeight = 2.0;   // channels a closure shapes without sealing (the raised upper lip of /f v/)
+constexpr double kShapingWeight = 2.0;  // channels a closure shapes without sealing (the raised upper lip of /f v/)
 constexpr double kShapingAlphaRatio = 2.0;
 // T = kTemperatureShare × median over visemes of the squared distance to the nearest other prototype.
 constexpr double kTemperatureShare = 0.25;
@@ -130,10 +135,14 @@ constexpr double kTemperatureShare = 0.25;
 
 std::string_view to_string(VisemeVocabulary vocabulary) {
   switch (vocabulary) {
-    case VisemeVocabulary::oculus: return "oculus";
-    case VisemeVocabulary::azure: return "azure";
-    case VisemeVocabulary::polly: return "polly";
-    case VisemeVocabulary::rhubarb: return "rhubarb";
+    case VisemeVocabulary::oculus:
+      return "oculus";
+    case VisemeVocabulary::azure:
+      return "azure";
+    case VisemeVocabulary::polly:
+      return "polly";
+    case VisemeVocabulary::rhubarb:
+      return "rhubarb";
   }
   return "?";
 }
@@ -183,7 +192,8 @@ VisemeClassifier::VisemeClassifier(const ArticulationModel& model, const VisemeO
     }
     if (found == 0) {
       std::string wanted;
-      for (const std::string_view phoneme : table[v].phonemes) wanted += (wanted.empty() ? "" : " ") + std::string(phoneme);
+      for (const std::string_view phoneme : table[v].phonemes)
+        wanted += (wanted.empty() ? "" : " ") + std::string(phoneme);
       throw InputError("model '" + model.name() + "'", 0,
                        std::string(to_string(options.vocabulary)) + " viseme '" + names_.back() +
                            "': the model has none of its phonemes (" + wanted + ")");

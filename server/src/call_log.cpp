@@ -5,21 +5,21 @@
 // replaced), so every line parses.
 #include "call_log.hpp"
 
+#include <spdlog/pattern_formatter.h>
+#include <spdlog/spdlog.h>
+
 #include <array>
 #include <atomic>
 #include <charconv>
 #include <cstddef>
 #include <ctime>
 #include <memory>
-
 #include <nlohmann/json.hpp>
-#include <spdlog/pattern_formatter.h>
-#include <spdlog/spdlog.h>
 
 #include "lipsync/excerpt.hpp"
 #include "lipsync/grpc_status_name.hpp"
-#include "transport/listener.hpp"
 #include "metrics.hpp"
+#include "transport/listener.hpp"
 
 namespace lipsync::server {
 namespace {
@@ -65,15 +65,12 @@ class JsonFormatter final : public spdlog::formatter {
 };
 
 /// The session as a log shows it: whole if a valid session name could be that long, else an excerpt.
-std::string logged_session(const std::string& session) {
-  return session.size() <= 256 ? session : excerpt(session);
-}
+std::string logged_session(const std::string& session) { return session.size() <= 256 ? session : excerpt(session); }
 
 /// The peer as gRPC names it, resolved to the client's address for connections lipsyncd accepted itself.
 std::string resolved_peer(const std::string& peer) {
   int fd = -1;
-  if (peer.rfind("fd:", 0) == 0 &&
-      std::from_chars(peer.data() + 3, peer.data() + peer.size(), fd).ec == std::errc()) {
+  if (peer.rfind("fd:", 0) == 0 && std::from_chars(peer.data() + 3, peer.data() + peer.size(), fd).ec == std::errc()) {
     return connection_peer(fd);
   }
   return peer;

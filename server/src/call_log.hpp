@@ -11,14 +11,14 @@
 // are written as excerpts (lipsync/excerpt.hpp) in text; json escapes them.
 #pragma once
 
+#include <grpcpp/grpcpp.h>
+#include <spdlog/common.h>
+
 #include <chrono>
 #include <cstdint>
 #include <initializer_list>
 #include <string>
 #include <string_view>
-
-#include <grpcpp/grpcpp.h>
-#include <spdlog/common.h>
 
 namespace lipsync::server {
 

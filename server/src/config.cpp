@@ -9,9 +9,6 @@
 // Environment, sit under the variables and name the variable or file key in errors.
 #include "lipsync/server/config.hpp"
 
-#include "lipsync/options/command_line.hpp"
-#include "lipsync/setting_ranges.hpp"
-
 #include <algorithm>
 #include <cctype>
 #include <cstdlib>
@@ -22,11 +19,14 @@
 #include <sstream>
 #include <string_view>
 
+#include "lipsync/options/command_line.hpp"
+#include "lipsync/setting_ranges.hpp"
+
 namespace lipsync::server {
 namespace {
 
 struct Setting {
-  std::string name;   // flag or JSON key, e.g. "--max-streams"
+  std::string name;  // flag or JSON key, e.g. "--max-streams"
   std::string value;
 };
 
@@ -159,7 +159,9 @@ const std::vector<Option>& options() {
        },
        [](const ServerConfig& c) { return c.log_level; }},
       {"--log-format", "FORMAT", "text (spdlog lines) or json (one object per line)",
-       [](ServerConfig& c, const Setting& s) { c.log_format = parse_choice(s, {"text", "json"}); },
+       [](ServerConfig& c, const Setting& s) {
+         c.log_format = parse_choice(s, {"text", "json"});
+       },
        [](const ServerConfig& c) { return c.log_format; }},
       {"--metrics-listen", "HOST:PORT", "serve Prometheus metrics over HTTP at /metrics here (\"\" = off)",
        [](ServerConfig& c, const Setting& s) { c.metrics_listen = s.value.empty() ? "" : parse_host_port(s); },
@@ -173,8 +175,7 @@ const std::vector<Option>& options() {
          c.models.push_back({s.value.substr(0, eq), s.value.substr(eq + 1)});
        },
        [](const ServerConfig&) { return std::string("none"); }},
-      {"--replica-name", "NAME",
-       "this replica's name in errors about sessions it does not hold (a pod or host name)",
+      {"--replica-name", "NAME", "this replica's name in errors about sessions it does not hold (a pod or host name)",
        [](ServerConfig& c, const Setting& s) { c.replica_name = s.value; },
        [](const ServerConfig&) { return std::string("host name and listen address"); }},
       {"--tls-cert", "FILE", "PEM certificate chain: serve TLS (needs --tls-key; reloaded on SIGHUP)",
@@ -280,7 +281,8 @@ options::ParsedArguments parse_flags(const std::vector<std::string>& args) {
     }
     return parsed;
   } catch (const options::ArgumentError& error) {
-    if (error.kind() == options::ArgumentError::Kind::missing_value) throw ConfigError(error.option() + ": missing value");
+    if (error.kind() == options::ArgumentError::Kind::missing_value)
+      throw ConfigError(error.option() + ": missing value");
     const std::string& word = error.argument();
     throw ConfigError(word.substr(0, word.find('=')) + ": unknown flag (see --help)");
   }
@@ -323,9 +325,8 @@ CommandLine parse_command_line(const std::vector<std::string>& args, const Envir
   const std::vector<Setting> from_environment = read_environment(environment, environment_options);
   std::vector<Setting> settings;
   if (!config_path.empty()) settings = read_config_file(config_path);
-  const bool flags_have_models = std::any_of(flags.begin(), flags.end(), [](const Setting& s) {
-    return s.name == "--model";
-  });
+  const bool flags_have_models =
+      std::any_of(flags.begin(), flags.end(), [](const Setting& s) { return s.name == "--model"; });
   const bool environment_has_models = std::any_of(environment_options.begin(), environment_options.end(),
                                                   [](const Option* o) { return o->flag == "--model"; });
   // Each source overrides the one before; a list of models replaces the list before it.

@@ -15,18 +15,18 @@
 //
 // `lipsyncd --hash-key` reads an API key from standard input and prints its
 // SHA-256, the form the key file holds (tenants.hpp).
-#include <csignal>
-#include <cstdlib>
-#include <cstdio>
-#include <iostream>
-#include <malloc.h>
-#include <pthread.h>
-#include <sys/resource.h>
-
 #include <absl/synchronization/mutex.h>
 #include <grpc/support/log.h>
+#include <malloc.h>
+#include <pthread.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
+#include <sys/resource.h>
+
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <iostream>
 
 #include "lipsync/error.hpp"
 #include "lipsync/server/config.hpp"
@@ -87,7 +87,7 @@ int main(int argc, char** argv) {
   gpr_set_log_function([](gpr_log_func_args* entry) {
     const spdlog::level::level_enum level = entry->severity == GPR_LOG_SEVERITY_ERROR  ? spdlog::level::err
                                             : entry->severity == GPR_LOG_SEVERITY_INFO ? spdlog::level::info
-                                                                                      : spdlog::level::debug;
+                                                                                       : spdlog::level::debug;
     spdlog::log(level, "grpc: {} ({}:{})", entry->message, entry->file, entry->line);
   });
   spdlog::set_level(spdlog::level::from_str(config.log_level));
@@ -143,8 +143,7 @@ int main(int argc, char** argv) {
     server->reload_credentials();
   }
   spdlog::info("{} received: draining for up to {} ms ({} streams open)",
-               signal_number == SIGTERM ? "SIGTERM" : "SIGINT", config.drain_deadline_ms,
-               server->active_streams());
+               signal_number == SIGTERM ? "SIGTERM" : "SIGINT", config.drain_deadline_ms, server->active_streams());
   server->drain_for_exit(std::chrono::milliseconds(config.drain_deadline_ms));
   spdlog::info("stopped");
   // Every call has ended and the connections had their grace: exit now, without

@@ -18,10 +18,14 @@ std::string number(double value) {
 std::string escaped_label(const std::string& value) {
   std::string out;
   for (const char c : value) {
-    if (c == '\\') out += "\\\\";
-    else if (c == '"') out += "\\\"";
-    else if (c == '\n') out += "\\n";
-    else out += c;
+    if (c == '\\')
+      out += "\\\\";
+    else if (c == '"')
+      out += "\\\"";
+    else if (c == '\n')
+      out += "\\n";
+    else
+      out += c;
   }
   return out;
 }
@@ -75,12 +79,12 @@ Family<Counter>& MetricsRegistry::counter(std::string name, std::string help, st
   return *counters_.back();
 }
 
-Family<Histogram>& MetricsRegistry::histogram(std::string name, std::string help,
-                                              std::vector<std::string> label_names, std::vector<double> bounds_s) {
+Family<Histogram>& MetricsRegistry::histogram(std::string name, std::string help, std::vector<std::string> label_names,
+                                              std::vector<double> bounds_s) {
   std::lock_guard lock(mutex_);
-  histograms_.push_back(std::make_unique<Family<Histogram>>(
-      std::move(name), std::move(help), std::move(label_names),
-      [bounds_s] { return std::make_unique<Histogram>(bounds_s); }));
+  histograms_.push_back(
+      std::make_unique<Family<Histogram>>(std::move(name), std::move(help), std::move(label_names),
+                                          [bounds_s] { return std::make_unique<Histogram>(bounds_s); }));
   return *histograms_.back();
 }
 
@@ -125,8 +129,8 @@ namespace {
 
 // From 100 µs to 10 s: a frame written at once is well under a millisecond; a held-back
 // producer or a subscriber behind a slow link takes seconds.
-const std::vector<double> kLatencyBounds_s = {0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01,
-                                              0.025,  0.05,    0.1,    0.25,  0.5,    1,     2.5, 5, 10};
+const std::vector<double> kLatencyBounds_s = {0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025,
+                                              0.05,   0.1,     0.25,   0.5,   1,      2.5,   5,    10};
 
 }  // namespace
 
@@ -139,11 +143,11 @@ ServerMetrics::ServerMetrics(MetricsRegistry& registry_in)
                                 "and status code: the reason.",
                                 {"method", "code", "tenant"})),
       frames_sent(registry.counter("lipsyncd_frames_sent_total", "Animation frames sent, by method.", {"method"})),
-      messages_sent(registry.counter("lipsyncd_messages_sent_total", "Messages written to streams, by method.",
-                                     {"method"})),
-      phonemes_received(registry.counter("lipsyncd_phonemes_received_total",
-                                         "Phonemes received by Animate and Render.", {})
-                            .with({})),
+      messages_sent(
+          registry.counter("lipsyncd_messages_sent_total", "Messages written to streams, by method.", {"method"})),
+      phonemes_received(
+          registry.counter("lipsyncd_phonemes_received_total", "Phonemes received by Animate and Render.", {})
+              .with({})),
       write_latency(registry
                         .histogram("lipsyncd_write_latency_seconds",
                                    "Per stream message: from computable (queued for the stream) to written "

@@ -135,13 +135,13 @@ struct ServerMetrics {
   explicit ServerMetrics(MetricsRegistry& registry);
 
   MetricsRegistry& registry;
-  Family<Counter>& calls;               ///< lipsyncd_calls_total{method,code,tenant}: calls ended, by status
-  Family<Counter>& refusals;            ///< lipsyncd_refusals_total{method,code,tenant}: ended with an error status of ours
-  Family<Counter>& frames_sent;         ///< lipsyncd_frames_sent_total{method}
-  Family<Counter>& messages_sent;       ///< lipsyncd_messages_sent_total{method}
-  Counter& phonemes_received;           ///< lipsyncd_phonemes_received_total
-  Histogram& write_latency;             ///< lipsyncd_write_latency_seconds: computable → written
-  Histogram& face_solver;               ///< lipsyncd_face_solver_seconds: per mesh frame batch
+  Family<Counter>& calls;          ///< lipsyncd_calls_total{method,code,tenant}: calls ended, by status
+  Family<Counter>& refusals;       ///< lipsyncd_refusals_total{method,code,tenant}: ended with an error status of ours
+  Family<Counter>& frames_sent;    ///< lipsyncd_frames_sent_total{method}
+  Family<Counter>& messages_sent;  ///< lipsyncd_messages_sent_total{method}
+  Counter& phonemes_received;      ///< lipsyncd_phonemes_received_total
+  Histogram& write_latency;        ///< lipsyncd_write_latency_seconds: computable → written
+  Histogram& face_solver;          ///< lipsyncd_face_solver_seconds: per mesh frame batch
   std::atomic<std::int64_t> queued_messages{0};  ///< lipsyncd_queued_messages (gauge)
   /// lipsyncd_streams{method,state="open",tenant}: a stream counts once authenticated, until OnDone.
   Family<Level> open_streams{"lipsyncd_streams", "", {"method", "tenant"}, [] { return std::make_unique<Level>(); }};

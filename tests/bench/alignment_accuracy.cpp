@@ -21,6 +21,8 @@
 // With ALIGNMENT_ACCURACY_DUMP=DIR it also writes each recording (16 kHz WAV), its
 // reference phones and the raw alignment (label, start µs, end µs per line) to DIR,
 // for trying refiner settings without decoding again.
+#include <unistd.h>
+
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -31,7 +33,6 @@
 #include <sstream>
 #include <string>
 #include <string_view>
-#include <unistd.h>
 
 #include "../speech/boundary_errors.hpp"
 #include "../speech/tts_recordings.hpp"
@@ -46,16 +47,18 @@ using testing::festival_recording;
 using testing::flite_recording;
 using testing::Recording;
 
-
 void report(const std::string& name, const testing::BoundaryScore& score, double seconds_audio, double seconds_cpu) {
-  std::printf("%-30s boundaries %4zu  median %5.1f ms  p95 %6.1f ms  (signed median %+5.1f ms)  matched %5.1f %%  bilabials %2d/%2d within 20 ms (%5.1f %%, median %5.1f ms, p95 %5.1f ms)  closed at middle %2d/%2d (%5.1f %%)  %.2fx real time\n",
-              name.c_str(), score.errors_ms.size(), testing::quantile(score.errors_ms, 0.5),
-              testing::quantile(score.errors_ms, 0.95),
-              testing::quantile(score.signed_errors_ms, 0.5), 100.0 * score.matched_phonemes / std::max(1, score.reference_phonemes),
-              score.bilabials_within_20ms, score.bilabials, 100.0 * score.bilabials_within_20ms / std::max(1, score.bilabials),
-              testing::quantile(score.bilabial_errors_ms, 0.5), testing::quantile(score.bilabial_errors_ms, 0.95),
-              score.bilabials_closed_at_middle, score.bilabials, 100.0 * score.bilabials_closed_at_middle / std::max(1, score.bilabials),
-              seconds_cpu / seconds_audio);
+  std::printf(
+      "%-30s boundaries %4zu  median %5.1f ms  p95 %6.1f ms  (signed median %+5.1f ms)  matched %5.1f %%  bilabials "
+      "%2d/%2d within 20 ms (%5.1f %%, median %5.1f ms, p95 %5.1f ms)  closed at middle %2d/%2d (%5.1f %%)  %.2fx real "
+      "time\n",
+      name.c_str(), score.errors_ms.size(), testing::quantile(score.errors_ms, 0.5),
+      testing::quantile(score.errors_ms, 0.95), testing::quantile(score.signed_errors_ms, 0.5),
+      100.0 * score.matched_phonemes / std::max(1, score.reference_phonemes), score.bilabials_within_20ms,
+      score.bilabials, 100.0 * score.bilabials_within_20ms / std::max(1, score.bilabials),
+      testing::quantile(score.bilabial_errors_ms, 0.5), testing::quantile(score.bilabial_errors_ms, 0.95),
+      score.bilabials_closed_at_middle, score.bilabials,
+      100.0 * score.bilabials_closed_at_middle / std::max(1, score.bilabials), seconds_cpu / seconds_audio);
 }
 
 }  // namespace
@@ -66,7 +69,8 @@ int main(int argc, char** argv) {
   const PhoneSet arpabet = *PhoneSet::builtin("arpabet", model);
   const bool have_flite = !espeak_only && std::system("command -v flite >/dev/null 2>&1") == 0;
   const bool have_festival = !espeak_only && std::system("command -v festival >/dev/null 2>&1") == 0;
-  const std::filesystem::path wav = std::filesystem::temp_directory_path() / ("alignment_accuracy-" + std::to_string(::getpid()) + ".wav");
+  const std::filesystem::path wav =
+      std::filesystem::temp_directory_path() / ("alignment_accuracy-" + std::to_string(::getpid()) + ".wav");
 
   for (const std::string source : {"espeak-ng", "flite", "festival"}) {
     if (source == "flite" && !have_flite) continue;
@@ -97,17 +101,22 @@ int main(int argc, char** argv) {
         const auto start = std::chrono::steady_clock::now();
         speech::Alignment aligned = speech::align_speech(recording->audio, source, options);
         seconds[with_text] += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-        testing::score_alignment(recording->phonemes, reference_set, aligned.phones, arpabet, model, scores[with_text][0]);
+        testing::score_alignment(recording->phonemes, reference_set, aligned.phones, arpabet, model,
+                                 scores[with_text][0]);
         if (const char* dump = std::getenv("ALIGNMENT_ACCURACY_DUMP")) {  // for tuning the refiner offline
-          const std::string stem = std::string(dump) + "/" + source + "-" + std::to_string(n) + (with_text ? "-text" : "-free");
+          const std::string stem =
+              std::string(dump) + "/" + source + "-" + std::to_string(n) + (with_text ? "-text" : "-free");
           std::ofstream wav_out(stem + ".wav", std::ios::binary);
           speech::write_wav(wav_out, at_16k);
           std::ofstream ref(stem + ".ref"), raw(stem + ".raw");
-          for (const auto& i : recording->phonemes.intervals) ref << i.label << '\t' << i.start_us << '\t' << i.end_us << '\n';
-          for (const auto& i : aligned.phones.intervals) raw << i.label << '\t' << i.start_us << '\t' << i.end_us << '\n';
+          for (const auto& i : recording->phonemes.intervals)
+            ref << i.label << '\t' << i.start_us << '\t' << i.end_us << '\n';
+          for (const auto& i : aligned.phones.intervals)
+            raw << i.label << '\t' << i.start_us << '\t' << i.end_us << '\n';
         }
         speech::refine_closures(at_16k, aligned.phones);
-        testing::score_alignment(recording->phonemes, reference_set, aligned.phones, arpabet, model, scores[with_text][1]);
+        testing::score_alignment(recording->phonemes, reference_set, aligned.phones, arpabet, model,
+                                 scores[with_text][1]);
       }
     }
     report(source + " with text, raw", scores[1][0], audio_s, seconds[1]);

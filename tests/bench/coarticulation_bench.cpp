@@ -34,8 +34,8 @@ const Utterance& utterance(std::size_t phonemes) {
   const ArticulationModel& model = ArticulationModel::builtin();
   const PhoneSet arpabet = *PhoneSet::builtin("arpabet", model);
   Utterance u;
-  u.segments = build_segments({"synthetic", "", synthesize_utterance({.phonemes = phonemes, .seed = 2002})},
-                              model, arpabet);
+  u.segments =
+      build_segments({"synthetic", "", synthesize_utterance({.phonemes = phonemes, .seed = 2002})}, model, arpabet);
   FrameScheduler scheduler(model, {.fps = 30});
   for (std::size_t i = 0; i < u.segments.size(); ++i) scheduler.add_segment(u.segments[i], i, u.frames);
   scheduler.finish(u.frames);

@@ -67,8 +67,10 @@ void face_frame(benchmark::State& state) {
     benchmark::DoNotOptimize(solver.positions().data());
   }
   state.counters["soft_nodes"] = mesh.soft_node_count;
-  state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
-  state.counters["realtime_x"] = benchmark::Counter(static_cast<double>(simulated_us) * 1e-6, benchmark::Counter::kIsRate);
+  state.counters["frames_per_s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["realtime_x"] =
+      benchmark::Counter(static_cast<double>(simulated_us) * 1e-6, benchmark::Counter::kIsRate);
   state.counters["track_frames"] = static_cast<double>(track.frame_count());
 }
 
@@ -88,7 +90,8 @@ void face_step(benchmark::State& state) {
   }
   state.counters["soft_nodes"] = mesh.soft_node_count;
   state.counters["springs"] = static_cast<double>(solver.spring_count());
-  state.counters["steps_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["steps_per_s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 
 const auto kMin = [](const std::vector<double>& v) { return *std::min_element(v.begin(), v.end()); };

@@ -36,6 +36,9 @@
 //   grpc_baseline_server [--listen 127.0.0.1:0] [--session-retention-ms 10000] [--busy-ns-per-frame 0]
 //
 // Prints "listening on HOST:PORT" on stdout; SIGINT/SIGTERM stop it.
+#include <absl/synchronization/mutex.h>
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/impl/codegen/proto_utils.h>
 #include <signal.h>
 
 #include <algorithm>
@@ -53,10 +56,6 @@
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <absl/synchronization/mutex.h>
-#include <grpcpp/grpcpp.h>
-#include <grpcpp/impl/codegen/proto_utils.h>
 
 // The generated base declares sync-API overloads of Animate that the callback
 // override hides on purpose (as in server/src/rpc/service.hpp).

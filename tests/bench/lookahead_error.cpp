@@ -20,7 +20,6 @@
 
 namespace {
 
-
 std::string flite_timing(const std::string& sentence) {
   const std::string command = "flite -voice slt -psdur -o none -t \"" + sentence + "\"";
   std::unique_ptr<FILE, int (*)(FILE*)> pipe(popen(command.c_str(), "r"), pclose);
@@ -50,7 +49,8 @@ int main(int argc, char** argv) {
     if (model.channels()[c].name == "jaw_rotation") jaw = c;
   }
 
-  std::cout << "| lookahead | mean wait (ms) | p95 wait (ms) | max wait (ms) | RMS error, all channels | max error, all channels | "
+  std::cout << "| lookahead | mean wait (ms) | p95 wait (ms) | max wait (ms) | RMS error, all channels | max error, "
+               "all channels | "
                "max error, jaw_rotation | frames off by > 0.01 |\n|---|---|---|---|---|---|---|---|\n";
   for (int lookahead = 0; lookahead <= 7; ++lookahead) {
     double squared = 0.0;
@@ -89,8 +89,8 @@ int main(int argc, char** argv) {
     double mean_wait = 0.0;
     for (double wait : waits_ms) mean_wait += wait / static_cast<double>(waits_ms.size());
     std::printf("| %d | %.0f | %.0f | %.0f | %.5f | %.4f | %.4f | %.1f %% |\n", lookahead, mean_wait,
-                waits_ms[waits_ms.size() * 95 / 100], waits_ms.back(), std::sqrt(squared / static_cast<double>(values)), worst, worst_jaw,
-                100.0 * static_cast<double>(frames_off) / static_cast<double>(frames));
+                waits_ms[waits_ms.size() * 95 / 100], waits_ms.back(), std::sqrt(squared / static_cast<double>(values)),
+                worst, worst_jaw, 100.0 * static_cast<double>(frames_off) / static_cast<double>(frames));
   }
   std::printf("\n%zu utterances, %d fps; errors are fractions of each channel's range.\n", utterances.size(), fps);
   return 0;

@@ -3,11 +3,10 @@
 // captured to files outside it) and checks the exit status, the messages and
 // which files exist afterwards. Fixtures live in tests/data/cli/.
 #include <fcntl.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <filesystem>
@@ -20,22 +19,22 @@
 #include <string>
 #include <vector>
 
+#include "../support/child_process.hpp"
 #include "lipsync/model.hpp"
 #include "lipsync/phone_set.hpp"
 #include "lipsync/setting_ranges.hpp"
-#include "../support/child_process.hpp"
 
 namespace lipsync {
 namespace {
 
 namespace fs = std::filesystem;
+using ::testing::HasSubstr;
 using testing::make_temp_dir;
 using testing::read_text;
 using testing::run_program;
 using testing::RunResult;
-using testing::write_text;
-using ::testing::HasSubstr;
 using ::testing::StartsWith;
+using testing::write_text;
 
 const fs::path kFixtures = fs::path(LIPSYNC_TEST_DATA_DIR) / "cli";
 
@@ -134,12 +133,18 @@ TEST_F(CliTest, render_help_documents_every_option_with_its_default) {
   ASSERT_EQ(result.status, 0) << describe(result);
   EXPECT_THAT(result.out, StartsWith("Usage: lipsync render INPUT [options]\n"));
   const std::vector<std::pair<std::string, std::string>> options = {
-      {"--output FILE", "stdout"},          {"--format FORMAT", "json"},
-      {"--fps N", "30"},                    {"--model FILE", "the built-in model"},
-      {"--phone-set NAME", "auto"},         {"--input-format FORMAT", "detected"},
-      {"--tier NAME", "phones"},            {"--sample-rate HZ", "16000"},
-      {"--closure-fraction F", "0.6"},      {"--fixed-rate", "off"},
-      {"--incremental", "off"},             {"--lookahead N", "7"},
+      {"--output FILE", "stdout"},
+      {"--format FORMAT", "json"},
+      {"--fps N", "30"},
+      {"--model FILE", "the built-in model"},
+      {"--phone-set NAME", "auto"},
+      {"--input-format FORMAT", "detected"},
+      {"--tier NAME", "phones"},
+      {"--sample-rate HZ", "16000"},
+      {"--closure-fraction F", "0.6"},
+      {"--fixed-rate", "off"},
+      {"--incremental", "off"},
+      {"--lookahead N", "7"},
       {"--extended-shapes LETTERS", "GHX"},
   };
   std::map<std::string, std::string> line_of = help_entries(result.out);
@@ -236,8 +241,7 @@ TEST_F(CliTest, demo_follows_format_and_output) {
 TEST_F(CliTest, render_json_has_the_grid_frames) {
   // hello.json ends at 1.238 s: grid frames at round(i·10⁶/fps) < 1.238 s.
   for (const auto& [fps, expected] : std::vector<std::pair<int, std::size_t>>{{30, 38}, {60, 75}, {24, 30}}) {
-    const RunResult result =
-        run({"render", fixture("hello.json"), "--fixed-rate", "--fps", std::to_string(fps)});
+    const RunResult result = run({"render", fixture("hello.json"), "--fixed-rate", "--fps", std::to_string(fps)});
     ASSERT_EQ(result.status, 0) << describe(result);
     const auto track = nlohmann::json::parse(result.out);
     EXPECT_EQ(track["fps"], fps);
@@ -303,7 +307,7 @@ TEST_F(CliTest, every_input_format_renders_the_same_utterance) {
 }
 
 TEST_F(CliTest, incremental_output_is_byte_identical_to_offline) {
-  const std::vector<std::string> inputs = {"hello.json",  "bump_map.json", "bump_map.psdur", "bump_map.lab",
+  const std::vector<std::string> inputs = {"hello.json",   "bump_map.json", "bump_map.psdur",   "bump_map.lab",
                                            "bump_map.PHN", "bump_map.pho",  "bump_map.TextGrid"};
   const std::vector<std::vector<std::string>> option_sets = {
       {}, {"--fps", "60"}, {"--fixed-rate"}, {"--lookahead", "2"}, {"--fps", "24", "--closure-fraction", "0.3"}};

@@ -1,12 +1,12 @@
 // lipsync::options, the CLI11 layer both programs parse with: the forms a user
 // may write (`--name VALUE`, `--name=VALUE`, `-o VALUE`, `--`, a lone `-`), and
 // each mistake coming back as an ArgumentError that names the word and the option.
+#include "lipsync/options/command_line.hpp"
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <array>
-
-#include "lipsync/options/command_line.hpp"
 
 namespace lipsync::options {
 namespace {

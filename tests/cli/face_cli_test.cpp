@@ -27,12 +27,12 @@ namespace lipsync {
 namespace {
 
 namespace fs = std::filesystem;
+using ::testing::HasSubstr;
 using testing::make_temp_dir;
 using testing::read_text;
 using testing::run_program;
 using testing::RunOptions;
 using testing::RunResult;
-using ::testing::HasSubstr;
 
 const fs::path kFixtures = fs::path(LIPSYNC_TEST_DATA_DIR) / "cli";
 
@@ -158,8 +158,8 @@ TEST_F(FaceCliTest, video_with_longer_audio_covers_the_audio) {
   EXPECT_EQ(probed.audio["codec_type"], "audio");
   EXPECT_EQ(probed.video["r_frame_rate"], "30/1");
   EXPECT_EQ(std::stoi(probed.video["nb_read_frames"].get<std::string>()), 36);  // ⌈1.2 s · 30⌉
-  EXPECT_NEAR(std::stod(probed.video["duration"].get<std::string>()), std::stod(probed.audio["duration"].get<std::string>()),
-              1.0 / 30);
+  EXPECT_NEAR(std::stod(probed.video["duration"].get<std::string>()),
+              std::stod(probed.audio["duration"].get<std::string>()), 1.0 / 30);
   // The track's last frame is at or after the end of the audio.
   const RunResult track = run({"render", kInput, "--audio", "speech.wav", "--video", "again.mp4", "-o", "track.csv",
                                "--format", "csv", "--mesh-subdivision", "0"});

@@ -5,12 +5,11 @@
 // channel called alt_<name>, so its frames equal the built-in model's and only
 // the names tell which model's layout a client wrote.
 #include <arpa/inet.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
 #include <unistd.h>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 #include <chrono>
 #include <cstdio>
@@ -30,10 +29,10 @@ namespace lipsync {
 namespace {
 
 namespace fs = std::filesystem;
-using testing::make_temp_dir;
-using testing::read_text;
 using ::testing::HasSubstr;
 using ::testing::IsEmpty;
+using testing::make_temp_dir;
+using testing::read_text;
 
 const fs::path kFixtures = fs::path(LIPSYNC_TEST_DATA_DIR) / "cli";
 constexpr std::string_view kRenamedPrefix = "alt_";
@@ -47,7 +46,8 @@ std::string renamed_model_json() {
     object = renamed;
   };
   model["name"] = "renamed";
-  for (auto& channel : model["channels"]) channel["name"] = std::string(kRenamedPrefix) + channel["name"].get<std::string>();
+  for (auto& channel : model["channels"])
+    channel["name"] = std::string(kRenamedPrefix) + channel["name"].get<std::string>();
   for (auto& [name, phoneme] : model["phonemes"].items()) {
     for (const char* field : {"targets", "channel_dominance"}) {
       if (phoneme.contains(field)) rename_keys(phoneme[field]);
@@ -189,8 +189,11 @@ class NetworkCliTest : public ::testing::Test {
   /// checking that both exited 0 and that no frame was late (no underrun, lateness always < 0).
   PlaySummary play_real_speech_without_late_frames(const std::string& file, const std::string& session,
                                                    const std::vector<std::string>& stream_options) {
-    std::vector<std::string> stream = {"stream", (fs::path(LIPSYNC_TEST_DATA_DIR) / "closures" / file).string(),
-                                       "--realtime", "--session", session, "--server", server(), "-o", "stream.json"};
+    std::vector<std::string> stream = {"stream",     (fs::path(LIPSYNC_TEST_DATA_DIR) / "closures" / file).string(),
+                                       "--realtime", "--session",
+                                       session,      "--server",
+                                       server(),     "-o",
+                                       "stream.json"};
     stream.insert(stream.end(), stream_options.begin(), stream_options.end());
     auto producer = start(stream, "producer");
     const RunResult played = run({"play", session, "--wait", "5", "--no-tty", "--server", server()});
@@ -218,8 +221,8 @@ TEST_F(NetworkCliTest, stream_equals_render_byte_for_byte_in_every_format) {
     for (const std::string input : {"hello.json", "bump_map.TextGrid"}) {
       const RunResult rendered = run({"render", fixture(input), "--format", format, "-o", "render.out"});
       ASSERT_EQ(rendered.status, 0) << rendered.err;
-      const RunResult streamed = run({"stream", fixture(input), "--fast", "--server", server(), "--format", format,
-                                      "-o", "stream.out"});
+      const RunResult streamed =
+          run({"stream", fixture(input), "--fast", "--server", server(), "--format", format, "-o", "stream.out"});
       ASSERT_EQ(streamed.status, 0) << streamed.err;
       EXPECT_EQ(output("stream.out"), output("render.out")) << input << " as " << format;
     }
@@ -236,9 +239,9 @@ TEST_F(NetworkCliTest, realtime_stream_in_chunks_equals_render) {
 
 TEST_F(NetworkCliTest, subscriber_receives_the_frames_of_a_realtime_stream) {
   ASSERT_EQ(run({"render", fixture("hello.json"), "-o", "render.json"}).status, 0);
-  auto producer = start({"stream", fixture("hello.json"), "--session", "subscribe-test", "--server", server(),
-                         "-o", "stream.json"},
-                        "producer");
+  auto producer =
+      start({"stream", fixture("hello.json"), "--session", "subscribe-test", "--server", server(), "-o", "stream.json"},
+            "producer");
   const RunResult subscribed =
       run({"subscribe", "subscribe-test", "--wait", "5", "--server", server(), "-o", "subscribe.json"});
   ASSERT_EQ(producer->wait(), 0) << read_text(capture_ / "producer.err");
@@ -251,8 +254,7 @@ TEST_F(NetworkCliTest, play_prints_a_line_per_update_until_the_session_ends) {
   auto producer = start({"stream", fixture("hello.json"), "--session", "play-test", "--playout-delay", "300",
                          "--server", server(), "-o", "stream.json"},
                         "producer");
-  const RunResult played =
-      run({"play", "play-test", "--wait", "5", "--no-tty", "--rate", "20", "--server", server()});
+  const RunResult played = run({"play", "play-test", "--wait", "5", "--no-tty", "--rate", "20", "--server", server()});
   ASSERT_EQ(producer->wait(), 0);
   ASSERT_EQ(played.status, 0) << played.err;
   EXPECT_THAT(played.out, HasSubstr("jaw |"));
@@ -277,11 +279,11 @@ TEST_F(NetworkCliTest, play_delays_itself_when_the_producers_playout_delay_is_sh
 }
 
 TEST_F(NetworkCliTest, play_stops_after_the_requested_number_of_updates) {
-  auto producer = start({"stream", fixture("hello.json"), "--session", "play-frames-test", "--server", server(),
-                         "-o", "stream.json"},
-                        "producer");
-  const RunResult played = run({"play", "play-frames-test", "--wait", "5", "--no-tty", "--frames", "3",
-                                "--rate", "50", "--server", server()});
+  auto producer = start(
+      {"stream", fixture("hello.json"), "--session", "play-frames-test", "--server", server(), "-o", "stream.json"},
+      "producer");
+  const RunResult played = run(
+      {"play", "play-frames-test", "--wait", "5", "--no-tty", "--frames", "3", "--rate", "50", "--server", server()});
   ASSERT_EQ(producer->wait(), 0);
   ASSERT_EQ(played.status, 0) << played.err;
   EXPECT_EQ(std::count(played.out.begin(), played.out.end(), '\n'), 4) << played.out;
@@ -320,7 +322,8 @@ TEST_F(NetworkCliTest, every_network_command_has_help_with_the_server_option) {
 TEST_F(NetworkCliTest, every_network_command_takes_the_whole_connection_group) {
   for (const std::string command : {"stream", "speak", "subscribe", "play", "loadtest", "server-models", "health"}) {
     const RunResult help = run({command, "--help"});
-    for (const std::string option : {"--server ADDR", "--tls", "--ca FILE", "--cert FILE", "--key FILE", "--api-key KEY"}) {
+    for (const std::string option :
+         {"--server ADDR", "--tls", "--ca FILE", "--cert FILE", "--key FILE", "--api-key KEY"}) {
       EXPECT_THAT(help.out, HasSubstr(option)) << command;
     }
     const RunResult flag_with_value = run({command, "--tls=yes"});  // each command's parser knows --tls as a flag
@@ -378,11 +381,11 @@ TEST_F(NetworkCliTest, loadtest_h2_client_sends_the_api_key_and_counts_refusals_
                                                 {.stdin_file = dir_ / "key", .path_env = std::nullopt});
   ASSERT_EQ(hashed.status, 0) << hashed.err;
   const std::string hash = hashed.out.substr(0, hashed.out.find('\n'));
-  testing::write_text(dir_ / "keys.json", R"({"tenants": {"load": {}}, "keys": [{"tenant": "load", "sha256": ")" +
-                                              hash + R"("}]})");
-  ChildProcess keyed({LIPSYNCD_BINARY, "--listen", "127.0.0.1:0", "--api-keys", (dir_ / "keys.json").string(),
-                      "--log-level", "warn"},
-                     dir_, capture_ / "keyed.out", capture_ / "keyed.err");
+  testing::write_text(dir_ / "keys.json",
+                      R"({"tenants": {"load": {}}, "keys": [{"tenant": "load", "sha256": ")" + hash + R"("}]})");
+  ChildProcess keyed(
+      {LIPSYNCD_BINARY, "--listen", "127.0.0.1:0", "--api-keys", (dir_ / "keys.json").string(), "--log-level", "warn"},
+      dir_, capture_ / "keyed.out", capture_ / "keyed.err");
   const std::string address = testing::wait_for_listening_address(capture_ / "keyed.out");
   ASSERT_FALSE(address.empty()) << read_text(capture_ / "keyed.err");
 
@@ -556,11 +559,12 @@ TEST_F(NetworkCliTest, stream_writes_the_channel_names_of_the_servers_model) {
   for (const std::string format : {"json", "csv", "arkit-csv"}) {
     const RunResult rendered = run({"render", fixture("hello.json"), "--format", format, "-o", "render.out"});
     ASSERT_EQ(rendered.status, 0) << rendered.err;
-    const RunResult streamed = run({"stream", fixture("hello.json"), "--fast", "--server-model", "renamed",
-                                    "--server", server(), "--format", format, "-o", "stream.out"});
+    const RunResult streamed = run({"stream", fixture("hello.json"), "--fast", "--server-model", "renamed", "--server",
+                                    server(), "--format", format, "-o", "stream.out"});
     ASSERT_EQ(streamed.status, 0) << streamed.err;
     // arkit-csv has no channel columns: the ARKit weights are the server's, equal to the built-in ones.
-    const std::string expected = format == "arkit-csv" ? output("render.out") : as_renamed(output("render.out"), format);
+    const std::string expected =
+        format == "arkit-csv" ? output("render.out") : as_renamed(output("render.out"), format);
     EXPECT_EQ(output("stream.out"), expected) << format;
   }
 }

@@ -99,9 +99,9 @@ TEST(PlaybackBuffer, past_the_end_of_a_finished_stream_is_not_an_underrun) {
 TEST(PlaybackBuffer, drift_reports_the_lead_of_the_newest_frame_and_arrival_lateness) {
   PlaybackBuffer buffer(1);
   buffer.anchor(10'000);
-  buffer.push(0, std::array{0.0F}, 9'000);       // 1 ms early
-  buffer.push(1000, std::array{1.0F}, 13'500);   // plays at 11'000: 2.5 ms late
-  buffer.push(2000, std::array{2.0F}, 12'500);   // plays at 12'000: 0.5 ms late
+  buffer.push(0, std::array{0.0F}, 9'000);      // 1 ms early
+  buffer.push(1000, std::array{1.0F}, 13'500);  // plays at 11'000: 2.5 ms late
+  buffer.push(2000, std::array{2.0F}, 12'500);  // plays at 12'000: 0.5 ms late
   EXPECT_EQ(buffer.stats().last_lateness_us, 500);
   EXPECT_EQ(buffer.stats().max_lateness_us, 2500);
 

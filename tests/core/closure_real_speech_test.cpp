@@ -34,8 +34,8 @@ struct Tally {
 void check(const testing::TimedUtterance& utterance, const RenderOptions& options, Tally& tally) {
   const Track track = render_track(model(), utterance.segments, options);
   std::vector<float> shapes(kArkitNames.size());
-  const std::string where = utterance.name + " at " + std::to_string(options.fps) + " fps" +
-                            (options.fixed_rate ? " fixed rate" : "");
+  const std::string where =
+      utterance.name + " at " + std::to_string(options.fps) + " fps" + (options.fixed_rate ? " fixed rate" : "");
   for (const auto& closure : closure_frames(model(), utterance.segments, track)) {
     const std::int64_t t_us = track.t_us[closure.frame];
     std::string channel;
@@ -70,9 +70,10 @@ TEST(RealSpeechClosures, EveryBilabialAndLabiodentalKeyFrameIsClosedInChannelsAn
   for (const int fps : {24, 30, 60, 120}) {
     Tally tally;
     for (const auto& utterance : corpus) check(utterance, {.fps = fps}, tally);
-    std::printf("[ measured ] %d fps: %zu bilabial and %zu labiodental key frames; worst closing channel %.2f %% "
-                "off; worst mouthClose - jawOpen %.3f\n",
-                fps, tally.bilabial, tally.labiodental, 100 * tally.worst_channel_error, tally.worst_seal);
+    std::printf(
+        "[ measured ] %d fps: %zu bilabial and %zu labiodental key frames; worst closing channel %.2f %% "
+        "off; worst mouthClose - jawOpen %.3f\n",
+        fps, tally.bilabial, tally.labiodental, 100 * tally.worst_channel_error, tally.worst_seal);
     EXPECT_GE(tally.bilabial, 90U);
     EXPECT_GE(tally.labiodental, 36U);
   }

@@ -40,8 +40,8 @@ std::vector<Segment> random_context(std::mt19937_64& random) {
   std::int64_t time_us = 0;
   for (int i = 0; i < 30; ++i) {
     const bool closure = random() % 3 == 0;
-    const int p = closure ? closures[random() % closures.size()]
-                          : static_cast<int>(random() % model().phonemes().size());
+    const int p =
+        closure ? closures[random() % closures.size()] : static_cast<int>(random() % model().phonemes().size());
     std::int64_t duration_us = 0;
     if (model().phoneme(p).phoneme_class == PhonemeClass::closure) {
       const double log_ms = std::log(5.0) + std::uniform_real_distribution<double>(0, 1)(random) * std::log(200.0);
@@ -62,7 +62,8 @@ std::string describe(const std::vector<Segment>& segments, std::size_t around) {
   const std::size_t first = around >= 2 ? around - 2 : 0;
   for (std::size_t s = first; s < segments.size() && s <= around + 2; ++s) {
     text << (s == around ? "[" : "") << model().phoneme(segments[s].phoneme).name << ' '
-         << static_cast<double>(segments[s].end_us - segments[s].start_us) / 1000.0 << " ms" << (s == around ? "] " : " ");
+         << static_cast<double>(segments[s].end_us - segments[s].start_us) / 1000.0 << " ms"
+         << (s == around ? "] " : " ");
   }
   return text.str();
 }
@@ -113,7 +114,8 @@ TEST(Closures, AFiveMillisecondBilabialBetweenLongOpenVowelsIsSealedAtBothKeyFra
     const Track track = render_track(model(), segments, {.fps = 30});
     const auto frames = closure_frames(model(), segments, track);
     ASSERT_EQ(frames.size(), 2U) << closure;
-    for (const auto& frame : frames) EXPECT_LE(closure_error(model(), segments, track, frame), kClosureTolerance) << closure;
+    for (const auto& frame : frames)
+      EXPECT_LE(closure_error(model(), segments, track, frame), kClosureTolerance) << closure;
   }
 }
 

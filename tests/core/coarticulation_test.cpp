@@ -124,8 +124,7 @@ TEST(Coarticulation, OutputIsAConvexCombinationOfTheWindowTargets) {
 }
 
 TEST(Coarticulation, TenMinutePauseStaysFiniteAndAtRest) {
-  const auto segments =
-      make_segments(test_model(), {{"aa", 0.0, 0.1}, {"sil", 0.1, 600.1}, {"iy", 600.1, 600.2}});
+  const auto segments = make_segments(test_model(), {{"aa", 0.0, 0.1}, {"sil", 0.1, 600.1}, {"iy", 600.1, 600.2}});
   for (std::int64_t t : {100'000LL, 1'000'000LL, 300'000'000LL, 599'000'000LL, 600'100'000LL - 1}) {
     const auto values = evaluate_at(segments, t);
     for (float v : values) ASSERT_TRUE(std::isfinite(v)) << "t = " << t;
@@ -223,7 +222,8 @@ const ArticulationModel& exponent_model() {
              "channel_dominance": {"pucker": {"c": 2, "theta_plus_per_s": 5000, "theta_minus_per_s": 5000}}}
     },
     "arkit": {"jawOpen": {"weights": {"jaw": 1.0}}}
-  })", "exponent test model");
+  })",
+                                                                      "exponent test model");
   return model;
 }
 
@@ -264,8 +264,8 @@ TEST(Coarticulation, InstantsEvaluatedTogetherGetTheBitsEachGetsAlone) {
           for (std::size_t k = 0; k < count; ++k) {
             alone.evaluate(window, current, times[k], row);
             ASSERT_EQ(std::memcmp(row.data(), rows.data() + k * channels, channels * sizeof(float)), 0)
-                << model->name() << ": segment " << current << ", instant " << k + 1 << " of " << count
-                << " at " << times[k] << " us";
+                << model->name() << ": segment " << current << ", instant " << k + 1 << " of " << count << " at "
+                << times[k] << " us";
           }
         }
       }

@@ -17,9 +17,7 @@ struct Timed {
   bool operator==(const Timed&) const = default;
 };
 
-void PrintTo(const Timed& frame, std::ostream* os) {
-  *os << frame.t_us << " µs " << to_string(frame.kind);
-}
+void PrintTo(const Timed& frame, std::ostream* os) { *os << frame.t_us << " µs " << to_string(frame.kind); }
 
 std::vector<Timed> schedule(const std::vector<Segment>& segments, ScheduleOptions options) {
   FrameScheduler scheduler(test_model(), options);
@@ -70,8 +68,7 @@ TEST(FrameScheduler, ClosureHasKeyFramesAtBothEndsAndNoUniformFramesInside) {
   EXPECT_THAT(schedule(segments, {.fps = 30}),
               ::testing::ElementsAre(Timed{0, FrameKind::uniform}, Timed{33'333, FrameKind::uniform},
                                      Timed{66'667, FrameKind::uniform}, Timed{100'000, FrameKind::uniform},
-                                     Timed{110'000, FrameKind::closure_start},
-                                     Timed{310'000, FrameKind::closure_end},
+                                     Timed{110'000, FrameKind::closure_start}, Timed{310'000, FrameKind::closure_end},
                                      Timed{343'333, FrameKind::uniform}, Timed{376'667, FrameKind::uniform}));
 }
 
@@ -86,8 +83,7 @@ TEST(FrameScheduler, ClosureEndingTheUtteranceGetsItsEndFrame) {
   const auto segments = make_segments(test_model(), {{"aa", 0.0, 0.1}, {"m", 0.1, 0.2}});
   EXPECT_THAT(schedule(segments, {.fps = 20}),
               ::testing::ElementsAre(Timed{0, FrameKind::uniform}, Timed{50'000, FrameKind::uniform},
-                                     Timed{100'000, FrameKind::closure_start},
-                                     Timed{200'000, FrameKind::closure_end}));
+                                     Timed{100'000, FrameKind::closure_start}, Timed{200'000, FrameKind::closure_end}));
 }
 
 TEST(FrameScheduler, ShortSegmentGetsAFrameAtItsPeakWithoutMovingTheGrid) {
@@ -108,8 +104,8 @@ TEST(FrameScheduler, ShortSegmentPeakHonoursThePeakOffsetAndIsClampedIntoTheSegm
 }
 
 TEST(FrameScheduler, FixedRateModeUsesOnlyTheGrid) {
-  const auto segments = make_segments(test_model(), {{"aa", 0.0, 0.11}, {"m", 0.11, 0.31}, {"t", 0.31, 0.32},
-                                                     {"aa", 0.32, 0.4}});
+  const auto segments =
+      make_segments(test_model(), {{"aa", 0.0, 0.11}, {"m", 0.11, 0.31}, {"t", 0.31, 0.32}, {"aa", 0.32, 0.4}});
   EXPECT_THAT(schedule(segments, {.fps = 10, .fixed_rate = true}),
               ::testing::ElementsAreArray(uniform_from(0, 100'000, 400'000)));
 }

@@ -4,7 +4,6 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-
 #include <fstream>
 #include <sstream>
 
@@ -69,9 +68,9 @@ TEST(ArticulationModel, BuiltinModelFollowsItsPhoneticRules) {
     EXPECT_GT(alpha(bilabial, "orbicularis_oris_upper"), alpha("aa", "orbicularis_oris_upper")) << bilabial;
   }
   EXPECT_GT(target("f", "orbicularis_oris_lower"), target("aa", "orbicularis_oris_lower"));  // lower lip tuck
-  EXPECT_GT(target("th", "tongue_protrusion"), target("s", "tongue_protrusion"));  // dentals
-  EXPECT_GT(target("t", "tongue_raise"), target("aa", "tongue_raise"));             // alveolars
-  EXPECT_LT(alpha("ax", "jaw_rotation"), alpha("aa", "jaw_rotation"));              // schwa is weak
+  EXPECT_GT(target("th", "tongue_protrusion"), target("s", "tongue_protrusion"));            // dentals
+  EXPECT_GT(target("t", "tongue_raise"), target("aa", "tongue_raise"));                      // alveolars
+  EXPECT_LT(alpha("ax", "jaw_rotation"), alpha("aa", "jaw_rotation"));                       // schwa is weak
   EXPECT_LT(alpha("hh", "jaw_rotation"), alpha("aa", "jaw_rotation"));
   EXPECT_EQ(model.phoneme(*model.find_phoneme("p")).closure_phoneme, *model.find_phoneme("pcl"));
 }
@@ -102,8 +101,9 @@ TEST(ArticulationModel, ValidationErrorsNameThePhonemeAndField) {
               ::testing::AllOf(HasSubstr("phoneme 'p'"), HasSubstr("'closure'"), HasSubstr("required")));
   EXPECT_THAT(load_error(edited(R"("closure": "pcl")", R"("closure": "aa")")),
               ::testing::AllOf(HasSubstr("phoneme 'p'"), HasSubstr("not of class closure")));
-  EXPECT_THAT(load_error(edited(R"("class": "vowel", "targets": {"lips": 0.2)", R"("class": "vowl", "targets": {"lips": 0.2)")),
-              ::testing::AllOf(HasSubstr("phoneme 'aa'"), HasSubstr("'class'"), HasSubstr("vowl")));
+  EXPECT_THAT(
+      load_error(edited(R"("class": "vowel", "targets": {"lips": 0.2)", R"("class": "vowl", "targets": {"lips": 0.2)")),
+      ::testing::AllOf(HasSubstr("phoneme 'aa'"), HasSubstr("'class'"), HasSubstr("vowl")));
   EXPECT_THAT(load_error(edited(R"("sil": {"class": "silence")", R"("pause": {"class": "silence")")),
               HasSubstr("'sil'"));
   EXPECT_THAT(load_error(edited(R"("jawOpen")", R"("jawOpened")")), HasSubstr("unknown ARKit blendshape 'jawOpened'"));

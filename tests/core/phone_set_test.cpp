@@ -87,11 +87,11 @@ TEST(PhoneSet, IpaKnowsEverySymbolOfTheIpaChart) {
   const PhoneSet ipa = *PhoneSet::builtin("ipa", model());
   // Pulmonic consonants, other symbols, vowels (IPA chart 2020).
   for (const char* symbol :
-       {"p", "b", "t", "d", "ʈ", "ɖ", "c", "ɟ", "k", "ɡ", "q", "ɢ", "ʔ", "m", "ɱ", "n", "ɳ", "ɲ", "ŋ", "ɴ", "ʙ", "r",
-        "ʀ", "ⱱ", "ɾ", "ɽ", "ɸ", "β", "f", "v", "θ", "ð", "s", "z", "ʃ", "ʒ", "ʂ", "ʐ", "ç", "ʝ", "x", "ɣ", "χ", "ʁ",
-        "ħ", "ʕ", "h", "ɦ", "ɬ", "ɮ", "ʋ", "ɹ", "ɻ", "j", "ɰ", "l", "ɭ", "ʎ", "ʟ", "ʍ", "w", "ɥ", "ʜ", "ʢ", "ʡ", "ɕ",
-        "ʑ", "ɺ", "ɧ", "i", "y", "ɨ", "ʉ", "ɯ", "u", "ɪ", "ʏ", "ʊ", "e", "ø", "ɘ", "ɵ", "ɤ", "o", "ə", "ɛ", "œ", "ɜ",
-        "ɞ", "ʌ", "ɔ", "æ", "ɐ", "a", "ɶ", "ɑ", "ɒ"}) {
+       {"p", "b", "t", "d", "ʈ", "ɖ", "c", "ɟ", "k", "ɡ", "q", "ɢ", "ʔ", "m", "ɱ", "n", "ɳ", "ɲ", "ŋ", "ɴ",
+        "ʙ", "r", "ʀ", "ⱱ", "ɾ", "ɽ", "ɸ", "β", "f", "v", "θ", "ð", "s", "z", "ʃ", "ʒ", "ʂ", "ʐ", "ç", "ʝ",
+        "x", "ɣ", "χ", "ʁ", "ħ", "ʕ", "h", "ɦ", "ɬ", "ɮ", "ʋ", "ɹ", "ɻ", "j", "ɰ", "l", "ɭ", "ʎ", "ʟ", "ʍ",
+        "w", "ɥ", "ʜ", "ʢ", "ʡ", "ɕ", "ʑ", "ɺ", "ɧ", "i", "y", "ɨ", "ʉ", "ɯ", "u", "ɪ", "ʏ", "ʊ", "e", "ø",
+        "ɘ", "ɵ", "ɤ", "o", "ə", "ɛ", "œ", "ɜ", "ɞ", "ʌ", "ɔ", "æ", "ɐ", "a", "ɶ", "ɑ", "ɒ"}) {
     EXPECT_TRUE(ipa.lookup(symbol)) << symbol;
   }
 }
@@ -124,16 +124,16 @@ TEST(PhoneSet, IpaGivesOtherLanguagesTheirOwnVowelsAndBilabialFricatives) {
 
 TEST(PhoneSet, IpaFallbackRemovesMarksAndSplitsLabelsIntoSymbols) {
   const PhoneSet ipa = *PhoneSet::builtin("ipa", model());
-  EXPECT_EQ(name_of(ipa.lookup("yː")), "ipa_y");    // length
-  EXPECT_EQ(name_of(ipa.lookup("ɯᵝ")), "ipa_ɯ");    // compressed (espeak-ng ja)
-  EXPECT_EQ(name_of(ipa.lookup("a˥˩")), "ae");      // tone letters
-  EXPECT_EQ(name_of(ipa.lookup("y-")), "ipa_y");    // an espeak-ng mnemonic mark
-  EXPECT_EQ(name_of(ipa.lookup("tʃʲ")), "ch");      // affricate + palatalisation
-  EXPECT_EQ(name_of(ipa.lookup("pɸ")), "p");        // an affricate: its stop
-  EXPECT_EQ(name_of(ipa.lookup("eu")), "ey");       // a diphthong: its onset
-  EXPECT_EQ(name_of(ipa.lookup("ja")), "ae");       // a glide onset is passed over
-  EXPECT_EQ(name_of(ipa.lookup("ʔi")), "iy");       // so is a glottal one
-  EXPECT_EQ(name_of(ipa.lookup("☃")), "<unknown>");  // not a symbol of the table
+  EXPECT_EQ(name_of(ipa.lookup("yː")), "ipa_y");      // length
+  EXPECT_EQ(name_of(ipa.lookup("ɯᵝ")), "ipa_ɯ");      // compressed (espeak-ng ja)
+  EXPECT_EQ(name_of(ipa.lookup("a˥˩")), "ae");        // tone letters
+  EXPECT_EQ(name_of(ipa.lookup("y-")), "ipa_y");      // an espeak-ng mnemonic mark
+  EXPECT_EQ(name_of(ipa.lookup("tʃʲ")), "ch");        // affricate + palatalisation
+  EXPECT_EQ(name_of(ipa.lookup("pɸ")), "p");          // an affricate: its stop
+  EXPECT_EQ(name_of(ipa.lookup("eu")), "ey");         // a diphthong: its onset
+  EXPECT_EQ(name_of(ipa.lookup("ja")), "ae");         // a glide onset is passed over
+  EXPECT_EQ(name_of(ipa.lookup("ʔi")), "iy");         // so is a glottal one
+  EXPECT_EQ(name_of(ipa.lookup("☃")), "<unknown>");   // not a symbol of the table
   EXPECT_EQ(name_of(ipa.lookup("aI")), "<unknown>");  // espeak's mnemonic: I is no IPA symbol
   EXPECT_EQ(name_of(ipa.lookup("ː")), "<unknown>");   // nothing left
 }
@@ -143,8 +143,8 @@ TEST(PhoneSet, IpaLookupOfAnyBytesGivesAPhonemeOrNothing) {
   // no UTF-8 at all (stray continuation bytes, cut sequences): the fallback's split never crashes,
   // loops or names a phoneme the model lacks.
   const PhoneSet ipa = *PhoneSet::builtin("ipa", model());
-  const std::vector<std::string> pieces = {"a", "y", "t", "ʃ", "ɔ", "\xCC\x83", "ː", "ʲ", "ʰ", "-", "#", "j", "ʔ",
-                                           "ɟʝ", "˥", "\x80", "\xCC", "\xE2\x98", "\xFF", "I", "@", " "};
+  const std::vector<std::string> pieces = {"a", "y", "t",  "ʃ", "ɔ",    "\xCC\x83", "ː",        "ʲ",    "ʰ", "-", "#",
+                                           "j", "ʔ", "ɟʝ", "˥", "\x80", "\xCC",     "\xE2\x98", "\xFF", "I", "@", " "};
   std::uint32_t state = 12345;
   const auto next = [&] { return state = state * 1664525U + 1013904223U; };
   std::size_t known = 0;
@@ -204,7 +204,8 @@ TEST(PhoneSet, DetectionPicksTheFirstSetThatKnowsEveryLabel) {
 TEST(PhoneSet, TableErrorsNameTheLabel) {
   try {
     PhoneSet::from_json(R"({"format": "lipsync-phone-set", "version": 1, "name": "x",
-                            "phones": {"A": "aa", "B": "nope"}})", "x.json", model());
+                            "phones": {"A": "aa", "B": "nope"}})",
+                        "x.json", model());
     FAIL() << "no error";
   } catch (const InputError& e) {
     EXPECT_THAT(e.what(), ::testing::AllOf(::testing::HasSubstr("x.json"), ::testing::HasSubstr("'B'"),

@@ -60,7 +60,8 @@ void expect_closures_are_shut(const Rendered& rendered, const std::string& name,
     for (std::int64_t key_time : {segment.start_us, segment.end_us}) {
       const auto it = std::find(track.t_us.begin(), track.t_us.end(), key_time);
       ASSERT_NE(it, track.t_us.end()) << name << ": no key frame at " << key_time << " µs (" << phoneme << ")";
-      EXPECT_NE(track.kinds[static_cast<std::size_t>(it - track.t_us.begin())], FrameKind::uniform) << name << " at " << key_time;
+      EXPECT_NE(track.kinds[static_cast<std::size_t>(it - track.t_us.begin())], FrameKind::uniform)
+          << name << " at " << key_time;
     }
     for (std::size_t f = 0; f < track.frame_count(); ++f) {
       if (track.t_us[f] > segment.start_us && track.t_us[f] < segment.end_us) {

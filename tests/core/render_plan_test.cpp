@@ -90,8 +90,7 @@ TEST(RenderPlan, errors_name_the_field_as_the_caller_spells_it) {
   EXPECT_EQ(error_of({.fps = 241}, wire), "settings.fps: '241' is out of range (1 to 240, default 30)");
   EXPECT_EQ(error_of({.lookahead = 8}, wire), "settings.lookahead: '8' is out of range (0 to 7, default 7)");
   EXPECT_THAT(error_of({.closure_fraction = 1.5}, wire), ::testing::StartsWith("settings.closure_fraction: '1.5'"));
-  EXPECT_THAT(error_of({.mesh_subdivision = 3}, wire),
-              ::testing::StartsWith("settings.outputs.mesh.subdivision: '3'"));
+  EXPECT_THAT(error_of({.mesh_subdivision = 3}, wire), ::testing::StartsWith("settings.outputs.mesh.subdivision: '3'"));
   try {
     resolve_render_plan({.lookahead = 9}, wire);
     FAIL() << "no error";

@@ -43,7 +43,8 @@ TEST(StreamingRenderer, EqualsTheOfflineRenderValueForValue) {
     const auto segments = testing::random_segments(test_model(), 1 + seed * 7, seed);
     for (int fps : {1, 20, 30, 240}) {
       SCOPED_TRACE("seed " + std::to_string(seed) + ", fps " + std::to_string(fps));
-      expect_identical(stream(test_model(), segments, {.fps = fps}), render_track(test_model(), segments, {.fps = fps}));
+      expect_identical(stream(test_model(), segments, {.fps = fps}),
+                       render_track(test_model(), segments, {.fps = fps}));
     }
   }
 }
@@ -73,7 +74,8 @@ TEST(StreamingRenderer, ChunkedPhonemeInputGivesTheSameTrackAsAWholeFile) {
     std::vector<Segment> chunk_segments;
     for (std::size_t i = 0; i < intervals.size();) {
       const std::size_t chunk = 1 + random() % 12;
-      for (std::size_t end = std::min(intervals.size(), i + chunk); i < end; ++i) builder.push(intervals[i], chunk_segments);
+      for (std::size_t end = std::min(intervals.size(), i + chunk); i < end; ++i)
+        builder.push(intervals[i], chunk_segments);
       for (const Segment& segment : chunk_segments) renderer.push(segment, streamed);
       chunk_segments.clear();
     }
@@ -84,9 +86,15 @@ TEST(StreamingRenderer, ChunkedPhonemeInputGivesTheSameTrackAsAWholeFile) {
 }
 
 TEST(StreamingRenderer, EmitsAFrameOnceSevenSegmentsAfterItAreKnown) {
-  const auto segments = testing::make_segments(
-      test_model(), {{"aa", 0.0, 0.1}, {"iy", 0.1, 0.2}, {"s", 0.2, 0.3}, {"aa", 0.3, 0.4}, {"t", 0.4, 0.5},
-                     {"aa", 0.5, 0.6}, {"iy", 0.6, 0.7}, {"s", 0.7, 0.8}, {"aa", 0.8, 0.9}});
+  const auto segments = testing::make_segments(test_model(), {{"aa", 0.0, 0.1},
+                                                              {"iy", 0.1, 0.2},
+                                                              {"s", 0.2, 0.3},
+                                                              {"aa", 0.3, 0.4},
+                                                              {"t", 0.4, 0.5},
+                                                              {"aa", 0.5, 0.6},
+                                                              {"iy", 0.6, 0.7},
+                                                              {"s", 0.7, 0.8},
+                                                              {"aa", 0.8, 0.9}});
   StreamingRenderer renderer(test_model(), {.fps = 10});
   Track track;
   track.channel_count = test_model().channel_count();

@@ -10,15 +10,16 @@
 namespace lipsync {
 namespace {
 
-using testing::test_model;
 using ::testing::HasSubstr;
+using testing::test_model;
 
 const PhoneSet& test_phone_set() {
   static const PhoneSet set = PhoneSet::from_json(R"({
     "format": "lipsync-phone-set", "version": 1, "name": "test-set", "case_sensitive": false,
     "ignore_characters": "012",
     "phones": {"AA": "aa", "IY": "iy", "S": "s", "T": "t", "P": "p", "PCL": "pcl", "M": "m", "SIL": "sil"}
-  })", "test phone set", test_model());
+  })",
+                                                  "test phone set", test_model());
   return set;
 }
 
@@ -56,9 +57,9 @@ TEST(SegmentBuilder, MapsLabelsThroughThePhoneSet) {
 }
 
 TEST(SegmentBuilder, GapsAndALeadingGapBecomeSilence) {
-  EXPECT_THAT(names(build({{"AA", 50, 100, 1}, {"S", 150, 200, 2}})),
-              ::testing::ElementsAre(Named{"sil", 0, 50}, Named{"aa", 50, 100}, Named{"sil", 100, 150},
-                                     Named{"s", 150, 200}));
+  EXPECT_THAT(
+      names(build({{"AA", 50, 100, 1}, {"S", 150, 200, 2}})),
+      ::testing::ElementsAre(Named{"sil", 0, 50}, Named{"aa", 50, 100}, Named{"sil", 100, 150}, Named{"s", 150, 200}));
 }
 
 TEST(SegmentBuilder, SplitsAStopWithoutClosureIntoClosureAndRelease) {
@@ -90,8 +91,7 @@ TEST(SegmentBuilder, RejectsOverlapsReversedAndZeroDurations) {
               ::testing::AllOf(HasSubstr("input.lab:2"), HasSubstr("0.000090 s"), HasSubstr("overlap")));
   EXPECT_THAT(error_of({{"AA", 0, 100, 1}, {"S", 300, 200, 2}}),
               ::testing::AllOf(HasSubstr("input.lab:2"), HasSubstr("before it starts")));
-  EXPECT_THAT(error_of({{"AA", 100, 100, 4}}),
-              ::testing::AllOf(HasSubstr("input.lab:4"), HasSubstr("zero duration")));
+  EXPECT_THAT(error_of({{"AA", 100, 100, 4}}), ::testing::AllOf(HasSubstr("input.lab:4"), HasSubstr("zero duration")));
   EXPECT_THAT(error_of({{"AA", -5, 100, 1}}), HasSubstr("negative"));
   EXPECT_THAT(error_of({{"AA", 0, 100LL * 3600 * 1'000'000, 1}}), HasSubstr("24 hours"));
   EXPECT_THAT(error_of({}), HasSubstr("no phonemes"));

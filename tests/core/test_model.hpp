@@ -53,8 +53,7 @@ inline std::vector<Segment> make_segments(const ArticulationModel& model, const 
   std::vector<Segment> segments;
   for (const auto& item : items) {
     const int index = *model.find_phoneme(item.name);
-    segments.push_back({index, model.phoneme(index).phoneme_class,
-                        static_cast<std::int64_t>(item.start_s * 1e6 + 0.5),
+    segments.push_back({index, model.phoneme(index).phoneme_class, static_cast<std::int64_t>(item.start_s * 1e6 + 0.5),
                         static_cast<std::int64_t>(item.end_s * 1e6 + 0.5), 0});
   }
   return segments;

@@ -2,6 +2,8 @@
 // and on small utterances built to show coarticulation: weights are distributions, bilabial key
 // frames win PP / 21 / p / A in every vocabulary, the /k/ of "coin" is already rounded, events
 // follow the phonemes' timing, and Rhubarb's extended shapes can be left out as Rhubarb allows.
+#include "lipsync/visemes.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -9,14 +11,12 @@
 #include <cstdio>
 #include <limits>
 #include <map>
-
 #include <nlohmann/json.hpp>
 
 #include "../support/closure_frames.hpp"
 #include "lipsync/error.hpp"
 #include "lipsync/renderer.hpp"
 #include "lipsync/viseme_writer.hpp"
-#include "lipsync/visemes.hpp"
 
 namespace lipsync {
 namespace {
@@ -167,10 +167,11 @@ TEST(Visemes, LabiodentalClosureKeyFramesGiveTheirFricativeVisemeInEveryVocabula
         }
       }
     }
-    std::printf("[ measured ] %s: %zu labiodental key frames (not shared with a bilabial) give %s; at %zu of them "
-                "the channels alone lie nearer another viseme\n",
-                std::string(to_string(vocabulary)).c_str(), checked, std::string(closed.at(vocabulary)).c_str(),
-                nearer_another);
+    std::printf(
+        "[ measured ] %s: %zu labiodental key frames (not shared with a bilabial) give %s; at %zu of them "
+        "the channels alone lie nearer another viseme\n",
+        std::string(to_string(vocabulary)).c_str(), checked, std::string(closed.at(vocabulary)).c_str(),
+        nearer_another);
     EXPECT_GE(checked, 300U);
   }
 }
@@ -228,18 +229,21 @@ TEST(Visemes, PausesAwayFromSpeechAreSilenceInEveryVocabularyAndRhubarbShowsX) {
           continue;
         }
         ++pauses;
-        const std::int64_t at_us =
-            leading ? pause.start_us : trailing ? pause.start_us + 100'000 : (pause.start_us + pause.end_us) / 2;
-        const auto cue = std::prev(std::upper_bound(cues.begin(), cues.end(), at_us / 10'000,
-                                                    [](std::int64_t cs, const RhubarbCue& c) { return cs < c.start_cs; }));
-        EXPECT_EQ(cue->shape, "X") << spoken.name << ": pause [" << pause.start_us << ", " << pause.end_us
-                                   << "] µs at " << at_us << " µs";
+        const std::int64_t at_us = leading    ? pause.start_us
+                                   : trailing ? pause.start_us + 100'000
+                                              : (pause.start_us + pause.end_us) / 2;
+        const auto cue =
+            std::prev(std::upper_bound(cues.begin(), cues.end(), at_us / 10'000,
+                                       [](std::int64_t cs, const RhubarbCue& c) { return cs < c.start_cs; }));
+        EXPECT_EQ(cue->shape, "X") << spoken.name << ": pause [" << pause.start_us << ", " << pause.end_us << "] µs at "
+                                   << at_us << " µs";
       }
     }
-    std::printf("[ measured ] %s: %zu pause frames 60 ms or more from speech give %s (the channels alone: %zu "
-                "nearer another viseme)\n",
-                std::string(to_string(vocabulary)).c_str(), frames,
-                classifier.names()[classifier.silence()].c_str(), anticipated);
+    std::printf(
+        "[ measured ] %s: %zu pause frames 60 ms or more from speech give %s (the channels alone: %zu "
+        "nearer another viseme)\n",
+        std::string(to_string(vocabulary)).c_str(), frames, classifier.names()[classifier.silence()].c_str(),
+        anticipated);
     EXPECT_GE(frames, 300U);
     if (vocabulary == VisemeVocabulary::rhubarb) {
       std::printf("[ measured ] rhubarb: X in all %zu leading, trailing and long pauses\n", pauses);
@@ -259,10 +263,10 @@ TEST(Visemes, TheRendererSaysWhichClosureHoldsAFrameAndHowFarAPauseIsFromSpeech)
     EXPECT_NE(it, track.t_us.end()) << "no frame at " << t_us << " µs";
     return track.articulation[static_cast<std::size_t>(it - track.t_us.begin())];
   };
-  EXPECT_EQ(at(0).pause_us, 300'000);  // nothing before the leading pause: the speech after it
-  EXPECT_EQ(at(400'000), (FrameArticulation{.closure = v}));            // /v/ starts
+  EXPECT_EQ(at(0).pause_us, 300'000);                         // nothing before the leading pause: the speech after it
+  EXPECT_EQ(at(400'000), (FrameArticulation{.closure = v}));  // /v/ starts
   EXPECT_EQ(at(480'000), (FrameArticulation{.closure = v, .meeting_closure = m}));  // /v/ meets /m/
-  EXPECT_EQ(at(560'000), (FrameArticulation{.closure = m}));            // /m/ ends, /ay/ starts
+  EXPECT_EQ(at(560'000), (FrameArticulation{.closure = m}));                        // /m/ ends, /ay/ starts
   for (std::size_t f = 0; f < track.frame_count(); ++f) {
     const std::int64_t t = track.t_us[f];
     if (t > 660'000) {
@@ -291,8 +295,8 @@ double weight_at_middle(const VisemeClassifier& classifier, const std::vector<Se
   const Track track = render_track(model(), segments, {.fps = 240, .fixed_rate = true});
   const VisemeTrack visemes = compute_visemes(classifier, track);
   const std::int64_t middle = (segments[s].start_us + segments[s].end_us) / 2;
-  const auto frame = static_cast<std::size_t>(
-      std::lower_bound(track.t_us.begin(), track.t_us.end(), middle) - track.t_us.begin());
+  const auto frame =
+      static_cast<std::size_t>(std::lower_bound(track.t_us.begin(), track.t_us.end(), middle) - track.t_us.begin());
   double sum = 0;
   for (const std::string_view name : names) {
     sum += visemes.weights[frame * classifier.viseme_count() + index_of(classifier, name)];
@@ -348,9 +352,10 @@ TEST(Visemes, EventsFollowThePhonemesTiming) {
     std::sort(offsets_ms.begin(), offsets_ms.end());
     const double median = offsets_ms[offsets_ms.size() / 2];
     const double p90 = offsets_ms[offsets_ms.size() * 9 / 10];
-    std::printf("[ measured ] %s: %zu events for %zu segments; event start to nearest phoneme boundary: median "
-                "%.1f ms, 90th percentile %.1f ms\n",
-                std::string(to_string(vocabulary)).c_str(), events, segments, median, p90);
+    std::printf(
+        "[ measured ] %s: %zu events for %zu segments; event start to nearest phoneme boundary: median "
+        "%.1f ms, 90th percentile %.1f ms\n",
+        std::string(to_string(vocabulary)).c_str(), events, segments, median, p90);
     // A viseme changes near where a phoneme starts: coarticulation moves the change by a frame or
     // two (16.7 ms each at 60 fps) of anticipation or carry-over; and it does not flicker: about one
     // event per phoneme (measured 19-20 ms median, 41-47 ms 90th percentile, 1.03-1.11 events per
@@ -362,8 +367,8 @@ TEST(Visemes, EventsFollowThePhonemesTiming) {
 }
 
 TEST(Visemes, RhubarbShapesLeftOutGiveTheirWeightToTheBasicShapes) {
-  const VisemeClassifier basic(model(), {.vocabulary = VisemeVocabulary::rhubarb,
-                                         .rhubarb_shapes = *rhubarb_shapes_from_string("")});
+  const VisemeClassifier basic(
+      model(), {.vocabulary = VisemeVocabulary::rhubarb, .rhubarb_shapes = *rhubarb_shapes_from_string("")});
   EXPECT_EQ(basic.names()[basic.silence()], "A");  // Rhubarb closes the mouth with A without X
   for (const auto& spoken : corpus()) {
     const Track track = render_track(model(), spoken.segments, {.fps = 30});

@@ -136,16 +136,19 @@ class BalancerTest : public ::testing::Test {
     std::string site = testing::read_text(std::filesystem::path(LIPSYNC_SOURCE_DIR) / "deploy/nginx/lipsyncd.conf");
     site = std::regex_replace(site, std::regex(R"((    server 127\.0\.0\.1:5005[1-3][^\n]*\n)+)"), servers);
     const int port = free_port();
-    site = std::regex_replace(site, std::regex(R"(listen 50050 http2;)"), "listen 127.0.0.1:" + std::to_string(port) + " http2;");
+    site = std::regex_replace(site, std::regex(R"(listen 50050 http2;)"),
+                              "listen 127.0.0.1:" + std::to_string(port) + " http2;");
     ASSERT_NE(site.find(servers), std::string::npos);
     testing::write_text(dir_ / "lipsyncd.conf", site);
     testing::write_text(dir_ / "nginx.conf",
                         "worker_processes 1;\npid " + (dir_ / "nginx.pid").string() + ";\nerror_log " +
-                            (dir_ / "nginx.log").string() + " info;\nevents { worker_connections 4096; }\nhttp {\n  access_log off;\n"
-                            "  client_body_temp_path " + dir_.string() + ";\n  include " +
-                            (dir_ / "lipsyncd.conf").string() + ";\n}\n");
+                            (dir_ / "nginx.log").string() +
+                            " info;\nevents { worker_connections 4096; }\nhttp {\n  access_log off;\n"
+                            "  client_body_temp_path " +
+                            dir_.string() + ";\n  include " + (dir_ / "lipsyncd.conf").string() + ";\n}\n");
     nginx_ = std::make_unique<testing::ChildProcess>(
-        std::vector<std::string>{kNginx, "-p", dir_.string(), "-c", (dir_ / "nginx.conf").string(), "-g", "daemon off;"},
+        std::vector<std::string>{kNginx, "-p", dir_.string(), "-c", (dir_ / "nginx.conf").string(), "-g",
+                                 "daemon off;"},
         dir_, dir_ / "nginx.out", dir_ / "nginx.err");
     balancer_ = "127.0.0.1:" + std::to_string(port);
     client_ = std::make_unique<AnimationClient>(balancer_);

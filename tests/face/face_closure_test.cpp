@@ -63,7 +63,8 @@ void measure(FaceSolver& solver, const lipsync::testing::TimedUtterance& utteran
     }
     const auto it = closure_at.find(f);
     if (it == closure_at.end()) continue;
-    const std::string where = utterance.name + " at " + std::to_string(track.t_us[f]) + " µs, " + std::to_string(fps) + " fps";
+    const std::string where =
+        utterance.name + " at " + std::to_string(track.t_us[f]) + " µs, " + std::to_string(fps) + " fps";
     if (it->second.count(ClosurePlace::bilabial)) {
       ++out.bilabial;
       const double gap = lip_gap_m(solver);
@@ -86,10 +87,11 @@ TEST(FaceClosures, EveryBilabialKeyFrameIsSealedAndEveryLabiodentalTouchesTheTee
   for (const int fps : {30, 60}) {
     Measured measured;
     for (const auto& utterance : corpus) measure(solver, utterance, fps, measured);
-    std::printf("[ measured ] %d fps: %zu bilabial key frames, widest gap %.3f mm; %zu labiodental, farthest from "
-                "the teeth %.3f mm; widest /aa/ %.1f mm; lips crossed by at most %.3f mm\n",
-                fps, measured.bilabial, 1000 * measured.worst_gap_m, measured.labiodental,
-                1000 * measured.worst_teeth_m, 1000 * measured.widest_aa_m, 1000 * measured.worst_crossing_m);
+    std::printf(
+        "[ measured ] %d fps: %zu bilabial key frames, widest gap %.3f mm; %zu labiodental, farthest from "
+        "the teeth %.3f mm; widest /aa/ %.1f mm; lips crossed by at most %.3f mm\n",
+        fps, measured.bilabial, 1000 * measured.worst_gap_m, measured.labiodental, 1000 * measured.worst_teeth_m,
+        1000 * measured.widest_aa_m, 1000 * measured.worst_crossing_m);
     EXPECT_GE(measured.bilabial, 90U);
     EXPECT_GE(measured.labiodental, 36U);
     EXPECT_GE(measured.widest_aa_m, kOpenVowelM) << "the open vowels no longer open";

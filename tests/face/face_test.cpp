@@ -14,12 +14,12 @@
 #include <cstring>
 #include <functional>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
+#include "../support/lip_measures.hpp"
 #include "lipsync/error.hpp"
 #include "lipsync/face/face_mesh.hpp"
 #include "lipsync/face/face_rig.hpp"
@@ -29,7 +29,6 @@
 #include "lipsync/renderer.hpp"
 #include "lipsync/segment.hpp"
 #include "lipsync/synthetic.hpp"
-#include "../support/lip_measures.hpp"
 
 namespace lipsync::face {
 namespace {
@@ -67,9 +66,8 @@ TEST(FaceAsset, has_the_canonical_mesh_counts_and_a_20_vertex_mouth) {
   EXPECT_EQ(asset.triangles.size(), 898U);
   std::vector<bool> on_loop(468, false);
   for (const auto id : kInnerLipLoop) on_loop[id] = true;
-  const auto mouth = std::count_if(asset.triangles.begin(), asset.triangles.end(), [&](const auto& t) {
-    return on_loop[t[0]] && on_loop[t[1]] && on_loop[t[2]];
-  });
+  const auto mouth = std::count_if(asset.triangles.begin(), asset.triangles.end(),
+                                   [&](const auto& t) { return on_loop[t[0]] && on_loop[t[1]] && on_loop[t[2]]; });
   EXPECT_EQ(mouth, 18);
   // Lips parted about 5.5 mm at rest (13 → 14), face about 15.5 cm wide.
   EXPECT_NEAR(distance(asset.positions_cm[13], asset.positions_cm[14]), 0.57, 0.03);
@@ -77,9 +75,8 @@ TEST(FaceAsset, has_the_canonical_mesh_counts_and_a_20_vertex_mouth) {
 
 TEST(FaceMesh, opening_leaves_880_skin_triangles_and_a_20_vertex_boundary) {
   const FaceMesh mesh = build_face_mesh(FaceAsset::builtin(), 0);
-  const auto skin = std::count_if(mesh.triangles.begin(), mesh.triangles.end(), [&](const auto& t) {
-    return t[0] < 468 && t[1] < 468 && t[2] < 468;
-  });
+  const auto skin = std::count_if(mesh.triangles.begin(), mesh.triangles.end(),
+                                  [&](const auto& t) { return t[0] < 468 && t[1] < 468 && t[2] < 468; });
   EXPECT_EQ(skin, 880);
   EXPECT_EQ(mesh.upper_lip_line.size(), 9U);
   EXPECT_EQ(mesh.lower_lip_line.size(), 9U);
@@ -91,7 +88,8 @@ TEST(FaceMesh, opening_leaves_880_skin_triangles_and_a_20_vertex_boundary) {
   std::map<std::pair<std::uint32_t, std::uint32_t>, int> directed;
   for (const auto& t : mesh.triangles)
     for (int e = 0; e < 3; ++e) ++directed[{t[e], t[(e + 1) % 3]}];
-  for (const auto& [edge, count] : directed) EXPECT_EQ(count, 1) << "edge " << edge.first << "-" << edge.second << " is used twice in one direction";
+  for (const auto& [edge, count] : directed)
+    EXPECT_EQ(count, 1) << "edge " << edge.first << "-" << edge.second << " is used twice in one direction";
   for (const auto id : kInnerLipLoop)
     for (const auto& [edge, count] : directed)
       if (edge.first == id) {
@@ -113,8 +111,10 @@ TEST(FaceMesh, subdivision_of_the_opened_canonical_mesh_gives_1790_and_6990_vert
   std::array<int, 3> removed{};
   for (const auto& t : asset.triangles) {
     const int loop = loop_of[t[0]];
-    if (loop >= 0 && loop_of[t[1]] == loop && loop_of[t[2]] == loop) ++removed[static_cast<std::size_t>(loop)];
-    else opened.push_back(t);
+    if (loop >= 0 && loop_of[t[1]] == loop && loop_of[t[2]] == loop)
+      ++removed[static_cast<std::size_t>(loop)];
+    else
+      opened.push_back(t);
   }
   EXPECT_EQ(removed, (std::array<int, 3>{18, 14, 14}));
   const Subdivision once = subdivide(opened, 468);
@@ -176,10 +176,12 @@ TEST(FaceRig, errors_name_the_muscle_and_the_field) {
   EXPECT_THAT(rig_error([](auto& d) { d["jaw"]["max_rotation_deg"] = 90; }),
               testing::HasSubstr("jaw: field 'max_rotation_deg' = 90"));
   // The lower lip's jaw compensation (muscle 12, orbicularis_oris_lower).
-  EXPECT_THAT(rig_error([](auto& d) { d["muscles"][12]["jaw_compensation"]["driver"] = "jaw_rotation"; }),
-              testing::HasSubstr("muscle 'orbicularis_oris_lower' jaw_compensation: channel 'jaw_rotation' is of kind 'jaw'"));
+  EXPECT_THAT(
+      rig_error([](auto& d) { d["muscles"][12]["jaw_compensation"]["driver"] = "jaw_rotation"; }),
+      testing::HasSubstr("muscle 'orbicularis_oris_lower' jaw_compensation: channel 'jaw_rotation' is of kind 'jaw'"));
   EXPECT_THAT(rig_error([](auto& d) { d["muscles"][12]["jaw_compensation"]["full"] = 0.2; }),
-              testing::HasSubstr("muscle 'orbicularis_oris_lower' jaw_compensation: field 'full' must be greater than field 'from'"));
+              testing::HasSubstr(
+                  "muscle 'orbicularis_oris_lower' jaw_compensation: field 'full' must be greater than field 'from'"));
   EXPECT_THAT(rig_error([](auto& d) { d["muscles"][12]["jaw_compensation"]["share"] = 1.5; }),
               testing::HasSubstr("jaw_compensation: field 'share' = 1.5"));
   EXPECT_THAT(rig_error([](auto& d) { d["muscles"][11]["jaw_compensation"] = d["muscles"][12]["jaw_compensation"]; }),
@@ -235,9 +237,10 @@ TEST(FaceSolver, rounded_vowels_round_and_protrude_the_lips_with_an_opening) {
     const double frontal = frontal_opening_m(solver);
     const double narrowing = distance(rest[61], rest[291]) - distance(x[61], x[291]);
     const double protrusion = x[0].z - rest[0].z;  // upper lip's outer contour, middle
-    std::printf("[ measured ] /%s/ opening %.2f mm (%.2f mm seen from the front), mouth %.1f mm narrower, upper lip "
-                "%.1f mm forward\n",
-                phoneme, 1000 * opening, 1000 * frontal, 1000 * narrowing, 1000 * protrusion);
+    std::printf(
+        "[ measured ] /%s/ opening %.2f mm (%.2f mm seen from the front), mouth %.1f mm narrower, upper lip "
+        "%.1f mm forward\n",
+        phoneme, 1000 * opening, 1000 * frontal, 1000 * narrowing, 1000 * protrusion);
     EXPECT_GE(opening, 0.003) << phoneme;
     EXPECT_LE(opening, 0.015) << phoneme;
     EXPECT_GE(frontal, 0.002) << phoneme;
@@ -253,7 +256,8 @@ TEST(FaceSolver, lower_lip_reaches_the_upper_teeth_for_labiodentals) {
     solver.reset();
     hold(solver, targets_of(phoneme));
     const double reach = lower_lip_to_upper_teeth_m(solver);
-    std::printf("[ measured ] /%s/ lower lip to upper teeth %.3f mm (rest %.3f mm)\n", phoneme, 1000 * reach, 1000 * at_rest);
+    std::printf("[ measured ] /%s/ lower lip to upper teeth %.3f mm (rest %.3f mm)\n", phoneme, 1000 * reach,
+                1000 * at_rest);
     EXPECT_LE(reach, 0.001) << phoneme;
   }
   EXPECT_GT(at_rest, 0.002);
@@ -272,7 +276,8 @@ TEST(FaceSolver, open_vowels_open_the_mouth_at_least_as_far_as_the_jaw_implies) 
     const double angle = channels[rig.jaw_channel()] * rig.max_jaw_rotation_rad();
     const Vec3 hinge = mesh.anatomy.jaw_hinge_m, p = mesh.rest_positions_m[14];
     const double y = p.y - hinge.y, z = p.z - hinge.z;
-    const Vec3 carried{p.x, hinge.y + std::cos(angle) * y - std::sin(angle) * z, hinge.z + std::sin(angle) * y + std::cos(angle) * z};
+    const Vec3 carried{p.x, hinge.y + std::cos(angle) * y - std::sin(angle) * z,
+                       hinge.z + std::sin(angle) * y + std::cos(angle) * z};
     const double implied = distance(mesh.rest_positions_m[13], carried);
     const double opening = distance(solver.positions()[13], solver.positions()[14]);
     std::printf("[ measured ] /%s/ opening %.2f mm, jaw %.1f° implies %.2f mm\n", phoneme, 1000 * opening,

@@ -88,8 +88,8 @@ TEST(Detect, HtkLabelsInALabFileAreRefused) {
 }
 
 TEST(FormatNames, RoundTripAndIgnoreCase) {
-  for (const InputFormat format : {InputFormat::json, InputFormat::textgrid, InputFormat::timit,
-                                   InputFormat::lab, InputFormat::pho, InputFormat::flite}) {
+  for (const InputFormat format : {InputFormat::json, InputFormat::textgrid, InputFormat::timit, InputFormat::lab,
+                                   InputFormat::pho, InputFormat::flite}) {
     EXPECT_THAT(input_format_from_string(to_string(format)), Optional(format));
   }
   EXPECT_EQ(to_string(InputFormat::textgrid), "textgrid");

@@ -24,20 +24,19 @@ std::vector<std::string> labels_of(const LabeledUtterance& utterance) {
 
 TEST(Flite, ReadsFliteOutput) {
   // Real output of: flite -voice slt -psdur -t "speech synchronization" -o none
-  const LabeledUtterance utterance = parse_utterance(fixture("flite_speech_synchronization.psdur"),
-                                                     InputFormat::flite, "speech.psdur");
+  const LabeledUtterance utterance =
+      parse_utterance(fixture("flite_speech_synchronization.psdur"), InputFormat::flite, "speech.psdur");
   EXPECT_EQ(utterance.phone_set, "radio");
-  EXPECT_THAT(utterance.intervals,
-              ElementsAre(Interval("pau", 0, 171000, 1), Interval("s", 171000, 287000, 1),
-                          Interval("p", 287000, 352000, 1), Interval("iy", 352000, 447000, 1),
-                          Interval("ch", 447000, 599000, 1), Interval("s", 599000, 701000, 1),
-                          Interval("ih", 701000, 781000, 1), Interval("ng", 781000, 873000, 1),
-                          Interval("k", 873000, 935000, 1), Interval("r", 935000, 977000, 1),
-                          Interval("ax", 977000, 1014000, 1), Interval("n", 1014000, 1060000, 1),
-                          Interval("ax", 1060000, 1122000, 1), Interval("z", 1122000, 1206000, 1),
-                          Interval("ey", 1206000, 1381000, 1), Interval("sh", 1381000, 1515000, 1),
-                          Interval("ax", 1515000, 1620000, 1), Interval("n", 1620000, 1775000, 1),
-                          Interval("pau", 1775000, 1960000, 1)));
+  EXPECT_THAT(utterance.intervals, ElementsAre(Interval("pau", 0, 171000, 1), Interval("s", 171000, 287000, 1),
+                                               Interval("p", 287000, 352000, 1), Interval("iy", 352000, 447000, 1),
+                                               Interval("ch", 447000, 599000, 1), Interval("s", 599000, 701000, 1),
+                                               Interval("ih", 701000, 781000, 1), Interval("ng", 781000, 873000, 1),
+                                               Interval("k", 873000, 935000, 1), Interval("r", 935000, 977000, 1),
+                                               Interval("ax", 977000, 1014000, 1), Interval("n", 1014000, 1060000, 1),
+                                               Interval("ax", 1060000, 1122000, 1), Interval("z", 1122000, 1206000, 1),
+                                               Interval("ey", 1206000, 1381000, 1), Interval("sh", 1381000, 1515000, 1),
+                                               Interval("ax", 1515000, 1620000, 1), Interval("n", 1620000, 1775000, 1),
+                                               Interval("pau", 1775000, 1960000, 1)));
 }
 
 TEST(Flite, ReadsTwoSentenceOutput) {
@@ -49,9 +48,9 @@ TEST(Flite, ReadsTwoSentenceOutput) {
 }
 
 TEST(Flite, TokensMaySpanLinesAndKeepTheirLine) {
-  EXPECT_THAT(parse_utterance("pau:0.1 s:0.2\n\n  p:0.35\n", InputFormat::flite, "x").intervals,
-              ElementsAre(Interval("pau", 0, 100000, 1), Interval("s", 100000, 200000, 1),
-                          Interval("p", 200000, 350000, 3)));
+  EXPECT_THAT(
+      parse_utterance("pau:0.1 s:0.2\n\n  p:0.35\n", InputFormat::flite, "x").intervals,
+      ElementsAre(Interval("pau", 0, 100000, 1), Interval("s", 100000, 200000, 1), Interval("p", 200000, 350000, 3)));
 }
 
 TEST(Flite, ErrorsNameLineTokenAndValue) {
@@ -92,8 +91,8 @@ TEST(Flite, LiveFliteOutputParses) {
 
   EXPECT_EQ(detect_input_format("-", output), InputFormat::flite) << output;
   const LabeledUtterance live = parse_utterance(output, InputFormat::flite, "flite");
-  const LabeledUtterance committed = parse_utterance(fixture("flite_speech_synchronization.psdur"),
-                                                     InputFormat::flite, "speech.psdur");
+  const LabeledUtterance committed =
+      parse_utterance(fixture("flite_speech_synchronization.psdur"), InputFormat::flite, "speech.psdur");
   EXPECT_THAT(labels_of(live), ElementsAreArray(labels_of(committed)));
   ASSERT_FALSE(live.intervals.empty());
   EXPECT_EQ(live.intervals.front().start_us, 0);

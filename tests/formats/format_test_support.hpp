@@ -18,8 +18,8 @@
 namespace lipsync {
 
 inline void PrintTo(const LabeledInterval& interval, std::ostream* out) {
-  *out << "{\"" << interval.label << "\", " << interval.start_us << ", " << interval.end_us
-       << ", line " << interval.line << "}";
+  *out << "{\"" << interval.label << "\", " << interval.start_us << ", " << interval.end_us << ", line "
+       << interval.line << "}";
 }
 
 namespace testing_support {
@@ -52,8 +52,7 @@ inline auto Timing(std::string label, std::int64_t start_us, std::int64_t end_us
 }
 
 /// The InputError that parsing `content` throws (a test failure if it throws none).
-inline InputError parse_error(std::string_view content, InputFormat format,
-                              const ParseOptions& options = {}) {
+inline InputError parse_error(std::string_view content, InputFormat format, const ParseOptions& options = {}) {
   try {
     const LabeledUtterance utterance = parse_utterance(content, format, "input", options);
     ADD_FAILURE() << "expected an InputError, got " << utterance.intervals.size() << " intervals";

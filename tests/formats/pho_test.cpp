@@ -11,19 +11,16 @@ using testing_support::Interval;
 using testing_support::parse_error;
 
 TEST(Pho, AccumulatesDurationsFromZero) {
-  const LabeledUtterance utterance =
-      parse_utterance(fixture("speech.pho"), InputFormat::pho, "speech.pho");
+  const LabeledUtterance utterance = parse_utterance(fixture("speech.pho"), InputFormat::pho, "speech.pho");
   EXPECT_EQ(utterance.phone_set, "sampa");
-  EXPECT_THAT(utterance.intervals,
-              ElementsAre(Interval("_", 0, 150000, 3), Interval("s", 150000, 260000, 4),
-                          Interval("p", 260000, 322500, 5), Interval("i:", 322500, 440000, 7),
-                          Interval("tS", 440000, 570000, 8), Interval("_", 570000, 710000, 10)));
+  EXPECT_THAT(utterance.intervals, ElementsAre(Interval("_", 0, 150000, 3), Interval("s", 150000, 260000, 4),
+                                               Interval("p", 260000, 322500, 5), Interval("i:", 322500, 440000, 7),
+                                               Interval("tS", 440000, 570000, 8), Interval("_", 570000, 710000, 10)));
 }
 
 TEST(Pho, DurationsAreExactDecimalMilliseconds) {
   EXPECT_THAT(parse_utterance("a 0.0005\nb 1e2\nc 33.3333\n", InputFormat::pho, "x").intervals,
-              ElementsAre(Interval("a", 0, 1, 1), Interval("b", 1, 100001, 2),
-                          Interval("c", 100001, 133334, 3)));
+              ElementsAre(Interval("a", 0, 1, 1), Interval("b", 1, 100001, 2), Interval("c", 100001, 133334, 3)));
 }
 
 TEST(Pho, TrailingCommentsAndPercentSignsAreAccepted) {

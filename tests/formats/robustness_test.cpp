@@ -49,9 +49,8 @@ TEST(Robustness, MutatedInputsParseOrThrowInputError) {
     const std::string original = fixture(name);
     for (int round = 0; round < 200; ++round) {
       const std::string content = mutated(original, random);
-      for (const InputFormat as : {format, InputFormat::json, InputFormat::textgrid,
-                                   InputFormat::timit, InputFormat::lab, InputFormat::pho,
-                                   InputFormat::flite}) {
+      for (const InputFormat as : {format, InputFormat::json, InputFormat::textgrid, InputFormat::timit,
+                                   InputFormat::lab, InputFormat::pho, InputFormat::flite}) {
         try {
           detect_input_format(name, content);
           const LabeledUtterance utterance = parse_utterance(content, as, name);

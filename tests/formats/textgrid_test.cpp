@@ -26,18 +26,16 @@ InputError grid_error(std::string_view content, std::string tier = "phones") {
 // The phones tier of speech_*.TextGrid, without line numbers.
 auto speech_phones() {
   return ElementsAre(Timing("", 0, 50000), Timing("S", 50000, 160000), Timing("P", 160000, 230000),
-                     Timing("IY1", 230000, 350000), Timing("CH", 350000, 480000),
-                     Timing("", 480000, 620000));
+                     Timing("IY1", 230000, 350000), Timing("CH", 350000, 480000), Timing("", 480000, 620000));
 }
 
 TEST(TextGrid, ReadsLongFormatWithTheLineOfEachStartTime) {
   const LabeledUtterance utterance = parse_grid(fixture("speech_long.TextGrid"));
   EXPECT_EQ(utterance.source, "speech.TextGrid");
   EXPECT_EQ(utterance.phone_set, "");
-  EXPECT_THAT(utterance.intervals,
-              ElementsAre(Interval("", 0, 50000, 34), Interval("S", 50000, 160000, 38),
-                          Interval("P", 160000, 230000, 42), Interval("IY1", 230000, 350000, 46),
-                          Interval("CH", 350000, 480000, 50), Interval("", 480000, 620000, 54)));
+  EXPECT_THAT(utterance.intervals, ElementsAre(Interval("", 0, 50000, 34), Interval("S", 50000, 160000, 38),
+                                               Interval("P", 160000, 230000, 42), Interval("IY1", 230000, 350000, 46),
+                                               Interval("CH", 350000, 480000, 50), Interval("", 480000, 620000, 54)));
 }
 
 TEST(TextGrid, ShortFormatMatchesLongFormat) {
@@ -53,12 +51,10 @@ TEST(TextGrid, ChronologicalFormatMatchesLongFormat) {
 }
 
 TEST(TextGrid, AllSpellingsGiveTheSameWordsTier) {
-  for (const char* name :
-       {"speech_long.TextGrid", "speech_short.TextGrid", "speech_chronological.TextGrid"}) {
+  for (const char* name : {"speech_long.TextGrid", "speech_short.TextGrid", "speech_chronological.TextGrid"}) {
     SCOPED_TRACE(name);
     EXPECT_THAT(parse_grid(fixture(name), "words").intervals,
-                ElementsAre(Timing("", 0, 50000), Timing("speech", 50000, 480000),
-                            Timing("", 480000, 620000)));
+                ElementsAre(Timing("", 0, 50000), Timing("speech", 50000, 480000), Timing("", 480000, 620000)));
   }
 }
 
@@ -68,36 +64,32 @@ TEST(TextGrid, FreeLayoutWithCommentsIsRead) {
       "\"ooTextFile\"\n\"TextGrid\"\n0  0.3  ! time domain\n<exists>\n1 tier\n"
       "\"IntervalTier\"  \"phones\"  ! type and name\n0 0.3\n2 intervals coming\n"
       "0 0.1 \"m\"  ! first\n0.1 0.3 \"a\"\n";
-  EXPECT_THAT(parse_grid(grid).intervals,
-              ElementsAre(Interval("m", 0, 100000, 9), Interval("a", 100000, 300000, 10)));
+  EXPECT_THAT(parse_grid(grid).intervals, ElementsAre(Interval("m", 0, 100000, 9), Interval("a", 100000, 300000, 10)));
 }
 
 TEST(TextGrid, DecodesUtf16BigEndianWithByteOrderMark) {
   const LabeledUtterance utf8 = parse_grid(fixture("ipa_utf8.TextGrid"));
-  EXPECT_THAT(utf8.intervals,
-              ElementsAre(Interval("", 0, 100000, 34), Interval("ʃ", 100000, 200000, 38),
-                          Interval("iː", 200000, 350000, 42), Interval("p", 350000, 500000, 46),
-                          Interval("", 500000, 600000, 50)));
+  EXPECT_THAT(utf8.intervals, ElementsAre(Interval("", 0, 100000, 34), Interval("ʃ", 100000, 200000, 38),
+                                          Interval("iː", 200000, 350000, 42), Interval("p", 350000, 500000, 46),
+                                          Interval("", 500000, 600000, 50)));
   const LabeledUtterance utf16 = parse_grid(fixture("ipa_utf16be.TextGrid"));
-  EXPECT_THAT(utf16.intervals,
-              ElementsAre(Interval("", 0, 100000, 34), Interval("ʃ", 100000, 200000, 38),
-                          Interval("iː", 200000, 350000, 42), Interval("p", 350000, 500000, 46),
-                          Interval("", 500000, 600000, 50)));
+  EXPECT_THAT(utf16.intervals, ElementsAre(Interval("", 0, 100000, 34), Interval("ʃ", 100000, 200000, 38),
+                                           Interval("iː", 200000, 350000, 42), Interval("p", 350000, 500000, 46),
+                                           Interval("", 500000, 600000, 50)));
 }
 
 TEST(TextGrid, DecodesUtf16LittleEndianWithByteOrderMark) {
-  EXPECT_THAT(parse_grid(fixture("ipa_utf16le.TextGrid")).intervals,
-              ElementsAre(Interval("", 0, 100000, 34), Interval("ʃ", 100000, 200000, 38),
-                          Interval("iː", 200000, 350000, 42), Interval("p", 350000, 500000, 46),
-                          Interval("", 500000, 600000, 50)));
+  EXPECT_THAT(
+      parse_grid(fixture("ipa_utf16le.TextGrid")).intervals,
+      ElementsAre(Interval("", 0, 100000, 34), Interval("ʃ", 100000, 200000, 38), Interval("iː", 200000, 350000, 42),
+                  Interval("p", 350000, 500000, 46), Interval("", 500000, 600000, 50)));
 }
 
 TEST(TextGrid, DoubledQuoteIsOneQuote) {
   for (const char* name : {"ipa_utf8.TextGrid", "ipa_utf16be.TextGrid", "ipa_utf16le.TextGrid"}) {
     SCOPED_TRACE(name);
     EXPECT_THAT(parse_grid(fixture(name), "words").intervals,
-                ElementsAre(Timing("", 0, 100000), Timing("say \"ʃiːp\"", 100000, 500000),
-                            Timing("", 500000, 600000)));
+                ElementsAre(Timing("", 0, 100000), Timing("say \"ʃiːp\"", 100000, 500000), Timing("", 500000, 600000)));
   }
 }
 
@@ -151,8 +143,7 @@ TEST(TextGrid, ZeroLengthIntervalPassesThrough) {
   const std::string grid =
       "File type = \"ooTextFile\"\nObject class = \"TextGrid\"\n0\n0.2\n<exists>\n1\n"
       "\"IntervalTier\"\n\"phones\"\n0\n0.2\n2\n0\n0.1\n\"a\"\n0.1\n0.1\n\"b\"\n";
-  EXPECT_THAT(parse_grid(grid).intervals,
-              ElementsAre(Interval("a", 0, 100000, 12), Interval("b", 100000, 100000, 15)));
+  EXPECT_THAT(parse_grid(grid).intervals, ElementsAre(Interval("a", 0, 100000, 12), Interval("b", 100000, 100000, 15)));
 }
 
 // The long-format fixture with the first `from` after `after` replaced by `to`
@@ -204,9 +195,7 @@ TEST(TextGrid, BadValuesNameLineFieldAndValue) {
       {edited_long_grid("item [2]", "\"IntervalTier\"", "\"IntervalTeir\""),
        28,
        {"unknown class of tier 2", "\"IntervalTeir\""}},
-      {edited_long_grid("Object", "\"TextGrid\"", "\"Pitch 1\""),
-       2,
-       {"\"Pitch 1\"", "not a TextGrid"}},
+      {edited_long_grid("Object", "\"TextGrid\"", "\"Pitch 1\""), 2, {"\"Pitch 1\"", "not a TextGrid"}},
       {edited_long_grid("File type", "\"ooTextFile\"", "\"ooBinaryFile\""),
        1,
        {"binary TextGrid", "Save as text file"}},

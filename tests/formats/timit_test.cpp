@@ -11,24 +11,20 @@ using testing_support::Interval;
 using testing_support::parse_error;
 
 TEST(Timit, ConvertsSamplesAtGivenRate) {
-  const LabeledUtterance utterance =
-      parse_utterance(fixture("speech.PHN"), InputFormat::timit, "speech.PHN");
+  const LabeledUtterance utterance = parse_utterance(fixture("speech.PHN"), InputFormat::timit, "speech.PHN");
   EXPECT_EQ(utterance.source, "speech.PHN");
   EXPECT_EQ(utterance.phone_set, "timit");
-  EXPECT_THAT(utterance.intervals,
-              ElementsAre(Interval("h#", 0, 150000, 1), Interval("s", 150000, 260000, 2),
-                          Interval("pcl", 260000, 300000, 3), Interval("p", 300000, 320000, 4),
-                          Interval("iy", 320000, 430000, 5), Interval("tcl", 430000, 480000, 6),
-                          Interval("ch", 480000, 560000, 7), Interval("h#", 560000, 700000, 8)));
+  EXPECT_THAT(utterance.intervals, ElementsAre(Interval("h#", 0, 150000, 1), Interval("s", 150000, 260000, 2),
+                                               Interval("pcl", 260000, 300000, 3), Interval("p", 300000, 320000, 4),
+                                               Interval("iy", 320000, 430000, 5), Interval("tcl", 430000, 480000, 6),
+                                               Interval("ch", 480000, 560000, 7), Interval("h#", 560000, 700000, 8)));
 }
 
 TEST(Timit, SampleRateOptionScalesTimes) {
   ParseOptions options;
   options.timit_sample_rate_hz = 8000;
-  const LabeledUtterance utterance =
-      parse_utterance("0 800 h#\n800 2000 s\n", InputFormat::timit, "x.PHN", options);
-  EXPECT_THAT(utterance.intervals,
-              ElementsAre(Interval("h#", 0, 100000, 1), Interval("s", 100000, 250000, 2)));
+  const LabeledUtterance utterance = parse_utterance("0 800 h#\n800 2000 s\n", InputFormat::timit, "x.PHN", options);
+  EXPECT_THAT(utterance.intervals, ElementsAre(Interval("h#", 0, 100000, 1), Interval("s", 100000, 250000, 2)));
 }
 
 TEST(Timit, RoundsToNearestMicrosecondExactly) {
@@ -48,9 +44,8 @@ TEST(Timit, RoundsToNearestMicrosecondExactly) {
 }
 
 TEST(Timit, AcceptsWindowsLineBreaksAndBlankLines) {
-  EXPECT_THAT(
-      parse_utterance("0 1600 h#\r\n\r\n1600 3200 s\r\n", InputFormat::timit, "x").intervals,
-      ElementsAre(Interval("h#", 0, 100000, 1), Interval("s", 100000, 200000, 3)));
+  EXPECT_THAT(parse_utterance("0 1600 h#\r\n\r\n1600 3200 s\r\n", InputFormat::timit, "x").intervals,
+              ElementsAre(Interval("h#", 0, 100000, 1), Interval("s", 100000, 200000, 3)));
 }
 
 TEST(Timit, PassesZeroLengthAndReversedIntervalsToTheBuilder) {
@@ -99,8 +94,7 @@ TEST(Timit, BadSampleNumbersNameFieldAndValue) {
       {"-5 10 a\n", 1, "start_sample", "\"-5\"", "negative"},
       {"0 10 a\n10 15.5 b\n", 2, "end_sample", "\"15.5\"", "whole number"},
       {"0 nan a\n", 1, "end_sample", "\"nan\"", "not a number"},
-      {"0 99999999999999999999999 a\n", 1, "end_sample", "\"99999999999999999999999\"",
-       "beyond 24 hours"},
+      {"0 99999999999999999999999 a\n", 1, "end_sample", "\"99999999999999999999999\"", "beyond 24 hours"},
       {"0 1382400017 a\n", 1, "end_sample", "\"1382400017\"", "beyond 24 hours"},
   };
   for (const Case& c : cases) {

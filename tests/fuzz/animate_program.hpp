@@ -55,19 +55,19 @@ enum class Metadata : std::uint8_t { none, same_as_body, explicit_value };
 
 /// Which AnimationSettings fields a settings action sets (the rest stay unset).
 enum SettingsBits : std::uint16_t {
-  kModel = 1 << 0,               // string
-  kFps = 1 << 1,                 // u16
-  kPhoneSet = 1 << 2,            // string
-  kLookahead = 1 << 3,           // u8
-  kFixedRate = 1 << 4,           // -
-  kClosureFraction = 1 << 5,     // f64
-  kSession = 1 << 6,             // string
-  kMediaClock = 1 << 7,          // string clock, i64 utterance_zero_us
-  kChannels = 1 << 8,            // -
-  kArkit = 1 << 9,               // -
-  kVisemes = 1 << 10,            // u8 vocabulary
-  kRhubarbShapes = 1 << 11,      // string
-  kMesh = 1 << 12,               // u8 subdivision, u8 encoding
+  kModel = 1 << 0,            // string
+  kFps = 1 << 1,              // u16
+  kPhoneSet = 1 << 2,         // string
+  kLookahead = 1 << 3,        // u8
+  kFixedRate = 1 << 4,        // -
+  kClosureFraction = 1 << 5,  // f64
+  kSession = 1 << 6,          // string
+  kMediaClock = 1 << 7,       // string clock, i64 utterance_zero_us
+  kChannels = 1 << 8,         // -
+  kArkit = 1 << 9,            // -
+  kVisemes = 1 << 10,         // u8 vocabulary
+  kRhubarbShapes = 1 << 11,   // string
+  kMesh = 1 << 12,            // u8 subdivision, u8 encoding
 };
 
 class ProgramReader {
@@ -122,7 +122,8 @@ class ProgramWriter {
     u8(static_cast<std::uint8_t>(value >> 8));
   }
   void i64(std::int64_t value) {
-    for (int shift = 0; shift < 64; shift += 8) u8(static_cast<std::uint8_t>(static_cast<std::uint64_t>(value) >> shift));
+    for (int shift = 0; shift < 64; shift += 8)
+      u8(static_cast<std::uint8_t>(static_cast<std::uint64_t>(value) >> shift));
   }
   void f64(double value) {
     std::int64_t bits;

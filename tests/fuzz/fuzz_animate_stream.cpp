@@ -27,6 +27,10 @@
 // 100 phonemes ending within 5 s; messages that would exceed that are not sent.
 // The server is never destroyed: gRPC's global state outlives it otherwise,
 // and LeakSanitizer sees it as reachable.
+#include <google/protobuf/stubs/logging.h>
+#include <grpcpp/grpcpp.h>
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -39,10 +43,6 @@
 #include <string>
 #include <thread>
 #include <vector>
-
-#include <google/protobuf/stubs/logging.h>
-#include <grpcpp/grpcpp.h>
-#include <spdlog/spdlog.h>
 
 #include "animate_program.hpp"
 #include "catalog.hpp"
@@ -118,7 +118,8 @@ InProcessServer& in_process_server() {
   return *server;
 }
 
-const grpc::internal::RpcMethod kAnimateMethod("/lipsync.v1.LipSync/Animate", grpc::internal::RpcMethod::BIDI_STREAMING);
+const grpc::internal::RpcMethod kAnimateMethod("/lipsync.v1.LipSync/Animate",
+                                               grpc::internal::RpcMethod::BIDI_STREAMING);
 const grpc::internal::RpcMethod kSubscribeMethod("/lipsync.v1.LipSync/Subscribe",
                                                  grpc::internal::RpcMethod::SERVER_STREAMING);
 
@@ -273,9 +274,14 @@ class SubscribeCall : public RawCall<grpc::ClientReader<grpc::ByteBuffer>> {
 std::optional<std::string> read_metadata(ProgramReader& program, const std::string& body_session) {
   std::string value;
   switch (static_cast<Metadata>(program.u8() % 3)) {
-    case Metadata::none: return std::nullopt;
-    case Metadata::same_as_body: value = body_session; break;
-    case Metadata::explicit_value: value = program.string(); break;
+    case Metadata::none:
+      return std::nullopt;
+    case Metadata::same_as_body:
+      value = body_session;
+      break;
+    case Metadata::explicit_value:
+      value = program.string();
+      break;
   }
   // gRPC's client refuses (asserts on) metadata values that are not printable ASCII: no
   // client can send them, so they are mapped into that range (a printable name stays as it is).
@@ -450,7 +456,8 @@ void check_equals_render(const std::vector<v1::AnimateRequest>& sent, const Rece
   context.set_deadline(std::chrono::system_clock::now() + kCallDeadline);
   v1::RenderResponse response;
   const grpc::Status status = v1::LipSync::NewStub(in_process_server().channel)->Render(&context, request, &response);
-  if (!status.ok()) std::fprintf(stderr, "Render: status %d: %.300s\n", status.error_code(), status.error_message().c_str());
+  if (!status.ok())
+    std::fprintf(stderr, "Render: status %d: %.300s\n", status.error_code(), status.error_message().c_str());
   check(status.ok(), "what Animate accepted, Render accepts");
   const v1::FrameBatch& rendered = response.frames();
   check(same_bits(rendered.t_us(), animated.frames.t_us()), "Animate's frame times are Render's");
@@ -484,8 +491,7 @@ void check_server_is_clean() {
   const auto deadline = Clock::now() + std::chrono::seconds(2);
   const auto clean = [&] {
     return service.admission().calls_in_progress() == 0 && service.admission().active_streams() == 0 &&
-           open_streams(service.metrics()) == 0 &&
-           service.face_capacity().used_milli() == 0;
+           open_streams(service.metrics()) == 0 && service.face_capacity().used_milli() == 0;
   };
   while (!clean() && Clock::now() < deadline) std::this_thread::sleep_for(std::chrono::microseconds(100));
   check(service.admission().calls_in_progress() == 0, "no call is still in progress after its client saw the end");
@@ -551,14 +557,18 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         opened().send(request);
         break;
       }
-      case Op::phonemes: opened().send(read_phonemes(program, end_us[slot])); break;
+      case Op::phonemes:
+        opened().send(read_phonemes(program, end_us[slot]));
+        break;
       case Op::end: {
         v1::AnimateRequest request;
         request.mutable_end();
         opened().send(request);
         break;
       }
-      case Op::raw: opened().send_raw(program.string()); break;
+      case Op::raw:
+        opened().send_raw(program.string());
+        break;
       case Op::half_close:
         if (producer) producer->half_close();
         break;
@@ -576,7 +586,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       case Op::cancel_subscriber:
         if (subscribers[slot]) subscribers[slot]->cancel();
         break;
-      case Op::count: break;
+      case Op::count:
+        break;
     }
   }
 
@@ -584,8 +595,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   for (std::optional<AnimateCall>& producer : producers) {
     if (!producer) continue;
     const CallOutcome outcome = producer->finish();
-    check_status(outcome,
-                 {StatusCode::INVALID_ARGUMENT, StatusCode::RESOURCE_EXHAUSTED, StatusCode::ALREADY_EXISTS},
+    check_status(outcome, {StatusCode::INVALID_ARGUMENT, StatusCode::RESOURCE_EXHAUSTED, StatusCode::ALREADY_EXISTS},
                  producer->mesh());
     const ReceivedTrack track = check_track(outcome, true);
     if (outcome.status.ok() && producer->sent() && !producer->mesh()) check_equals_render(*producer->sent(), track);
@@ -593,10 +603,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   for (std::optional<SubscribeCall>& subscriber : subscribers) {
     if (!subscriber) continue;
     const CallOutcome outcome = subscriber->finish();
-    check_status(outcome,
-                 {StatusCode::NOT_FOUND, StatusCode::ABORTED, StatusCode::RESOURCE_EXHAUSTED,
-                  StatusCode::INVALID_ARGUMENT},
-                 false);
+    check_status(
+        outcome,
+        {StatusCode::NOT_FOUND, StatusCode::ABORTED, StatusCode::RESOURCE_EXHAUSTED, StatusCode::INVALID_ARGUMENT},
+        false);
     check_track(outcome, false);
   }
   check_server_is_clean();

@@ -15,9 +15,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   try {
     const ArticulationModel model = ArticulationModel::from_json(fuzz::bytes(data, size), "fuzz_model.json");
     const std::size_t channels = model.channel_count();
-    fuzz::check(model.silence_phoneme() >= 0 &&
-                    static_cast<std::size_t>(model.silence_phoneme()) < model.phonemes().size(),
-                "the model has a silence phoneme");
+    fuzz::check(
+        model.silence_phoneme() >= 0 && static_cast<std::size_t>(model.silence_phoneme()) < model.phonemes().size(),
+        "the model has a silence phoneme");
     fuzz::check(model.arkit_matrix().size() == kArkitNames.size() * channels, "ARKit matrix is 52 x channels");
     for (const PhonemeSpec& phoneme : model.phonemes()) {
       fuzz::check(phoneme.targets.size() == channels, "one target per channel");

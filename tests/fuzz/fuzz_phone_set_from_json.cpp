@@ -14,8 +14,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   try {
     const PhoneSet phone_set = PhoneSet::from_json(content, "fuzz_phone_set.json", model);
     fuzz::check(phone_set.lookup("") == model.silence_phoneme(), "the empty label is silence");
-    for (const std::string_view label : {std::string_view("aa"), std::string_view("AA1"), std::string_view("p"),
-                                         content.substr(0, 8)}) {
+    for (const std::string_view label :
+         {std::string_view("aa"), std::string_view("AA1"), std::string_view("p"), content.substr(0, 8)}) {
       if (const auto index = phone_set.lookup(label)) {
         fuzz::check(*index >= 0 && static_cast<std::size_t>(*index) < model.phonemes().size(),
                     "a lookup names a model phoneme");

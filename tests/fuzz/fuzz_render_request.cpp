@@ -8,11 +8,11 @@
 // strictly increase, with values for every frame and output.
 // The mesh output is switched off: the face solver would cost seconds per run
 // (the rig it loads is fuzzed by fuzz_face_rig_from_json).
+#include <google/protobuf/stubs/logging.h>
+
 #include <cstddef>
 #include <cstdint>
 #include <vector>
-
-#include <google/protobuf/stubs/logging.h>
 
 #include "catalog.hpp"
 #include "fuzz_support.hpp"

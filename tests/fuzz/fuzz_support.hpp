@@ -44,8 +44,7 @@ inline void check_segments(const std::vector<Segment>& segments, const Articulat
     check(segment.end_us > segment.start_us, "segments are not empty");
     check(segment.phoneme >= 0 && static_cast<std::size_t>(segment.phoneme) < model.phonemes().size(),
           "segments name a model phoneme");
-    check(segment.phoneme_class == model.phoneme(segment.phoneme).phoneme_class,
-          "a segment's class is its phoneme's");
+    check(segment.phoneme_class == model.phoneme(segment.phoneme).phoneme_class, "a segment's class is its phoneme's");
     previous_end_us = segment.end_us;
   }
 }

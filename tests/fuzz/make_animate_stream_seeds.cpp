@@ -69,15 +69,17 @@ void chunks(ProgramWriter& program, const std::vector<LabeledInterval>& phonemes
   std::int64_t previous_end_us = 0;
   for (std::size_t begin = 0; begin < phonemes.size(); begin += size) {
     const auto end = std::min(phonemes.size(), begin + size);
-    chunk(program, {phonemes.begin() + static_cast<std::ptrdiff_t>(begin), phonemes.begin() + static_cast<std::ptrdiff_t>(end)},
+    chunk(program,
+          {phonemes.begin() + static_cast<std::ptrdiff_t>(begin), phonemes.begin() + static_cast<std::ptrdiff_t>(end)},
           previous_end_us, slot);
     previous_end_us = phonemes[end - 1].end_us;
   }
 }
 
-const std::vector<LabeledInterval> kHello = {{"", 0, 100'000},         {"HH", 100'000, 160'000}, {"AH0", 160'000, 220'000},
-                                             {"L", 220'000, 300'000},  {"OW1", 300'000, 450'000}, {"P", 450'000, 520'000},
-                                             {"B", 520'000, 600'000},  {"M", 600'000, 700'000},   {"", 700'000, 800'000}};
+const std::vector<LabeledInterval> kHello = {
+    {"", 0, 100'000},        {"HH", 100'000, 160'000},  {"AH0", 160'000, 220'000},
+    {"L", 220'000, 300'000}, {"OW1", 300'000, 450'000}, {"P", 450'000, 520'000},
+    {"B", 520'000, 600'000}, {"M", 600'000, 700'000},   {"", 700'000, 800'000}};
 
 void write(const std::string& directory, const std::string& name, const ProgramWriter& program) {
   std::ofstream out(directory + "/" + name, std::ios::binary);

@@ -13,9 +13,9 @@ void add_hello(lipsync::v1::RenderRequest& request) {
   const struct {
     const char* label;
     long start_us, end_us;
-  } phonemes[] = {{"", 0, 100'000},         {"HH", 100'000, 160'000}, {"AH0", 160'000, 220'000},
-                  {"L", 220'000, 300'000},  {"OW1", 300'000, 450'000}, {"P", 450'000, 520'000},
-                  {"B", 520'000, 600'000},  {"M", 600'000, 700'000},  {"", 700'000, 800'000}};
+  } phonemes[] = {{"", 0, 100'000},        {"HH", 100'000, 160'000},  {"AH0", 160'000, 220'000},
+                  {"L", 220'000, 300'000}, {"OW1", 300'000, 450'000}, {"P", 450'000, 520'000},
+                  {"B", 520'000, 600'000}, {"M", 600'000, 700'000},   {"", 700'000, 800'000}};
   for (const auto& p : phonemes) {
     lipsync::v1::Phoneme* phoneme = request.add_phonemes();
     phoneme->set_label(p.label);

@@ -278,8 +278,8 @@ TEST(LiveLinkFaceCsv, every_arkit_shape_lands_in_its_own_column) {
   std::string arkit;
   for (std::size_t j = 0; j < kArkitNames.size(); ++j) {
     if (j > 0) arkit += ",";
-    arkit += "\"" + std::string(kArkitNames[j]) + "\": {\"weights\": {\"jaw_rotation\": " +
-             std::to_string(static_cast<double>(weight(j))) + "}}";
+    arkit += "\"" + std::string(kArkitNames[j]) +
+             "\": {\"weights\": {\"jaw_rotation\": " + std::to_string(static_cast<double>(weight(j))) + "}}";
   }
   std::string json(kTinyModel);
   const auto begin = json.find("\"arkit\"");

@@ -26,17 +26,33 @@ Environment environment_of(std::map<std::string, std::string> variables) {
 
 // A valid value for every flag; a flag missing here fails EveryFlagHasAnEnvironmentVariable.
 const std::map<std::string, std::string> kValues = {
-    {"--listen", "127.0.0.1:6001"},  {"--drain-deadline-ms", "1234"},   {"--max-streams", "17"},
-    {"--max-sessions", "18"},        {"--max-subscribers-per-session", "19"}, {"--max-phonemes", "20"},
-    {"--max-utterance-ms", "21"},    {"--max-message-bytes", "4096"},  {"--replay-frames", "22"},
-    {"--subscriber-queue-frames", "23"}, {"--face-threads", "3"},      {"--face-priority", "low"},
-    {"--max-mesh-streams-per-face-thread", "5"}, {"--mesh-max-lag-ms", "1500"},
-    {"--stalled-subscriber-ms", "24"}, {"--session-retention-ms", "25"}, {"--log-level", "debug"},
-    {"--model", "mine=/m.json"},     {"--replica-name", "pod-7"},     {"--tls-cert", "/etc/lipsyncd/cert.pem"},
-    {"--tls-key", "/etc/lipsyncd/key.pem"}, {"--tls-client-ca", "/etc/lipsyncd/clients.pem"},
+    {"--listen", "127.0.0.1:6001"},
+    {"--drain-deadline-ms", "1234"},
+    {"--max-streams", "17"},
+    {"--max-sessions", "18"},
+    {"--max-subscribers-per-session", "19"},
+    {"--max-phonemes", "20"},
+    {"--max-utterance-ms", "21"},
+    {"--max-message-bytes", "4096"},
+    {"--replay-frames", "22"},
+    {"--subscriber-queue-frames", "23"},
+    {"--face-threads", "3"},
+    {"--face-priority", "low"},
+    {"--max-mesh-streams-per-face-thread", "5"},
+    {"--mesh-max-lag-ms", "1500"},
+    {"--stalled-subscriber-ms", "24"},
+    {"--session-retention-ms", "25"},
+    {"--log-level", "debug"},
+    {"--model", "mine=/m.json"},
+    {"--replica-name", "pod-7"},
+    {"--tls-cert", "/etc/lipsyncd/cert.pem"},
+    {"--tls-key", "/etc/lipsyncd/key.pem"},
+    {"--tls-client-ca", "/etc/lipsyncd/clients.pem"},
     {"--api-keys", "/etc/lipsyncd/keys.json"},
     {"--http-listen", "127.0.0.1:6002"},
-    {"--log-format", "json"},        {"--metrics-listen", "127.0.0.1:9464"}, {"--transport-memory-bytes", "1048576"},
+    {"--log-format", "json"},
+    {"--metrics-listen", "127.0.0.1:9464"},
+    {"--transport-memory-bytes", "1048576"},
 };
 
 std::vector<std::string> flags_in_help() {
@@ -56,7 +72,8 @@ TEST(ConfigEnvironment, EveryFlagHasAnEnvironmentVariableThatSetsTheSameValue) {
     ASSERT_TRUE(kValues.count(flag)) << flag << " has no test value here";
     const std::string& value = kValues.at(flag);
     const ServerConfig from_flag = parse_command_line({flag, value}).config;
-    const ServerConfig from_environment = parse_command_line({}, environment_of({{environment_variable(flag), value}})).config;
+    const ServerConfig from_environment =
+        parse_command_line({}, environment_of({{environment_variable(flag), value}})).config;
     EXPECT_TRUE(from_flag == from_environment) << flag << " and " << environment_variable(flag);
     EXPECT_FALSE(from_environment == ServerConfig{}) << environment_variable(flag) << " changed nothing";
   }
@@ -72,8 +89,8 @@ TEST(ConfigEnvironment, FlagsBeatTheEnvironmentWhichBeatsTheFile) {
                                            {"LIPSYNCD_LOG_LEVEL", "warn"},
                                            {"LIPSYNCD_MODEL", "a=/a.json,b=/b.json"}});
   const ServerConfig config = parse_command_line({"--log-level", "debug"}, environment).config;
-  EXPECT_EQ(config.max_sessions, 50u);  // the file (named by LIPSYNCD_CONFIG)
-  EXPECT_EQ(config.max_streams, 6u);    // the environment over the file
+  EXPECT_EQ(config.max_sessions, 50u);   // the file (named by LIPSYNCD_CONFIG)
+  EXPECT_EQ(config.max_streams, 6u);     // the environment over the file
   EXPECT_EQ(config.log_level, "debug");  // the flag over the environment
   EXPECT_EQ(config.models, (std::vector<ModelFile>{{"a", "/a.json"}, {"b", "/b.json"}}));  // replaces the file's
   const ServerConfig flagged = parse_command_line({"--model", "c=/c.json"}, environment).config;
@@ -155,8 +172,9 @@ TEST(LipsyncdEnvironment, SighupRereadsTheConfigurationAndKeepsServing) {
   ASSERT_FALSE(address.empty()) << testing::read_text(dir / "err");
   testing::write_text(file, R"({"listen": "127.0.0.1:0", "log-level": "info", "max-streams": 9})");
   server.signal(SIGHUP);
-  ASSERT_TRUE(harness::eventually([&] { return testing::read_text(dir / "err").find("next restart") != std::string::npos; }))
-      << testing::read_text(dir / "err");
+  ASSERT_TRUE(harness::eventually([&] {
+    return testing::read_text(dir / "err").find("next restart") != std::string::npos;
+  })) << testing::read_text(dir / "err");
   testing::write_text(file, R"({"listen": "127.0.0.1:0", "log-level": "bogus"})");
   server.signal(SIGHUP);
   ASSERT_TRUE(harness::eventually([&] {

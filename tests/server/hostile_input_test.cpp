@@ -7,13 +7,11 @@
 // Animate start line, resolved peers, and excerpts instead of megabytes.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-
 #include <signal.h>
 
 #include <cstdio>
-#include <sstream>
-
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "../support/child_process.hpp"
 #include "../support/json_log.hpp"
@@ -79,7 +77,8 @@ TEST_F(HostileInputTest, EchoedValuesAreShortExcerptsWithTheirLength) {
 
   const Received long_session = animate(*stub, {settings_request(session_settings(std::string(257, 's')))});
   EXPECT_EQ(long_session.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
-  EXPECT_THAT(long_session.status.error_message(), HasSubstr("settings.session: the name has 257 bytes, more than the 256"));
+  EXPECT_THAT(long_session.status.error_message(),
+              HasSubstr("settings.session: the name has 257 bytes, more than the 256"));
 }
 
 TEST_F(HostileInputTest, ControlCharactersAreEscapedAndShortValuesStayWhole) {

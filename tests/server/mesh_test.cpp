@@ -6,6 +6,7 @@
 // streamed mesh and ARKit weights of real TTS timings, sealed lips at every
 // bilabial key frame and the lower lip at the upper teeth at every labiodental one.
 #include <gmock/gmock.h>
+#include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -14,13 +15,14 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <thread>
 
-#include <grpcpp/grpcpp.h>
-#include <nlohmann/json.hpp>
-
+#include "../support/child_process.hpp"
+#include "../support/lip_measures.hpp"
+#include "../support/server_harness.hpp"
 #include "lipsync/face/face_animation.hpp"
 #include "lipsync/face/face_mesh.hpp"
 #include "lipsync/face/face_rig.hpp"
@@ -34,16 +36,13 @@
 #include "lipsync/server/server.hpp"
 #include "lipsync/synthetic.hpp"
 #include "lipsync/v1/lipsync.grpc.pb.h"
-#include "../support/child_process.hpp"
-#include "../support/lip_measures.hpp"
-#include "../support/server_harness.hpp"
 
 namespace lipsync::server {
 namespace {
 
-using ::testing::HasSubstr;
 using harness::eventually;
 using harness::to_proto;
+using ::testing::HasSubstr;
 using namespace std::chrono_literals;
 
 std::vector<LabeledInterval> utterance(std::size_t phonemes, std::uint64_t seed = 3) {
@@ -92,7 +91,8 @@ struct Received {
   }
   std::vector<float> positions() const {
     std::vector<float> out;
-    for (const auto& batch : batches) out.insert(out.end(), batch.mesh_positions().begin(), batch.mesh_positions().end());
+    for (const auto& batch : batches)
+      out.insert(out.end(), batch.mesh_positions().begin(), batch.mesh_positions().end());
     return out;
   }
   std::vector<std::int16_t> quantised() const {
@@ -132,7 +132,8 @@ class MeshTest : public ::testing::Test {
     server_ = std::make_unique<Server>(config);
     grpc::ChannelArguments args;
     args.SetMaxReceiveMessageSize(-1);
-    stub_ = v1::LipSync::NewStub(grpc::CreateCustomChannel(server_->address(), grpc::InsecureChannelCredentials(), args));
+    stub_ =
+        v1::LipSync::NewStub(grpc::CreateCustomChannel(server_->address(), grpc::InsecureChannelCredentials(), args));
   }
   void TearDown() override { server_->shutdown(0ms); }
 
@@ -626,8 +627,9 @@ GlbPoses read_glb_poses(const std::string& bytes) {
 TEST_F(MeshTest, TheGlbTheVideoAndTheStreamedMeshAreOneFaceOnRealSpeech) {
   const auto dir = lipsync::testing::make_temp_dir("lipsync-one-face-");
   std::size_t compared_keys = 0;
-  for (const std::string name : {"librivox/sense_and_sensibility_0870.TextGrid", "librivox/sense_and_sensibility_0920.TextGrid",
-                                 "closures/festival_2.lab", "closures/aligned_flite_3.TextGrid"}) {
+  for (const std::string name :
+       {"librivox/sense_and_sensibility_0870.TextGrid", "librivox/sense_and_sensibility_0920.TextGrid",
+        "closures/festival_2.lab", "closures/aligned_flite_3.TextGrid"}) {
     const std::string path = std::string(LIPSYNC_TEST_DATA_DIR) + "/" + name;
     std::ifstream file(path);
     std::stringstream text;
@@ -643,10 +645,10 @@ TEST_F(MeshTest, TheGlbTheVideoAndTheStreamedMeshAreOneFaceOnRealSpeech) {
     for (const auto& batch : received.batches) t_us.insert(t_us.end(), batch.t_us().begin(), batch.t_us().end());
     const std::size_t values_per_pose = streamed.size() / t_us.size();
 
-    const auto run = lipsync::testing::run_program(
-        {LIPSYNC_CLI_BINARY, "render", path, "--mesh", (dir / "face.glb").string(), "--phone-set",
-         format == InputFormat::textgrid ? "arpabet" : "radio"},
-        dir, dir);
+    const auto run =
+        lipsync::testing::run_program({LIPSYNC_CLI_BINARY, "render", path, "--mesh", (dir / "face.glb").string(),
+                                       "--phone-set", format == InputFormat::textgrid ? "arpabet" : "radio"},
+                                      dir, dir);
     ASSERT_EQ(run.status, 0) << run.err;
     const GlbPoses glb = read_glb_poses(lipsync::testing::read_text(dir / "face.glb"));
     ASSERT_GE(glb.poses.size(), 10U) << name;
@@ -680,8 +682,8 @@ TEST_F(MeshTest, TheGlbTheVideoAndTheStreamedMeshAreOneFaceOnRealSpeech) {
     double worst_frame_m = 0, worst_video_m = 0;
     for (std::size_t f = 0; f < t_us.size(); ++f) {
       for (std::size_t i = 0; i < values_per_pose; ++i) {
-        worst_frame_m = std::max(worst_frame_m,
-                                 std::abs(played(static_cast<double>(t_us[f]) * 1e-6, i) - streamed[f * values_per_pose + i]));
+        worst_frame_m = std::max(worst_frame_m, std::abs(played(static_cast<double>(t_us[f]) * 1e-6, i) -
+                                                         streamed[f * values_per_pose + i]));
       }
     }
     face::FaceAnimation stream_faces;
@@ -697,15 +699,15 @@ TEST_F(MeshTest, TheGlbTheVideoAndTheStreamedMeshAreOneFaceOnRealSpeech) {
       const auto shown = video.frame(k);
       for (std::size_t v = 0; v < shown.size(); ++v) {
         const double t_s = static_cast<double>(video.t_us[k]) * 1e-6;
-        worst_video_m = std::max({worst_video_m, std::abs(shown[v].x - played(t_s, 3 * v)),
-                                  std::abs(shown[v].y - played(t_s, 3 * v + 1)),
-                                  std::abs(shown[v].z - played(t_s, 3 * v + 2))});
+        worst_video_m =
+            std::max({worst_video_m, std::abs(shown[v].x - played(t_s, 3 * v)),
+                      std::abs(shown[v].y - played(t_s, 3 * v + 1)), std::abs(shown[v].z - played(t_s, 3 * v + 2))});
       }
     }
-    std::printf("[ measured ] %s: %zu glb keys of %zu streamed frames; keys vs streamed poses %.1g mm, the glb "
-                "played at every streamed frame %.3f mm, at every video frame %.3f mm\n",
-                name.c_str(), glb.poses.size(), t_us.size(), worst_key_m * 1e3, worst_frame_m * 1e3,
-                worst_video_m * 1e3);
+    std::printf(
+        "[ measured ] %s: %zu glb keys of %zu streamed frames; keys vs streamed poses %.1g mm, the glb "
+        "played at every streamed frame %.3f mm, at every video frame %.3f mm\n",
+        name.c_str(), glb.poses.size(), t_us.size(), worst_key_m * 1e3, worst_frame_m * 1e3, worst_video_m * 1e3);
     EXPECT_LT(worst_frame_m, 0.000011) << name;  // the CLI's key tolerance, 0.01 mm
     EXPECT_LT(worst_video_m, 0.000011) << name;
   }

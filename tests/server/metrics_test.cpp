@@ -6,15 +6,14 @@
 
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <regex>
 #include <set>
 
-#include <nlohmann/json.hpp>
-
 #include "../support/child_process.hpp"
 #include "../support/prometheus_text.hpp"
-#include "transport/tenants.hpp"
 #include "../support/server_harness.hpp"
+#include "transport/tenants.hpp"
 
 namespace lipsync::server {
 namespace {
@@ -95,7 +94,7 @@ class TenantMetricsTest : public LiveServerTest {
  protected:
   void SetUp() override {
     lipsync::testing::write_text(key_file_, R"({"tenants": {"studio": {}}, "keys": [{"tenant": "studio", "sha256": ")" +
-                                                 sha256_hex("studio-key") + R"("}]})");
+                                                sha256_hex("studio-key") + R"("}]})");
     ServerConfig config;
     config.metrics_listen = "127.0.0.1:0";
     config.api_keys = key_file_.string();

@@ -2,8 +2,17 @@
 // to many subscribers, a slow subscriber cut off without hurting the others,
 // replay, cancellation, validation errors, limits, models, health, and the
 // binary's flags, exit codes and SIGTERM drain.
+#include "lipsync/server/server.hpp"
+
 #include <gmock/gmock.h>
+#include <grpcpp/create_channel_posix.h>
+#include <grpcpp/generic/generic_stub.h>
+#include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <chrono>
@@ -12,17 +21,9 @@
 #include <fstream>
 #include <future>
 #include <string>
-#include <sys/wait.h>
 #include <thread>
-#include <unistd.h>
 
-#include <netinet/in.h>
-#include <sys/socket.h>
-
-#include <grpcpp/create_channel_posix.h>
-#include <grpcpp/generic/generic_stub.h>
-#include <grpcpp/grpcpp.h>
-
+#include "../support/server_harness.hpp"
 #include "lipsync/error.hpp"
 #include "lipsync/model.hpp"
 #include "lipsync/phone_set.hpp"
@@ -30,10 +31,8 @@
 #include "lipsync/renderer.hpp"
 #include "lipsync/segment.hpp"
 #include "lipsync/server/config.hpp"
-#include "lipsync/server/server.hpp"
 #include "lipsync/synthetic.hpp"
 #include "lipsync/v1/lipsync.grpc.pb.h"
-#include "../support/server_harness.hpp"
 
 namespace lipsync::server {
 namespace {
@@ -472,26 +471,32 @@ v1::AnimationSettings with(void (*change)(v1::AnimationSettings&)) {
 TEST_F(ServerTest, BadInputEndsTheStreamWithInvalidArgumentNamingThePhoneme) {
   const auto aa = phoneme("AA", 0, 100'000);
   const std::vector<BadStream> cases = {
-      {"unknown label", {settings_request(), chunk_request({aa, phoneme("XQ", 100'000, 200'000)}), end_request()},
+      {"unknown label",
+       {settings_request(), chunk_request({aa, phoneme("XQ", 100'000, 200'000)}), end_request()},
        "phoneme stream:2: phoneme 'XQ'"},
-      {"reversed times", {settings_request(), chunk_request({aa, phoneme("B", 300'000, 200'000)}), end_request()},
+      {"reversed times",
+       {settings_request(), chunk_request({aa, phoneme("B", 300'000, 200'000)}), end_request()},
        "phoneme stream:2:"},
-      {"overlap", {settings_request(), chunk_request({aa, phoneme("B", 50'000, 200'000)}), end_request()},
+      {"overlap",
+       {settings_request(), chunk_request({aa, phoneme("B", 50'000, 200'000)}), end_request()},
        "phoneme stream:2:"},
       {"backwards across chunks",
        {settings_request(), chunk_request({aa, phoneme("B", 100'000, 200'000)}),
         chunk_request({phoneme("K", 150'000, 250'000)}), end_request()},
        "phoneme stream:3:"},
       {"missing settings", {chunk_request({aa}), end_request()}, "first message must be settings"},
-      {"second settings", {settings_request(), chunk_request({aa}), settings_request(), end_request()},
+      {"second settings",
+       {settings_request(), chunk_request({aa}), settings_request(), end_request()},
        "settings sent twice"},
-      {"phoneme after end", {settings_request(), chunk_request({aa}), end_request(), chunk_request({phoneme("B", 100'000, 200'000)})},
+      {"phoneme after end",
+       {settings_request(), chunk_request({aa}), end_request(), chunk_request({phoneme("B", 100'000, 200'000)})},
        "phoneme stream:2: phoneme 'B': received after `end`"},
       {"fps", {settings_request(with([](auto& s) { s.set_fps(241); }))}, "settings.fps"},
       {"lookahead", {settings_request(with([](auto& s) { s.set_lookahead(8); }))}, "settings.lookahead"},
       {"phone set", {settings_request(with([](auto& s) { s.set_phone_set("klingon"); }))}, "settings.phone_set"},
       {"model", {settings_request(with([](auto& s) { s.set_model("nope"); }))}, "settings.model"},
-      {"closure fraction", {settings_request(with([](auto& s) { s.set_closure_fraction(1.5); }))},
+      {"closure fraction",
+       {settings_request(with([](auto& s) { s.set_closure_fraction(1.5); }))},
        "settings.closure_fraction"},
   };
   for (const auto& bad : cases) {
@@ -650,7 +655,8 @@ TEST(ServerConfigTest, FlagsOverrideTheFileAndBadValuesNameTheFlag) {
 TEST(LipsyncdBinary, BadFlagsExit2AndABadModelExits1) {
   EXPECT_EQ(spawn({"--max-streams", "-3"}).wait(), 2);
   EXPECT_EQ(spawn({"--no-such-flag"}).wait(), 2);
-  EXPECT_EQ(spawn({"--listen", "127.0.0.1:0", "--model", "bad=" LIPSYNC_TEST_DATA_DIR "/models/bad_alpha.json"}).wait(), 1);
+  EXPECT_EQ(spawn({"--listen", "127.0.0.1:0", "--model", "bad=" LIPSYNC_TEST_DATA_DIR "/models/bad_alpha.json"}).wait(),
+            1);
   Child help = spawn({"--help"});
   EXPECT_THAT(help.line(), HasSubstr("lipsyncd"));
   EXPECT_EQ(help.wait(), 0);

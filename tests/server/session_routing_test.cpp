@@ -10,8 +10,8 @@
 // server/src/rpc/service.hpp does): the warning points into the generated header, so it is
 // silenced for the whole file.
 #pragma GCC diagnostic ignored "-Woverloaded-virtual"
-#include "lipsync/client/animation_client.hpp"
 #include "../support/server_harness.hpp"
+#include "lipsync/client/animation_client.hpp"
 
 namespace lipsync::server {
 namespace {
@@ -122,9 +122,8 @@ class RecordingService final : public v1::LipSync::CallbackService {
   void record(const grpc::CallbackServerContext& context) {
     std::lock_guard lock(mutex_);
     const auto found = context.client_metadata().find("x-lipsync-session");
-    sessions_.push_back(found == context.client_metadata().end()
-                            ? "(none)"
-                            : std::string(found->second.data(), found->second.size()));
+    sessions_.push_back(
+        found == context.client_metadata().end() ? "(none)" : std::string(found->second.data(), found->second.size()));
   }
   std::mutex mutex_;
   std::vector<std::string> sessions_;

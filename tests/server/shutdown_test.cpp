@@ -7,7 +7,6 @@
 // Finish); streams and subscribers still open at the drain deadline get ABORTED,
 // not gRPC's UNAVAILABLE.
 #include <gtest/gtest.h>
-
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -126,7 +125,8 @@ TEST(Shutdown, SigtermAfterAMeshRenderExitsWithin100MsOfTheLastStatusBeyondTheKe
 
     const auto signalled = std::chrono::steady_clock::now();
     ASSERT_EQ(kill(killed.child.pid, SIGKILL), 0);
-    kill_ms.push_back(std::chrono::duration<double, std::milli>(wait_for_exit(killed.child, 20s).at - signalled).count());
+    kill_ms.push_back(
+        std::chrono::duration<double, std::milli>(wait_for_exit(killed.child, 20s).at - signalled).count());
     std::printf("%u busy processes: last status to exit %.0f ms, SIGKILL to exit %.0f ms\n",
                 std::max(2u, std::thread::hardware_concurrency()) + 1, exit_ms.back(), kill_ms.back());
   }
@@ -136,8 +136,8 @@ TEST(Shutdown, SigtermAfterAMeshRenderExitsWithin100MsOfTheLastStatusBeyondTheKe
 }
 
 TEST(Shutdown, AMeshRenderRunningAtSigtermGetsItsResponse) {
-  Child child = spawn({"--listen", "127.0.0.1:0", "--drain-deadline-ms", "60000", "--log-level", "warn",
-                       "--face-priority", "normal"});
+  Child child = spawn(
+      {"--listen", "127.0.0.1:0", "--drain-deadline-ms", "60000", "--log-level", "warn", "--face-priority", "normal"});
   auto channel = connect(listening_address(child));
   ASSERT_TRUE(channel->WaitForConnected(std::chrono::system_clock::now() + 10s));
   auto stub = v1::LipSync::NewStub(channel);

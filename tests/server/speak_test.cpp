@@ -7,6 +7,7 @@
 // input and full servers get the right status with a message naming the field;
 // and `lipsync speak` writes what `lipsync say` writes, byte for byte.
 #include <gmock/gmock.h>
+#include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -15,8 +16,9 @@
 #include <thread>
 #include <vector>
 
-#include <grpcpp/grpcpp.h>
-
+#include "../support/child_process.hpp"
+#include "../support/prometheus_text.hpp"
+#include "../support/server_harness.hpp"
 #include "lipsync/client/animation_client.hpp"
 #include "lipsync/model.hpp"
 #include "lipsync/phone_set.hpp"
@@ -25,9 +27,6 @@
 #include "lipsync/speech/audio.hpp"
 #include "lipsync/speech/synthesizer.hpp"
 #include "lipsync/v1/lipsync.grpc.pb.h"
-#include "../support/child_process.hpp"
-#include "../support/prometheus_text.hpp"
-#include "../support/server_harness.hpp"
 
 namespace lipsync::server {
 namespace {
@@ -89,7 +88,8 @@ TEST_F(SpeakTest, frames_equal_the_offline_render_of_the_phonemes_espeak_reports
     for (const LabeledInterval& interval : local.phonemes.intervals) expected_phonemes.push_back(to_proto(interval));
     ASSERT_EQ(spoken.header.phonemes_size(), static_cast<int>(expected_phonemes.size()));
     for (int i = 0; i < spoken.header.phonemes_size(); ++i) {
-      EXPECT_EQ(spoken.header.phonemes(i).SerializeAsString(), expected_phonemes[static_cast<std::size_t>(i)].SerializeAsString())
+      EXPECT_EQ(spoken.header.phonemes(i).SerializeAsString(),
+                expected_phonemes[static_cast<std::size_t>(i)].SerializeAsString())
           << "phoneme " << i;
     }
     EXPECT_EQ(spoken.header.track().fps(), 30U);
@@ -188,8 +188,8 @@ TEST_F(SpeakTest, audio_chunks_continue_each_other_and_come_before_the_frames_th
       const v1::AudioChunk& chunk = message.audio();
       EXPECT_EQ(chunk.first_sample(), samples);
       EXPECT_EQ(chunk.start_us(), static_cast<std::int64_t>(samples * 1'000'000 / header.sample_rate_hz()));
-      EXPECT_GT(chunk.start_us(), last_frame_us) << "a frame at " << last_frame_us
-                                                 << " us came before the audio chunk starting at " << chunk.start_us();
+      EXPECT_GT(chunk.start_us(), last_frame_us)
+          << "a frame at " << last_frame_us << " us came before the audio chunk starting at " << chunk.start_us();
       samples += chunk.pcm().size() / 2;
     }
     if (message.has_frames()) last_frame_us = message.frames().t_us(message.frames().t_us_size() - 1);
@@ -231,8 +231,8 @@ TEST_F(SpeakTest, a_subscriber_of_the_session_gets_the_same_frames) {
 struct BadRequest {
   const char* what;
   v1::SpeakRequest request;
-  const char* field;    // the message names it
-  const char* detail;   // and says this
+  const char* field;   // the message names it
+  const char* detail;  // and says this
 };
 
 TEST_F(SpeakTest, bad_requests_are_refused_naming_the_field) {
@@ -296,7 +296,8 @@ TEST_F(SpeakTest, calls_speaking_or_waiting_for_the_synthesiser_at_the_drain_dea
   // minutes of speech) takes espeak-ng about a second: at a 200 ms deadline the first call is
   // still speaking and the others still wait for the synthesiser.
   v1::SpeakRequest request;
-  while (request.text().size() < 4000) request.mutable_text()->append("Papa parked the car by the ferry, and Bob waved. ");
+  while (request.text().size() < 4000)
+    request.mutable_text()->append("Papa parked the car by the ferry, and Bob waved. ");
   request.set_words_per_minute(80);
   constexpr int kCalls = 3;
   std::vector<std::future<SpeakStream>> calls;

@@ -195,7 +195,9 @@ TEST_F(TenantServer, ACallWithoutAKeyOrWithAnUnknownOrMalformedOneIsUnauthentica
   EXPECT_THAT(message, HasSubstr("authorization: Bearer"));
   EXPECT_EQ(code_of([&] { client_with("not-a-key").render({}, phonemes(5)); }, &message),
             grpc::StatusCode::UNAUTHENTICATED);
-  EXPECT_EQ(message, "unknown API key: it is not in this server's key file (check the key sent as `authorization: Bearer <key>`)");
+  EXPECT_EQ(
+      message,
+      "unknown API key: it is not in this server's key file (check the key sent as `authorization: Bearer <key>`)");
   Stream refused = start_stream(client_with(""), "s");
   EXPECT_EQ(refused.refusal.error_code(), grpc::StatusCode::UNAUTHENTICATED);
   EXPECT_EQ(code_of([&] { client_with("").subscribe("s", v1::SubscribeRequest::START_FROM_BEGINNING); }),
@@ -267,10 +269,10 @@ TEST_F(TenantServer, TheStreamAndSessionGaugesCountEachTenantApart) {
   Stream b_session = start_stream(b, "b-live");
   ASSERT_TRUE(*a_session.header && *a_private.header && *b_session.header);
   std::atomic<bool> followed = false;
-  const auto b_follower = b.start_subscribe("b-live", v1::SubscribeRequest::START_FROM_BEGINNING,
-                                            [&](const v1::TrackMessage& message) {
-                                              if (message.has_header()) followed = true;
-                                            });
+  const auto b_follower =
+      b.start_subscribe("b-live", v1::SubscribeRequest::START_FROM_BEGINNING, [&](const v1::TrackMessage& message) {
+        if (message.has_header()) followed = true;
+      });
   ASSERT_TRUE(eventually([&] { return followed.load(); }));
 
   const Exposition live = scrape();
@@ -313,10 +315,10 @@ TEST_F(TenantServer, TheSessionAndSubscriberQuotasRefuseNamingTheQuota) {
   // Attached (its header replayed), so it holds the subscriber quota: counted as an open stream
   // it is from a moment before, and a second subscriber in that moment was let in, then waited forever.
   std::atomic<bool> first_attached = false;
-  auto first = q.start_subscribe("q-one", v1::SubscribeRequest::START_FROM_BEGINNING,
-                                 [&](const v1::TrackMessage& message) {
-                                   if (message.has_header()) first_attached = true;
-                                 });
+  auto first =
+      q.start_subscribe("q-one", v1::SubscribeRequest::START_FROM_BEGINNING, [&](const v1::TrackMessage& message) {
+        if (message.has_header()) first_attached = true;
+      });
   ASSERT_TRUE(eventually([&] { return first_attached.load(); }));
   auto second = q.start_subscribe("q-one", v1::SubscribeRequest::START_FROM_BEGINNING, {});
   const grpc::Status refused = second->wait();
@@ -420,10 +422,11 @@ TEST(LipsyncdKeys, TheStartUpLogSaysWhetherTheServerIsOpenOrHowManyKeysItHas) {
 TEST(LipsyncdKeys, JsonAccessLinesOfASubscribeNameTheTenantOfItsKey) {
   const fs::path work = lipsync::testing::make_temp_dir("lipsyncd-keys-");
   lipsync::testing::write_text(work / "keys.json", R"({"tenants": {"studio": {}}, "keys": [{"tenant": "studio", )"
-                                                   R"("sha256": ")" + sha256_hex("studio-key") + R"("}]})");
-  lipsync::testing::ChildProcess server({LIPSYNCD_PATH, "--listen", "127.0.0.1:0", "--api-keys",
-                                         (work / "keys.json").string(), "--log-format", "json"},
-                                        work, work / "out", work / "err");
+                                                   R"("sha256": ")" +
+                                                       sha256_hex("studio-key") + R"("}]})");
+  lipsync::testing::ChildProcess server(
+      {LIPSYNCD_PATH, "--listen", "127.0.0.1:0", "--api-keys", (work / "keys.json").string(), "--log-format", "json"},
+      work, work / "out", work / "err");
   const std::string address = lipsync::testing::wait_for_listening_address(work / "out");
   ASSERT_FALSE(address.empty()) << lipsync::testing::read_text(work / "err");
   client::ClientOptions options;

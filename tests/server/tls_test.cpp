@@ -242,8 +242,8 @@ TEST(LipsyncdTls, SighupServesAReplacedCertificateToNewConnectionsWhileAnOpenStr
 // gRPC core logs a failed handshake itself; in --log-format json that line must be a JSON
 // object like every other (it was gRPC's own "E1127 ..." text).
 TEST(LipsyncdTls, InJsonLogFormatGrpcsOwnHandshakeErrorIsAJsonLineToo) {
-  RunningServer server({"--tls-cert", cert_path("server.pem"), "--tls-key", cert_path("server.key"), "--log-format",
-                        "json"});
+  RunningServer server(
+      {"--tls-cert", cert_path("server.pem"), "--tls-key", cert_path("server.key"), "--log-format", "json"});
   ASSERT_FALSE(server.address.empty()) << server.log();
   EXPECT_EQ(list_models(connect_new(server.address, "")).status.error_code(), grpc::StatusCode::UNAVAILABLE);
   ASSERT_TRUE(eventually([&] { return server.log().find("Handshake failed") != std::string::npos; })) << server.log();

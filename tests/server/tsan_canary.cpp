@@ -50,8 +50,8 @@ class CanaryReactor final : public lipsync::HandoffReactor<grpc::ServerWriteReac
 };
 
 class CanaryService final : public lipsync::v1::LipSync::CallbackService {
-  grpc::ServerWriteReactor<lipsync::v1::TrackMessage>* Subscribe(grpc::CallbackServerContext* /*context*/,
-                                                                  const lipsync::v1::SubscribeRequest* /*request*/) override {
+  grpc::ServerWriteReactor<lipsync::v1::TrackMessage>* Subscribe(
+      grpc::CallbackServerContext* /*context*/, const lipsync::v1::SubscribeRequest* /*request*/) override {
     auto* reactor = new CanaryReactor();
     reactor->handed_off();
     return reactor;

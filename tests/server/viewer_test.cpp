@@ -8,24 +8,23 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include <fstream>
-#include <future>
-#include <sstream>
-#include <string>
-#include <vector>
-
 #include <boost/asio/connect.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
+#include <fstream>
+#include <future>
 #include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
 
+#include "../support/child_process.hpp"
+#include "../support/server_harness.hpp"
 #include "lipsync/formats.hpp"
 #include "lipsync/speech/audio.hpp"
 #include "transport/tenants.hpp"
-#include "../support/child_process.hpp"
-#include "../support/server_harness.hpp"
 
 namespace lipsync::server {
 namespace {
@@ -171,8 +170,8 @@ class ViewerTest : public LiveServerTest {
       if (!message.has_audio()) continue;
       const std::string& pcm = message.audio().pcm();
       for (std::size_t i = 0; i + 1 < pcm.size(); i += 2) {
-        audio.samples.push_back(static_cast<std::int16_t>(static_cast<std::uint8_t>(pcm[i]) |
-                                                          static_cast<std::uint8_t>(pcm[i + 1]) << 8));
+        audio.samples.push_back(
+            static_cast<std::int16_t>(static_cast<std::uint8_t>(pcm[i]) | static_cast<std::uint8_t>(pcm[i + 1]) << 8));
       }
     }
     const grpc::Status status = reader->Finish();
@@ -314,8 +313,7 @@ TEST_F(ViewerTest, quick_try_animates_pasted_text_as_a_session_equal_to_a_render
 TEST_F(ViewerTest, quick_try_reports_bad_text_bad_parameters_and_taken_names) {
   HttpReply reply = request(http::verb::post, "/sessions?session=bad", "pau:0.1 p:0.05 aa:0.3\n");
   EXPECT_EQ(reply.status, 400u);
-  EXPECT_THAT(nlohmann::json::parse(reply.body)["message"].get<std::string>(),
-              ::testing::StartsWith("pasted text:"));
+  EXPECT_THAT(nlohmann::json::parse(reply.body)["message"].get<std::string>(), ::testing::StartsWith("pasted text:"));
   reply = request(http::verb::post, "/sessions?fps=1000", "pau:0.1 p:0.2\n");
   EXPECT_EQ(reply.status, 400u);
   EXPECT_THAT(reply.body, ::testing::HasSubstr("fps: expected an integer from 1 to 240, got '1000'"));
@@ -391,11 +389,15 @@ TEST_F(ViewerTest, quick_try_with_speak_speaks_the_text_into_a_session_that_carr
 class ViewerWithKeysTest : public ViewerTest {
  protected:
   void SetUp() override {
-    lipsync::testing::write_text(
-        key_file_, R"({"tenants": {"a": {}, "b": {}}, "keys": [)"
-                   R"({"tenant": "a", "sha256": ")" + sha256_hex("key-a") + R"("},)"
-                   R"({"tenant": "a", "calls": ["Animate"], "sha256": ")" + sha256_hex("key-a-animate") + R"("},)"
-                   R"({"tenant": "b", "sha256": ")" + sha256_hex("key-b") + R"("}]})");
+    lipsync::testing::write_text(key_file_, R"({"tenants": {"a": {}, "b": {}}, "keys": [)"
+                                            R"({"tenant": "a", "sha256": ")" +
+                                                sha256_hex("key-a") +
+                                                R"("},)"
+                                                R"({"tenant": "a", "calls": ["Animate"], "sha256": ")" +
+                                                sha256_hex("key-a-animate") +
+                                                R"("},)"
+                                                R"({"tenant": "b", "sha256": ")" +
+                                                sha256_hex("key-b") + R"("}]})");
     ServerConfig config;
     config.http_listen = "127.0.0.1:0";
     config.api_keys = key_file_.string();
@@ -427,8 +429,7 @@ TEST_F(ViewerTest, follower_hears_aborted_when_the_producer_goes_away) {
   std::promise<void> header_arrived;
   std::thread follower([&] { reply = follow("/ws?session=waiting", &header_arrived); });
   // The producer goes away once the follower has the header (the session's first message).
-  const bool header_first =
-      header_arrived.get_future().wait_for(std::chrono::seconds(10)) == std::future_status::ready;
+  const bool header_first = header_arrived.get_future().wait_for(std::chrono::seconds(10)) == std::future_status::ready;
   context.TryCancel();
   producer->Finish();
   follower.join();

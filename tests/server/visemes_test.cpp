@@ -5,7 +5,10 @@
 // field; a stream that does not ask carries no viseme bytes; and on a Festival utterance the
 // streamed Oculus weights make PP win at every bilabial key frame (read through the C++ client
 // library).
+#include "lipsync/visemes.hpp"
+
 #include <gmock/gmock.h>
+#include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -15,8 +18,8 @@
 #include <string>
 #include <vector>
 
-#include <grpcpp/grpcpp.h>
-
+#include "../support/closure_frames.hpp"
+#include "../support/server_harness.hpp"
 #include "lipsync/client/animation_client.hpp"
 #include "lipsync/formats.hpp"
 #include "lipsync/model.hpp"
@@ -24,9 +27,6 @@
 #include "lipsync/renderer.hpp"
 #include "lipsync/segment.hpp"
 #include "lipsync/v1/lipsync.grpc.pb.h"
-#include "lipsync/visemes.hpp"
-#include "../support/closure_frames.hpp"
-#include "../support/server_harness.hpp"
 
 namespace lipsync::server {
 namespace {

@@ -53,7 +53,8 @@ TEST(BadAudio, loud_noise_does_not_match_a_transcript_and_gives_no_bilabials_wit
   speech::PcmAudio noise;
   std::mt19937 generator(29);
   std::normal_distribution<double> gauss(0, 3000);
-  for (int i = 0; i < 3 * 16000; ++i) noise.samples.push_back(static_cast<std::int16_t>(std::clamp(gauss(generator), -32768.0, 32767.0)));
+  for (int i = 0; i < 3 * 16000; ++i)
+    noise.samples.push_back(static_cast<std::int16_t>(std::clamp(gauss(generator), -32768.0, 32767.0)));
   EXPECT_THAT(error_of([&] { speech::align_speech(noise, "noise.wav", with_text()); }),
               HasSubstr("noise.wav: the transcript does not match the audio"));
   const auto start = std::chrono::steady_clock::now();
@@ -67,7 +68,8 @@ TEST(BadAudio, loud_noise_does_not_match_a_transcript_and_gives_no_bilabials_wit
 
 speech::PcmAudio amplified(int gain) {
   speech::PcmAudio clipped = papa().audio;
-  for (std::int16_t& sample : clipped.samples) sample = static_cast<std::int16_t>(std::clamp(sample * gain, -32768, 32767));
+  for (std::int16_t& sample : clipped.samples)
+    sample = static_cast<std::int16_t>(std::clamp(sample * gain, -32768, 32767));
   return clipped;
 }
 

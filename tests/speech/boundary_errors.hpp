@@ -33,16 +33,15 @@ namespace lipsync::testing {
 /// The first ten Harvard sentences: the utterances the alignment accuracy is measured on.
 inline std::span<const char* const> accuracy_sentences() { return std::span(kHarvardSentences).first(10); }
 
-
 struct BoundaryScore {
-  std::vector<double> errors_ms;  ///< one per matched boundary
+  std::vector<double> errors_ms;         ///< one per matched boundary
   std::vector<double> signed_errors_ms;  ///< aligned minus reference start, one per matched boundary
-  int reference_phonemes = 0;     ///< after merging silences
-  int matched_phonemes = 0;       ///< matched to an equal phoneme
-  int bilabials = 0;              ///< /p b m/ in the reference
+  int reference_phonemes = 0;            ///< after merging silences
+  int matched_phonemes = 0;              ///< matched to an equal phoneme
+  int bilabials = 0;                     ///< /p b m/ in the reference
   int bilabials_within_20ms = 0;
   std::vector<double> bilabial_errors_ms;  ///< start error of each matched reference /p b m/
-  int bilabials_closed_at_middle = 0;  ///< reference /p b m/ whose middle the alignment labels /p b m/
+  int bilabials_closed_at_middle = 0;      ///< reference /p b m/ whose middle the alignment labels /p b m/
 };
 
 struct MappedPhoneme {

@@ -4,14 +4,14 @@
 // boundaries are put where PocketSphinx tends to put them (off by 10 to 30 ms);
 // the refiner must find the true ones, leave other phones and signal-less
 // boundaries alone, and keep the phones tiling the audio.
+#include "lipsync/speech/closure_refiner.hpp"
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <numbers>
 #include <random>
-
-#include "lipsync/speech/closure_refiner.hpp"
 
 namespace lipsync {
 namespace {
@@ -47,9 +47,10 @@ speech::PcmAudio stop(std::int64_t close_us, std::int64_t release_us, std::int64
       v = gauss(noise);
     } else {
       const double t = double(i) / kRate;
-      v = kind == Closure::silent  ? 0.0
-          : kind == Closure::voiced ? 0.1 * std::sin(2 * std::numbers::pi * 120 * t)
-                                    : 0.08 * std::sin(2 * std::numbers::pi * 250 * t) + 0.004 * std::sin(2 * std::numbers::pi * 2500 * t);
+      v = kind == Closure::silent ? 0.0
+          : kind == Closure::voiced
+              ? 0.1 * std::sin(2 * std::numbers::pi * 120 * t)
+              : 0.08 * std::sin(2 * std::numbers::pi * 250 * t) + 0.004 * std::sin(2 * std::numbers::pi * 2500 * t);
     }
     audio.samples.push_back(static_cast<std::int16_t>(std::lround(std::clamp(v, -1.0, 1.0) * 32767)));
   }
@@ -66,7 +67,8 @@ LabeledUtterance phones_of(std::vector<LabeledInterval> intervals) {
 TEST(ClosureRefiner, stop_closure_and_release_move_to_the_energy_steps) {
   for (const auto& [kind, label] : {std::pair{Closure::silent, "P"}, {Closure::voiced, "B"}, {Closure::nasal, "M"}}) {
     const speech::PcmAudio audio = stop(300'000, 380'000, 700'000, kind);
-    LabeledUtterance phones = phones_of({{"AA", 0, 320'000, 1}, {label, 320'000, 360'000, 2}, {"AA", 360'000, 700'000, 3}});
+    LabeledUtterance phones =
+        phones_of({{"AA", 0, 320'000, 1}, {label, 320'000, 360'000, 2}, {"AA", 360'000, 700'000, 3}});
     speech::ClosureRefinerOptions exact;
     exact.closure_lead_us = 0;  // the energy step itself, not the lead a natural closing gesture gets
     const std::vector<speech::RefinedBoundary> refined = speech::refine_closures(audio, phones, exact);
@@ -93,8 +95,10 @@ TEST(ClosureRefiner, the_closure_is_placed_its_lead_before_the_steepest_fall) {
 
 TEST(ClosureRefiner, boundaries_stay_where_the_signal_shows_no_step) {
   speech::PcmAudio audio;
-  for (std::int64_t i = 0; i < sample_of(600'000); ++i) audio.samples.push_back(static_cast<std::int16_t>(std::lround(vowel(i) * 32767)));
-  const LabeledUtterance aligned = phones_of({{"AA", 0, 200'000, 1}, {"M", 200'000, 280'000, 2}, {"AA", 280'000, 600'000, 3}});
+  for (std::int64_t i = 0; i < sample_of(600'000); ++i)
+    audio.samples.push_back(static_cast<std::int16_t>(std::lround(vowel(i) * 32767)));
+  const LabeledUtterance aligned =
+      phones_of({{"AA", 0, 200'000, 1}, {"M", 200'000, 280'000, 2}, {"AA", 280'000, 600'000, 3}});
   LabeledUtterance phones = aligned;
   const std::vector<speech::RefinedBoundary> refined = speech::refine_closures(audio, phones);
   ASSERT_EQ(refined.size(), 2U);
@@ -117,15 +121,19 @@ TEST(ClosureRefiner, only_lip_phones_move_and_only_within_the_search_window) {
   narrow.search_us = 40'000;
   speech::refine_closures(audio, phones, narrow);
   EXPECT_GE(phones.intervals[1].start_us, 320'000);
-  EXPECT_TRUE(speech::is_lip_phone("b") && speech::is_lip_phone("M1") && speech::is_lip_phone("F") && speech::is_lip_phone("v"));
+  EXPECT_TRUE(speech::is_lip_phone("b") && speech::is_lip_phone("M1") && speech::is_lip_phone("F") &&
+              speech::is_lip_phone("v"));
   EXPECT_FALSE(speech::is_lip_phone("") || speech::is_lip_phone("TH") || speech::is_lip_phone("AA"));
 }
 
 TEST(ClosureRefiner, phones_keep_their_order_and_minimum_length) {
   const speech::PcmAudio audio = stop(300'000, 380'000, 700'000, Closure::silent);
   // A /p/ of 20 ms squeezed between short neighbours: nothing may collapse or cross.
-  LabeledUtterance phones = phones_of({{"", 0, 290'000, 1}, {"AA", 290'000, 305'000, 2}, {"P", 305'000, 325'000, 3},
-                                       {"M", 325'000, 340'000, 4}, {"AA", 340'000, 700'000, 5}});
+  LabeledUtterance phones = phones_of({{"", 0, 290'000, 1},
+                                       {"AA", 290'000, 305'000, 2},
+                                       {"P", 305'000, 325'000, 3},
+                                       {"M", 325'000, 340'000, 4},
+                                       {"AA", 340'000, 700'000, 5}});
   speech::refine_closures(audio, phones);
   for (std::size_t i = 0; i < phones.intervals.size(); ++i) {
     EXPECT_GE(phones.intervals[i].end_us - phones.intervals[i].start_us, 10'000) << i;

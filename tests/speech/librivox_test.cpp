@@ -96,19 +96,22 @@ TEST(LibriVox, every_bilabial_gets_a_sealed_key_frame_inside_a_quiet_stretch_of_
       }
       double quietest_below_peak_db = 0;
       for (std::int64_t t_ms = first_us / 1000; first_us >= 0 && t_ms <= last_us / 1000; ++t_ms) {
-        const auto at = static_cast<std::size_t>(std::clamp<std::int64_t>(t_ms - 5, 0, std::int64_t(levels.size()) - 1));
+        const auto at =
+            static_cast<std::size_t>(std::clamp<std::int64_t>(t_ms - 5, 0, std::int64_t(levels.size()) - 1));
         quietest_below_peak_db = std::max(quietest_below_peak_db, peak - levels[at]);
       }
       const bool sealed_and_quiet = first_us >= 0 && quietest_below_peak_db >= kClosureBelowPeakDb;
       if (first_us >= 0) least_below_peak_db = std::min(least_below_peak_db, quietest_below_peak_db);
-      seen += "; the quietest 10 ms between the sealed ones is " + std::to_string(quietest_below_peak_db) + " dB below the peak";
+      seen += "; the quietest 10 ms between the sealed ones is " + std::to_string(quietest_below_peak_db) +
+              " dB below the peak";
       EXPECT_TRUE(sealed_and_quiet) << path << ": /" << phone.label << "/ [" << phone.start_us << ", " << phone.end_us
                                     << "] µs: key frames" << (seen.empty() ? " none" : seen);
     }
   }
-  std::printf("[ measured ] %d bilabials in 5 LibriVox sentences; %d lip boundaries moved by the refiner; the "
-              "least quiet sealed closure reaches %.1f dB below its sentence's peak\n",
-              bilabials, moved, least_below_peak_db);
+  std::printf(
+      "[ measured ] %d bilabials in 5 LibriVox sentences; %d lip boundaries moved by the refiner; the "
+      "least quiet sealed closure reaches %.1f dB below its sentence's peak\n",
+      bilabials, moved, least_below_peak_db);
   EXPECT_GE(bilabials, 20);
 }
 

@@ -71,7 +71,8 @@ TEST_F(SpeechCliTest, say_video_has_audio_and_video_of_equal_length) {
   ASSERT_EQ(result.status, 0) << result.err;
   EXPECT_EQ(listing(), std::vector<std::string>{"face.mp4"});  // the temporary WAV is gone
   const RunResult probe = testing::run_program(
-      {"/usr/bin/ffprobe", "-v", "error", "-show_streams", "-of", "json", (dir_ / "face.mp4").string()}, dir_, capture_);
+      {"/usr/bin/ffprobe", "-v", "error", "-show_streams", "-of", "json", (dir_ / "face.mp4").string()}, dir_,
+      capture_);
   ASSERT_EQ(probe.status, 0) << probe.err;
   const auto streams = nlohmann::json::parse(probe.out)["streams"];
   ASSERT_EQ(streams.size(), 2U);
@@ -129,7 +130,8 @@ TEST_F(SpeechCliTest, a_ten_minute_recording_is_refused_quickly_naming_the_file)
   // 600 s of a 16 kHz tone (19 MB, written here): refused before any decoding, in bounded time.
   speech::PcmAudio audio;
   audio.samples.resize(std::size_t(600) * 16000);
-  for (std::size_t i = 0; i < audio.samples.size(); ++i) audio.samples[i] = static_cast<std::int16_t>((i / 40) % 2 ? 8000 : -8000);
+  for (std::size_t i = 0; i < audio.samples.size(); ++i)
+    audio.samples[i] = static_cast<std::int16_t>((i / 40) % 2 ? 8000 : -8000);
   {
     std::ofstream out(dir_ / "long.wav", std::ios::binary);
     speech::write_wav(out, audio);
@@ -138,8 +140,9 @@ TEST_F(SpeechCliTest, a_ten_minute_recording_is_refused_quickly_naming_the_file)
   const RunResult result = run({"render", "long.wav", "--text", "a very long reading", "-o", "track.json"});
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   EXPECT_EQ(result.status, 1);
-  EXPECT_EQ(result.err,
-            "lipsync: error: long.wav: 600.0 s of audio is longer than the 120 s an alignment accepts; split it at pauses\n");
+  EXPECT_EQ(
+      result.err,
+      "lipsync: error: long.wav: 600.0 s of audio is longer than the 120 s an alignment accepts; split it at pauses\n");
   EXPECT_LT(seconds, 20.0) << "the refusal must not wait for a decode";
   EXPECT_EQ(listing(), std::vector<std::string>{"long.wav"});
 }
@@ -156,7 +159,8 @@ TEST_F(SpeechCliTest, bad_command_lines_exit_2) {
   };
   for (const auto& command : commands) {
     const RunResult result = run(command);
-    EXPECT_EQ(result.status, 2) << command.front() << " " << (command.size() > 1 ? command[1] : "") << ": " << result.err;
+    EXPECT_EQ(result.status, 2) << command.front() << " " << (command.size() > 1 ? command[1] : "") << ": "
+                                << result.err;
     EXPECT_THAT(result.err, HasSubstr("lipsync: error: "));
   }
   EXPECT_TRUE(listing().empty());
@@ -170,7 +174,8 @@ TEST_F(SpeechCliTest, help_documents_say_and_align) {
   result = run({"align", "--help"});
   ASSERT_EQ(result.status, 0);
   EXPECT_THAT(result.out, HasSubstr("--text-file FILE"));
-  EXPECT_THAT(result.out, HasSubstr("the starts and ends of /p b m f v/ then\nmove to where the sound shows the lips closing"));
+  EXPECT_THAT(result.out,
+              HasSubstr("the starts and ends of /p b m f v/ then\nmove to where the sound shows the lips closing"));
   result = run({"--help"});
   EXPECT_THAT(result.out, HasSubstr("  say "));
   EXPECT_THAT(result.out, HasSubstr("  align "));

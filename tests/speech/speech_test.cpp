@@ -4,24 +4,24 @@
 // transcript that does not fit, a word the dictionary lacks).
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-
-#include <chrono>
-#include <filesystem>
-#include <cmath>
-#include <numbers>
-#include <sstream>
 #include <unistd.h>
 
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <numbers>
+#include <sstream>
+
 #include "boundary_errors.hpp"
-#include "tts_recordings.hpp"
 #include "lipsync/error.hpp"
 #include "lipsync/formats.hpp"
 #include "lipsync/renderer.hpp"
 #include "lipsync/segment.hpp"
 #include "lipsync/speech/aligner.hpp"
-#include "lipsync/speech/closure_refiner.hpp"
 #include "lipsync/speech/audio.hpp"
+#include "lipsync/speech/closure_refiner.hpp"
 #include "lipsync/speech/synthesizer.hpp"
+#include "tts_recordings.hpp"
 
 namespace lipsync {
 namespace {
@@ -49,8 +49,13 @@ std::string make_wav(int rate_hz, int channels, int bits, bool floating, std::si
     }
   }
   std::string wav = "RIFF";
-  const auto u32 = [&](std::uint32_t v) { for (int b = 0; b < 4; ++b) wav.push_back(static_cast<char>((v >> (8 * b)) & 0xFF)); };
-  const auto u16 = [&](std::uint16_t v) { wav.push_back(static_cast<char>(v & 0xFF)); wav.push_back(static_cast<char>(v >> 8)); };
+  const auto u32 = [&](std::uint32_t v) {
+    for (int b = 0; b < 4; ++b) wav.push_back(static_cast<char>((v >> (8 * b)) & 0xFF));
+  };
+  const auto u16 = [&](std::uint16_t v) {
+    wav.push_back(static_cast<char>(v & 0xFF));
+    wav.push_back(static_cast<char>(v >> 8));
+  };
   u32(static_cast<std::uint32_t>(36 + data.size()));
   wav += "WAVEfmt ";
   u32(16);
@@ -65,7 +70,9 @@ std::string make_wav(int rate_hz, int channels, int bits, bool floating, std::si
   return wav + data;
 }
 
-double tone(std::size_t i, int rate_hz, double hz) { return 0.5 * std::sin(2 * std::numbers::pi * hz * double(i) / rate_hz); }
+double tone(std::size_t i, int rate_hz, double hz) {
+  return 0.5 * std::sin(2 * std::numbers::pi * hz * double(i) / rate_hz);
+}
 
 // Frequency of a tone from its upward zero crossings.
 double measured_hz(const speech::PcmAudio& audio) {
@@ -171,8 +178,9 @@ TEST(Wav, other_layouts_are_converted_to_mono_16_bit_with_a_note) {
   for (const Layout& layout : layouts) {
     SCOPED_TRACE(std::to_string(layout.rate) + " Hz, " + std::to_string(layout.bits) + " bits");
     // 440 Hz in the left channel, its copy in the right: the mono mix is the same tone.
-    const std::string wav = make_wav(layout.rate, layout.channels, layout.bits, layout.floating,
-                                     std::size_t(layout.rate), [&](std::size_t i, int) { return tone(i, layout.rate, 440); });
+    const std::string wav =
+        make_wav(layout.rate, layout.channels, layout.bits, layout.floating, std::size_t(layout.rate),
+                 [&](std::size_t i, int) { return tone(i, layout.rate, 440); });
     const speech::DecodedWav decoded = speech::decode_wav(wav, "x.wav");
     EXPECT_EQ(decoded.notes, layout.notes);
     EXPECT_EQ(decoded.audio.samples.size(), std::size_t(layout.rate));
@@ -188,7 +196,8 @@ TEST(Wav, resampling_removes_what_16_khz_cannot_hold) {
   // A 7 kHz tone passes; a 10 kHz tone (above 8 kHz Nyquist) would alias to 6 kHz: it must vanish.
   for (const auto& [hz, kept] : {std::pair{7000.0, true}, std::pair{10000.0, false}}) {
     // clang 14 (the ASan build) cannot capture a structured binding in a lambda: capture a copy.
-    const std::string wav = make_wav(44100, 1, 16, false, 44100, [hz = hz](std::size_t i, int) { return tone(i, 44100, hz); });
+    const std::string wav =
+        make_wav(44100, 1, 16, false, 44100, [hz = hz](std::size_t i, int) { return tone(i, 44100, hz); });
     const speech::PcmAudio out = speech::resample(speech::decode_wav(wav, "x.wav").audio, 16000);
     const auto peak = *std::max_element(out.samples.begin() + 1000, out.samples.end() - 1000);
     if (kept) {
@@ -246,11 +255,13 @@ TEST(Alignment, refined_bilabial_closures_of_flite_and_festival_speech_start_wit
   const ArticulationModel& model = ArticulationModel::builtin();
   const PhoneSet radio = *PhoneSet::builtin("radio", model);
   const PhoneSet arpabet = *PhoneSet::builtin("arpabet", model);
-  const std::filesystem::path wav = std::filesystem::temp_directory_path() / ("speech_test-" + std::to_string(::getpid()) + ".wav");
+  const std::filesystem::path wav =
+      std::filesystem::temp_directory_path() / ("speech_test-" + std::to_string(::getpid()) + ".wav");
   for (const bool festival : {false, true}) {
     testing::BoundaryScore raw, refined;
     for (const char* sentence : testing::accuracy_sentences()) {
-      const auto recording = festival ? testing::festival_recording(sentence, wav) : testing::flite_recording(sentence, wav);
+      const auto recording =
+          festival ? testing::festival_recording(sentence, wav) : testing::flite_recording(sentence, wav);
       ASSERT_TRUE(recording) << (festival ? "festival" : "flite") << " did not speak: " << sentence;
       speech::AlignmentOptions options;
       options.transcript = sentence;
@@ -262,7 +273,8 @@ TEST(Alignment, refined_bilabial_closures_of_flite_and_festival_speech_start_wit
     }
     const char* name = festival ? "Festival" : "flite";
     EXPECT_EQ(refined.bilabials, 15) << name;
-    EXPECT_GE(refined.bilabials_within_20ms, festival ? 13 : 15) << name << " (raw: " << raw.bilabials_within_20ms << ")";
+    EXPECT_GE(refined.bilabials_within_20ms, festival ? 13 : 15)
+        << name << " (raw: " << raw.bilabials_within_20ms << ")";
     EXPECT_GT(refined.bilabials_within_20ms, raw.bilabials_within_20ms) << name;
     EXPECT_LE(testing::quantile(refined.bilabial_errors_ms, 0.5), 10.0) << name;
     EXPECT_LE(testing::quantile(refined.bilabial_errors_ms, 0.95), 25.0) << name;
@@ -278,9 +290,11 @@ TEST(Alignment, words_and_phones_follow_the_transcript) {
   const speech::Alignment aligned = speech::align_speech(speech.audio, "papa.wav", options);
   std::vector<std::string> words, phones;
   for (const LabeledInterval& word : aligned.words) words.push_back(word.label);
-  for (const LabeledInterval& phone : aligned.phones.intervals) if (!phone.label.empty()) phones.push_back(phone.label);
+  for (const LabeledInterval& phone : aligned.phones.intervals)
+    if (!phone.label.empty()) phones.push_back(phone.label);
   EXPECT_THAT(words, ::testing::ElementsAre("papa", "parked", "the", "car"));
-  EXPECT_THAT(phones, ::testing::ElementsAre("P", "AA", "P", "AH", "P", "AA", "R", "K", "T", "DH", "AH", "K", "AA", "R"));
+  EXPECT_THAT(phones,
+              ::testing::ElementsAre("P", "AA", "P", "AH", "P", "AA", "R", "K", "T", "DH", "AH", "K", "AA", "R"));
   EXPECT_EQ(aligned.notes, std::vector<std::string>{"resampled from 22050 Hz to 16000 Hz"});
   EXPECT_EQ(aligned.phones.intervals.front().start_us, 0);
   EXPECT_EQ(aligned.phones.intervals.back().end_us, speech::resample(speech.audio, 16000).duration_us());
@@ -300,14 +314,16 @@ TEST(Alignment, silence_only_is_an_error) {
   silence.samples.assign(32000, 0);
   EXPECT_EQ(error_of([&] { speech::align_speech(silence, "quiet.wav", {}); }),
             "quiet.wav: no speech found: the audio is silent (its loudest 20 ms is at -200 dBFS)");
-  for (std::size_t i = 0; i < silence.samples.size(); ++i) silence.samples[i] = static_cast<std::int16_t>(i % 3 == 0 ? 20 : -10);
+  for (std::size_t i = 0; i < silence.samples.size(); ++i)
+    silence.samples[i] = static_cast<std::int16_t>(i % 3 == 0 ? 20 : -10);
   EXPECT_THAT(error_of([&] { speech::align_speech(silence, "hiss.wav", {}); }), HasSubstr("no speech found"));
 }
 
 TEST(Alignment, ten_minutes_of_audio_are_refused_at_once) {
   speech::PcmAudio long_audio;
   long_audio.samples.resize(std::size_t(600) * 16000);
-  for (std::size_t i = 0; i < long_audio.samples.size(); ++i) long_audio.samples[i] = static_cast<std::int16_t>(tone(i, 16000, 200) * 20000);
+  for (std::size_t i = 0; i < long_audio.samples.size(); ++i)
+    long_audio.samples[i] = static_cast<std::int16_t>(tone(i, 16000, 200) * 20000);
   const auto start = std::chrono::steady_clock::now();
   EXPECT_EQ(error_of([&] { speech::align_speech(long_audio, "long.wav", {}); }),
             "long.wav: 600.0 s of audio is longer than the 120 s an alignment accepts; split it at pauses");
@@ -357,7 +373,8 @@ TEST(Alignment, the_textgrid_reads_back_as_the_alignment) {
   words_tier.tier = "words";
   const LabeledUtterance words = parse_utterance(grid.str(), InputFormat::textgrid, "papa.TextGrid", words_tier);
   std::vector<std::string> labels;
-  for (const LabeledInterval& word : words.intervals) if (!word.label.empty()) labels.push_back(word.label);
+  for (const LabeledInterval& word : words.intervals)
+    if (!word.label.empty()) labels.push_back(word.label);
   EXPECT_THAT(labels, ::testing::ElementsAre("papa", "parked", "the", "car"));
 }
 

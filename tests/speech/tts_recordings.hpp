@@ -47,8 +47,8 @@ inline std::optional<Recording> flite_recording(const std::string& text, const s
 inline std::optional<Recording> festival_recording(const std::string& text, const std::filesystem::path& wav) {
   std::string quoted;  // inside the shell's single quotes: ' is written '\''
   for (const char c : text) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return run_recording("festival -b '(voice_kal_diphone)' '(set! u (SynthText \"" + quoted + "\"))' '(utt.save.wave u \"" +
-                           wav.string() + "\")' '(utt.save.segs u \"-\")' 2>/dev/null",
+  return run_recording("festival -b '(voice_kal_diphone)' '(set! u (SynthText \"" + quoted +
+                           "\"))' '(utt.save.wave u \"" + wav.string() + "\")' '(utt.save.segs u \"-\")' 2>/dev/null",
                        wav, InputFormat::lab, "festival");
 }
 

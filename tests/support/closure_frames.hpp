@@ -80,8 +80,7 @@ inline double closure_error(const ArticulationModel& model, const std::vector<Se
   double worst = 0.0;
   for (const std::size_t c : closing_channels(model, closure.place)) {
     const ChannelSpec& channel = model.channels()[c];
-    const double error =
-        std::abs(track.frame_values(closure.frame)[c] - spec.targets[c]) / (channel.max - channel.min);
+    const double error = std::abs(track.frame_values(closure.frame)[c] - spec.targets[c]) / (channel.max - channel.min);
     if (error > worst) {
       worst = error;
       if (worst_channel) *worst_channel = channel.name;

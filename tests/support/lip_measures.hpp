@@ -21,7 +21,8 @@ inline double distance(Vec3 a, Vec3 b) { return std::hypot(a.x - b.x, a.y - b.y,
 inline double distance_to_segment(Vec3 p, Vec3 a, Vec3 b) {
   const Vec3 d{b.x - a.x, b.y - a.y, b.z - a.z};
   const double len2 = d.x * d.x + d.y * d.y + d.z * d.z;
-  const double t = len2 > 0 ? std::clamp(((p.x - a.x) * d.x + (p.y - a.y) * d.y + (p.z - a.z) * d.z) / len2, 0.0, 1.0) : 0.0;
+  const double t =
+      len2 > 0 ? std::clamp(((p.x - a.x) * d.x + (p.y - a.y) * d.y + (p.z - a.z) * d.z) / len2, 0.0, 1.0) : 0.0;
   return distance(p, {a.x + t * d.x, a.y + t * d.y, a.z + t * d.z});
 }
 
@@ -65,7 +66,7 @@ inline double frontal_opening_m(const FaceMesh& mesh, std::span<const Vec3> x) {
 
 // Distance from p to the upper teeth's labial surface and incisal edge (skull frame).
 inline double distance_to_upper_teeth_m(const FaceMesh& mesh, Vec3 p) {
-  const double dy = p.y < mesh.upper_teeth_y_min_m ? mesh.upper_teeth_y_min_m - p.y
+  const double dy = p.y < mesh.upper_teeth_y_min_m   ? mesh.upper_teeth_y_min_m - p.y
                     : p.y > mesh.upper_teeth_y_max_m ? p.y - mesh.upper_teeth_y_max_m
                                                      : 0.0;
   const double u = p.x / mesh.upper_arch_a_m, w = (p.z - mesh.upper_arch_centre_z_m) / mesh.upper_arch_b_m;
@@ -98,7 +99,9 @@ inline double lip_crossing_m(const FaceMesh& mesh, std::span<const Vec3> x) {
 
 inline double lip_gap_m(const FaceSolver& s) { return lip_gap_m(s.mesh(), s.positions()); }
 inline double frontal_opening_m(const FaceSolver& s) { return frontal_opening_m(s.mesh(), s.positions()); }
-inline double lower_lip_to_upper_teeth_m(const FaceSolver& s) { return lower_lip_to_upper_teeth_m(s.mesh(), s.positions()); }
+inline double lower_lip_to_upper_teeth_m(const FaceSolver& s) {
+  return lower_lip_to_upper_teeth_m(s.mesh(), s.positions());
+}
 inline double lip_crossing_m(const FaceSolver& s) { return lip_crossing_m(s.mesh(), s.positions()); }
 
 }  // namespace lipsync::face

@@ -34,7 +34,8 @@ inline std::string http_get(const std::string& host_port, const std::string& pat
     const std::string request = "GET " + path + " HTTP/1.1\r\nHost: " + host_port + "\r\nConnection: close\r\n\r\n";
     [[maybe_unused]] const auto sent = send(fd, request.data(), request.size(), 0);
     char buffer[65536];
-    for (ssize_t got; (got = recv(fd, buffer, sizeof(buffer), 0)) > 0;) response.append(buffer, static_cast<std::size_t>(got));
+    for (ssize_t got; (got = recv(fd, buffer, sizeof(buffer), 0)) > 0;)
+      response.append(buffer, static_cast<std::size_t>(got));
   }
   close(fd);
   const int status = response.size() > 12 ? std::stoi(response.substr(9, 3)) : 0;
@@ -94,8 +95,9 @@ inline Exposition parse_exposition(const std::string& text) {
     }
     EXPECT_TRUE(exposition.family_types.count(family)) << "line " << number << ": no TYPE for " << family;
     const std::string value = match[3];
-    exposition.samples[std::string(match[1]) + std::string(match[2])] =
-        value == "+Inf" ? 1e300 : value == "-Inf" ? -1e300 : std::stod(value);
+    exposition.samples[std::string(match[1]) + std::string(match[2])] = value == "+Inf"   ? 1e300
+                                                                        : value == "-Inf" ? -1e300
+                                                                                          : std::stod(value);
   }
   return exposition;
 }

@@ -6,6 +6,7 @@
 // tests/server/server_test.cpp and tests/server/limits_test.cpp.
 #pragma once
 
+#include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -21,14 +22,12 @@
 #include <utility>
 #include <vector>
 
-#include <grpcpp/grpcpp.h>
-
 #include "lipsync/server/config.hpp"
 #include "lipsync/server/server.hpp"
 #include "lipsync/synthetic.hpp"
 #include "lipsync/utterance.hpp"
-#include "lipsync/visemes.hpp"
 #include "lipsync/v1/lipsync.grpc.pb.h"
+#include "lipsync/visemes.hpp"
 
 namespace lipsync::server::harness {
 
@@ -56,7 +55,6 @@ struct Frames {
   }
 };
 
-
 inline std::vector<LabeledInterval> utterance(std::size_t phonemes, std::uint64_t seed = 1) {
   return synthesize_utterance({.phonemes = phonemes, .seed = seed});
 }
@@ -68,7 +66,6 @@ inline v1::Phoneme to_proto(const LabeledInterval& interval) {
   phoneme.set_end_us(interval.end_us);
   return phoneme;
 }
-
 
 // --- requests -----------------------------------------------------------------
 
@@ -125,7 +122,9 @@ void read_all(Reader& reader, Received& received) {
   while (reader.Read(&message)) take(received, message);
 }
 
-inline void set_deadline(grpc::ClientContext& context) { context.set_deadline(std::chrono::system_clock::now() + kCallTimeout); }
+inline void set_deadline(grpc::ClientContext& context) {
+  context.set_deadline(std::chrono::system_clock::now() + kCallTimeout);
+}
 
 inline std::shared_ptr<grpc::Channel> connect(const std::string& address, bool bdp_probe = true) {
   grpc::ChannelArguments args;
@@ -151,7 +150,7 @@ inline Received animate(v1::LipSync::Stub& stub, const std::vector<v1::AnimateRe
 }
 
 inline std::vector<v1::AnimateRequest> whole(const v1::AnimationSettings& settings,
-                                      const std::vector<LabeledInterval>& intervals, std::size_t chunk) {
+                                             const std::vector<LabeledInterval>& intervals, std::size_t chunk) {
   std::vector<v1::AnimateRequest> requests{settings_request(settings)};
   for (auto& request : chunked(intervals, chunk)) requests.push_back(std::move(request));
   requests.push_back(end_request());
@@ -178,7 +177,7 @@ inline SubscribedBytes subscribe_bytes(v1::LipSync::Stub& stub, const std::strin
 }
 
 inline Received subscribe_all(v1::LipSync::Stub& stub, const std::string& session,
-                       v1::SubscribeRequest::Start start = v1::SubscribeRequest::START_FROM_BEGINNING) {
+                              v1::SubscribeRequest::Start start = v1::SubscribeRequest::START_FROM_BEGINNING) {
   grpc::ClientContext context;
   set_deadline(context);
   v1::SubscribeRequest request;

@@ -19,18 +19,17 @@
 //
 // Usage: make_viewer_face CORPUS_DIR OUT.json        (writes OUT.json)
 //        make_viewer_face CORPUS_DIR --check FILE    (exit 1 if FILE differs from what it would write)
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <vector>
-
-#include <Eigen/Dense>
-#include <nlohmann/json.hpp>
 
 #include "lipsync/face/face_animation.hpp"
 #include "lipsync/face/face_mesh.hpp"
@@ -142,11 +141,14 @@ nlohmann::json fit(const Samples& samples, const face::FaceMesh& mesh) {
     if (peak > kMinActiveWeight) active.push_back(k);
   }
   const auto K = static_cast<Eigen::Index>(active.size());
-  Eigen::MatrixXd X(static_cast<Eigen::Index>(frames), K), Y(static_cast<Eigen::Index>(frames), static_cast<Eigen::Index>(coords));
+  Eigen::MatrixXd X(static_cast<Eigen::Index>(frames), K),
+      Y(static_cast<Eigen::Index>(frames), static_cast<Eigen::Index>(coords));
   for (std::size_t f = 0; f < frames; ++f) {
     const double s = std::sqrt(samples.weight[f]);
-    for (Eigen::Index k = 0; k < K; ++k) X(static_cast<Eigen::Index>(f), k) = s * samples.arkit[f][active[static_cast<std::size_t>(k)]];
-    for (std::size_t c = 0; c < coords; ++c) Y(static_cast<Eigen::Index>(f), static_cast<Eigen::Index>(c)) = s * samples.delta[f][c];
+    for (Eigen::Index k = 0; k < K; ++k)
+      X(static_cast<Eigen::Index>(f), k) = s * samples.arkit[f][active[static_cast<std::size_t>(k)]];
+    for (std::size_t c = 0; c < coords; ++c)
+      Y(static_cast<Eigen::Index>(f), static_cast<Eigen::Index>(c)) = s * samples.delta[f][c];
   }
   Eigen::MatrixXd normal = X.transpose() * X;
   normal.diagonal().array() += kRidge;
@@ -191,8 +193,7 @@ nlohmann::json fit(const Samples& samples, const face::FaceMesh& mesh) {
     for (std::size_t c = 0; c < coords; ++c) um[c] = std::lround(deltas(k, static_cast<Eigen::Index>(c)) * 1e6);
     shapes.push_back({{"name", std::string(kArkitNames[active[static_cast<std::size_t>(k)]])}, {"deltas_um", um}});
   }
-  nlohmann::json rest = nlohmann::json::array(), triangles = nlohmann::json::array(),
-                 parts = nlohmann::json::array();
+  nlohmann::json rest = nlohmann::json::array(), triangles = nlohmann::json::array(), parts = nlohmann::json::array();
   for (const auto& p : mesh.rest_positions_m) {
     for (double c : {p.x, p.y, p.z}) rest.push_back(std::lround(c * 1e6));
   }
@@ -219,7 +220,8 @@ nlohmann::json fit(const Samples& samples, const face::FaceMesh& mesh) {
         {"closure_frames", closure_frames},
         {"rms_error_mm", mm(rms)},
         {"worst_vertex_error_mm", mm(worst)},
-        {"closure_inner_lip_gap_mean_mm", mm(closure_frames ? closure_gap_sum / static_cast<double>(closure_frames) : 0)},
+        {"closure_inner_lip_gap_mean_mm",
+         mm(closure_frames ? closure_gap_sum / static_cast<double>(closure_frames) : 0)},
         {"closure_inner_lip_gap_max_mm", mm(closure_gap_max)},
         {"solver_closure_inner_lip_gap_mean_mm",
          mm(closure_frames ? solver_gap_sum / static_cast<double>(closure_frames) : 0)}}},

@@ -86,26 +86,37 @@ std::string percent_decode(std::string_view text) {
 /// The gRPC code of an HTTP status other than 200 (gRPC's http-grpc-status-mapping.md).
 int code_of_http_status(int status) {
   switch (status) {
-    case 400: return kInternal;
-    case 401: return kUnauthenticated;
-    case 403: return kPermissionDenied;
-    case 404: return kUnimplemented;
+    case 400:
+      return kInternal;
+    case 401:
+      return kUnauthenticated;
+    case 403:
+      return kPermissionDenied;
+    case 404:
+      return kUnimplemented;
     case 429:
     case 502:
     case 503:
-    case 504: return kUnavailable;
-    default: return kUnknown;
+    case 504:
+      return kUnavailable;
+    default:
+      return kUnknown;
   }
 }
 
 /// The gRPC code of a stream the server reset without a status.
 int code_of_reset(std::uint32_t http2_error) {
   switch (http2_error) {
-    case NGHTTP2_REFUSED_STREAM: return kUnavailable;
-    case NGHTTP2_CANCEL: return kCancelled;
-    case NGHTTP2_ENHANCE_YOUR_CALM: return kResourceExhausted;
-    case NGHTTP2_INADEQUATE_SECURITY: return kPermissionDenied;
-    default: return kInternal;
+    case NGHTTP2_REFUSED_STREAM:
+      return kUnavailable;
+    case NGHTTP2_CANCEL:
+      return kCancelled;
+    case NGHTTP2_ENHANCE_YOUR_CALM:
+      return kResourceExhausted;
+    case NGHTTP2_INADEQUATE_SECURITY:
+      return kPermissionDenied;
+    default:
+      return kInternal;
   }
 }
 
@@ -147,12 +158,12 @@ std::string grpc_frame(std::string_view payload) {
 struct H2GrpcConnection::Stream {
   H2MessageHandler on_message;
   H2DoneHandler on_done;
-  std::string outgoing;      ///< request bytes not yet given to nghttp2
-  std::size_t taken = 0;     ///< of outgoing, given to nghttp2
-  bool deferred = false;     ///< the data source waits for bytes (resume on send)
-  bool finishing = false;    ///< END_STREAM after outgoing
+  std::string outgoing;    ///< request bytes not yet given to nghttp2
+  std::size_t taken = 0;   ///< of outgoing, given to nghttp2
+  bool deferred = false;   ///< the data source waits for bytes (resume on send)
+  bool finishing = false;  ///< END_STREAM after outgoing
   bool cancelled = false;
-  std::string incoming;      ///< a response message not yet whole
+  std::string incoming;  ///< a response message not yet whole
   int http_status = 0;
   std::optional<int> grpc_status;
   std::string grpc_message;
@@ -213,7 +224,8 @@ H2GrpcConnection::H2GrpcConnection(asio::io_context& io, const std::string& addr
   }
   const auto deadline = std::chrono::steady_clock::now() + connect_timeout;
   while (!settings_received_) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     pollfd ready{socket_.native_handle(), POLLIN, 0};
     if (left.count() <= 0 || ::poll(&ready, 1, static_cast<int>(left.count())) <= 0) {
       throw std::runtime_error("no HTTP/2 settings within " + std::to_string(connect_timeout.count()) + " ms; " +
@@ -240,23 +252,20 @@ H2GrpcConnection::Stream* H2GrpcConnection::find(std::int32_t id) {
 
 std::unique_ptr<H2Call> H2GrpcConnection::start(std::string_view path,
                                                 const std::vector<std::pair<std::string, std::string>>& metadata,
-                                                std::string first, H2MessageHandler on_message,
-                                                H2DoneHandler on_done) {
+                                                std::string first, H2MessageHandler on_message, H2DoneHandler on_done) {
   auto stream = std::make_unique<Stream>();
   stream->on_message = std::move(on_message);
   stream->on_done = std::move(on_done);
   stream->outgoing = std::move(first);
   std::int32_t id = -1;
   if (!closed_) {
-    static const std::string kMethod = ":method", kPost = "POST", kScheme = ":scheme", kHttp = "http",
-                             kPath = ":path", kAuthority = ":authority", kContentType = "content-type",
-                             kGrpc = "application/grpc", kTe = "te", kTrailers = "trailers",
-                             kUserAgent = "user-agent", kAgent = "lipsync-loadtest";
+    static const std::string kMethod = ":method", kPost = "POST", kScheme = ":scheme", kHttp = "http", kPath = ":path",
+                             kAuthority = ":authority", kContentType = "content-type", kGrpc = "application/grpc",
+                             kTe = "te", kTrailers = "trailers", kUserAgent = "user-agent", kAgent = "lipsync-loadtest";
     const std::string path_text(path);
-    std::vector<nghttp2_nv> fields = {header(kMethod, kPost),          header(kScheme, kHttp),
-                                      header(kPath, path_text),        header(kAuthority, authority_),
-                                      header(kContentType, kGrpc),     header(kTe, kTrailers),
-                                      header(kUserAgent, kAgent)};
+    std::vector<nghttp2_nv> fields = {
+        header(kMethod, kPost),      header(kScheme, kHttp), header(kPath, path_text),  header(kAuthority, authority_),
+        header(kContentType, kGrpc), header(kTe, kTrailers), header(kUserAgent, kAgent)};
     for (const auto& [name, value] : headers_) fields.push_back(header(name, value));
     for (const auto& [name, value] : metadata) fields.push_back(header(name, value));
     nghttp2_data_provider source{};
@@ -344,22 +353,22 @@ void H2GrpcConnection::fail_all(const std::string& why) {
 // --- I/O ------------------------------------------------------------------------------------------
 
 void H2GrpcConnection::start_reading() {
-  socket_.async_read_some(asio::buffer(read_buffer_), [this, alive = alive_](const boost::system::error_code& error,
-                                                                             std::size_t length) {
-    if (!*alive || closed_) return;
-    if (error) {
-      fail_all("the connection to " + address_ + " was lost: " + error.message());
-      return;
-    }
-    const ssize_t used = nghttp2_session_mem_recv(session_.get(), read_buffer_.data(), length);
-    if (closed_) return;  // a handler closed the connection
-    if (used < 0) {
-      fail_all("HTTP/2 error on the connection to " + address_ + ": " + nghttp2_strerror(static_cast<int>(used)));
-      return;
-    }
-    schedule_flush();  // window updates, acknowledgements
-    start_reading();
-  });
+  socket_.async_read_some(
+      asio::buffer(read_buffer_), [this, alive = alive_](const boost::system::error_code& error, std::size_t length) {
+        if (!*alive || closed_) return;
+        if (error) {
+          fail_all("the connection to " + address_ + " was lost: " + error.message());
+          return;
+        }
+        const ssize_t used = nghttp2_session_mem_recv(session_.get(), read_buffer_.data(), length);
+        if (closed_) return;  // a handler closed the connection
+        if (used < 0) {
+          fail_all("HTTP/2 error on the connection to " + address_ + ": " + nghttp2_strerror(static_cast<int>(used)));
+          return;
+        }
+        schedule_flush();  // window updates, acknowledgements
+        start_reading();
+      });
 }
 
 void H2GrpcConnection::schedule_flush() {

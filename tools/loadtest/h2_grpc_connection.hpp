@@ -84,8 +84,7 @@ class H2GrpcConnection {
   /// the server's HTTP/2 SETTINGS. `headers` go with every call (e.g.
   /// authorization). Throws std::runtime_error saying what failed (the caller names the address).
   H2GrpcConnection(boost::asio::io_context& io, const std::string& address,
-                   std::vector<std::pair<std::string, std::string>> headers,
-                   std::chrono::milliseconds connect_timeout);
+                   std::vector<std::pair<std::string, std::string>> headers, std::chrono::milliseconds connect_timeout);
   ~H2GrpcConnection();
   H2GrpcConnection(const H2GrpcConnection&) = delete;
   H2GrpcConnection& operator=(const H2GrpcConnection&) = delete;
@@ -120,9 +119,8 @@ class H2GrpcConnection {
   // nghttp2's callbacks (user_data is the connection).
   static ssize_t read_request(nghttp2_session*, std::int32_t id, std::uint8_t* buffer, std::size_t length,
                               std::uint32_t* flags, nghttp2_data_source* source, void* user_data);
-  static int on_header(nghttp2_session*, const nghttp2_frame* frame, const std::uint8_t* name,
-                       std::size_t name_length, const std::uint8_t* value, std::size_t value_length,
-                       std::uint8_t flags, void* user_data);
+  static int on_header(nghttp2_session*, const nghttp2_frame* frame, const std::uint8_t* name, std::size_t name_length,
+                       const std::uint8_t* value, std::size_t value_length, std::uint8_t flags, void* user_data);
   static int on_data(nghttp2_session*, std::uint8_t flags, std::int32_t id, const std::uint8_t* data,
                      std::size_t length, void* user_data);
   static int on_frame(nghttp2_session*, const nghttp2_frame* frame, void* user_data);

@@ -120,8 +120,8 @@ class H2Client final : public LoadClient {
     v1::SubscribeRequest request;
     request.set_session(session);
     request.set_start(v1::SubscribeRequest::START_FROM_BEGINNING);
-    auto call = start(connection, kSubscribePath, session, request.SerializeAsString(), nullptr,
-                      std::move(on_message), std::move(on_done));
+    auto call = start(connection, kSubscribePath, session, request.SerializeAsString(), nullptr, std::move(on_message),
+                      std::move(on_done));
     call->end();  // a server-streaming call: its one request, then END_STREAM
     return call;
   }

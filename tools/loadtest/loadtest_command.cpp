@@ -50,8 +50,8 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <boost/asio/io_context.hpp>
 #include <boost/asio/executor_work_guard.hpp>
+#include <boost/asio/io_context.hpp>
 #include <boost/asio/post.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <chrono>
@@ -68,11 +68,11 @@
 #include "arguments.hpp"
 #include "cli_error.hpp"
 #include "commands.hpp"
-#include "loadtest_clients.hpp"
 #include "lipsync/phone_set.hpp"
 #include "lipsync/renderer.hpp"
 #include "lipsync/segment.hpp"
 #include "lipsync/synthetic.hpp"
+#include "loadtest_clients.hpp"
 #include "network.hpp"
 #include "pipeline.hpp"
 
@@ -82,28 +82,30 @@ namespace {
 namespace asio = boost::asio;
 using Clock = std::chrono::steady_clock;
 
-constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
-    {"producers", 0, "N", "concurrent Animate streams, 1 to 10000", "10"},
-    {"subscribers-per-session", 0, "M", "subscribers following each producer's session, 0 to 16", "0"},
-    {"duration", 0, "S", "seconds during which new utterances start, 1 to 600", "10"},
-    {"realtime", 0, "", "send each phoneme when its start time arrives (the default)", ""},
-    {"fast", 0, "", "send each utterance as fast as possible", ""},
-    {"phonemes-per-utterance", 0, "K", "phonemes per synthetic utterance, 1 to 10000", "30"},
-    {"seed", 0, "S", "seed of the synthetic utterances, 0 to 2147483647", "1"},
-    {"connections", 0, "N", "HTTP/2 connections the streams are spread over, 1 to 64", "4"},
-    {"client", 0, "KIND",
-     "h2: the generator's own HTTP/2 client, all streams on one thread (plaintext only); grpc: the gRPC client "
-     "library, as applications use it",
-     "h2; grpc with --tls, --ca, --cert or --key"},
-    {"json", 0, "", "print the report as JSON", ""},
-    {"no-verify", 0, "", "count frames without checking them against the offline render (baseline servers)", ""},
-    {"mesh-share", 0, "F",
-     "fraction of the producers (spread evenly) that ask for the mesh output (physics face), 0 to 1", "0"},
-    {"mesh-subdivision", 0, "N",
-     kRangedHelp<"subdivision level of their mesh", kMeshSubdivisionSetting, " (771, 2379, 8775 vertices)">.view(),
-     kDefaultText<kMeshSubdivisionSetting>.view()},
-    {"mesh-encoding", 0, "ENC", "encoding of their vertex positions: float32 or int16", "float32"},
-}));
+constexpr auto kOptions = join(
+    kConnectionOptions,
+    std::to_array<OptionSpec>({
+        {"producers", 0, "N", "concurrent Animate streams, 1 to 10000", "10"},
+        {"subscribers-per-session", 0, "M", "subscribers following each producer's session, 0 to 16", "0"},
+        {"duration", 0, "S", "seconds during which new utterances start, 1 to 600", "10"},
+        {"realtime", 0, "", "send each phoneme when its start time arrives (the default)", ""},
+        {"fast", 0, "", "send each utterance as fast as possible", ""},
+        {"phonemes-per-utterance", 0, "K", "phonemes per synthetic utterance, 1 to 10000", "30"},
+        {"seed", 0, "S", "seed of the synthetic utterances, 0 to 2147483647", "1"},
+        {"connections", 0, "N", "HTTP/2 connections the streams are spread over, 1 to 64", "4"},
+        {"client", 0, "KIND",
+         "h2: the generator's own HTTP/2 client, all streams on one thread (plaintext only); grpc: the gRPC client "
+         "library, as applications use it",
+         "h2; grpc with --tls, --ca, --cert or --key"},
+        {"json", 0, "", "print the report as JSON", ""},
+        {"no-verify", 0, "", "count frames without checking them against the offline render (baseline servers)", ""},
+        {"mesh-share", 0, "F",
+         "fraction of the producers (spread evenly) that ask for the mesh output (physics face), 0 to 1", "0"},
+        {"mesh-subdivision", 0, "N",
+         kRangedHelp<"subdivision level of their mesh", kMeshSubdivisionSetting, " (771, 2379, 8775 vertices)">.view(),
+         kDefaultText<kMeshSubdivisionSetting>.view()},
+        {"mesh-encoding", 0, "ENC", "encoding of their vertex positions: float32 or int16", "float32"},
+    }));
 
 constexpr std::string_view kUsage = "lipsync loadtest [options]";
 constexpr std::string_view kDescription =
@@ -125,10 +127,10 @@ constexpr auto kSendGrid = std::chrono::milliseconds(1);
 
 /// One synthetic utterance and what the server must send for it.
 struct Utterance {
-  UtteranceRequests requests;               ///< the phonemes, as each client sends them
-  std::vector<std::int64_t> frame_t_us;     ///< the offline render's frame times
-  std::vector<float> frame_values;          ///< the offline render's channel values, frame-major
-  std::vector<std::uint32_t> released_by;   ///< per frame: phoneme index that released it (size() = end marker)
+  UtteranceRequests requests;              ///< the phonemes, as each client sends them
+  std::vector<std::int64_t> frame_t_us;    ///< the offline render's frame times
+  std::vector<float> frame_values;         ///< the offline render's channel values, frame-major
+  std::vector<std::uint32_t> released_by;  ///< per frame: phoneme index that released it (size() = end marker)
 };
 
 Utterance make_utterance(std::uint64_t seed, std::size_t phonemes, const ArticulationModel& model,
@@ -166,8 +168,8 @@ Utterance make_utterance(std::uint64_t seed, std::size_t phonemes, const Articul
 /// What one stream (a producer's Animate or a subscriber) received.
 struct StreamTally {
   std::uint64_t frames = 0;
-  std::uint64_t batches = 0;     ///< messages that carried frames
-  std::uint64_t unexpected = 0;  ///< frames not in the offline render (wrong index or time)
+  std::uint64_t batches = 0;            ///< messages that carried frames
+  std::uint64_t unexpected = 0;         ///< frames not in the offline render (wrong index or time)
   std::uint64_t without_positions = 0;  ///< mesh stream: frames without the header's V × 3 positions
   std::size_t mesh_coordinates = 0;     ///< from the header: V × 3 (0: no mesh in the header)
   bool mesh_int16 = false;              ///< from the header: positions come as int16
@@ -179,7 +181,7 @@ struct StreamTally {
 struct Run {
   const Utterance* utterance = nullptr;
   std::unique_ptr<std::atomic<std::int64_t>[]> sent_us;  // per phoneme, then the end marker
-  std::atomic<std::int64_t> last_sent_us{0};               // the latest of sent_us (--no-verify)
+  std::atomic<std::int64_t> last_sent_us{0};             // the latest of sent_us (--no-verify)
   Clock::time_point start;
   std::size_t next_phoneme = 0;
   std::unique_ptr<LoadCall> call;
@@ -299,7 +301,7 @@ struct Results {
 };
 
 struct MeshRequest {
-  double share = 0.0;        ///< fraction of the producers
+  double share = 0.0;  ///< fraction of the producers
   std::uint32_t subdivision = 1;
   client::v1::MeshEncoding encoding = client::v1::MESH_ENCODING_FLOAT32;
 };
@@ -399,10 +401,10 @@ class LoadTest {
       mesh.set_subdivision(config_.mesh.subdivision);
       mesh.set_encoding(config_.mesh.encoding);
     }
-    const std::string session = config_.subscribers > 0 ? "loadtest-" + std::to_string(::getpid()) + "-" +
-                                                              std::to_string(producer.index) + "-" +
-                                                              std::to_string(producer.runs)
-                                                        : std::string();
+    const std::string session = config_.subscribers > 0
+                                    ? "loadtest-" + std::to_string(::getpid()) + "-" + std::to_string(producer.index) +
+                                          "-" + std::to_string(producer.runs)
+                                    : std::string();
     settings.set_session(session);
     ++producer.runs;
     Run* raw = run.get();
@@ -518,9 +520,9 @@ class LoadTest {
     }
     // Destroying the calls here is safe: each has posted its last act. After an
     // error the producer pauses, so that a refusing server is not hammered.
-    const bool failed = !run.producer_status.ok() ||
-                        std::any_of(run.subscriber_status.begin(), run.subscriber_status.end(),
-                                    [](const grpc::Status& status) { return !status.ok(); });
+    const bool failed =
+        !run.producer_status.ok() || std::any_of(run.subscriber_status.begin(), run.subscriber_status.end(),
+                                                 [](const grpc::Status& status) { return !status.ok(); });
     asio::post(io_, [this, &producer, failed] {
       producer.run.reset();
       if (!failed) {
@@ -574,8 +576,8 @@ nlohmann::json to_json(const Percentiles& p) {
 
 std::string to_text(const Percentiles& p) {
   char text[128];
-  std::snprintf(text, sizeof text, "p50 %.2f ms  p95 %.2f ms  p99 %.2f ms  max %.2f ms", p.p50_ms, p.p95_ms,
-                p.p99_ms, p.max_ms);
+  std::snprintf(text, sizeof text, "p50 %.2f ms  p95 %.2f ms  p99 %.2f ms  max %.2f ms", p.p50_ms, p.p95_ms, p.p99_ms,
+                p.max_ms);
   return text;
 }
 
@@ -596,7 +598,8 @@ Request parse_request(const Arguments& arguments) {
   Request request;
   request.address = server_address(arguments);
   if (!is_loopback_address(request.address)) {
-    throw UsageError("--server: '" + request.address + "' is not on this machine; loadtest only runs against loopback "
+    throw UsageError("--server: '" + request.address +
+                     "' is not on this machine; loadtest only runs against loopback "
                      "addresses (127.0.0.1:PORT, localhost:PORT, [::1]:PORT, unix:PATH)");
   }
   if (arguments.flag("realtime") && arguments.flag("fast")) throw UsageError("choose one of --realtime and --fast");
@@ -604,11 +607,13 @@ Request parse_request(const Arguments& arguments) {
   config.producers = parse_int_option("producers", arguments.value("producers").value_or("10"), 1, 10'000);
   config.subscribers =
       parse_int_option("subscribers-per-session", arguments.value("subscribers-per-session").value_or("0"), 0, 16);
-  config.duration = std::chrono::seconds(parse_int_option("duration", arguments.value("duration").value_or("10"), 1, 600));
+  config.duration =
+      std::chrono::seconds(parse_int_option("duration", arguments.value("duration").value_or("10"), 1, 600));
   config.realtime = !arguments.flag("fast");
   config.phonemes = static_cast<std::size_t>(
       parse_int_option("phonemes-per-utterance", arguments.value("phonemes-per-utterance").value_or("30"), 1, 10'000));
-  config.seed = static_cast<std::uint64_t>(parse_int_option("seed", arguments.value("seed").value_or("1"), 0, INT32_MAX));
+  config.seed =
+      static_cast<std::uint64_t>(parse_int_option("seed", arguments.value("seed").value_or("1"), 0, INT32_MAX));
   config.verify = !arguments.flag("no-verify");
   request.connections = parse_int_option("connections", arguments.value("connections").value_or("4"), 1, 64);
   request.client_options = connection_options(arguments);
@@ -658,7 +663,7 @@ std::vector<Utterance> make_pool(const LoadTestConfig& config) {
 /// A finished run summed up: totals of all producers and of each kind, their latencies, and the verdict.
 struct Summary {
   double seconds = 0;
-  double generator_cpu = 0;  ///< cores the generator kept busy on average (its threads and gRPC's)
+  double generator_cpu = 0;      ///< cores the generator kept busy on average (its threads and gRPC's)
   std::array<Totals, 2> groups;  ///< without ([0]) and with ([1]) the mesh
   Totals totals;
   std::array<Percentiles, 2> producer_latency_by_mesh;
@@ -735,7 +740,9 @@ void write_json_report(const Request& request, const Summary& summary, std::ostr
       {"phonemes_per_utterance", config.phonemes},
       {"seed", config.seed},
       {"mesh",
-       {{"share", config.mesh.share}, {"subdivision", config.mesh.subdivision}, {"encoding", encoding_name(config.mesh)}}},
+       {{"share", config.mesh.share},
+        {"subdivision", config.mesh.subdivision},
+        {"encoding", encoding_name(config.mesh)}}},
       {"utterances", {{"started", totals.utterances_started}, {"complete", totals.utterances_complete}}},
       {"subscriptions", {{"started", totals.subscriptions}, {"complete", totals.subscriptions_complete}}},
       {"frames",
@@ -769,9 +776,8 @@ void write_text_report(const Request& request, const Summary& summary, std::ostr
                 static_cast<unsigned long long>(config.seed), request.client_name.c_str());
   out << line;
   if (groups[1].producers > 0) {
-    std::snprintf(line, sizeof line, "mesh: %d of %d producers (share %.2f), subdivision %u, %s\n",
-                  groups[1].producers, config.producers, config.mesh.share, config.mesh.subdivision,
-                  encoding_name(config.mesh).c_str());
+    std::snprintf(line, sizeof line, "mesh: %d of %d producers (share %.2f), subdivision %u, %s\n", groups[1].producers,
+                  config.producers, config.mesh.share, config.mesh.subdivision, encoding_name(config.mesh).c_str());
     out << line;
   }
   out << "utterances: " << totals.utterances_started << " started, " << totals.utterances_complete
@@ -820,7 +826,8 @@ void write_text_report(const Request& request, const Summary& summary, std::ostr
   for (const auto& [code, count] : summary.errors) out << ' ' << code << ' ' << count;
   out << '\n';
   if (!config.verify) {
-    out << (summary.every_frame ? "result: no errors (frames not checked: --no-verify)\n" : "result: FAILED (errors)\n");
+    out << (summary.every_frame ? "result: no errors (frames not checked: --no-verify)\n"
+                                : "result: FAILED (errors)\n");
   } else {
     out << (summary.every_frame ? "result: every frame arrived\n" : "result: FAILED (errors or missing frames)\n");
   }

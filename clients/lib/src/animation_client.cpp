@@ -61,10 +61,14 @@ CallError::CallError(std::string_view context, grpc::StatusCode code, std::strin
 
 FrameKind to_core(v1::FrameKind kind) {
   switch (kind) {
-    case v1::FRAME_KIND_CLOSURE_START: return FrameKind::closure_start;
-    case v1::FRAME_KIND_CLOSURE_END: return FrameKind::closure_end;
-    case v1::FRAME_KIND_SHORT_SEGMENT: return FrameKind::short_segment;
-    default: return FrameKind::uniform;
+    case v1::FRAME_KIND_CLOSURE_START:
+      return FrameKind::closure_start;
+    case v1::FRAME_KIND_CLOSURE_END:
+      return FrameKind::closure_end;
+    case v1::FRAME_KIND_SHORT_SEGMENT:
+      return FrameKind::short_segment;
+    default:
+      return FrameKind::uniform;
   }
 }
 
@@ -135,7 +139,8 @@ void ReceivedTrack::add_frames(const v1::FrameBatch& batch) {
   }
   if (static_cast<std::size_t>(batch.values_size()) != frames * track.channel_count ||
       static_cast<std::size_t>(batch.arkit_size()) != frames * arkit_count ||
-      static_cast<std::size_t>(batch.viseme_weights_size()) != frames * static_cast<std::size_t>(header.viseme_names_size()) ||
+      static_cast<std::size_t>(batch.viseme_weights_size()) !=
+          frames * static_cast<std::size_t>(header.viseme_names_size()) ||
       static_cast<std::size_t>(batch.mesh_positions_size()) != (int16 ? 0 : frames * mesh_count) ||
       batch.mesh_positions_int16().size() != (int16 ? frames * mesh_count * 2 : 0) ||
       (batch.kinds_size() != 0 && static_cast<std::size_t>(batch.kinds_size()) != frames)) {
@@ -156,8 +161,7 @@ void ReceivedTrack::add_frames(const v1::FrameBatch& batch) {
       throw protocol_error("frame times do not increase at frame " + std::to_string(track.frame_count()));
     }
     track.t_us.push_back(t_us);
-    track.kinds.push_back(batch.kinds_size() == 0 ? FrameKind::uniform
-                                                  : to_core(batch.kinds(static_cast<int>(i))));
+    track.kinds.push_back(batch.kinds_size() == 0 ? FrameKind::uniform : to_core(batch.kinds(static_cast<int>(i))));
   }
   track.values.insert(track.values.end(), batch.values().begin(), batch.values().end());
   arkit.insert(arkit.end(), batch.arkit().begin(), batch.arkit().end());
@@ -170,9 +174,9 @@ void ReceivedTrack::add_frames(const v1::FrameBatch& batch) {
     const std::string& bytes = batch.mesh_positions_int16();
     const double scale = header.mesh().quantisation_scale_m();
     for (std::size_t i = 0; i + 1 < bytes.size(); i += 2) {
-      const auto q = static_cast<std::int16_t>(static_cast<std::uint16_t>(
-          static_cast<unsigned>(static_cast<std::uint8_t>(bytes[i])) |
-          (static_cast<unsigned>(static_cast<std::uint8_t>(bytes[i + 1])) << 8)));
+      const auto q = static_cast<std::int16_t>(
+          static_cast<std::uint16_t>(static_cast<unsigned>(static_cast<std::uint8_t>(bytes[i])) |
+                                     (static_cast<unsigned>(static_cast<std::uint8_t>(bytes[i + 1])) << 8)));
       const double offset = header.mesh().quantisation_offset_m(static_cast<int>((i / 2) % 3));
       mesh_positions.push_back(static_cast<float>(offset + scale * q));
     }
@@ -367,13 +371,18 @@ class AnimateReactor : public HandoffReactor<grpc::ClientBidiReactor<v1::Animate
 
   void act(Action action) {
     switch (action) {
-      case Action::none: break;
-      case Action::write: StartWrite(&current_); break;
+      case Action::none:
+        break;
+      case Action::write:
+        StartWrite(&current_);
+        break;
       case Action::close_and_release:
         StartWritesDone();
         RemoveHold();
         break;
-      case Action::release: RemoveHold(); break;
+      case Action::release:
+        RemoveHold();
+        break;
     }
   }
 
@@ -568,8 +577,8 @@ void SpokenTrack::add(const v1::SpeakResponse& message) {
       const v1::AudioChunk& chunk = message.audio();
       const std::string& pcm = chunk.pcm();
       if (chunk.first_sample() != samples.size()) {
-        throw protocol_error("an audio chunk starting at sample " + std::to_string(chunk.first_sample()) +
-                             " after " + std::to_string(samples.size()) + " samples");
+        throw protocol_error("an audio chunk starting at sample " + std::to_string(chunk.first_sample()) + " after " +
+                             std::to_string(samples.size()) + " samples");
       }
       if (pcm.size() % 2 != 0 || samples.size() + pcm.size() / 2 > header.sample_count()) {
         throw protocol_error("an audio chunk of " + std::to_string(pcm.size()) + " bytes at sample " +

@@ -47,8 +47,7 @@ void PlaybackBuffer::expect_release_delay(std::int64_t release_delay_us, std::in
   release_margin_us_ = std::max<std::int64_t>(0, margin_us);
 }
 
-void PlaybackBuffer::note_batch(std::int64_t first_t_us, std::int64_t release_lag_us,
-                                std::int64_t arrival_clock_us) {
+void PlaybackBuffer::note_batch(std::int64_t first_t_us, std::int64_t release_lag_us, std::int64_t arrival_clock_us) {
   stats_.max_release_lag_us = std::max(stats_.max_release_lag_us, release_lag_us);
   if (!utterance_zero_us_ || release_delay_us_ == 0) return;
   // When the producer's input was at utterance time 0, on this clock: the batch

@@ -87,8 +87,7 @@ class CoarticulationEvaluator {
   /// a window shorter on one side (utterance edge, or lookahead) simply has
   /// fewer contributors. Times, t's and the segments', lie within ±kMaxTimeUs
   /// (as SegmentBuilder ensures). Writes channel_count() values to `out`.
-  void evaluate(std::span<const Segment> window, std::size_t current, std::int64_t t_us,
-                std::span<float> out) {
+  void evaluate(std::span<const Segment> window, std::size_t current, std::int64_t t_us, std::span<float> out) {
     evaluate(window, current, std::span<const std::int64_t>(&t_us, 1), out);
   }
   /// The same for several instants in segment `current`: writes one row of
@@ -124,7 +123,7 @@ void exp_non_positive(std::span<const double> x, std::span<double> y);
 /// The original, unwindowed Cohen–Massaro (Eq. 1): every segment of the
 /// utterance contributes with the plain exponential dominance. Same log-space
 /// normalisation. O(segments) per sample: kept for tests and benchmarks.
-void evaluate_unwindowed(const ArticulationModel& model, std::span<const Segment> segments,
-                         std::int64_t t_us, std::span<float> out);
+void evaluate_unwindowed(const ArticulationModel& model, std::span<const Segment> segments, std::int64_t t_us,
+                         std::span<float> out);
 
 }  // namespace lipsync

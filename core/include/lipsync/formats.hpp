@@ -26,7 +26,7 @@ std::string_view to_string(InputFormat format);
 std::optional<InputFormat> input_format_from_string(std::string_view name);
 
 struct ParseOptions {
-  std::string tier = "phones";     ///< TextGrid tier name
+  std::string tier = "phones";       ///< TextGrid tier name
   int timit_sample_rate_hz = 16000;  ///< TIMIT .PHN sample rate
 };
 
@@ -36,7 +36,7 @@ InputFormat detect_input_format(std::string_view file_name, std::string_view con
 
 /// Parses `content` (raw bytes of the file) in `format`. `source` names the file
 /// in messages. Times are rounded to the nearest microsecond.
-LabeledUtterance parse_utterance(std::string_view content, InputFormat format,
-                                 std::string_view source, const ParseOptions& options = {});
+LabeledUtterance parse_utterance(std::string_view content, InputFormat format, std::string_view source,
+                                 const ParseOptions& options = {});
 
 }  // namespace lipsync

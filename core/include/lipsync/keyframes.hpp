@@ -23,7 +23,7 @@ namespace lipsync {
 
 struct ScheduleOptions {
   int fps = static_cast<int>(kFpsSetting.default_value);  ///< kFpsSetting: 1 to 240
-  bool fixed_rate = false;  ///< uniform grid only, no key frames
+  bool fixed_rate = false;                                ///< uniform grid only, no key frames
 };
 
 struct ScheduledFrame {
@@ -51,7 +51,7 @@ class FrameScheduler {
   ScheduleOptions options_;
   std::int64_t anchor_us_ = 0;   // grid restart point
   std::int64_t next_index_ = 0;  // next grid index not yet emitted
-  bool in_closure_ = false;        // the last segment was a closure
+  bool in_closure_ = false;      // the last segment was a closure
   std::int64_t last_emitted_us_ = -1;
   std::size_t last_index_ = 0;
   std::int64_t last_end_us_ = 0;

@@ -28,11 +28,11 @@ std::optional<PhonemeClass> phoneme_class_from_string(std::string_view name);
 /// Parameters of one dominance function D(t) = α · exp(−θ± · |τ|^c),
 /// τ = (segment centre − t_off) − t  (Eq. 2 and 3).
 struct DominanceParams {
-  double alpha = 1.0;              ///< magnitude α, > 0
+  double alpha = 1.0;             ///< magnitude α, > 0
   double theta_minus_per_s = 10;  ///< decay rate after the peak (τ < 0), 1/s^c, > 0
   double theta_plus_per_s = 10;   ///< growth rate before the peak (τ ≥ 0), 1/s^c, > 0
-  double c = 1.0;                  ///< exponent c, in [1, 4]
-  double t_off_s = 0.0;            ///< peak offset from the segment centre, seconds
+  double c = 1.0;                 ///< exponent c, in [1, 4]
+  double t_off_s = 0.0;           ///< peak offset from the segment centre, seconds
 };
 
 struct ChannelSpec {
@@ -45,9 +45,9 @@ struct ChannelSpec {
 };
 
 struct PhonemeSpec {
-  std::string name;                      ///< model phoneme name, e.g. "aa", "pcl"
+  std::string name;  ///< model phoneme name, e.g. "aa", "pcl"
   PhonemeClass phoneme_class = PhonemeClass::vowel;
-  std::vector<double> targets;           ///< one per channel
+  std::vector<double> targets;             ///< one per channel
   std::vector<DominanceParams> dominance;  ///< one per channel
   /// For a release phoneme (/p/, /b/): the index of its closure phoneme, used to
   /// split an input segment that has no separate closure. -1 otherwise.

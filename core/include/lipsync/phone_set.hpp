@@ -19,8 +19,7 @@ class PhoneSet {
  public:
   /// Parses a phone-set table and checks that every target it names exists in
   /// `model`. Throws InputError naming `source` and the offending label.
-  static PhoneSet from_json(std::string_view json_text, std::string_view source,
-                            const ArticulationModel& model);
+  static PhoneSet from_json(std::string_view json_text, std::string_view source, const ArticulationModel& model);
 
   /// The phone sets embedded in the binary, resolved against `model`.
   /// Throws InputError if a built-in table names a phoneme the model lacks.
@@ -49,21 +48,20 @@ class PhoneSet {
   std::string name_;
   std::string description_;
   bool case_sensitive_ = true;
-  std::vector<std::string> ignored_;  // code points removed before lookup
+  std::vector<std::string> ignored_;       // code points removed before lookup
   std::array<bool, 128> ignored_ascii_{};  // the one-byte ones among them, by byte
   std::unordered_map<std::string, int> phoneme_by_label_;
   int silence_phoneme_ = -1;
   // The fallback for labels the table lacks (all empty/false: none).
   std::vector<std::string> fallback_ignored_;  // code points removed
-  bool fallback_split_ = false;                 // split into the table's labels
-  std::vector<std::string> fallback_skip_;      // labels passed over when another follows
+  bool fallback_split_ = false;                // split into the table's labels
+  std::vector<std::string> fallback_skip_;     // labels passed over when another follows
   std::size_t longest_key_bytes_ = 0;
 };
 
 /// Picks the built-in phone set that knows every label of `labels` (in
 /// builtin_names() order). If none does, returns the one with the fewest
 /// unknown labels, so that the error names the closest vocabulary.
-const PhoneSet& detect_phone_set(const std::vector<PhoneSet>& candidates,
-                                 const std::vector<std::string_view>& labels);
+const PhoneSet& detect_phone_set(const std::vector<PhoneSet>& candidates, const std::vector<std::string_view>& labels);
 
 }  // namespace lipsync

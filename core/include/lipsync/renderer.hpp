@@ -24,7 +24,7 @@ namespace lipsync {
 
 struct RenderOptions {
   int fps = static_cast<int>(kFpsSetting.default_value);  ///< kFpsSetting: 1 to 240
-  bool fixed_rate = false;  ///< uniform grid only
+  bool fixed_rate = false;                                ///< uniform grid only
   /// Segments after a frame's own that must be known before it is emitted
   /// (kLookaheadSetting: 0 to 7). 7 is exact; smaller values emit sooner and approximate.
   int lookahead = static_cast<int>(kLookaheadSetting.default_value);
@@ -68,8 +68,8 @@ class StreamingRenderer {
   // adds a segment before emitting: each emission drops the ones no future frame
   // can see (a short move to the front), so the reserved room never grows.
   std::vector<Segment> window_;
-  std::size_t first_index_ = 0;  // global index of window_.front()
-  std::size_t pushed_ = 0;       // segments pushed so far
+  std::size_t first_index_ = 0;            // global index of window_.front()
+  std::size_t pushed_ = 0;                 // segments pushed so far
   std::vector<ScheduledFrame> scheduled_;  // scratch for the scheduler
   std::vector<ScheduledFrame> pending_;    // in time order; emitted from the front
   bool finished_ = false;

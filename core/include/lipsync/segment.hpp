@@ -56,8 +56,7 @@ class SegmentBuilder {
     push(interval.label, interval.start_us, interval.end_us, interval.line, out);
   }
   /// The same for a label held elsewhere (a streamed phoneme's), without copying it.
-  void push(std::string_view label, std::int64_t start_us, std::int64_t end_us, int line,
-            std::vector<Segment>& out);
+  void push(std::string_view label, std::int64_t start_us, std::int64_t end_us, int line, std::vector<Segment>& out);
 
   /// End time of the last segment so far (0 before the first).
   std::int64_t end_us() const { return end_us_; }
@@ -74,8 +73,7 @@ class SegmentBuilder {
 
 /// Builds all segments of an utterance (convenience over SegmentBuilder).
 /// Throws InputError if the utterance has no interval.
-std::vector<Segment> build_segments(const LabeledUtterance& utterance,
-                                    const ArticulationModel& model, const PhoneSet& phone_set,
-                                    SegmentOptions options = {});
+std::vector<Segment> build_segments(const LabeledUtterance& utterance, const ArticulationModel& model,
+                                    const PhoneSet& phone_set, SegmentOptions options = {});
 
 }  // namespace lipsync

@@ -15,12 +15,12 @@
 namespace lipsync {
 
 struct SyntheticOptions {
-  std::size_t phonemes = 100;   ///< intervals to generate (pauses included)
+  std::size_t phonemes = 100;  ///< intervals to generate (pauses included)
   std::uint64_t seed = 1;
-  double short_share = 0.05;    ///< share of consonants given 5–25 ms
-  double pause_share = 0.06;    ///< share of intervals that are pauses ("SIL")
+  double short_share = 0.05;      ///< share of consonants given 5–25 ms
+  double pause_share = 0.06;      ///< share of intervals that are pauses ("SIL")
   double long_pause_share = 0.1;  ///< share of pauses that last 1–3 s
-  bool leave_gaps = false;      ///< omit pause labels, leaving gaps (which become silence)
+  bool leave_gaps = false;        ///< omit pause labels, leaving gaps (which become silence)
 };
 
 /// Contiguous intervals from time 0 with ARPAbet labels (vowels with stress digits).

@@ -29,8 +29,6 @@ std::optional<std::int64_t> parse_seconds_to_us(std::string_view text);
 /// beyond kMaxTimeUs in magnitude.
 std::optional<std::int64_t> seconds_to_us(double seconds);
 
-inline double to_seconds(std::int64_t time_us) {
-  return static_cast<double>(time_us) * 1e-6;
-}
+inline double to_seconds(std::int64_t time_us) { return static_cast<double>(time_us) * 1e-6; }
 
 }  // namespace lipsync

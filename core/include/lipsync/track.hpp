@@ -47,7 +47,7 @@ struct Track {
   int fps = 30;
   std::vector<std::int64_t> t_us;  ///< frame times, strictly increasing
   std::vector<FrameKind> kinds;
-  std::vector<float> values;       ///< frame_count() × channel_count
+  std::vector<float> values;  ///< frame_count() × channel_count
   /// One per frame from the renderers; empty in a track built by hand (nothing known).
   std::vector<FrameArticulation> articulation;
 

@@ -47,7 +47,6 @@ void write_track(const NamedTrackView& view, TrackFormat format, std::ostream& o
 /// Writes `track`, a track of `model`, in `format`: its names are the model's and
 /// its ARKit weights (json, arkit-csv) the model's retargeting of every frame.
 /// Throws std::invalid_argument when the track does not have the model's channels.
-void write_track(const Track& track, const ArticulationModel& model, TrackFormat format,
-                 std::ostream& out);
+void write_track(const Track& track, const ArticulationModel& model, TrackFormat format, std::ostream& out);
 
 }  // namespace lipsync

@@ -18,8 +18,8 @@ struct LabeledInterval {
 
 /// A parsed utterance file.
 struct LabeledUtterance {
-  std::string source;     ///< file name for messages
-  std::string phone_set;  ///< phone set the file declares, or "" when it does not say
+  std::string source;                      ///< file name for messages
+  std::string phone_set;                   ///< phone set the file declares, or "" when it does not say
   std::vector<LabeledInterval> intervals;  ///< in file order (not yet validated)
 };
 

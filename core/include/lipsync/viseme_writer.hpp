@@ -44,11 +44,11 @@ std::vector<RhubarbCue> rhubarb_cues(const VisemeClassifier& classifier, const s
                                      std::int64_t end_us);
 
 struct VisemeTrackView {
-  std::string_view model;          ///< name of the model that produced the track
+  std::string_view model;  ///< name of the model that produced the track
   const VisemeClassifier& classifier;
-  const Track& track;              ///< the frames the visemes were computed from
-  const VisemeTrack& visemes;      ///< compute_visemes(classifier, track)
-  std::int64_t end_us = 0;         ///< end of the utterance (Rhubarb's duration)
+  const Track& track;          ///< the frames the visemes were computed from
+  const VisemeTrack& visemes;  ///< compute_visemes(classifier, track)
+  std::int64_t end_us = 0;     ///< end of the utterance (Rhubarb's duration)
 };
 
 /// Writes `view` in `format`. Throws std::invalid_argument when the classifier's vocabulary is not

@@ -123,9 +123,9 @@ class VisemeClassifier {
   std::size_t channel_count_ = 0;
   std::vector<std::string> names_;
   std::uint32_t silence_ = 0;
-  std::vector<double> prototypes_;      // viseme × channel
-  std::vector<double> channel_scale_;   // w_c / range_c²
-  std::vector<std::uint32_t> fold_into_;  // viseme whose weight this one's goes to (itself if kept)
+  std::vector<double> prototypes_;            // viseme × channel
+  std::vector<double> channel_scale_;         // w_c / range_c²
+  std::vector<std::uint32_t> fold_into_;      // viseme whose weight this one's goes to (itself if kept)
   std::vector<std::int32_t> closure_viseme_;  // per model phoneme: the viseme a closure phoneme stands for, or −1
   double temperature_ = 1.0;
 };
@@ -143,7 +143,7 @@ class VisemeEventDetector {
 /// The visemes of a whole track.
 struct VisemeTrack {
   std::size_t viseme_count = 0;
-  std::vector<float> weights;        ///< frame-major, frame_count × viseme_count
+  std::vector<float> weights;          ///< frame-major, frame_count × viseme_count
   std::vector<std::uint32_t> winners;  ///< one per frame
   std::vector<VisemeEvent> events;
 };

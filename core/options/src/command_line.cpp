@@ -15,7 +15,8 @@ namespace lipsync::options {
 namespace {
 
 const OptionSpec* find_long(std::span<const OptionSpec> options, std::string_view name) {
-  const auto it = std::find_if(options.begin(), options.end(), [&](const OptionSpec& spec) { return spec.name == name; });
+  const auto it =
+      std::find_if(options.begin(), options.end(), [&](const OptionSpec& spec) { return spec.name == name; });
   return it == options.end() ? nullptr : &*it;
 }
 
@@ -63,9 +64,12 @@ ArgumentError mismatch_in(const std::vector<std::string>& args, std::span<const 
 
 std::string default_wording(ArgumentError::Kind kind, const std::string& argument, const std::string& option) {
   switch (kind) {
-    case ArgumentError::Kind::unknown_option: return "unknown option '" + argument + "'";
-    case ArgumentError::Kind::missing_value: return "option " + option + " needs a value";
-    case ArgumentError::Kind::unexpected_value: return "option " + option + " takes no value";
+    case ArgumentError::Kind::unknown_option:
+      return "unknown option '" + argument + "'";
+    case ArgumentError::Kind::missing_value:
+      return "option " + option + " needs a value";
+    case ArgumentError::Kind::unexpected_value:
+      return "option " + option + " takes no value";
   }
   return argument;
 }

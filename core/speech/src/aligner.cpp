@@ -4,6 +4,7 @@
 
 #include <pocketsphinx.h>
 #include <sphinxbase/err.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <cctype>
@@ -12,7 +13,6 @@
 #include <cstdlib>
 #include <memory>
 #include <sstream>
-#include <sys/stat.h>
 
 #include "lipsync/error.hpp"
 
@@ -49,8 +49,9 @@ Decoder make_decoder(const AlignmentOptions& options, const std::string& source,
   const std::string dict = options.model_dir + "/cmudict-en-us.dict";
   for (const std::string& path : {hmm + "/mdef", dict}) {
     if (!is_file(path)) {
-      throw InputError(source, 0, "the PocketSphinx model is missing (" + path +
-                                      "; install it with 'apt-get install pocketsphinx-en-us')");
+      throw InputError(
+          source, 0,
+          "the PocketSphinx model is missing (" + path + "; install it with 'apt-get install pocketsphinx-en-us')");
     }
   }
   err_set_logfp(nullptr);  // PocketSphinx logs to stderr by default; its failures come back as results here
@@ -61,10 +62,9 @@ Decoder make_decoder(const AlignmentOptions& options, const std::string& source,
   // the CMU Sphinx documentation gives for the phonetic LM (weight 2) with narrower beams
   // (1e-10 rather than 1e-20: about 1x real time instead of 2.5x, on espeak-ng speech).
   const char* beam = forced ? "1e-200" : "1e-10";
-  cmd_ln_t* config = cmd_ln_init(nullptr, ps_args(), TRUE, "-hmm", hmm.c_str(), "-dict", dict.c_str(),
-                                 "-samprate", "16000", "-remove_silence", "no", "-beam", beam, "-pbeam", beam,
-                                 "-wbeam", beam, "-bestpath", "no", "-fsgusefiller", "no", "-lw",
-                                 forced ? "6.5" : "2.0", nullptr);
+  cmd_ln_t* config = cmd_ln_init(nullptr, ps_args(), TRUE, "-hmm", hmm.c_str(), "-dict", dict.c_str(), "-samprate",
+                                 "16000", "-remove_silence", "no", "-beam", beam, "-pbeam", beam, "-wbeam", beam,
+                                 "-bestpath", "no", "-fsgusefiller", "no", "-lw", forced ? "6.5" : "2.0", nullptr);
   if (config == nullptr) throw InputError(source, 0, "cannot configure PocketSphinx");
   Decoder decoder(ps_init(config));
   cmd_ln_free_r(config);  // the decoder keeps its own reference
@@ -93,7 +93,8 @@ std::vector<double> window_levels_dbfs(const PcmAudio& audio) {
 constexpr double kLoudDb = 20.0;
 constexpr double kMostSpeechInPauses = 0.3;
 
-double loud_share_in_pauses(const std::vector<double>& levels, double loudest, const std::vector<LabeledInterval>& phones) {
+double loud_share_in_pauses(const std::vector<double>& levels, double loudest,
+                            const std::vector<LabeledInterval>& phones) {
   int loud = 0, loud_in_pause = 0;
   for (std::size_t w = 0; w < levels.size(); ++w) {
     if (levels[w] < loudest - kLoudDb) continue;
@@ -110,7 +111,8 @@ double loud_share_in_pauses(const std::vector<double>& levels, double loudest, c
 // Phone label of a recognised "word": "aa_3" → ("AA", 3); a phone from the
 // phonetic LM ("AA") → ("AA", -1); silence and noise fillers → ("", -1).
 std::pair<std::string, int> phone_of(std::string_view word) {
-  if (word.empty() || word.front() == '<' || word.front() == '[' || word.front() == '+' || word == "SIL" || word == kPauseWord) {
+  if (word.empty() || word.front() == '<' || word.front() == '[' || word.front() == '+' || word == "SIL" ||
+      word == kPauseWord) {
     return {"", -1};
   }
   int index = -1;
@@ -146,9 +148,10 @@ std::string build_grammar(ps_decoder_t* decoder, const std::vector<std::string>&
       std::free(phones);
     }
     if (pronunciations.empty()) {
-      throw InputError(source, 0, "transcript word " + std::to_string(w + 1) + " '" + words[w] +
-                                      "' is not in the pronouncing dictionary (write numbers and "
-                                      "abbreviations out as words)");
+      throw InputError(source, 0,
+                       "transcript word " + std::to_string(w + 1) + " '" + words[w] +
+                           "' is not in the pronouncing dictionary (write numbers and "
+                           "abbreviations out as words)");
     }
     rule += " (";
     for (std::size_t p = 0; p < pronunciations.size(); ++p) {
@@ -201,20 +204,23 @@ Alignment align_speech(const PcmAudio& input, std::string_view source_view, cons
   const double duration_s = double(input.samples.size()) / input.sample_rate_hz;
   if (duration_s > options.max_duration_s) {
     char text[160];
-    std::snprintf(text, sizeof text, "%.1f s of audio is longer than the %.0f s an alignment accepts; split it at pauses",
-                  duration_s, options.max_duration_s);
+    std::snprintf(text, sizeof text,
+                  "%.1f s of audio is longer than the %.0f s an alignment accepts; split it at pauses", duration_s,
+                  options.max_duration_s);
     throw InputError(source, 0, text);
   }
   if (input.sample_rate_hz < 8000) {
-    throw InputError(source, 0, "sample rate " + std::to_string(input.sample_rate_hz) +
-                                    " Hz is too low for speech recognition (16000 Hz wanted, 8000 Hz at least)");
+    throw InputError(source, 0,
+                     "sample rate " + std::to_string(input.sample_rate_hz) +
+                         " Hz is too low for speech recognition (16000 Hz wanted, 8000 Hz at least)");
   }
   if (duration_s < 0.1) throw InputError(source, 0, "the audio is too short to align (under 0.1 s)");
   const std::vector<double> levels = window_levels_dbfs(input);
   const double loudest = *std::max_element(levels.begin(), levels.end());
   if (loudest < kSilenceDbfs) {
     char text[160];
-    std::snprintf(text, sizeof text, "no speech found: the audio is silent (its loudest 20 ms is at %.0f dBFS)", loudest);
+    std::snprintf(text, sizeof text, "no speech found: the audio is silent (its loudest 20 ms is at %.0f dBFS)",
+                  loudest);
     throw InputError(source, 0, text);
   }
   const auto clipped = std::count_if(input.samples.begin(), input.samples.end(),
@@ -222,7 +228,8 @@ Alignment align_speech(const PcmAudio& input, std::string_view source_view, cons
   const double clipped_share = double(clipped) / double(input.samples.size());
   char clipped_text[96] = "";
   if (clipped_share > kMostClippedShare) {
-    std::snprintf(clipped_text, sizeof clipped_text, "%.1f %% of the samples are clipped at full scale", 100.0 * clipped_share);
+    std::snprintf(clipped_text, sizeof clipped_text, "%.1f %% of the samples are clipped at full scale",
+                  100.0 * clipped_share);
     result.notes.push_back(std::string(clipped_text) + " (the alignment may be less exact)");
   }
   if (input.sample_rate_hz != kRateHz) {
@@ -255,10 +262,10 @@ Alignment align_speech(const PcmAudio& input, std::string_view source_view, cons
   ps_end_utt(decoder.get());
   std::int32_t score = 0;
   if (ps_get_hyp(decoder.get(), &score) == nullptr) {
-    throw InputError(source, 0, options.transcript
-                                    ? "the transcript does not match the audio (no alignment of its " + count_words(words.size()) +
-                                          " fits)"
-                                    : "no phones were recognised in the audio");
+    throw InputError(source, 0,
+                     options.transcript ? "the transcript does not match the audio (no alignment of its " +
+                                              count_words(words.size()) + " fits)"
+                                        : "no phones were recognised in the audio");
   }
 
   const std::int64_t end_us = audio.duration_us();
@@ -303,10 +310,11 @@ Alignment align_speech(const PcmAudio& input, std::string_view source_view, cons
   if (options.transcript) {
     const double share = loud_share_in_pauses(levels, loudest, phones);
     if (share > kMostSpeechInPauses) {
-      throw InputError(source, 0, "the transcript does not match the audio (its " + count_words(words.size()) +
-                                      " fit only by leaving " + std::to_string(std::lround(100 * share)) +
-                                      " % of the speech unaligned)" +
-                                      (clipped_text[0] != 0 ? std::string("; ") + clipped_text + ", which drowns its quiet parts" : ""));
+      throw InputError(
+          source, 0,
+          "the transcript does not match the audio (its " + count_words(words.size()) + " fit only by leaving " +
+              std::to_string(std::lround(100 * share)) + " % of the speech unaligned)" +
+              (clipped_text[0] != 0 ? std::string("; ") + clipped_text + ", which drowns its quiet parts" : ""));
     }
   }
   return result;
@@ -338,8 +346,7 @@ void write_textgrid(std::ostream& out, const Alignment& alignment, std::int64_t 
   tiers.emplace_back("phones", &alignment.phones.intervals);
 
   out << "File type = \"ooTextFile\"\nObject class = \"TextGrid\"\n\n"
-      << "xmin = 0\nxmax = " << seconds(duration_us) << "\ntiers? <exists>\nsize = " << tiers.size()
-      << "\nitem []:\n";
+      << "xmin = 0\nxmax = " << seconds(duration_us) << "\ntiers? <exists>\nsize = " << tiers.size() << "\nitem []:\n";
   for (std::size_t t = 0; t < tiers.size(); ++t) {
     const auto& intervals = *tiers[t].second;
     out << "    item [" << t + 1 << "]:\n        class = \"IntervalTier\"\n        name = " << quoted(tiers[t].first)

@@ -37,8 +37,8 @@ struct WavChunks {
 WavChunks find_chunks(std::string_view bytes, std::string_view source) {
   const std::string where(source);
   if (!looks_like_wav(bytes)) {
-    std::string found = bytes.size() < 12 ? std::to_string(bytes.size()) + " bytes"
-                                          : "'" + std::string(bytes.substr(0, 4)) + "'";
+    std::string found =
+        bytes.size() < 12 ? std::to_string(bytes.size()) + " bytes" : "'" + std::string(bytes.substr(0, 4)) + "'";
     throw InputError(where, 0, "not a WAV file (expected a RIFF/WAVE header, found " + found + ")");
   }
   WavChunks chunks;
@@ -69,9 +69,8 @@ WavChunks find_chunks(std::string_view bytes, std::string_view source) {
   if (chunks.data_offset == 0) throw InputError(where, 0, "WAV file has no 'data' chunk");
   WavLayout& layout = chunks.layout;
   layout.floating_point = format_tag == kFormatFloat;
-  const bool integer_ok = format_tag == kFormatPcm &&
-                          (layout.bits_per_sample == 8 || layout.bits_per_sample == 16 ||
-                           layout.bits_per_sample == 24 || layout.bits_per_sample == 32);
+  const bool integer_ok = format_tag == kFormatPcm && (layout.bits_per_sample == 8 || layout.bits_per_sample == 16 ||
+                                                       layout.bits_per_sample == 24 || layout.bits_per_sample == 32);
   const bool float_ok = layout.floating_point && (layout.bits_per_sample == 32 || layout.bits_per_sample == 64);
   if (!integer_ok && !float_ok) {
     throw InputError(where, 0,
@@ -131,8 +130,8 @@ bool looks_like_wav(std::string_view bytes) {
 
 std::pair<WavLayout, std::int64_t> wav_layout_and_duration_us(std::string_view bytes, std::string_view source) {
   const WavChunks chunks = find_chunks(bytes, source);
-  const auto frames = static_cast<std::int64_t>(chunks.data_size /
-                                                (std::size_t(chunks.layout.channels) * (chunks.layout.bits_per_sample / 8)));
+  const auto frames = static_cast<std::int64_t>(
+      chunks.data_size / (std::size_t(chunks.layout.channels) * (chunks.layout.bits_per_sample / 8)));
   return {chunks.layout, frames * 1'000'000 / chunks.layout.sample_rate_hz};
 }
 
@@ -149,7 +148,8 @@ DecodedWav decode_wav(std::string_view bytes, std::string_view source) {
   const char* data = bytes.data() + chunks.data_offset;
   for (std::size_t i = 0; i < frames; ++i) {
     double sum = 0;
-    for (int c = 0; c < layout.channels; ++c) sum += sample_value(data + i * frame_bytes + std::size_t(c) * sample_bytes, layout);
+    for (int c = 0; c < layout.channels; ++c)
+      sum += sample_value(data + i * frame_bytes + std::size_t(c) * sample_bytes, layout);
     decoded.audio.samples[i] = to_int16(sum / layout.channels);
   }
   if (layout.channels > 1) decoded.notes.push_back(std::to_string(layout.channels) + " channels averaged to mono");
@@ -173,7 +173,8 @@ PcmAudio resample(const PcmAudio& audio, int rate_hz) {
   for (std::size_t n = 0; n < out.samples.size(); ++n) {
     const double centre = double(n) / ratio;  // the output sample's time, in input samples
     const auto first = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::ceil(centre - half_width)));
-    const auto last = std::min<std::int64_t>(input_size - 1, static_cast<std::int64_t>(std::floor(centre + half_width)));
+    const auto last =
+        std::min<std::int64_t>(input_size - 1, static_cast<std::int64_t>(std::floor(centre + half_width)));
     double sum = 0;
     for (std::int64_t k = first; k <= last; ++k) {
       const double x = double(k) - centre;
@@ -204,7 +205,7 @@ void write_wav(std::ostream& out, const PcmAudio& audio) {
   out.write("WAVEfmt ", 8);
   u32(16);
   u16(kFormatPcm);
-  u16(1);         // channels
+  u16(1);  // channels
   u32(rate);
   u32(rate * 2);  // bytes per second
   u16(2);         // bytes per frame

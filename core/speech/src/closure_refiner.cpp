@@ -11,12 +11,12 @@
 namespace lipsync::speech {
 namespace {
 
-constexpr double kLowEdgeHz = 400;     // below: /b/'s voicing bar and /m/'s nasal resonance
-constexpr double kHighEdgeHz = 3500;   // above: frication and burst noise
+constexpr double kLowEdgeHz = 400;              // below: /b/'s voicing bar and /m/'s nasal resonance
+constexpr double kHighEdgeHz = 3500;            // above: frication and burst noise
 constexpr std::int64_t kStepWindowUs = 10'000;  // each side of a candidate step
 constexpr std::int64_t kCandidateStepUs = 1'000;
-constexpr double kFloorDb = -100;      // digital silence
-constexpr int kLowestRateHz = 8000;    // the band needs its 3500 Hz below Nyquist
+constexpr double kFloorDb = -100;    // digital silence
+constexpr int kLowestRateHz = 8000;  // the band needs its 3500 Hz below Nyquist
 
 // A second-order section, RBJ audio-EQ cookbook form, Q = 1/sqrt(2) (Butterworth).
 struct Biquad {
@@ -121,8 +121,8 @@ struct Step {
 
 // The largest step (down when `falling`) within [from_us, to_us], scored against its
 // distance from `aligned_us`.
-Step best_step(const LevelTrack& levels, std::int64_t aligned_us, std::int64_t from_us, std::int64_t to_us, bool falling,
-               const ClosureRefinerOptions& options) {
+Step best_step(const LevelTrack& levels, std::int64_t aligned_us, std::int64_t from_us, std::int64_t to_us,
+               bool falling, const ClosureRefinerOptions& options) {
   constexpr std::int64_t side = kStepWindowUs / kCandidateStepUs;
   const std::int64_t first = std::max((from_us + kCandidateStepUs - 1) / kCandidateStepUs, side);
   const std::int64_t last = std::min(to_us / kCandidateStepUs, levels.frames() - side);
@@ -144,7 +144,8 @@ Step best_step(const LevelTrack& levels, std::int64_t aligned_us, std::int64_t f
 bool is_lip_phone(std::string_view arpabet) {
   std::string phone;
   for (const char c : arpabet) {
-    if (std::isalpha(static_cast<unsigned char>(c))) phone += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    if (std::isalpha(static_cast<unsigned char>(c)))
+      phone += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
   }
   return phone == "P" || phone == "B" || phone == "M" || phone == "F" || phone == "V";
 }
@@ -161,8 +162,9 @@ std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtter
     if (i > 0) {  // the closure: the formant band's level falls
       LabeledInterval& previous = intervals[i - 1];
       const std::int64_t aligned = intervals[i].start_us;
-      const Step step = best_step(levels, aligned, std::max(aligned - options.search_us, previous.start_us + options.min_phone_us),
-                                  std::min(aligned + options.search_us, intervals[i].end_us - options.min_phone_us), true, options);
+      const Step step =
+          best_step(levels, aligned, std::max(aligned - options.search_us, previous.start_us + options.min_phone_us),
+                    std::min(aligned + options.search_us, intervals[i].end_us - options.min_phone_us), true, options);
       const std::int64_t at = std::max(step.at_us - options.closure_lead_us, previous.start_us + options.min_phone_us);
       const bool moved = step.db >= options.min_step_db && at <= intervals[i].end_us - options.min_phone_us;
       if (moved) previous.end_us = intervals[i].start_us = at;
@@ -171,8 +173,9 @@ std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtter
     if (i + 1 < intervals.size()) {  // the release: the level rises again
       LabeledInterval& next = intervals[i + 1];
       const std::int64_t aligned = intervals[i].end_us;
-      const Step step = best_step(levels, aligned, std::max(aligned - options.search_us, intervals[i].start_us + options.min_phone_us),
-                                  std::min(aligned + options.search_us, next.end_us - options.min_phone_us), false, options);
+      const Step step = best_step(
+          levels, aligned, std::max(aligned - options.search_us, intervals[i].start_us + options.min_phone_us),
+          std::min(aligned + options.search_us, next.end_us - options.min_phone_us), false, options);
       const std::int64_t at = std::min(step.at_us + options.release_lag_us, next.end_us - options.min_phone_us);
       const bool moved = step.db >= options.min_step_db && at >= intervals[i].start_us + options.min_phone_us;
       if (moved) intervals[i].end_us = next.start_us = at;
@@ -186,7 +189,8 @@ std::vector<double> formant_band_levels_db(const PcmAudio& audio, std::int64_t w
   std::vector<double> levels;
   if (audio.samples.empty() || audio.sample_rate_hz < kLowestRateHz) return levels;
   const BandEnergy energy(audio);
-  const std::int64_t window = std::max<std::int64_t>(1, window_us / 1000), hop = std::max<std::int64_t>(1, hop_us / 1000);
+  const std::int64_t window = std::max<std::int64_t>(1, window_us / 1000),
+                     hop = std::max<std::int64_t>(1, hop_us / 1000);
   for (std::int64_t k = 0; k + window <= energy.frames(); k += hop) levels.push_back(energy.level_db(k, k + window));
   return levels;
 }

@@ -155,9 +155,7 @@ bool speaks_english(std::string_view voice_name) {
 
 /// espeak-ng's IPA names mark a switch to another language's phonemes ("(en)" inside a Greek
 /// text) as a phoneme of its own: silence, as its mnemonic _^_ is in the 'espeak' set.
-bool is_language_switch(std::string_view name) {
-  return name.size() >= 3 && name.front() == '(' && name.back() == ')';
-}
+bool is_language_switch(std::string_view name) { return name.size() >= 3 && name.front() == '(' && name.back() == ')'; }
 
 /// A length mark or a combining diacritic that espeak-ng's IPA names give as a phoneme of its own
 /// (lv, ltg, kok: "ː"; bpy: U+0303): it lengthens or colours the phoneme before it, so it extends
@@ -177,9 +175,9 @@ bool is_lone_mark(std::string_view name) {
 
 void initialise_once(bool ipa) {
   if (espeak_rate_hz > 0) return;
-  const int rate = espeak_Initialize(AUDIO_OUTPUT_SYNCHRONOUS, 0, nullptr,
-                                     espeakINITIALIZE_PHONEME_EVENTS | espeakINITIALIZE_DONT_EXIT |
-                                         (ipa ? espeakINITIALIZE_PHONEME_IPA : 0));
+  const int rate = espeak_Initialize(
+      AUDIO_OUTPUT_SYNCHRONOUS, 0, nullptr,
+      espeakINITIALIZE_PHONEME_EVENTS | espeakINITIALIZE_DONT_EXIT | (ipa ? espeakINITIALIZE_PHONEME_IPA : 0));
   if (rate <= 0) {
     throw InputError(std::string(kSource), 0,
                      "cannot initialise espeak-ng (is espeak-ng-data installed? 'apt-get install espeak-ng-data')");
@@ -187,7 +185,6 @@ void initialise_once(bool ipa) {
   espeak_SetSynthCallback(collect);
   espeak_rate_hz = rate;
 }
-
 
 /// The synthesis itself, in the child process.
 Synthesis synthesize_here(std::string_view text, const SynthesisOptions& options) {
@@ -210,8 +207,8 @@ Synthesis synthesize_here(std::string_view text, const SynthesisOptions& options
   Collector collector;
   const std::string text_z(text);  // espeak_Synth reads up to a terminating zero
   active_collector = &collector;
-  const espeak_ERROR status = espeak_Synth(text_z.c_str(), text_z.size() + 1, 0, POS_CHARACTER, 0,
-                                           espeakCHARS_UTF8, nullptr, nullptr);
+  const espeak_ERROR status =
+      espeak_Synth(text_z.c_str(), text_z.size() + 1, 0, POS_CHARACTER, 0, espeakCHARS_UTF8, nullptr, nullptr);
   espeak_Synchronize();
   active_collector = nullptr;
   if (status != EE_OK) throw InputError(source, 0, "synthesis failed (espeak error " + std::to_string(status) + ")");
@@ -236,8 +233,8 @@ Synthesis synthesize_here(std::string_view text, const SynthesisOptions& options
       result.phonemes.intervals.back().end_us = to_us(end);
       continue;
     }
-    result.phonemes.intervals.push_back(
-        {!english && is_language_switch(name) ? std::string() : name, to_us(start), to_us(end), static_cast<int>(i) + 1});
+    result.phonemes.intervals.push_back({!english && is_language_switch(name) ? std::string() : name, to_us(start),
+                                         to_us(end), static_cast<int>(i) + 1});
   }
   if (result.phonemes.intervals.empty()) throw InputError(source, 0, "espeak-ng produced no phonemes for the text");
   // The first phoneme starts at sample 0 and the phonemes tile the audio.
@@ -360,7 +357,8 @@ bool write_all(int fd, std::string_view bytes) {
     for (;;) {
       const ssize_t n = ::read(STDIN_FILENO, buffer, sizeof buffer);
       if (n < 0 && errno == EINTR) continue;
-      if (n < 0) throw std::runtime_error("the synthesis worker cannot read its request: " + std::string(std::strerror(errno)));
+      if (n < 0)
+        throw std::runtime_error("the synthesis worker cannot read its request: " + std::string(std::strerror(errno)));
       if (n == 0) break;
       request.append(buffer, static_cast<std::size_t>(n));
     }
@@ -430,7 +428,8 @@ Synthesis synthesize_in_worker(std::string_view text, const SynthesisOptions& op
   posix_spawn_file_actions_adddup2(&actions, answer_write.fd, STDOUT_FILENO);
   std::vector<std::string> environment;
   for (char** variable = environ; *variable != nullptr; ++variable) {
-    if (!std::string_view(*variable).starts_with(std::string(kWorkerVariable) + "=")) environment.emplace_back(*variable);
+    if (!std::string_view(*variable).starts_with(std::string(kWorkerVariable) + "="))
+      environment.emplace_back(*variable);
   }
   environment.push_back(std::string(kWorkerVariable) + "=1");
   std::vector<char*> envp;
@@ -454,7 +453,8 @@ Synthesis synthesize_in_worker(std::string_view text, const SynthesisOptions& op
   int read_error = 0;
   char buffer[65536];
   for (;;) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     if (left.count() <= 0) {
       timed_out = true;
       break;
@@ -507,9 +507,9 @@ Synthesis synthesize(std::string_view text, const SynthesisOptions& options) {
   const std::string source(kSource);
   if (text.find_first_not_of(" \t\r\n") == std::string_view::npos) throw InputError(source, 0, "the text is empty");
   if (options.words_per_minute < kWordsPerMinuteSetting.min || options.words_per_minute > kWordsPerMinuteSetting.max) {
-    throw InputError(source, 0, out_of_range_text("speaking rate (words per minute)",
-                                                  std::to_string(options.words_per_minute),
-                                                  range_text(kWordsPerMinuteSetting)));
+    throw InputError(source, 0,
+                     out_of_range_text("speaking rate (words per minute)", std::to_string(options.words_per_minute),
+                                       range_text(kWordsPerMinuteSetting)));
   }
   const std::lock_guard lock(espeak_mutex);
   return synthesize_in_worker(text, options);

@@ -157,8 +157,8 @@ FaceAnimation resample_face_animation(const FaceAnimation& animation, int fps) {
     const double a = static_cast<double>(t_us - animation.t_us[next - 1]) /
                      static_cast<double>(animation.t_us[next] - animation.t_us[next - 1]);
     for (std::size_t v = 0; v < nv; ++v) {
-      out.positions.push_back({p0[v].x + a * (p1[v].x - p0[v].x), p0[v].y + a * (p1[v].y - p0[v].y),
-                               p0[v].z + a * (p1[v].z - p0[v].z)});
+      out.positions.push_back(
+          {p0[v].x + a * (p1[v].x - p0[v].x), p0[v].y + a * (p1[v].y - p0[v].y), p0[v].z + a * (p1[v].z - p0[v].z)});
     }
   }
   return out;

@@ -5,21 +5,20 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <numbers>
 #include <string>
 #include <unordered_map>
 
-#include <nlohmann/json.hpp>
-
 #include "face/arch.hpp"
-#include "lipsync/setting_ranges.hpp"
 #include "face/embedded_face.hpp"
 #include "lipsync/error.hpp"
+#include "lipsync/setting_ranges.hpp"
 
 namespace lipsync::face {
 
-const std::array<std::uint32_t, 20> kInnerLipLoop = {78,  191, 80,  81,  82,  13,  312, 311, 310, 415,
-                                                     308, 324, 318, 402, 317, 14,  87,  178, 88,  95};
+const std::array<std::uint32_t, 20> kInnerLipLoop = {78,  191, 80,  81,  82,  13, 312, 311, 310, 415,
+                                                     308, 324, 318, 402, 317, 14, 87,  178, 88,  95};
 
 namespace {
 
@@ -129,8 +128,9 @@ FaceAsset FaceAsset::from_json(std::string_view json_text, std::string_view sour
   for (std::size_t t = 0; t < asset.triangles.size(); ++t)
     for (const auto index : asset.triangles[t])
       if (index >= asset.positions_cm.size())
-        throw InputError(src, 0, "triangle " + std::to_string(t) + " names vertex " + std::to_string(index) +
-                                     " of " + std::to_string(asset.positions_cm.size()));
+        throw InputError(src, 0,
+                         "triangle " + std::to_string(t) + " names vertex " + std::to_string(index) + " of " +
+                             std::to_string(asset.positions_cm.size()));
   return asset;
 }
 
@@ -197,7 +197,8 @@ FaceMesh build_face_mesh(const FaceAsset& asset, int subdivision_level, const Fa
   std::array<double, kLoopSize> loop_side{}, loop_smooth_side{};
   for (std::size_t k = 0; k < kLoopSize; ++k) {
     const auto id = loop[k];
-    const auto at = static_cast<std::size_t>(std::find(kInnerLipLoop.begin(), kInnerLipLoop.end(), id) - kInnerLipLoop.begin());
+    const auto at =
+        static_cast<std::size_t>(std::find(kInnerLipLoop.begin(), kInnerLipLoop.end(), id) - kInnerLipLoop.begin());
     loop_side[k] = (at >= kUpperBegin && at < kUpperEnd) ? 1.0 : (at >= kLowerBegin && at < kLowerEnd) ? -1.0 : 0.0;
     loop_smooth_side[k] = std::sin(std::numbers::pi * static_cast<double>(at) / 10.0);
     side[id] = loop_side[k];
@@ -245,7 +246,8 @@ FaceMesh build_face_mesh(const FaceAsset& asset, int subdivision_level, const Fa
       tris.push_back({v1, w0, w1});
     }
   }
-  for (std::size_t k = 0; k < kLoopSize; ++k) tris.push_back({rings.back()[(k + 1) % kLoopSize], rings.back()[k], back});
+  for (std::size_t k = 0; k < kLoopSize; ++k)
+    tris.push_back({rings.back()[(k + 1) % kLoopSize], rings.back()[k], back});
 
   // Subdivide, carrying positions, UVs, ring depth and side to the midpoints, and refining the
   // lip lines (rings 0 and 1) as polylines.
@@ -324,7 +326,7 @@ FaceMesh build_face_mesh(const FaceAsset& asset, int subdivision_level, const Fa
   mesh.triangles = std::move(tris);
   mesh.ring_depth = std::move(depth);
   for (std::size_t i = 0; i < mesh.soft_node_count; ++i)
-    mesh.parts.push_back(mesh.ring_depth[i] == 0.0 ? FacePart::skin
+    mesh.parts.push_back(mesh.ring_depth[i] == 0.0   ? FacePart::skin
                          : mesh.ring_depth[i] <= 2.0 ? FacePart::inner_lip
                                                      : FacePart::mouth_cavity);
 

@@ -3,10 +3,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <numbers>
 #include <set>
-
-#include <nlohmann/json.hpp>
 
 #include "face/embedded_face.hpp"
 #include "lipsync/error.hpp"
@@ -99,13 +98,19 @@ FaceRig FaceRig::from_json(std::string_view json_text, std::string_view source, 
     if (!seen.insert(spec.name).second) in.fail(where, "appears twice");
     spec.channel = in.channel(model, spec.name, "muscle", where);
     const std::string kind = in.text(json, "kind", where);
-    if (kind == "linear") spec.kind = MuscleKind::linear;
-    else if (kind == "sphincter") spec.kind = MuscleKind::sphincter;
-    else in.fail(where, "field 'kind' = '" + kind + "' must be 'linear' or 'sphincter'");
+    if (kind == "linear")
+      spec.kind = MuscleKind::linear;
+    else if (kind == "sphincter")
+      spec.kind = MuscleKind::sphincter;
+    else
+      in.fail(where, "field 'kind' = '" + kind + "' must be 'linear' or 'sphincter'");
     const std::string bone = in.text(json, "bone", where);
-    if (bone == "skull") spec.bone = Bone::skull;
-    else if (bone == "jaw") spec.bone = Bone::jaw;
-    else in.fail(where, "field 'bone' = '" + bone + "' must be 'skull' or 'jaw'");
+    if (bone == "skull")
+      spec.bone = Bone::skull;
+    else if (bone == "jaw")
+      spec.bone = Bone::jaw;
+    else
+      in.fail(where, "field 'bone' = '" + bone + "' must be 'skull' or 'jaw'");
     const auto& fibres = in.field(json, "fibres", where);
     if (!fibres.is_array() || fibres.empty()) in.fail(where, "field 'fibres' must be a non-empty array");
     for (std::size_t f = 0; f < fibres.size(); ++f) {

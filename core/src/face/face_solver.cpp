@@ -37,8 +37,18 @@ struct V3 {
   V3() = default;
   V3(double x_, double y_, double z_) : x(x_), y(y_), z(z_) {}
   V3(Vec3 v) : x(v.x), y(v.y), z(v.z) {}  // NOLINT(google-explicit-constructor)
-  V3& operator+=(V3 o) { x += o.x; y += o.y; z += o.z; return *this; }
-  V3& operator-=(V3 o) { x -= o.x; y -= o.y; z -= o.z; return *this; }
+  V3& operator+=(V3 o) {
+    x += o.x;
+    y += o.y;
+    z += o.z;
+    return *this;
+  }
+  V3& operator-=(V3 o) {
+    x -= o.x;
+    y -= o.y;
+    z -= o.z;
+    return *this;
+  }
 };
 V3 operator+(V3 a, V3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
 V3 operator-(V3 a, V3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
@@ -312,8 +322,8 @@ struct FaceSolver::Impl {
   std::vector<V3> rest, rest_normal;
   std::vector<double> mass_kg, attachment_n_per_m, jaw_share;
   std::vector<Spring> springs;
-  std::vector<HotSpring> hot_springs;    // the same springs, internal indices
-  std::size_t edge_spring_count = 0;     // springs [0, count) are skin edges, the rest bending
+  std::vector<HotSpring> hot_springs;  // the same springs, internal indices
+  std::size_t edge_spring_count = 0;   // springs [0, count) are skin edges, the rest bending
   std::vector<MuscleBindings> muscles;
   std::vector<std::uint8_t> teeth_contact, skull_contact;
   std::vector<double> sink_limit_m;
@@ -341,7 +351,8 @@ struct FaceSolver::Impl {
     if (params.iterations < 1 || !(params.time_step_s > 0) || !(params.skin_stiffness_n_per_m > 0) ||
         !(params.anchor_stiffness_n_per_m3 > 0) || params.bending_stiffness_n_per_m < 0 ||
         params.binding_stiffness_n_per_m3 < 0 || !(params.density_kg_per_m3 > 0) || !(params.damping_time_s > 0))
-      throw std::invalid_argument("FaceSolverParams: iterations ≥ 1 and positive time step, stiffness, density, damping");
+      throw std::invalid_argument(
+          "FaceSolverParams: iterations ≥ 1 and positive time step, stiffness, density, damping");
     if (rig.channel_count() == 0) throw std::invalid_argument("FaceSolver: the rig has no channels");
     build_nodes();
     build_springs();
@@ -379,8 +390,8 @@ struct FaceSolver::Impl {
     const V3 centre = mesh.mouth_centre_m;
     for (std::size_t i = 0; i < n; ++i) {
       mass_kg[i] = params.density_kg_per_m3 * params.tissue_thickness_m * area_m2[i];
-      double scale = params.lip_anchor_scale +
-                     (1.0 - params.lip_anchor_scale) * smoothstep(0.015, 0.040, norm(rest[i] - centre));
+      double scale =
+          params.lip_anchor_scale + (1.0 - params.lip_anchor_scale) * smoothstep(0.015, 0.040, norm(rest[i] - centre));
       if (mesh.ring_depth[i] > 2.5) scale = params.cavity_anchor_scale;
       attachment_n_per_m[i] = params.anchor_stiffness_n_per_m3 * area_m2[i] * scale;
     }
@@ -432,7 +443,7 @@ struct FaceSolver::Impl {
     // β_m = k_b / W. The bone part is folded into jaw_share; the muscle part is stored per muscle.
     const V3 centre = mesh.mouth_centre_m;
     std::vector<std::vector<std::pair<double, V3>>> per_muscle(rig.muscles().size(),
-                                                                std::vector<std::pair<double, V3>>(n, {0.0, V3{}}));
+                                                               std::vector<std::pair<double, V3>>(n, {0.0, V3{}}));
     std::vector<std::vector<V3>> closure(rig.muscles().size(), std::vector<V3>(n, V3{}));
     std::vector<std::vector<V3>> protrusion(rig.muscles().size(), std::vector<V3>(n, V3{}));
     for (std::size_t m = 0; m < rig.muscles().size(); ++m) {
@@ -448,9 +459,7 @@ struct FaceSolver::Impl {
           // Skin on the other bone's side of the mouth is not pulled (the upper lip is not bound
           // to a jaw muscle, the lower lip not to a skull muscle).
           if (on_jaw ? mesh.jaw_weights[i] < 0.4 : mesh.jaw_weights[i] > 0.6) continue;
-          if (spec.kind == MuscleKind::sphincter &&
-              dot(rest[i] - centre, V3(spec.closure_direction)) > 0.001)
-            continue;
+          if (spec.kind == MuscleKind::sphincter && dot(rest[i] - centre, V3(spec.closure_direction)) > 0.001) continue;
           const auto [r, t] = closest_on_polyline(line, rest[i]);
           if (r >= fibre.radius_m) continue;
           const double q = r / fibre.radius_m;
@@ -469,7 +478,8 @@ struct FaceSolver::Impl {
         }
       }
     }
-    jaw_share = std::vector<double>(mesh.jaw_weights.begin(), mesh.jaw_weights.begin() + static_cast<std::ptrdiff_t>(n));
+    jaw_share =
+        std::vector<double>(mesh.jaw_weights.begin(), mesh.jaw_weights.begin() + static_cast<std::ptrdiff_t>(n));
     std::vector<double> total(attachment_n_per_m);
     for (std::size_t m = 0; m < per_muscle.size(); ++m)
       for (std::size_t i = 0; i < n; ++i)
@@ -477,9 +487,17 @@ struct FaceSolver::Impl {
     std::vector<double> bone_share_sum(n, 0.0), jaw_bound(n, 0.0);
     for (std::size_t m = 0; m < per_muscle.size(); ++m) {
       const MuscleSpec& spec = rig.muscles()[m];
-      MuscleBindings mb{spec.channel, spec.bone == Bone::jaw, {}, {}, {}, spec.closure_saturation,
-                        spec.compensation_channel, spec.compensation_from, spec.compensation_full,
-                        spec.compensation_share, {}};
+      MuscleBindings mb{spec.channel,
+                        spec.bone == Bone::jaw,
+                        {},
+                        {},
+                        {},
+                        spec.closure_saturation,
+                        spec.compensation_channel,
+                        spec.compensation_from,
+                        spec.compensation_full,
+                        spec.compensation_share,
+                        {}};
       for (std::size_t i = 0; i < n; ++i) {
         if (per_muscle[m][i].first <= 0) continue;
         const double beta = params.binding_stiffness_n_per_m3 * node_area_m2[i] * per_muscle[m][i].first / total[i];
@@ -512,10 +530,11 @@ struct FaceSolver::Impl {
       if (mesh.ring_depth[i] <= 2.5 && d < 0.035) {
         // Only skin that rests outside the teeth is kept there.
         V3 p = rest[i], q = rest[i];
-        const bool inside = push_out_of_arch(p, mesh.upper_arch_centre_z_m, mesh.upper_arch_a_m, mesh.upper_arch_b_m,
-                                             mesh.upper_teeth_y_min_m, mesh.upper_teeth_y_max_m, params.teeth_margin_m) ||
-                            push_out_of_arch(q, mesh.lower_arch_centre_z_m, mesh.lower_arch_a_m, mesh.lower_arch_b_m,
-                                             mesh.lower_teeth_y_min_m, mesh.lower_teeth_y_max_m, params.teeth_margin_m);
+        const bool inside =
+            push_out_of_arch(p, mesh.upper_arch_centre_z_m, mesh.upper_arch_a_m, mesh.upper_arch_b_m,
+                             mesh.upper_teeth_y_min_m, mesh.upper_teeth_y_max_m, params.teeth_margin_m) ||
+            push_out_of_arch(q, mesh.lower_arch_centre_z_m, mesh.lower_arch_a_m, mesh.lower_arch_b_m,
+                             mesh.lower_teeth_y_min_m, mesh.lower_teeth_y_max_m, params.teeth_margin_m);
         teeth_contact[i] = inside ? 0 : 1;
       }
       if (mesh.ring_depth[i] == 0.0) {
@@ -544,7 +563,8 @@ struct FaceSolver::Impl {
     Eigen::SparseMatrix<double> a(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
     a.setFromTriplets(entries.begin(), entries.end());
     Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::AMDOrdering<int>> llt(a);
-    if (llt.info() != Eigen::Success) throw std::invalid_argument("FaceSolver: the system matrix is not positive definite");
+    if (llt.info() != Eigen::Success)
+      throw std::invalid_argument("FaceSolver: the system matrix is not positive definite");
     // L in compressed columns (diagonal first), converted to the single-precision factor.
     const Eigen::SparseMatrix<double> l = llt.matrixL();
     const int* outer = l.outerIndexPtr();
@@ -648,7 +668,8 @@ struct FaceSolver::Impl {
   }
 
   void compute_targets(std::span<const float> values) {
-    jaw = x_rotation(mesh.anatomy.jaw_hinge_m, channel(values, rig.jaw_channel(), 0.0, 1.0) * rig.max_jaw_rotation_rad());
+    jaw =
+        x_rotation(mesh.anatomy.jaw_hinge_m, channel(values, rig.jaw_channel(), 0.0, 1.0) * rig.max_jaw_rotation_rad());
     tongue = x_rotation(mesh.tongue_root_m,
                         -channel(values, rig.tongue_raise_channel(), -1.0, 1.0) * rig.max_tongue_raise_rad());
     tongue_protrusion_m = channel(values, rig.tongue_protrusion_channel(), 0.0, 1.0) * rig.max_tongue_protrusion_m();
@@ -757,11 +778,14 @@ struct FaceSolver::Impl {
     const __m128d tiny = _mm_set1_pd(1e-12), stiffness = _mm_set1_pd(stiffness_n_per_m);
     for (; k + 2 <= end; k += 2) {
       const HotSpring a = hot_springs[k], b = hot_springs[k + 1];
-      const double ax = p[3 * a.i] - p[3 * a.j], ay = p[3 * a.i + 1] - p[3 * a.j + 1], az = p[3 * a.i + 2] - p[3 * a.j + 2];
-      const double bx = p[3 * b.i] - p[3 * b.j], by = p[3 * b.i + 1] - p[3 * b.j + 1], bz = p[3 * b.i + 2] - p[3 * b.j + 2];
+      const double ax = p[3 * a.i] - p[3 * a.j], ay = p[3 * a.i + 1] - p[3 * a.j + 1],
+                   az = p[3 * a.i + 2] - p[3 * a.j + 2];
+      const double bx = p[3 * b.i] - p[3 * b.j], by = p[3 * b.i + 1] - p[3 * b.j + 1],
+                   bz = p[3 * b.i + 2] - p[3 * b.j + 2];
       const __m128d length = _mm_sqrt_pd(_mm_set_pd(bx * bx + by * by + bz * bz, ax * ax + ay * ay + az * az));
-      const __m128d ratio = _mm_and_pd(_mm_cmpgt_pd(length, tiny),
-                                       _mm_div_pd(_mm_set_pd(b.stiffness_times_length_n, a.stiffness_times_length_n), length));
+      const __m128d ratio =
+          _mm_and_pd(_mm_cmpgt_pd(length, tiny),
+                     _mm_div_pd(_mm_set_pd(b.stiffness_times_length_n, a.stiffness_times_length_n), length));
       alignas(16) double scale[2];
       _mm_store_pd(scale, _mm_sub_pd(ratio, stiffness));
       add(a, ax, ay, az, scale[0]);
@@ -770,7 +794,8 @@ struct FaceSolver::Impl {
 #endif
     for (; k < end; ++k) {
       const HotSpring s = hot_springs[k];
-      const double dx = p[3 * s.i] - p[3 * s.j], dy = p[3 * s.i + 1] - p[3 * s.j + 1], dz = p[3 * s.i + 2] - p[3 * s.j + 2];
+      const double dx = p[3 * s.i] - p[3 * s.j], dy = p[3 * s.i + 1] - p[3 * s.j + 1],
+                   dz = p[3 * s.i + 2] - p[3 * s.j + 2];
       const double length = std::sqrt(dx * dx + dy * dy + dz * dz);
       add(s, dx, dy, dz, (length > 1e-12 ? s.stiffness_times_length_n / length : 0.0) - stiffness_n_per_m);
     }
@@ -826,7 +851,8 @@ struct FaceSolver::Impl {
         // Half-space under the skin: the node's rest position carried by its bones, minus the
         // allowed sink along the carried rest normal.
         const V3 carried = rest[i] + jaw_share[i] * (jaw.apply(rest[i]) - rest[i]);
-        const V3 normal = normalized(rest_normal[i] + jaw_share[i] * (jaw.apply_vector(rest_normal[i]) - rest_normal[i]));
+        const V3 normal =
+            normalized(rest_normal[i] + jaw_share[i] * (jaw.apply_vector(rest_normal[i]) - rest_normal[i]));
         const V3 p = node(i);
         const double depth = dot(p - carried, normal) + sink_limit_m[i];
         if (depth < 0) set_node(i, p - depth * normal);

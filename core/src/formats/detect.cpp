@@ -35,8 +35,7 @@ constexpr std::size_t kSampleLines = 40;
 
 bool is_integer(std::string_view text) {
   if (text.starts_with('-') || text.starts_with('+')) text.remove_prefix(1);
-  return !text.empty() &&
-         std::all_of(text.begin(), text.end(), [](char ch) { return ch >= '0' && ch <= '9'; });
+  return !text.empty() && std::all_of(text.begin(), text.end(), [](char ch) { return ch >= '0' && ch <= '9'; });
 }
 
 // Up to kSampleLines non-blank lines, starting at `from`.
@@ -102,14 +101,12 @@ std::optional<InputFormat> format_from_content(std::string_view text) {
   const std::vector<Line> lines = formats::split_lines(text);
   const std::vector<std::string_view> head = sample(lines);
   if (all_match(head, is_timit_line)) return InputFormat::timit;
-  const auto hash = std::find_if(lines.begin(), lines.end(),
-                                 [](const Line& line) { return trim(line.text) == "#"; });
+  const auto hash = std::find_if(lines.begin(), lines.end(), [](const Line& line) { return trim(line.text) == "#"; });
   if (hash != lines.end() && hash - lines.begin() < static_cast<std::ptrdiff_t>(kSampleLines) &&
       all_match(sample(lines, static_cast<std::size_t>(hash - lines.begin()) + 1), is_lab_line)) {
     return InputFormat::lab;
   }
-  if (all_match(head, is_lab_line) &&
-      std::any_of(head.begin(), head.end(), [](std::string_view line) {
+  if (all_match(head, is_lab_line) && std::any_of(head.begin(), head.end(), [](std::string_view line) {
         return split_fields(line)[0].find('.') != std::string_view::npos;
       })) {
     return InputFormat::lab;
@@ -130,9 +127,8 @@ std::optional<InputFormat> format_from_extension(std::string_view file_name) {
   const std::size_t dot = file_name.rfind('.');
   if (dot == std::string_view::npos) return std::nullopt;
   std::string extension(file_name.substr(dot + 1));
-  std::transform(extension.begin(), extension.end(), extension.begin(), [](char ch) {
-    return static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-  });
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](char ch) { return static_cast<char>(std::tolower(static_cast<unsigned char>(ch))); });
   constexpr std::array<std::pair<std::string_view, InputFormat>, 7> kExtensions{{
       {"json", InputFormat::json},
       {"textgrid", InputFormat::textgrid},

@@ -28,8 +28,7 @@ using nlohmann::json;
 // their decimal text.
 class DecimalKeepingBuilder : public nlohmann::json_sax<json> {
  public:
-  DecimalKeepingBuilder(std::string_view text, const std::string& source)
-      : text_(text), source_(source) {}
+  DecimalKeepingBuilder(std::string_view text, const std::string& source) : text_(text), source_(source) {}
 
   json& root() { return root_; }
 
@@ -40,8 +39,7 @@ class DecimalKeepingBuilder : public nlohmann::json_sax<json> {
   bool number_float(number_float_t, const string_t& raw) override {
     json::binary_t bytes;
     for (const char ch : raw) {
-      const bool plain =
-          (ch >= '0' && ch <= '9') || ch == '-' || ch == '+' || ch == 'e' || ch == 'E' || ch == '.';
+      const bool plain = (ch >= '0' && ch <= '9') || ch == '-' || ch == '+' || ch == 'e' || ch == 'E' || ch == '.';
       bytes.push_back(static_cast<std::uint8_t>(plain ? ch : '.'));  // locale decimal point
     }
     return add(json::binary(std::move(bytes)));
@@ -68,8 +66,7 @@ class DecimalKeepingBuilder : public nlohmann::json_sax<json> {
     stack_.pop_back();
     return true;
   }
-  bool parse_error(std::size_t position, const std::string&,
-                   const nlohmann::json::exception& error) override {
+  bool parse_error(std::size_t position, const std::string&, const nlohmann::json::exception& error) override {
     // what(): "[json.exception.parse_error.101] parse error at line 2, column 5: <detail>"
     std::string detail = error.what();
     const std::size_t column = detail.find("column ");
@@ -81,9 +78,8 @@ class DecimalKeepingBuilder : public nlohmann::json_sax<json> {
     for (std::size_t i = 0; i < offset; ++i) {
       if (text_[i] == '\n') ++line, line_start = i + 1;
     }
-    throw InputError(
-        source_, line,
-        "invalid JSON at column " + std::to_string(offset - line_start + 1) + ": " + detail);
+    throw InputError(source_, line,
+                     "invalid JSON at column " + std::to_string(offset - line_start + 1) + ": " + detail);
   }
 
  private:
@@ -126,37 +122,32 @@ std::string describe(const json& value) {
 }
 
 // "start"/"end" in seconds or "start_us"/"end_us" in microseconds.
-std::int64_t read_time(const json& phoneme, const std::string& name, const std::string& source,
-                       int index) {
+std::int64_t read_time(const json& phoneme, const std::string& name, const std::string& source, int index) {
   const std::string where = "phoneme " + std::to_string(index) + ": ";
   const std::string name_us = name + "_us";
   const auto seconds = phoneme.find(name);
   const auto micros = phoneme.find(name_us);
   if (seconds != phoneme.end() && micros != phoneme.end()) {
-    throw InputError(source, index,
-                     where + "has both \"" + name + "\" and \"" + name_us + "\"; give one");
+    throw InputError(source, index, where + "has both \"" + name + "\" and \"" + name_us + "\"; give one");
   }
   if (seconds != phoneme.end()) {
     const json& value = *seconds;
     if (value.is_binary()) {
       const json::binary_t& bytes = value.get_binary();
-      return seconds_field_to_us(std::string(bytes.begin(), bytes.end()),
-                                 where + "\"" + name + "\"", source, index);
+      return seconds_field_to_us(std::string(bytes.begin(), bytes.end()), where + "\"" + name + "\"", source, index);
     }
     if (value.is_number_unsigned() || value.is_number_integer()) {
       return seconds_field_to_us(value.dump(), where + "\"" + name + "\"", source, index);
     }
-    throw InputError(
-        source, index,
-        where + "\"" + name + "\" must be a number of seconds, found " + describe(value));
+    throw InputError(source, index, where + "\"" + name + "\" must be a number of seconds, found " + describe(value));
   }
   if (micros != phoneme.end()) {
     const json& value = *micros;
     if (value.is_number_unsigned()) {
       if (value.get<json::number_unsigned_t>() > static_cast<std::uint64_t>(kMaxTimeUs)) {
-        throw InputError(source, index,
-                         where + "\"" + name_us + "\" is beyond 24 hours: " + value.dump() +
-                             " (microseconds expected)");
+        throw InputError(
+            source, index,
+            where + "\"" + name_us + "\" is beyond 24 hours: " + value.dump() + " (microseconds expected)");
       }
       return static_cast<std::int64_t>(value.get<json::number_unsigned_t>());
     }
@@ -164,12 +155,9 @@ std::int64_t read_time(const json& phoneme, const std::string& name, const std::
       throw InputError(source, index, where + "\"" + name_us + "\" is negative: " + value.dump());
     }
     throw InputError(source, index,
-                     where + "\"" + name_us + "\" must be a whole number of microseconds, found " +
-                         describe(value));
+                     where + "\"" + name_us + "\" must be a whole number of microseconds, found " + describe(value));
   }
-  throw InputError(
-      source, index,
-      where + "missing \"" + name + "\" (seconds) or \"" + name_us + "\" (microseconds)");
+  throw InputError(source, index, where + "missing \"" + name + "\" (seconds) or \"" + name_us + "\" (microseconds)");
 }
 
 }  // namespace
@@ -179,16 +167,12 @@ LabeledUtterance read_json_utterance(std::string_view text, const std::string& s
   json::sax_parse(text, &builder);
   const json& root = builder.root();
   if (!root.is_object()) {
-    throw InputError(
-        source, 0,
-        "an utterance must be a JSON object {\"phonemes\": [...]}, found " + describe(root));
+    throw InputError(source, 0, "an utterance must be a JSON object {\"phonemes\": [...]}, found " + describe(root));
   }
   LabeledUtterance utterance{source, "", {}};
   if (const auto phone_set = root.find("phone_set"); phone_set != root.end()) {
     if (!phone_set->is_string()) {
-      throw InputError(
-          source, 0,
-          "\"phone_set\" must be a string such as \"arpabet\", found " + describe(*phone_set));
+      throw InputError(source, 0, "\"phone_set\" must be a string such as \"arpabet\", found " + describe(*phone_set));
     }
     utterance.phone_set = phone_set->get<std::string>();
   }
@@ -206,20 +190,17 @@ LabeledUtterance read_json_utterance(std::string_view text, const std::string& s
     ++index;
     const std::string where = "phoneme " + std::to_string(index) + ": ";
     if (!phoneme.is_object()) {
-      throw InputError(
-          source, index,
-          where + "expected an object {\"label\", \"start\", \"end\"}, found " + describe(phoneme));
+      throw InputError(source, index,
+                       where + "expected an object {\"label\", \"start\", \"end\"}, found " + describe(phoneme));
     }
     const auto label = phoneme.find("label");
     if (label == phoneme.end()) throw InputError(source, index, where + "missing \"label\"");
     if (!label->is_string()) {
-      throw InputError(source, index,
-                       where + "\"label\" must be a string, found " + describe(*label));
+      throw InputError(source, index, where + "\"label\" must be a string, found " + describe(*label));
     }
     const std::int64_t start_us = read_time(phoneme, "start", source, index);
     const std::int64_t end_us = read_time(phoneme, "end", source, index);
-    utterance.intervals.push_back(
-        {std::string(trim(label->get_ref<const std::string&>())), start_us, end_us, index});
+    utterance.intervals.push_back({std::string(trim(label->get_ref<const std::string&>())), start_us, end_us, index});
   }
   return utterance;
 }

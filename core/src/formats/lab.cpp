@@ -16,8 +16,7 @@ namespace lipsync::formats {
 
 LabeledUtterance read_lab(std::string_view text, const std::string& source) {
   const std::vector<Line> lines = split_lines(text);
-  auto first_data = std::find_if(lines.begin(), lines.end(),
-                                 [](const Line& line) { return trim(line.text) == "#"; });
+  auto first_data = std::find_if(lines.begin(), lines.end(), [](const Line& line) { return trim(line.text) == "#"; });
   first_data = first_data == lines.end() ? lines.begin() : first_data + 1;
 
   LabeledUtterance utterance{source, "radio", {}};
@@ -34,8 +33,7 @@ LabeledUtterance read_lab(std::string_view text, const std::string& source) {
     const std::int64_t end_us = seconds_field_to_us(fields[0], "end_time", source, line->number);
     const std::string_view colour = fields[1].starts_with('-') ? fields[1].substr(1) : fields[1];
     if (!parse_count(colour, std::numeric_limits<std::int64_t>::max())) {
-      throw InputError(source, line->number,
-                       "colour (second field) is not an integer: " + excerpt(fields[1]));
+      throw InputError(source, line->number, "colour (second field) is not an integer: " + excerpt(fields[1]));
     }
     utterance.intervals.push_back({std::string(fields[2]), previous_end_us, end_us, line->number});
     previous_end_us = end_us;

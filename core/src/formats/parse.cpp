@@ -34,17 +34,16 @@ std::string_view to_string(InputFormat format) {
 
 std::optional<InputFormat> input_format_from_string(std::string_view name) {
   std::string lower(name);
-  std::transform(lower.begin(), lower.end(), lower.begin(), [](char ch) {
-    return static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-  });
+  std::transform(lower.begin(), lower.end(), lower.begin(),
+                 [](char ch) { return static_cast<char>(std::tolower(static_cast<unsigned char>(ch))); });
   for (const auto& [value, known] : kFormatNames) {
     if (known == lower) return value;
   }
   return std::nullopt;
 }
 
-LabeledUtterance parse_utterance(std::string_view content, InputFormat format,
-                                 std::string_view source, const ParseOptions& options) {
+LabeledUtterance parse_utterance(std::string_view content, InputFormat format, std::string_view source,
+                                 const ParseOptions& options) {
   const std::string name(source);
   const std::string text = formats::decode_to_utf8(content, source);
   switch (format) {

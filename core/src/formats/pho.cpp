@@ -19,11 +19,9 @@ LabeledUtterance read_pho(std::string_view text, const std::string& source) {
     if (fields.empty() || (fields.size() == 1 && fields[0] == "#")) continue;
     if (fields.size() < 2) {
       throw InputError(source, line.number,
-                       "expected \"label duration_ms [position% pitch_hz]...\", found " +
-                           excerpt(trim(content)));
+                       "expected \"label duration_ms [position% pitch_hz]...\", found " + excerpt(trim(content)));
     }
-    const std::int64_t duration_us =
-        milliseconds_field_to_us(fields[1], "duration_ms", source, line.number);
+    const std::int64_t duration_us = milliseconds_field_to_us(fields[1], "duration_ms", source, line.number);
     if (fields.size() % 2 != 0) {
       throw InputError(source, line.number,
                        "pitch points come in pairs \"position% pitch_hz\", but an odd number of "
@@ -34,12 +32,10 @@ LabeledUtterance read_pho(std::string_view text, const std::string& source) {
       std::string_view position = fields[i];
       if (position.ends_with('%')) position.remove_suffix(1);
       if (!parse_finite_double(position)) {
-        throw InputError(source, line.number,
-                         "pitch position (percent) is not a number: " + excerpt(fields[i]));
+        throw InputError(source, line.number, "pitch position (percent) is not a number: " + excerpt(fields[i]));
       }
       if (!parse_finite_double(fields[i + 1])) {
-        throw InputError(source, line.number,
-                         "pitch (Hz) is not a number: " + excerpt(fields[i + 1]));
+        throw InputError(source, line.number, "pitch (Hz) is not a number: " + excerpt(fields[i + 1]));
       }
     }
     const std::int64_t end_us = checked_add_us(start_us, duration_us, source, line.number);

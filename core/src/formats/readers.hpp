@@ -11,8 +11,7 @@
 namespace lipsync::formats {
 
 LabeledUtterance read_json_utterance(std::string_view text, const std::string& source);
-LabeledUtterance read_textgrid(std::string_view text, const std::string& source,
-                               std::string_view tier_name);
+LabeledUtterance read_textgrid(std::string_view text, const std::string& source, std::string_view tier_name);
 LabeledUtterance read_timit(std::string_view text, const std::string& source, int sample_rate_hz);
 LabeledUtterance read_lab(std::string_view text, const std::string& source);
 LabeledUtterance read_pho(std::string_view text, const std::string& source);

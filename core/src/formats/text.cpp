@@ -88,12 +88,10 @@ std::string decode_utf16(std::string_view bytes, bool big_endian, std::string_vi
   return out;
 }
 
-
 std::string lowercase(std::string_view text) {
   std::string out(text);
-  std::transform(out.begin(), out.end(), out.begin(), [](char ch) {
-    return static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-  });
+  std::transform(out.begin(), out.end(), out.begin(),
+                 [](char ch) { return static_cast<char>(std::tolower(static_cast<unsigned char>(ch))); });
   return out;
 }
 
@@ -257,41 +255,35 @@ std::optional<double> parse_finite_double(std::string_view text) {
   return value;
 }
 
-std::int64_t seconds_field_to_us(std::string_view text, std::string_view field,
-                                 const std::string& source, int line) {
+std::int64_t seconds_field_to_us(std::string_view text, std::string_view field, const std::string& source, int line) {
   const std::string what(field);
   if (!is_decimal_number(text)) {
     throw InputError(
         source, line,
-        what + (is_non_finite_word(text) ? " is not a finite number: " : " is not a number: ") +
-            excerpt(text));
+        what + (is_non_finite_word(text) ? " is not a finite number: " : " is not a number: ") + excerpt(text));
   }
   const std::optional<std::int64_t> time_us = parse_seconds_to_us(text);
   if (!time_us) {
-    if (text.starts_with('-'))
-      throw InputError(source, line, what + " is negative: " + excerpt(text));
-    throw InputError(source, line,
-                     what + " is beyond 24 hours: " + excerpt(text) + " (seconds expected)");
+    if (text.starts_with('-')) throw InputError(source, line, what + " is negative: " + excerpt(text));
+    throw InputError(source, line, what + " is beyond 24 hours: " + excerpt(text) + " (seconds expected)");
   }
   if (*time_us < 0) throw InputError(source, line, what + " is negative: " + excerpt(text));
   return *time_us;
 }
 
-std::int64_t milliseconds_field_to_us(std::string_view text, std::string_view field,
-                                      const std::string& source, int line) {
+std::int64_t milliseconds_field_to_us(std::string_view text, std::string_view field, const std::string& source,
+                                      int line) {
   const std::string what(field);
   if (!is_decimal_number(text)) {
     throw InputError(
         source, line,
-        what + (is_non_finite_word(text) ? " is not a finite number: " : " is not a number: ") +
-            excerpt(text));
+        what + (is_non_finite_word(text) ? " is not a finite number: " : " is not a number: ") + excerpt(text));
   }
   if (text.starts_with('-') && text.find_first_of("123456789") != std::string_view::npos) {
     throw InputError(source, line, what + " is negative: " + excerpt(text));
   }
   // Milliseconds are seconds × 10^-3: move the exponent, keeping the decimal exact.
-  const std::string beyond =
-      what + " is beyond 24 hours: " + excerpt(text) + " (milliseconds expected)";
+  const std::string beyond = what + " is beyond 24 hours: " + excerpt(text) + " (milliseconds expected)";
   const std::size_t e = text.find_first_of("eE");
   std::int64_t exponent = -3;
   if (e != std::string_view::npos) {
@@ -311,12 +303,11 @@ std::int64_t milliseconds_field_to_us(std::string_view text, std::string_view fi
   return *time_us < 0 ? 0 : *time_us;  // "-0"
 }
 
-std::int64_t checked_add_us(std::int64_t a_us, std::int64_t b_us, const std::string& source,
-                            int line) {
+std::int64_t checked_add_us(std::int64_t a_us, std::int64_t b_us, const std::string& source, int line) {
   if (b_us > kMaxTimeUs - a_us) {
     throw InputError(source, line,
-                     "the durations so far add up to more than 24 hours (" + format_seconds(a_us) +
-                         " s + " + format_seconds(b_us) + " s)");
+                     "the durations so far add up to more than 24 hours (" + format_seconds(a_us) + " s + " +
+                         format_seconds(b_us) + " s)");
   }
   return a_us + b_us;
 }

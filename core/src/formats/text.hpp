@@ -53,15 +53,13 @@ std::optional<double> parse_finite_double(std::string_view text);
 /// A time in seconds written as decimal text, exact to the nearest µs. Throws
 /// InputError(source, line, ...) naming `field` and the text when it is not a
 /// number, not finite, negative, or beyond kMaxTimeUs.
-std::int64_t seconds_field_to_us(std::string_view text, std::string_view field,
-                                 const std::string& source, int line);
+std::int64_t seconds_field_to_us(std::string_view text, std::string_view field, const std::string& source, int line);
 
 /// Same checks for a non-negative decimal count of milliseconds.
-std::int64_t milliseconds_field_to_us(std::string_view text, std::string_view field,
-                                      const std::string& source, int line);
+std::int64_t milliseconds_field_to_us(std::string_view text, std::string_view field, const std::string& source,
+                                      int line);
 
 /// Sum of two times that must stay within kMaxTimeUs (accumulated durations).
-std::int64_t checked_add_us(std::int64_t a_us, std::int64_t b_us, const std::string& source,
-                            int line);
+std::int64_t checked_add_us(std::int64_t a_us, std::int64_t b_us, const std::string& source, int line);
 
 }  // namespace lipsync::formats

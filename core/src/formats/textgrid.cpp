@@ -122,8 +122,7 @@ class PraatTokenizer {
     ++pos_;
     while (true) {
       if (pos_ >= text_.size()) {
-        throw InputError(source_, token.line,
-                         "text in double quotes is not closed before the end of the file");
+        throw InputError(source_, token.line, "text in double quotes is not closed before the end of the file");
       }
       const char ch = text_[pos_];
       if (ch == '"') {
@@ -188,24 +187,20 @@ class TextGridReader {
   Token expect(Token::Kind kind, const std::string& what) {
     Token token = tokens_.next();
     if (token.kind != kind) {
-      throw InputError(
-          source_, token.line,
-          "expected " + what + " (" + std::string(describe(kind)) + "), found " + describe(token));
+      throw InputError(source_, token.line,
+                       "expected " + what + " (" + std::string(describe(kind)) + "), found " + describe(token));
     }
     return token;
   }
 
   std::int64_t expect_count(const std::string& what) {
     const Token token = expect(Token::Kind::number, what);
-    const std::optional<std::int64_t> count =
-        parse_count(token.value, std::numeric_limits<std::int64_t>::max());
+    const std::optional<std::int64_t> count = parse_count(token.value, std::numeric_limits<std::int64_t>::max());
     if (!count) {
-      throw InputError(source_, token.line,
-                       what + " is not a whole number: " + excerpt(token.value));
+      throw InputError(source_, token.line, what + " is not a whole number: " + excerpt(token.value));
     }
     if (*count > max_count_) {
-      throw InputError(source_, token.line,
-                       what + " is more than the file can hold: " + excerpt(token.value));
+      throw InputError(source_, token.line, what + " is more than the file can hold: " + excerpt(token.value));
     }
     return *count;
   }
@@ -215,9 +210,8 @@ class TextGridReader {
   void read_text_file() {
     const Token object_class = expect(Token::Kind::text, "the object class \"TextGrid\"");
     if (object_class.value != "TextGrid") {
-      throw InputError(
-          source_, object_class.line,
-          "this Praat file holds a " + excerpt(object_class.value) + " object, not a TextGrid");
+      throw InputError(source_, object_class.line,
+                       "this Praat file holds a " + excerpt(object_class.value) + " object, not a TextGrid");
     }
     expect(Token::Kind::number, "the start time (xmin) of the TextGrid");
     expect(Token::Kind::number, "the end time (xmax) of the TextGrid");
@@ -228,11 +222,9 @@ class TextGridReader {
       const Tier& tier = read_tier_header("tier " + std::to_string(t));
       const std::string name = tier_label(tier);
       const std::int64_t count = expect_count(
-          std::string(tier.is_interval ? "the number of intervals" : "the number of points") +
-          " of " + name);
+          std::string(tier.is_interval ? "the number of intervals" : "the number of points") + " of " + name);
       for (std::int64_t k = 1; k <= count; ++k) {
-        const std::string where =
-            " " + std::to_string(k) + " of " + std::to_string(count) + " on " + name;
+        const std::string where = " " + std::to_string(k) + " of " + std::to_string(count) + " on " + name;
         if (tier.is_interval) {
           read_interval(tiers_.size() - 1, "interval" + where);
         } else {
@@ -283,9 +275,8 @@ class TextGridReader {
     if (name.value == tier_name_) {
       if (selected_ >= 0) {
         throw InputError(source_, tier_class.line,
-                         "two tiers are named " + excerpt(name.value) + " (tiers " +
-                             std::to_string(selected_ + 1) + " and " +
-                             std::to_string(tiers_.size()) +
+                         "two tiers are named " + excerpt(name.value) + " (tiers " + std::to_string(selected_ + 1) +
+                             " and " + std::to_string(tiers_.size()) +
                              "); rename one of them so that the choice is clear");
       }
       selected_ = static_cast<int>(tiers_.size()) - 1;
@@ -298,10 +289,8 @@ class TextGridReader {
     const Token xmax = expect(Token::Kind::number, "the end time (xmax) of " + which);
     const Token text = expect(Token::Kind::text, "the text of " + which);
     if (static_cast<int>(tier_index) != selected_) return;
-    const std::int64_t start_us =
-        seconds_field_to_us(xmin.value, "xmin of " + which, source_, xmin.line);
-    const std::int64_t end_us =
-        seconds_field_to_us(xmax.value, "xmax of " + which, source_, xmax.line);
+    const std::int64_t start_us = seconds_field_to_us(xmin.value, "xmin of " + which, source_, xmin.line);
+    const std::int64_t end_us = seconds_field_to_us(xmax.value, "xmax of " + which, source_, xmax.line);
     intervals_.push_back({std::string(trim(text.value)), start_us, end_us, xmin.line});
   }
 
@@ -319,9 +308,8 @@ class TextGridReader {
       }
       if (listing.empty()) listing = "none";
       if (selected_ < 0) {
-        throw InputError(
-            source_, 0,
-            "no tier named " + excerpt(tier_name_) + " in this TextGrid; its tiers: " + listing);
+        throw InputError(source_, 0,
+                         "no tier named " + excerpt(tier_name_) + " in this TextGrid; its tiers: " + listing);
       }
       throw InputError(source_, tiers_[static_cast<std::size_t>(selected_)].line,
                        "tier " + excerpt(tier_name_) +
@@ -343,8 +331,7 @@ class TextGridReader {
 
 }  // namespace
 
-LabeledUtterance read_textgrid(std::string_view text, const std::string& source,
-                               std::string_view tier_name) {
+LabeledUtterance read_textgrid(std::string_view text, const std::string& source, std::string_view tier_name) {
   return TextGridReader(text, source, tier_name).read();
 }
 

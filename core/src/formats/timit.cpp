@@ -11,8 +11,8 @@
 namespace lipsync::formats {
 namespace {
 
-std::int64_t samples_to_us(std::string_view text, std::string_view field, int rate_hz,
-                           const std::string& source, int line) {
+std::int64_t samples_to_us(std::string_view text, std::string_view field, int rate_hz, const std::string& source,
+                           int line) {
   const std::string what(field);
   if (!is_decimal_number(text)) {
     throw InputError(source, line, what + " is not a number: " + excerpt(text));
@@ -29,13 +29,12 @@ std::int64_t samples_to_us(std::string_view text, std::string_view field, int ra
   const std::optional<std::int64_t> samples = parse_count(digits, max_samples);
   std::int64_t time_us = kMaxTimeUs + 1;
   if (samples) {
-    time_us =
-        *samples / rate * kMicrosPerSecond + (*samples % rate * kMicrosPerSecond + rate / 2) / rate;
+    time_us = *samples / rate * kMicrosPerSecond + (*samples % rate * kMicrosPerSecond + rate / 2) / rate;
   }
   if (time_us > kMaxTimeUs) {
     throw InputError(source, line,
-                     what + " is beyond 24 hours at " + std::to_string(rate_hz) +
-                         " Hz: " + excerpt(text) + " (check the sample rate)");
+                     what + " is beyond 24 hours at " + std::to_string(rate_hz) + " Hz: " + excerpt(text) +
+                         " (check the sample rate)");
   }
   return time_us;
 }
@@ -45,22 +44,18 @@ std::int64_t samples_to_us(std::string_view text, std::string_view field, int ra
 LabeledUtterance read_timit(std::string_view text, const std::string& source, int sample_rate_hz) {
   if (sample_rate_hz <= 0) {
     throw InputError(source, 0,
-                     "the TIMIT sample rate must be a positive number of hertz, got " +
-                         std::to_string(sample_rate_hz));
+                     "the TIMIT sample rate must be a positive number of hertz, got " + std::to_string(sample_rate_hz));
   }
   LabeledUtterance utterance{source, "timit", {}};
   for (const Line& line : split_lines(text)) {
     const std::vector<std::string_view> fields = split_fields(line.text);
     if (fields.empty()) continue;
     if (fields.size() != 3) {
-      throw InputError(
-          source, line.number,
-          "expected \"start_sample end_sample label\", found " + excerpt(trim(line.text)));
+      throw InputError(source, line.number,
+                       "expected \"start_sample end_sample label\", found " + excerpt(trim(line.text)));
     }
-    const std::int64_t start_us =
-        samples_to_us(fields[0], "start_sample", sample_rate_hz, source, line.number);
-    const std::int64_t end_us =
-        samples_to_us(fields[1], "end_sample", sample_rate_hz, source, line.number);
+    const std::int64_t start_us = samples_to_us(fields[0], "start_sample", sample_rate_hz, source, line.number);
+    const std::int64_t end_us = samples_to_us(fields[1], "end_sample", sample_rate_hz, source, line.number);
     utterance.intervals.push_back({std::string(fields[2]), start_us, end_us, line.number});
   }
   return utterance;

@@ -20,13 +20,13 @@
 // capacity assumes) fails fast: see FaceDeadline.
 #pragma once
 
+#include <grpcpp/support/status.h>
+
 #include <atomic>
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <string>
-
-#include <grpcpp/support/status.h>
 
 namespace lipsync::server {
 

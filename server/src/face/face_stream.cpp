@@ -8,12 +8,18 @@ namespace {
 
 v1::MeshPart to_proto(face::FacePart part) {
   switch (part) {
-    case face::FacePart::skin: return v1::MESH_PART_SKIN;
-    case face::FacePart::inner_lip: return v1::MESH_PART_INNER_LIP;
-    case face::FacePart::mouth_cavity: return v1::MESH_PART_MOUTH_CAVITY;
-    case face::FacePart::upper_teeth: return v1::MESH_PART_UPPER_TEETH;
-    case face::FacePart::lower_teeth: return v1::MESH_PART_LOWER_TEETH;
-    case face::FacePart::tongue: return v1::MESH_PART_TONGUE;
+    case face::FacePart::skin:
+      return v1::MESH_PART_SKIN;
+    case face::FacePart::inner_lip:
+      return v1::MESH_PART_INNER_LIP;
+    case face::FacePart::mouth_cavity:
+      return v1::MESH_PART_MOUTH_CAVITY;
+    case face::FacePart::upper_teeth:
+      return v1::MESH_PART_UPPER_TEETH;
+    case face::FacePart::lower_teeth:
+      return v1::MESH_PART_LOWER_TEETH;
+    case face::FacePart::tongue:
+      return v1::MESH_PART_TONGUE;
   }
   return v1::MESH_PART_SKIN;
 }

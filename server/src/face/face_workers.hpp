@@ -25,16 +25,15 @@
 // outlives it.
 #pragma once
 
+#include <sys/types.h>
+
+#include <boost/asio/strand.hpp>
+#include <boost/asio/thread_pool.hpp>
 #include <cstddef>
 #include <functional>
 #include <latch>
 #include <mutex>
 #include <vector>
-
-#include <sys/types.h>
-
-#include <boost/asio/strand.hpp>
-#include <boost/asio/thread_pool.hpp>
 
 namespace lipsync::server {
 

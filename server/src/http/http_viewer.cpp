@@ -1,25 +1,24 @@
 #include "http_viewer.hpp"
 
+#include <grpcpp/grpcpp.h>
+#include <spdlog/spdlog.h>
 #include <sys/socket.h>
-
-#include <chrono>
-#include <optional>
-#include <stdexcept>
-#include <thread>
 
 #include <boost/asio/ip/address.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
-#include <grpcpp/grpcpp.h>
+#include <chrono>
 #include <nlohmann/json.hpp>
-#include <spdlog/spdlog.h>
+#include <optional>
+#include <stdexcept>
+#include <thread>
 
 #include "call_log.hpp"
-#include "lipsync/error.hpp"
-#include "lipsync/v1/lipsync.grpc.pb.h"
 #include "http/quick_try.hpp"
 #include "http/web_assets.hpp"
+#include "lipsync/error.hpp"
+#include "lipsync/v1/lipsync.grpc.pb.h"
 
 namespace lipsync::server {
 namespace {
@@ -52,15 +51,24 @@ Response text_response(const Request& request, http::status status, std::string 
 /// The HTTP status that tells a browser what a gRPC status means.
 http::status http_status(grpc::StatusCode code) {
   switch (code) {
-    case grpc::StatusCode::OK: return http::status::ok;
-    case grpc::StatusCode::INVALID_ARGUMENT: return http::status::bad_request;
-    case grpc::StatusCode::NOT_FOUND: return http::status::not_found;
-    case grpc::StatusCode::ALREADY_EXISTS: return http::status::conflict;
-    case grpc::StatusCode::RESOURCE_EXHAUSTED: return http::status::too_many_requests;
-    case grpc::StatusCode::UNAUTHENTICATED: return http::status::unauthorized;
-    case grpc::StatusCode::PERMISSION_DENIED: return http::status::forbidden;
-    case grpc::StatusCode::UNAVAILABLE: return http::status::service_unavailable;
-    default: return http::status::internal_server_error;
+    case grpc::StatusCode::OK:
+      return http::status::ok;
+    case grpc::StatusCode::INVALID_ARGUMENT:
+      return http::status::bad_request;
+    case grpc::StatusCode::NOT_FOUND:
+      return http::status::not_found;
+    case grpc::StatusCode::ALREADY_EXISTS:
+      return http::status::conflict;
+    case grpc::StatusCode::RESOURCE_EXHAUSTED:
+      return http::status::too_many_requests;
+    case grpc::StatusCode::UNAUTHENTICATED:
+      return http::status::unauthorized;
+    case grpc::StatusCode::PERMISSION_DENIED:
+      return http::status::forbidden;
+    case grpc::StatusCode::UNAVAILABLE:
+      return http::status::service_unavailable;
+    default:
+      return http::status::internal_server_error;
   }
 }
 
@@ -76,14 +84,14 @@ std::string truncated_reason(const std::string& message) {
 }
 
 std::int64_t unix_now_us() {
-  return std::chrono::duration_cast<std::chrono::microseconds>(
-             std::chrono::system_clock::now().time_since_epoch())
+  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
       .count();
 }
 
 tcp::endpoint resolve(boost::asio::io_context& io, const std::string& host_port, std::string& host) {
   const auto colon = host_port.rfind(':');
-  if (colon == std::string::npos) throw std::runtime_error("--http-listen: expected HOST:PORT, got '" + host_port + "'");
+  if (colon == std::string::npos)
+    throw std::runtime_error("--http-listen: expected HOST:PORT, got '" + host_port + "'");
   host = host_port.substr(0, colon);
   std::string name = host;
   if (name.size() > 1 && name.front() == '[' && name.back() == ']') name = name.substr(1, name.size() - 2);
@@ -176,7 +184,8 @@ bool serve_audio(tcp::socket& socket, const Request& request, const QueryParamet
     const std::string_view value = authorization ? std::string_view(*authorization) : std::string_view();
     status = lookup(authorization ? &value : nullptr, session->second, wav);
   }
-  if (!status.ok()) return fail(http_status(status.error_code()), code_name(status.error_code()), status.error_message());
+  if (!status.ok())
+    return fail(http_status(status.error_code()), code_name(status.error_code()), status.error_message());
   http::response<http::span_body<const char>> response(http::status::ok, request.version());
   response.set(http::field::server, "lipsyncd");
   response.set(http::field::content_type, "audio/wav");
@@ -249,7 +258,8 @@ void follow_session(websocket::stream<tcp::socket&>& ws, v1::LipSync::Stub& stub
 }
 
 /// POST /sessions: one Animate call with the pasted text; answers once the session is complete.
-Response quick_try(const Request& request, v1::LipSync::Stub& stub, const QuickTry& plan, grpc::ClientContext& context) {
+Response quick_try(const Request& request, v1::LipSync::Stub& stub, const QuickTry& plan,
+                   grpc::ClientContext& context) {
   auto stream = stub.Animate(&context);
   std::uint64_t frames = 0;
   std::thread reader([&] {
@@ -434,11 +444,11 @@ void HttpViewer::serve(Connection& connection) {
       }
       const auto started = std::chrono::steady_clock::now();
       follow_session(ws, *stub, query, context, closing_);
-      spdlog::info("viewer WebSocket end peer={} session='{}' duration_ms={}",
-                   connection.socket.remote_endpoint(error).address().to_string(),
-                   query.count("session") ? query.at("session") : "",
-                   std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - started)
-                       .count());
+      spdlog::info(
+          "viewer WebSocket end peer={} session='{}' duration_ms={}",
+          connection.socket.remote_endpoint(error).address().to_string(),
+          query.count("session") ? query.at("session") : "",
+          std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - started).count());
       break;
     }
 
@@ -450,7 +460,8 @@ void HttpViewer::serve(Connection& connection) {
     Response response;
     if (path == "/sessions") {
       if (request.method() != http::verb::post) {
-        response = text_response(request, http::status::method_not_allowed, "/sessions: only POST (the phoneme text)\n");
+        response =
+            text_response(request, http::status::method_not_allowed, "/sessions: only POST (the phoneme text)\n");
         response.set(http::field::allow, "POST");
       } else {
         try {

@@ -22,16 +22,16 @@
 // people watching, not for fan-out at scale (that is Subscribe's job).
 #pragma once
 
+#include <grpcpp/support/status.h>
+
 #include <atomic>
+#include <boost/asio/ip/tcp.hpp>
 #include <functional>
 #include <list>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <thread>
-
-#include <boost/asio/ip/tcp.hpp>
-#include <grpcpp/support/status.h>
 
 namespace grpc {
 class Channel;
@@ -45,8 +45,7 @@ class ModelCatalog;
 /// A session's WAV for GET /audio: authenticates `authorization` (the request's `Authorization`
 /// value, null if none) as a Subscribe would, finds `session` in the caller's tenant and sets
 /// `wav`; NOT_FOUND when there is no such session or it has no audio.
-using SessionAudioLookup = std::function<grpc::Status(const std::string_view* authorization,
-                                                      const std::string& session,
+using SessionAudioLookup = std::function<grpc::Status(const std::string_view* authorization, const std::string& session,
                                                       std::shared_ptr<const std::string>& wav)>;
 
 class HttpViewer {

@@ -3,14 +3,13 @@
 // expiry.
 #include "metrics_http.hpp"
 
-#include <chrono>
-#include <stdexcept>
-#include <thread>
-
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/strand.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
+#include <chrono>
+#include <stdexcept>
+#include <thread>
 
 namespace lipsync::server {
 namespace {

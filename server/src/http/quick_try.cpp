@@ -47,8 +47,8 @@ const std::string* parameter(const QueryParameters& query, std::string_view name
   return found == query.end() ? nullptr : &found->second;
 }
 
-std::int64_t integer_parameter(const QueryParameters& query, std::string_view name, std::int64_t min,
-                               std::int64_t max, std::int64_t fallback) {
+std::int64_t integer_parameter(const QueryParameters& query, std::string_view name, std::int64_t min, std::int64_t max,
+                               std::int64_t fallback) {
   const std::string* text = parameter(query, name);
   if (!text) return fallback;
   std::int64_t value = 0;
@@ -78,8 +78,7 @@ v1::VisemeVocabulary viseme_vocabulary(const std::string& name) {
 }
 
 /// The phone set asked for, else the text's own, else the built-in set that knows every label.
-std::string choose_phone_set(const QueryParameters& query, const LabeledUtterance& utterance,
-                             const ModelEntry* model) {
+std::string choose_phone_set(const QueryParameters& query, const LabeledUtterance& utterance, const ModelEntry* model) {
   if (const std::string* asked = parameter(query, "phone_set"); asked && !asked->empty() && *asked != "auto") {
     return *asked;
   }
@@ -117,7 +116,8 @@ v1::AnimationSettings quick_try_settings(const QueryParameters& query, std::int6
   const std::string* session = parameter(query, "session");
   settings.set_session(session && !session->empty() ? *session : random_session_name());
   if (const std::string* model = parameter(query, "model")) settings.set_model(*model);
-  settings.set_fps(static_cast<std::uint32_t>(integer_parameter(query, "fps", kFpsSetting.min, kFpsSetting.max, kFpsSetting.default_value)));
+  settings.set_fps(static_cast<std::uint32_t>(
+      integer_parameter(query, "fps", kFpsSetting.min, kFpsSetting.max, kFpsSetting.default_value)));
   const bool mesh = integer_parameter(query, "mesh", 0, 1, 0) == 1;
   settings.mutable_outputs()->mutable_mesh()->set_enabled(mesh);
   const std::string* visemes = parameter(query, "visemes");

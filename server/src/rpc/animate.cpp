@@ -22,6 +22,8 @@
 // (face_capacity.hpp: RESOURCE_EXHAUSTED beyond it) and ends with
 // DEADLINE_EXCEEDED if its face falls more than --mesh-max-lag-ms behind real
 // time.
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <atomic>
 #include <functional>
@@ -31,18 +33,16 @@
 #include <string>
 #include <vector>
 
-#include <spdlog/spdlog.h>
-
 #include "call_log.hpp"
 #include "lipsync/excerpt.hpp"
 #include "lipsync/renderer.hpp"
 #include "lipsync/tsan_handoff.hpp"
-#include "sessions/live_streams.hpp"
 #include "rpc/outbox.hpp"
 #include "rpc/phoneme_input.hpp"
 #include "rpc/plan.hpp"
 #include "rpc/service.hpp"
 #include "rpc/wire.hpp"
+#include "sessions/live_streams.hpp"
 
 namespace lipsync::server {
 namespace {
@@ -189,8 +189,7 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
           return invalid(std::string(kStreamSource) + ":" + std::to_string(phonemes() + 1) + ": phoneme " +
                          excerpt(phoneme.label()) + ": received after `end`");
         }
-        return invalid("message received after `end` (the utterance had " + std::to_string(phonemes()) +
-                       " phonemes)");
+        return invalid("message received after `end` (the utterance had " + std::to_string(phonemes()) + " phonemes)");
     }
     return grpc::Status::OK;
   }
@@ -216,8 +215,8 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
     if (!settings.session().empty()) {
       std::shared_ptr<Session> session;
       if (auto status = caller_.hold(Quota::sessions, session_hold_); !status.ok()) return status;
-      if (auto status = service_.sessions().open(settings.session(), header, session,
-                                                 caller_.session_key(settings.session()));
+      if (auto status =
+              service_.sessions().open(settings.session(), header, session, caller_.session_key(settings.session()));
           !status.ok()) {
         return status;
       }
@@ -237,9 +236,8 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
       lane_.emplace(service_.face_workers());
       lane_->post([this, encoding = plan_.mesh_encoding] {
         if (!stopped_) {
-          face_ = std::make_unique<FaceStream>(*face_setup_.topology,
-                                               service_.faces().solver(*face_setup_.topology, *face_setup_.rig),
-                                               encoding);
+          face_ = std::make_unique<FaceStream>(
+              *face_setup_.topology, service_.faces().solver(*face_setup_.topology, *face_setup_.rig), encoding);
         }
       });
     }
@@ -365,7 +363,7 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
   Counter& frames_counter_;
   Counter& messages_counter_;
   bool admitted_ = false;
-  Level* open_stream_ = nullptr;  // lipsyncd_streams{method="Animate",tenant}, once authenticated
+  Level* open_stream_ = nullptr;         // lipsyncd_streams{method="Animate",tenant}, once authenticated
   std::atomic<bool> cancelled_ = false;  // OnCancel came: the client got CANCELLED (or gRPC's own status)
   Phase phase_ = Phase::awaiting_settings;
   v1::AnimateRequest request_;
@@ -386,7 +384,7 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
   Track track_;
   std::atomic<std::uint64_t> frames_sent_ = 0;
   std::atomic<std::size_t> frames_in_lane_ = 0;
-  std::mutex flow_mutex_;    // orders the read-pause decision against write completions
+  std::mutex flow_mutex_;  // orders the read-pause decision against write completions
   bool read_paused_ = false;
   std::mutex session_mutex_;
   std::shared_ptr<Session> session_;

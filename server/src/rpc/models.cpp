@@ -26,12 +26,12 @@ void describe(const ModelEntry& entry, v1::ModelInfo& info) {
 
 }  // namespace
 
-grpc::ServerUnaryReactor* LipSyncService::ListModels(grpc::CallbackServerContext* context,
-                                                     const v1::ListModelsRequest*,
+grpc::ServerUnaryReactor* LipSyncService::ListModels(grpc::CallbackServerContext* context, const v1::ListModelsRequest*,
                                                      v1::ListModelsResponse* response) {
-  handoff_acquire(this);  // the service as built before the server started (tsan_handoff.hpp)
+  handoff_acquire(this);     // the service as built before the server started (tsan_handoff.hpp)
   admission_.count_query();  // the drain waits for the call's end, its access line and metrics included
-  auto* call = new UnaryCall("ListModels", *context, [this](const grpc::Status&) { admission_.release_query(); }, &metrics_);
+  auto* call = new UnaryCall(
+      "ListModels", *context, [this](const grpc::Status&) { admission_.release_query(); }, &metrics_);
   call->run([&] {
     Caller caller;
     if (auto status = tenants_.authenticate(*context, "ListModels", caller); !status.ok()) return status;
@@ -44,9 +44,10 @@ grpc::ServerUnaryReactor* LipSyncService::ListModels(grpc::CallbackServerContext
 
 grpc::ServerUnaryReactor* LipSyncService::GetModel(grpc::CallbackServerContext* context,
                                                    const v1::GetModelRequest* request, v1::ModelInfo* response) {
-  handoff_acquire(this);  // the service as built before the server started (tsan_handoff.hpp)
+  handoff_acquire(this);     // the service as built before the server started (tsan_handoff.hpp)
   admission_.count_query();  // the drain waits for the call's end, its access line and metrics included
-  auto* call = new UnaryCall("GetModel", *context, [this](const grpc::Status&) { admission_.release_query(); }, &metrics_);
+  auto* call = new UnaryCall(
+      "GetModel", *context, [this](const grpc::Status&) { admission_.release_query(); }, &metrics_);
   call->run([&] {
     Caller caller;
     if (auto status = tenants_.authenticate(*context, "GetModel", caller); !status.ok()) return status;

@@ -1,8 +1,8 @@
 #include "outbox.hpp"
 
-#include <stdexcept>
-
 #include <grpcpp/impl/codegen/proto_utils.h>
+
+#include <stdexcept>
 
 namespace lipsync::server {
 
@@ -68,9 +68,9 @@ void Outbox::on_write_done(bool ok) {
     std::lock_guard lock(mutex_);
     writing_ = false;
     if (ok && latency_ && in_flight_) {
-      latency_->observe_us(std::chrono::duration_cast<std::chrono::microseconds>(
-                               std::chrono::steady_clock::now() - in_flight_pushed_)
-                               .count());
+      latency_->observe_us(
+          std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now() - in_flight_pushed_)
+              .count());
     }
     in_flight_.reset();
     if (!ok) {

@@ -20,6 +20,8 @@
 // cancel a reader that never reads again.
 #pragma once
 
+#include <grpcpp/grpcpp.h>
+
 #include <atomic>
 #include <chrono>
 #include <cstddef>
@@ -29,8 +31,6 @@
 #include <optional>
 #include <string>
 #include <utility>
-
-#include <grpcpp/grpcpp.h>
 
 #include "lipsync/v1/lipsync.pb.h"
 #include "metrics.hpp"

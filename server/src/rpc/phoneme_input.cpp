@@ -8,9 +8,8 @@
 namespace lipsync::server {
 
 grpc::Status too_many_phonemes(std::size_t limit) {
-  return {grpc::StatusCode::RESOURCE_EXHAUSTED,
-          "the utterance has more than " + std::to_string(limit) + " phonemes (--max-phonemes=" +
-              std::to_string(limit) + ")"};
+  return {grpc::StatusCode::RESOURCE_EXHAUSTED, "the utterance has more than " + std::to_string(limit) +
+                                                    " phonemes (--max-phonemes=" + std::to_string(limit) + ")"};
 }
 
 PhonemeInput::PhonemeInput(const Plan& plan, const ServerConfig& config)
@@ -28,8 +27,8 @@ grpc::Status PhonemeInput::push(const v1::Phoneme& phoneme, std::vector<Segment>
   if (builder_.end_us() > config_.max_utterance_ms * 1000) {
     return {grpc::StatusCode::RESOURCE_EXHAUSTED,
             std::string(kStreamSource) + ":" + std::to_string(index) + ": the utterance reaches " +
-                std::to_string(builder_.end_us()) + " us, longer than --max-utterance-ms=" +
-                std::to_string(config_.max_utterance_ms)};
+                std::to_string(builder_.end_us()) +
+                " us, longer than --max-utterance-ms=" + std::to_string(config_.max_utterance_ms)};
   }
   // OK: a default Status, not a copy of Status::OK, which copies its two strings (per phoneme).
   return grpc::Status();

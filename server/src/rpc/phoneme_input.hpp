@@ -6,11 +6,11 @@
 // --max-utterance-ms (RESOURCE_EXHAUSTED naming the flag).
 #pragma once
 
+#include <grpcpp/support/status.h>
+
 #include <cstddef>
 #include <cstdint>
 #include <vector>
-
-#include <grpcpp/support/status.h>
 
 #include "lipsync/segment.hpp"
 #include "lipsync/server/config.hpp"

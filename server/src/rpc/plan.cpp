@@ -34,10 +34,18 @@ grpc::Status resolve_visemes(const v1::AnimationSettings& settings, Plan& plan) 
   VisemeOptions options;
   switch (output.vocabulary()) {
     case v1::VISEME_VOCABULARY_UNSPECIFIED:
-    case v1::VISEME_VOCABULARY_OCULUS: options.vocabulary = VisemeVocabulary::oculus; break;
-    case v1::VISEME_VOCABULARY_AZURE: options.vocabulary = VisemeVocabulary::azure; break;
-    case v1::VISEME_VOCABULARY_POLLY: options.vocabulary = VisemeVocabulary::polly; break;
-    case v1::VISEME_VOCABULARY_RHUBARB: options.vocabulary = VisemeVocabulary::rhubarb; break;
+    case v1::VISEME_VOCABULARY_OCULUS:
+      options.vocabulary = VisemeVocabulary::oculus;
+      break;
+    case v1::VISEME_VOCABULARY_AZURE:
+      options.vocabulary = VisemeVocabulary::azure;
+      break;
+    case v1::VISEME_VOCABULARY_POLLY:
+      options.vocabulary = VisemeVocabulary::polly;
+      break;
+    case v1::VISEME_VOCABULARY_RHUBARB:
+      options.vocabulary = VisemeVocabulary::rhubarb;
+      break;
     default:
       return invalid("settings.outputs.visemes.vocabulary: unknown vocabulary " + std::to_string(output.vocabulary()) +
                      " (OCULUS, AZURE, POLLY or RHUBARB)");
@@ -73,8 +81,8 @@ bool wants_mesh(const v1::AnimationSettings& settings) {
   return settings.outputs().has_mesh() && settings.outputs().mesh().enabled();
 }
 
-grpc::Status resolve_settings(const v1::AnimationSettings& settings, const ModelCatalog& catalog,
-                              bool with_session, Plan& plan) {
+grpc::Status resolve_settings(const v1::AnimationSettings& settings, const ModelCatalog& catalog, bool with_session,
+                              Plan& plan) {
   plan.model = catalog.find(settings.model());
   if (!plan.model) {
     return invalid("settings.model: unknown model " + excerpt(settings.model()) + " (known: " + catalog.names() + ")");
@@ -84,8 +92,8 @@ grpc::Status resolve_settings(const v1::AnimationSettings& settings, const Model
   if (!plan.phone_set) {
     std::string known;
     for (const auto& set : plan.model->phone_sets) known += (known.empty() ? "" : ", ") + set.name();
-    return invalid("settings.phone_set: unknown phone set " + excerpt(phone_set) + " for model '" +
-                   plan.model->name + "' (known: " + known + ")");
+    return invalid("settings.phone_set: unknown phone set " + excerpt(phone_set) + " for model '" + plan.model->name +
+                   "' (known: " + known + ")");
   }
   try {
     plan.engine = resolve_render_plan(requested_settings(settings), kWireNames);
@@ -104,8 +112,12 @@ grpc::Status resolve_settings(const v1::AnimationSettings& settings, const Model
     const v1::MeshEncoding encoding = settings.outputs().mesh().encoding();
     switch (encoding) {
       case v1::MESH_ENCODING_UNSPECIFIED:
-      case v1::MESH_ENCODING_FLOAT32: plan.mesh_encoding = v1::MESH_ENCODING_FLOAT32; break;
-      case v1::MESH_ENCODING_INT16: plan.mesh_encoding = v1::MESH_ENCODING_INT16; break;
+      case v1::MESH_ENCODING_FLOAT32:
+        plan.mesh_encoding = v1::MESH_ENCODING_FLOAT32;
+        break;
+      case v1::MESH_ENCODING_INT16:
+        plan.mesh_encoding = v1::MESH_ENCODING_INT16;
+        break;
       default:
         return invalid("settings.outputs.mesh.encoding: unknown encoding " + std::to_string(encoding) +
                        " (FLOAT32 or INT16)");

@@ -10,11 +10,11 @@
 // naming the field, e.g. "settings.fps: '241' is out of range (1 to 240, default 30)".
 #pragma once
 
+#include <grpcpp/support/status.h>
+
 #include <cstddef>
 #include <memory>
 #include <string>
-
-#include <grpcpp/support/status.h>
 
 #include "catalog.hpp"
 #include "face/face_stream.hpp"
@@ -48,8 +48,8 @@ bool wants_mesh(const v1::AnimationSettings& settings);
 
 /// Resolves `settings` into `plan` (and its header); INVALID_ARGUMENT naming
 /// the field otherwise. `with_session`: the call may name a session (Animate).
-grpc::Status resolve_settings(const v1::AnimationSettings& settings, const ModelCatalog& catalog,
-                              bool with_session, Plan& plan);
+grpc::Status resolve_settings(const v1::AnimationSettings& settings, const ModelCatalog& catalog, bool with_session,
+                              Plan& plan);
 
 /// What a stream's face needs (its solver is built later, off the reaction:
 /// see FaceWorkers), with the topology put in the plan's header.

@@ -52,11 +52,12 @@ grpc::Status render(LipSyncService& service, Plan& plan, const v1::RenderRequest
 
 }  // namespace
 
-grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* context,
-                                                 const v1::RenderRequest* request, v1::RenderResponse* response) {
+grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* context, const v1::RenderRequest* request,
+                                                 v1::RenderResponse* response) {
   handoff_acquire(this);  // the service as built before the server started (tsan_handoff.hpp)
   if (grpc::Status admission = admission_.admit_render(context->peer()); !admission.ok()) {
-    return unary(context, "Render", [&] { return admission; }, &metrics_);
+    return unary(
+        context, "Render", [&] { return admission; }, &metrics_);
   }
   // What the call holds until it is done: until its response has left, not until Finish
   // (a drain must not take a Render whose response is still on its way for a finished one).
@@ -101,9 +102,8 @@ grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* co
     return call;
   }
   holds->face_weight = weight;
-  face_workers_.post([this, call, plan, request, response] {
-    call->run([&] { return render(*this, *plan, *request, *response); });
-  });
+  face_workers_.post(
+      [this, call, plan, request, response] { call->run([&] { return render(*this, *plan, *request, *response); }); });
   return call;
 }
 

@@ -13,10 +13,10 @@
 // This file builds what the calls share.
 #include "service.hpp"
 
+#include <grpcpp/grpcpp.h>
+
 #include <algorithm>
 #include <thread>
-
-#include <grpcpp/grpcpp.h>
 
 namespace lipsync::server {
 namespace {
@@ -46,48 +46,52 @@ LipSyncService::LipSyncService(const ServerConfig& config, const ModelCatalog& c
 }
 
 void LipSyncService::register_gauges() {
-  metrics_registry_.gauge({"lipsyncd_build_info", "lipsyncd's version and gRPC's; always 1.", {"version", "grpc_version"},
-                           [] { return std::vector<GaugeSample>{{{LIPSYNCD_VERSION, grpc::Version()}, 1}}; }});
+  metrics_registry_.gauge(
+      {"lipsyncd_build_info", "lipsyncd's version and gRPC's; always 1.", {"version", "grpc_version"}, [] {
+         return std::vector<GaugeSample>{{{LIPSYNCD_VERSION, grpc::Version()}, 1}};
+       }});
   // A tenant's series appear with its first stream and stay (at 0 when idle); an open
   // server's one tenant "" has them from the start.
   if (tenants_.open()) {
     for (const char* method : {"Animate", "Subscribe"}) metrics_.open_streams.with({method, ""});
   }
-  metrics_registry_.gauge({"lipsyncd_streams", "Animate and Subscribe streams by state and tenant.",
-                           {"method", "state", "tenant"}, [this] {
-                             std::vector<GaugeSample> samples;
-                             metrics_.open_streams.each([&](const LabelValues& method_tenant, const Level& open) {
-                               samples.push_back({{method_tenant[0], "open", method_tenant[1]},
-                                                  static_cast<double>(open.value())});
-                             });
-                             return samples;
-                           }});
   metrics_registry_.gauge(
-      {"lipsyncd_sessions", "Named sessions held, by state (live, or ended and retained) and tenant.",
-       {"state", "tenant"}, [this] {
-         auto by_tenant =
-             sessions_.counts_by([this](const std::string& key) { return tenants_.tenant_of_session_key(key); });
-         metrics_.open_streams.each(
-             [&](const LabelValues& method_tenant, const Level&) { by_tenant.try_emplace(method_tenant[1]); });
+      {"lipsyncd_streams", "Animate and Subscribe streams by state and tenant.", {"method", "state", "tenant"}, [this] {
          std::vector<GaugeSample> samples;
-         for (const auto& [tenant, counts] : by_tenant) {
-           samples.push_back({{"live", tenant}, static_cast<double>(counts.live)});
-           samples.push_back({{"ended", tenant}, static_cast<double>(counts.ended)});
-         }
+         metrics_.open_streams.each([&](const LabelValues& method_tenant, const Level& open) {
+           samples.push_back({{method_tenant[0], "open", method_tenant[1]}, static_cast<double>(open.value())});
+         });
          return samples;
        }});
+  metrics_registry_.gauge({"lipsyncd_sessions",
+                           "Named sessions held, by state (live, or ended and retained) and tenant.",
+                           {"state", "tenant"},
+                           [this] {
+                             auto by_tenant = sessions_.counts_by(
+                                 [this](const std::string& key) { return tenants_.tenant_of_session_key(key); });
+                             metrics_.open_streams.each([&](const LabelValues& method_tenant, const Level&) {
+                               by_tenant.try_emplace(method_tenant[1]);
+                             });
+                             std::vector<GaugeSample> samples;
+                             for (const auto& [tenant, counts] : by_tenant) {
+                               samples.push_back({{"live", tenant}, static_cast<double>(counts.live)});
+                               samples.push_back({{"ended", tenant}, static_cast<double>(counts.ended)});
+                             }
+                             return samples;
+                           }});
   metrics_registry_.gauge({"lipsyncd_session_subscribers", "Subscribers attached to sessions.", {}, [this] {
                              return std::vector<GaugeSample>{{{}, static_cast<double>(sessions_.counts().subscribers)}};
                            }});
   metrics_registry_.gauge({"lipsyncd_calls_in_progress", "Animate, Subscribe and Render calls running.", {}, [this] {
-                             return std::vector<GaugeSample>{
-                                 {{}, static_cast<double>(admission_.calls_in_progress())}};
+                             return std::vector<GaugeSample>{{{}, static_cast<double>(admission_.calls_in_progress())}};
                            }});
-  metrics_registry_.gauge({"lipsyncd_queued_messages",
-                           "Messages queued for streams, not yet handed to gRPC (all streams together).", {},
-                           [this] {
-                             return std::vector<GaugeSample>{{{}, static_cast<double>(metrics_.queued_messages.load())}};
-                           }});
+  metrics_registry_.gauge(
+      {"lipsyncd_queued_messages",
+       "Messages queued for streams, not yet handed to gRPC (all streams together).",
+       {},
+       [this] {
+         return std::vector<GaugeSample>{{{}, static_cast<double>(metrics_.queued_messages.load())}};
+       }});
 }
 
 }  // namespace lipsync::server

@@ -5,17 +5,17 @@
 // session registry, the configuration, admission control and the face.
 #pragma once
 
-#include "transport/admission.hpp"
 #include "catalog.hpp"
 #include "face/face_capacity.hpp"
 #include "face/face_stream.hpp"
 #include "face/face_workers.hpp"
-#include "sessions/live_streams.hpp"
-#include "metrics.hpp"
 #include "lipsync/server/config.hpp"
+#include "metrics.hpp"
+#include "rpc/speech_thread.hpp"
+#include "sessions/live_streams.hpp"
 #include "sessions/session.hpp"
 #include "sessions/session_routing.hpp"
-#include "rpc/speech_thread.hpp"
+#include "transport/admission.hpp"
 #include "transport/tenants.hpp"
 
 // The generated base declares sync-API overloads of each method that the
@@ -32,16 +32,14 @@ class LipSyncService final : public v1::LipSync::WithRawCallbackMethod_Subscribe
  public:
   LipSyncService(const ServerConfig& config, const ModelCatalog& catalog);
 
-  grpc::ServerBidiReactor<v1::AnimateRequest, v1::TrackMessage>* Animate(
-      grpc::CallbackServerContext* context) override;
+  grpc::ServerBidiReactor<v1::AnimateRequest, v1::TrackMessage>* Animate(grpc::CallbackServerContext* context) override;
   grpc::ServerUnaryReactor* Render(grpc::CallbackServerContext* context, const v1::RenderRequest* request,
                                    v1::RenderResponse* response) override;
   grpc::ServerWriteReactor<grpc::ByteBuffer>* Subscribe(grpc::CallbackServerContext* context,
                                                         const grpc::ByteBuffer* request) override;
   grpc::ServerWriteReactor<v1::SpeakResponse>* Speak(grpc::CallbackServerContext* context,
                                                      const v1::SpeakRequest* request) override;
-  grpc::ServerUnaryReactor* ListModels(grpc::CallbackServerContext* context,
-                                       const v1::ListModelsRequest* request,
+  grpc::ServerUnaryReactor* ListModels(grpc::CallbackServerContext* context, const v1::ListModelsRequest* request,
                                        v1::ListModelsResponse* response) override;
   grpc::ServerUnaryReactor* GetModel(grpc::CallbackServerContext* context, const v1::GetModelRequest* request,
                                      v1::ModelInfo* response) override;

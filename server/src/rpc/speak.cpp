@@ -28,6 +28,8 @@
 // thread, synthesises, or is between writes; after the write in flight
 // otherwise. A job whose call has ended (aborted, or finished after OnDone)
 // stops right after its synthesis and sends nothing.
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cstdint>
@@ -39,19 +41,17 @@
 #include <string>
 #include <vector>
 
-#include <spdlog/spdlog.h>
-
 #include "call_log.hpp"
 #include "lipsync/error.hpp"
 #include "lipsync/renderer.hpp"
 #include "lipsync/speech/audio.hpp"
 #include "lipsync/speech/synthesizer.hpp"
 #include "lipsync/tsan_handoff.hpp"
-#include "sessions/live_streams.hpp"
 #include "rpc/phoneme_input.hpp"
 #include "rpc/plan.hpp"
 #include "rpc/service.hpp"
 #include "rpc/wire.hpp"
+#include "sessions/live_streams.hpp"
 
 namespace lipsync::server {
 namespace {
@@ -102,14 +102,14 @@ grpc::Status speak_settings(const v1::AnimationSettings& requested, const speech
                    "' given, but Speak animates espeak-ng's phonemes (leave it empty or '" + phone_set + "')");
   }
   if (wants_mesh(settings)) {
-    return invalid("settings.outputs.mesh: not offered by Speak (its solver would hold up the speech thread); "
-                   "Render the header's phonemes with the mesh output instead");
+    return invalid(
+        "settings.outputs.mesh: not offered by Speak (its solver would hold up the speech thread); "
+        "Render the header's phonemes with the mesh output instead");
   }
   return grpc::Status::OK;
 }
 
-class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::SpeakResponse>>,
-                           public AbortableStream {
+class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::SpeakResponse>>, public AbortableStream {
  public:
   SpeakReactor(LipSyncService& service, grpc::CallbackServerContext* context, const v1::SpeakRequest& request)
       : service_(service), context_(context), request_(request), log_("Speak", *context, &service.metrics()) {
@@ -196,8 +196,8 @@ class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::Sp
       *header_message.mutable_header() = plan_.header;
       const Message header = make_message(std::move(header_message));
       if (auto status = caller_.hold(Quota::sessions, session_hold_); !status.ok()) return status;
-      if (auto status = service_.sessions().open(settings.session(), header, session_,
-                                                 caller_.session_key(settings.session()));
+      if (auto status =
+              service_.sessions().open(settings.session(), header, session_, caller_.session_key(settings.session()));
           !status.ok()) {
         return status;
       }

@@ -1,9 +1,8 @@
 // Speak's synthesis thread (speech_thread.hpp).
 #include "speech_thread.hpp"
 
-#include <string>
-
 #include <boost/asio/post.hpp>
+#include <string>
 
 namespace lipsync::server {
 

@@ -11,12 +11,12 @@
 // unbounded work.
 #pragma once
 
+#include <grpcpp/support/status.h>
+
 #include <atomic>
+#include <boost/asio/thread_pool.hpp>
 #include <cstddef>
 #include <functional>
-
-#include <boost/asio/thread_pool.hpp>
-#include <grpcpp/support/status.h>
 
 namespace lipsync::server {
 

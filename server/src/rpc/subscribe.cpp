@@ -7,21 +7,21 @@
 // has also stopped reading, so that even that status cannot leave, an alarm
 // cancels the call after --stalled-subscriber-ms. The reactor is local to this
 // file and made by LipSyncService::Subscribe at its end.
+#include <grpcpp/alarm.h>
+#include <grpcpp/impl/codegen/proto_utils.h>
+#include <spdlog/spdlog.h>
+
 #include <atomic>
 #include <chrono>
 #include <memory>
 #include <mutex>
 #include <string>
 
-#include <grpcpp/alarm.h>
-#include <grpcpp/impl/codegen/proto_utils.h>
-#include <spdlog/spdlog.h>
-
 #include "call_log.hpp"
 #include "lipsync/tsan_handoff.hpp"
-#include "sessions/live_streams.hpp"
 #include "rpc/outbox.hpp"
 #include "rpc/service.hpp"
+#include "sessions/live_streams.hpp"
 
 namespace lipsync::server {
 namespace {
@@ -30,19 +30,19 @@ class SubscribeReactor final : public HandoffReactor<grpc::ServerWriteReactor<gr
                                public OutboxTarget,
                                public AbortableStream {
  public:
-  SubscribeReactor(LipSyncService& service, grpc::CallbackServerContext* context,
-                   const v1::SubscribeRequest& request, const grpc::Status& parsed)
+  SubscribeReactor(LipSyncService& service, grpc::CallbackServerContext* context, const v1::SubscribeRequest& request,
+                   const grpc::Status& parsed)
       : service_(service),
         context_(context),
         session_name_(request.session()),
         log_("Subscribe", *context, &service.metrics()),
         frames_counter_(service.metrics().frames_sent.with({"Subscribe"})),
         messages_counter_(service.metrics().messages_sent.with({"Subscribe"})),
-        outbox_(std::make_shared<Outbox>(
-            *this, service.config().subscriber_queue_frames,
-            "subscriber fell behind: more than " + std::to_string(service.config().subscriber_queue_frames) +
-                " frames waiting (--subscriber-queue-frames=" +
-                std::to_string(service.config().subscriber_queue_frames) + ")")) {
+        outbox_(std::make_shared<Outbox>(*this, service.config().subscriber_queue_frames,
+                                         "subscriber fell behind: more than " +
+                                             std::to_string(service.config().subscriber_queue_frames) +
+                                             " frames waiting (--subscriber-queue-frames=" +
+                                             std::to_string(service.config().subscriber_queue_frames) + ")")) {
     const grpc::Status admission = service_.admission().admit_stream(context_->peer());
     if (!admission.ok()) {
       outbox_->close(admission);
@@ -123,8 +123,8 @@ class SubscribeReactor final : public HandoffReactor<grpc::ServerWriteReactor<gr
   // reads, and Finish must wait for it. Give the client the grace period to
   // read on (it then gets RESOURCE_EXHAUSTED), else cancel the call.
   void on_stalled() override {
-    const auto deadline = std::chrono::system_clock::now() +
-                          std::chrono::milliseconds(service_.config().stalled_subscriber_ms);
+    const auto deadline =
+        std::chrono::system_clock::now() + std::chrono::milliseconds(service_.config().stalled_subscriber_ms);
     stall_alarm_.Set(deadline, [guard = stall_guard_](bool fired) {
       if (fired) guard->cancel();
     });
@@ -179,11 +179,11 @@ grpc::ServerWriteReactor<grpc::ByteBuffer>* LipSyncService::Subscribe(grpc::Call
   v1::SubscribeRequest request;
   grpc::ByteBuffer bytes = *raw_request;  // Deserialize consumes its buffer; this copy only refs the slices
   const grpc::Status parsed = grpc::SerializationTraits<v1::SubscribeRequest>::Deserialize(&bytes, &request);
-  auto* reactor = new SubscribeReactor(*this, context, request,
-                                       parsed.ok() ? grpc::Status::OK
-                                                   : grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                                                                  "Subscribe: the request is not a SubscribeRequest (" +
-                                                                      parsed.error_message() + ")"));
+  auto* reactor = new SubscribeReactor(
+      *this, context, request,
+      parsed.ok() ? grpc::Status::OK
+                  : grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                                 "Subscribe: the request is not a SubscribeRequest (" + parsed.error_message() + ")"));
   reactor->handed_off();
   return reactor;
 }

@@ -7,12 +7,12 @@
 // call's access line with the status the client received.
 #pragma once
 
+#include <grpcpp/grpcpp.h>
+
 #include <atomic>
 #include <exception>
 #include <functional>
 #include <utility>
-
-#include <grpcpp/grpcpp.h>
 
 #include "call_log.hpp"
 #include "lipsync/tsan_handoff.hpp"

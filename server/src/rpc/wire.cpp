@@ -14,10 +14,14 @@ namespace {
 
 v1::FrameKind to_proto(FrameKind kind) {
   switch (kind) {
-    case FrameKind::uniform: return v1::FRAME_KIND_UNIFORM;
-    case FrameKind::closure_start: return v1::FRAME_KIND_CLOSURE_START;
-    case FrameKind::closure_end: return v1::FRAME_KIND_CLOSURE_END;
-    case FrameKind::short_segment: return v1::FRAME_KIND_SHORT_SEGMENT;
+    case FrameKind::uniform:
+      return v1::FRAME_KIND_UNIFORM;
+    case FrameKind::closure_start:
+      return v1::FRAME_KIND_CLOSURE_START;
+    case FrameKind::closure_end:
+      return v1::FRAME_KIND_CLOSURE_END;
+    case FrameKind::short_segment:
+      return v1::FRAME_KIND_SHORT_SEGMENT;
   }
   return v1::FRAME_KIND_UNSPECIFIED;
 }
@@ -46,8 +50,8 @@ v1::TrackHeader encode_header(const Plan& plan, const v1::AnimationSettings& set
   return header;
 }
 
-void encode_frames(const Plan& plan, const Track& track, std::size_t begin, std::size_t end,
-                   std::uint64_t first_frame, v1::FrameBatch& batch, StreamEncoder& stream) {
+void encode_frames(const Plan& plan, const Track& track, std::size_t begin, std::size_t end, std::uint64_t first_frame,
+                   v1::FrameBatch& batch, StreamEncoder& stream) {
   const std::size_t count = end - begin;
   const std::size_t channels = track.channel_count;
   batch.set_first_frame(first_frame);
@@ -88,8 +92,7 @@ void encode_frames(const Plan& plan, const Track& track, std::size_t begin, std:
   if (stream.face) stream.face->encode(track, begin, end, batch);
 }
 
-void encode_summary(std::uint64_t frames, std::uint64_t phonemes, std::int64_t duration_us,
-                    v1::TrackSummary& summary) {
+void encode_summary(std::uint64_t frames, std::uint64_t phonemes, std::int64_t duration_us, v1::TrackSummary& summary) {
   summary.set_frames(frames);
   summary.set_phonemes(phonemes);
   summary.set_duration_us(duration_us);

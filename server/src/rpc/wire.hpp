@@ -31,11 +31,10 @@ struct StreamEncoder {
 /// Frames [begin, end) of `track` into `batch`, numbered from `first_frame`;
 /// the stream's face (if any) steps through them and adds their positions, and
 /// with the viseme output their weights and the events starting at them are added.
-void encode_frames(const Plan& plan, const Track& track, std::size_t begin, std::size_t end,
-                   std::uint64_t first_frame, v1::FrameBatch& batch, StreamEncoder& stream);
+void encode_frames(const Plan& plan, const Track& track, std::size_t begin, std::size_t end, std::uint64_t first_frame,
+                   v1::FrameBatch& batch, StreamEncoder& stream);
 
 /// The summary after the last frame.
-void encode_summary(std::uint64_t frames, std::uint64_t phonemes, std::int64_t duration_us,
-                    v1::TrackSummary& summary);
+void encode_summary(std::uint64_t frames, std::uint64_t phonemes, std::int64_t duration_us, v1::TrackSummary& summary);
 
 }  // namespace lipsync::server

@@ -8,11 +8,11 @@
 // reactor inside Finish (it schedules it on its own executor).
 #pragma once
 
+#include <grpcpp/support/status.h>
+
 #include <cstddef>
 #include <mutex>
 #include <unordered_set>
-
-#include <grpcpp/support/status.h>
 
 namespace lipsync::server {
 

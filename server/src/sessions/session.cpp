@@ -52,9 +52,7 @@ void Session::publish(const Message& batch, std::size_t frames) {
     replay_mesh_bytes_ -= mesh_bytes(replay_.front().first);
     replay_.pop_front();
   }
-  std::erase_if(subscribers_, [&](const std::shared_ptr<Outbox>& outbox) {
-    return !outbox->push(batch, frames);
-  });
+  std::erase_if(subscribers_, [&](const std::shared_ptr<Outbox>& outbox) { return !outbox->push(batch, frames); });
 }
 
 void Session::finish(const Message& summary) {
@@ -87,8 +85,7 @@ grpc::Status Session::aborted_status_locked() const {
   return {grpc::StatusCode::ABORTED, "session " + excerpt(name_) + ": " + failure_};
 }
 
-grpc::Status Session::attach(const std::shared_ptr<Outbox>& outbox, bool from_beginning,
-                             std::size_t max_subscribers) {
+grpc::Status Session::attach(const std::shared_ptr<Outbox>& outbox, bool from_beginning, std::size_t max_subscribers) {
   std::lock_guard lock(mutex_);
   if (state_ == State::failed) return aborted_status_locked();
   if (state_ == State::live && subscribers_.size() >= max_subscribers) {
@@ -148,21 +145,20 @@ void SessionRegistry::sweep_locked() {
   }
 }
 
-grpc::Status SessionRegistry::open(const std::string& name, const Message& header,
-                                   std::shared_ptr<Session>& out, const std::string& key) {
+grpc::Status SessionRegistry::open(const std::string& name, const Message& header, std::shared_ptr<Session>& out,
+                                   const std::string& key) {
   std::lock_guard lock(mutex_);
   sweep_locked();
   if (const auto it = sessions_.find(key.empty() ? name : key); it != sessions_.end()) {
     if (it->second->live()) {
-      return {grpc::StatusCode::ALREADY_EXISTS,
-              "session " + excerpt(name) + " already has a live producer"};
+      return {grpc::StatusCode::ALREADY_EXISTS, "session " + excerpt(name) + " already has a live producer"};
     }
     sessions_.erase(it);
   }
   if (sessions_.size() >= max_sessions_) {
-    return {grpc::StatusCode::RESOURCE_EXHAUSTED,
-            "the server already holds " + std::to_string(sessions_.size()) +
-                " sessions (--max-sessions=" + std::to_string(max_sessions_) + ")"};
+    return {grpc::StatusCode::RESOURCE_EXHAUSTED, "the server already holds " + std::to_string(sessions_.size()) +
+                                                      " sessions (--max-sessions=" + std::to_string(max_sessions_) +
+                                                      ")"};
   }
   const std::string& filed_under = key.empty() ? name : key;
   out = std::make_shared<Session>(name, header, replay_frames_, filed_under, ended_);

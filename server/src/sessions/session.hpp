@@ -5,9 +5,9 @@
 // message (a shared_ptr) to every subscriber's bounded Outbox and to a replay
 // buffer that keeps the header and the last `replay_frames` frames for late
 // joiners. Subscribers write the message's bytes, serialised once and shared
-// (outbox.hpp), so a batch is encoded once for any number of subscribers. Pushing never waits: a subscriber whose outbox overflows is ended
-// with RESOURCE_EXHAUSTED by its outbox and dropped from the session, and the
-// producer and the other subscribers go on at full speed.
+// (outbox.hpp), so a batch is encoded once for any number of subscribers. Pushing never waits: a subscriber whose
+// outbox overflows is ended with RESOURCE_EXHAUSTED by its outbox and dropped from the session, and the producer and
+// the other subscribers go on at full speed.
 //
 // A mesh session's replay is also bounded by the bytes of mesh positions it
 // holds (kMaxReplayMeshBytes): its frames are tens of kilobytes each. Sessions
@@ -78,8 +78,7 @@ class Session : public std::enable_shared_from_this<Session> {
   /// Adds a subscriber: queues the header, the replay (if from_beginning) and,
   /// for an ended session, the summary or the ABORTED status. Returns
   /// RESOURCE_EXHAUSTED if the session already has `max_subscribers`.
-  grpc::Status attach(const std::shared_ptr<Outbox>& outbox, bool from_beginning,
-                      std::size_t max_subscribers);
+  grpc::Status attach(const std::shared_ptr<Outbox>& outbox, bool from_beginning, std::size_t max_subscribers);
   void detach(const Outbox* outbox);
 
   bool live() const;

@@ -8,12 +8,12 @@
 // balancer misconfiguration shows in one look.
 #pragma once
 
+#include <grpcpp/server_context.h>
+#include <grpcpp/support/status.h>
+
 #include <cstdint>
 #include <mutex>
 #include <string>
-
-#include <grpcpp/server_context.h>
-#include <grpcpp/support/status.h>
 
 namespace lipsync::server {
 

@@ -40,9 +40,9 @@ grpc::Status Admission::admit_stream(std::string_view peer) {
   do {
     if (open >= max_streams_) {
       call_ended();
-      return {grpc::StatusCode::RESOURCE_EXHAUSTED,
-              "the server already has " + std::to_string(open) + " open streams (--max-streams=" +
-                  std::to_string(max_streams_) + ")"};
+      return {grpc::StatusCode::RESOURCE_EXHAUSTED, "the server already has " + std::to_string(open) +
+                                                        " open streams (--max-streams=" + std::to_string(max_streams_) +
+                                                        ")"};
     }
   } while (!active_streams_.compare_exchange_weak(open, open + 1));
   return grpc::Status::OK;

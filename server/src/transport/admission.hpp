@@ -10,13 +10,13 @@
 // once per call start.
 #pragma once
 
+#include <grpcpp/support/status.h>
+
 #include <atomic>
 #include <chrono>
 #include <cstddef>
 #include <functional>
 #include <string_view>
-
-#include <grpcpp/support/status.h>
 
 #include "transport/connection_ledger.hpp"
 

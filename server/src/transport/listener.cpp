@@ -2,10 +2,13 @@
 
 #include <arpa/inet.h>
 #include <fcntl.h>
+#include <grpcpp/server.h>
+#include <grpcpp/server_posix.h>
 #include <netdb.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
 #include <poll.h>
+#include <spdlog/spdlog.h>
 #include <sys/eventfd.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -13,10 +16,6 @@
 #include <cerrno>
 #include <cstring>
 #include <stdexcept>
-
-#include <grpcpp/server.h>
-#include <grpcpp/server_posix.h>
-#include <spdlog/spdlog.h>
 
 #include "transport/connection_ledger.hpp"
 

@@ -14,23 +14,23 @@
 // the listener. The plaintext path is unchanged.
 #include "lipsync/server/server.hpp"
 
-#include <future>
-#include <mutex>
-#include <stdexcept>
-#include <thread>
-
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
 #include <spdlog/spdlog.h>
 
+#include <future>
+#include <mutex>
+#include <stdexcept>
+#include <thread>
+
 #include "call_log.hpp"
 #include "catalog.hpp"
 #include "http/http_viewer.hpp"
-#include "lipsync/tsan_handoff.hpp"
-#include "transport/listener.hpp"
 #include "http/metrics_http.hpp"
+#include "lipsync/tsan_handoff.hpp"
 #include "rpc/service.hpp"
+#include "transport/listener.hpp"
 #include "transport/tls.hpp"
 #include "transport/transport_quota.hpp"
 
@@ -56,7 +56,7 @@ struct Server::Impl {
   std::unique_ptr<Listener> listener;  // plaintext only: with TLS gRPC listens
   std::unique_ptr<TlsCredentials> tls;
   std::unique_ptr<grpc::Server> server;
-  std::unique_ptr<HttpViewer> viewer;  // --http-listen: follows sessions through the in-process channel
+  std::unique_ptr<HttpViewer> viewer;        // --http-listen: follows sessions through the in-process channel
   std::unique_ptr<MetricsEndpoint> metrics;  // --metrics-listen
   int port = 0;
   std::once_flag shutdown_once;
@@ -120,7 +120,7 @@ Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(con
   if (!impl_->config.http_listen.empty()) {
     // /audio: a session's sound, for whoever may Subscribe to it (the same key, tenant and retention).
     auto session_audio = [&service = impl_->service](const std::string_view* authorization, const std::string& session,
-                                                      std::shared_ptr<const std::string>& wav) {
+                                                     std::shared_ptr<const std::string>& wav) {
       Caller caller;
       if (auto status = service.tenants().authenticate_value(authorization, "Subscribe", caller); !status.ok()) {
         return status;
@@ -130,8 +130,9 @@ Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(con
       wav = found->audio_wav();
       if (!wav) {
         return grpc::Status(grpc::StatusCode::NOT_FOUND,
-                            "session '" + session + "' has no audio: only a session made by Speak keeps its sound "
-                            "(give the page ?audio=URL for the others)");
+                            "session '" + session +
+                                "' has no audio: only a session made by Speak keeps its sound "
+                                "(give the page ?audio=URL for the others)");
       }
       return grpc::Status::OK;
     };
@@ -141,7 +142,8 @@ Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(con
   }
   if (!impl_->config.metrics_listen.empty()) {
     impl_->metrics = std::make_unique<MetricsEndpoint>(
-        impl_->config.metrics_listen, [&registry = impl_->service.metrics_registry()] { return registry.exposition(); });
+        impl_->config.metrics_listen,
+        [&registry = impl_->service.metrics_registry()] { return registry.exposition(); });
   }
 }
 
@@ -185,8 +187,9 @@ void Server::Impl::drain_calls(std::chrono::milliseconds drain) {
   spdlog::debug("drain: no call left");
   // The face threads must not need CPU time nobody else wants to end (face_workers.hpp).
   if (!service.face_workers().restore_normal_priority()) {
-    spdlog::info("the face threads keep their low priority (no CAP_SYS_NICE, RLIMIT_NICE below 20): on a busy "
-                 "machine the process may take a while to end");
+    spdlog::info(
+        "the face threads keep their low priority (no CAP_SYS_NICE, RLIMIT_NICE below 20): on a busy "
+        "machine the process may take a while to end");
   }
 }
 

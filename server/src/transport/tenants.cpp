@@ -14,7 +14,8 @@ namespace lipsync::server {
 namespace {
 
 // The methods a key may be limited to.
-const std::set<std::string, std::less<>> kMethods = {"Animate", "Render", "Speak", "Subscribe", "ListModels", "GetModel"};
+const std::set<std::string, std::less<>> kMethods = {"Animate",   "Render",     "Speak",
+                                                     "Subscribe", "ListModels", "GetModel"};
 
 constexpr std::size_t kMaxTenantName = 64;
 
@@ -318,8 +319,9 @@ grpc::Status Tenants::authenticate_value(const std::string_view* authorization, 
   std::lock_guard lock(mutex_);
   const auto key = table_->keys_by_hash.find(hash);
   if (key == table_->keys_by_hash.end()) {
-    return {grpc::StatusCode::UNAUTHENTICATED,
-            "unknown API key: it is not in this server's key file (check the key sent as `authorization: Bearer <key>`)"};
+    return {
+        grpc::StatusCode::UNAUTHENTICATED,
+        "unknown API key: it is not in this server's key file (check the key sent as `authorization: Bearer <key>`)"};
   }
   if (!key->second.calls.empty() && key->second.calls.count(std::string(method)) == 0) {
     std::string allowed;

@@ -172,8 +172,7 @@ class Tenants {
   grpc::Status authenticate(const grpc::CallbackServerContext& context, std::string_view method, Caller& caller) const;
   /// The same for an `authorization` value given directly (null: none was sent), as the browser
   /// viewer's HTTP requests carry it.
-  grpc::Status authenticate_value(const std::string_view* authorization, std::string_view method,
-                                  Caller& caller) const;
+  grpc::Status authenticate_value(const std::string_view* authorization, std::string_view method, Caller& caller) const;
 
   /// Reads the key file again; throws KeyFileError and keeps the old table if it is bad.
   void reload();

@@ -14,11 +14,11 @@
 // --transport-memory-bytes N fixes the quota at N instead (0: none).
 #pragma once
 
+#include <grpcpp/resource_quota.h>
+
 #include <atomic>
 #include <cstddef>
 #include <mutex>
-
-#include <grpcpp/resource_quota.h>
 
 namespace lipsync::server {
 
@@ -47,7 +47,7 @@ class TransportQuota {
   grpc::ResourceQuota quota_{"lipsyncd"};
   const std::size_t base_bytes_;
   const bool following_;
-  std::mutex resize_mutex_;               // resizes in order
+  std::mutex resize_mutex_;                 // resizes in order
   std::atomic<std::size_t> size_bytes_{0};  // read without the lock: most calls change nothing
 };
 

@@ -14,8 +14,8 @@ int main(int argc, char** argv) {
     lipsync::client::AnimationClient client(argv[1]);
     client.wait_connected();
     std::vector<lipsync::v1::Phoneme> phonemes;
-    for (const auto& [label, start_us, end_us] : {std::tuple{"M", 0, 80'000}, {"AA", 80'000, 250'000},
-                                                  {"P", 250'000, 330'000}}) {
+    for (const auto& [label, start_us, end_us] :
+         {std::tuple{"M", 0, 80'000}, {"AA", 80'000, 250'000}, {"P", 250'000, 330'000}}) {
       lipsync::v1::Phoneme phoneme;
       phoneme.set_label(label);
       phoneme.set_start_us(start_us);

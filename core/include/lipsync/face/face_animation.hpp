@@ -46,7 +46,8 @@ void sample_track(const Track& track, std::int64_t t_us, std::span<float> out);
 
 /// Simulates `track` from rest and records frames k = 0 … at t = round(k · 10⁶ / fps) µs, the
 /// last one the first at or after the track's last frame time (a video covers the whole track). Throws
-/// SettingError (a std::invalid_argument) for fps outside kFpsSetting or a track whose channel count differs from the rig's.
+/// SettingError (a std::invalid_argument) for fps outside kFpsSetting or a track whose channel count differs from the
+/// rig's.
 FaceAnimation simulate_face_animation(const FaceMesh& mesh, const FaceRig& rig, const Track& track, int fps,
                                       FaceSolverParams params = {});
 

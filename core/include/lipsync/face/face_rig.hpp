@@ -47,11 +47,11 @@ struct MuscleSpec {
   double bulge_m = 0.0;           ///< outward bulge of the belly at c = 1
   double origin_depth_m = 0.0;    ///< the origin lies on the bone this far behind (−z) its landmark
   // Sphincter parts.
-  double closure_m = 0.0;          ///< motion along closure_direction per unit contraction …
+  double closure_m = 0.0;           ///< motion along closure_direction per unit contraction …
   double closure_saturation = 1.0;  ///< … up to this contraction: closure = closure_m · min(c, this)
-  Vec3 closure_direction{};        ///< unit vector (toward the lip midline)
-  double purse = 0.0;              ///< fraction of the horizontal offset to the mouth centre removed at c = 1
-  double protrusion_m = 0.0;       ///< forward (+z) motion at c = 1
+  Vec3 closure_direction{};         ///< unit vector (toward the lip midline)
+  double purse = 0.0;               ///< fraction of the horizontal offset to the mouth centre removed at c = 1
+  double protrusion_m = 0.0;        ///< forward (+z) motion at c = 1
   /// Lip–jaw compensation (optional, sphincter parts on the jaw): as the contraction of the
   /// `compensation_channel` rises from `compensation_from` to `compensation_full` (smoothstep), the
   /// part's bound lip holds up to `compensation_share` of its jaw-closed position against the jaw's

@@ -39,7 +39,7 @@ struct FaceSolverParams {
   /// The longest substep, and the step the matrix is factored for: step() divides its dt into
   /// ⌈dt / time_step_s⌉ equal substeps (one per 30 frames/s frame by default).
   double time_step_s = 1.0 / 30.0;
-  int iterations = 5;               ///< local–global iterations per step
+  int iterations = 5;  ///< local–global iterations per step
   /// Skin membrane: stiffness of one edge spring (a triangle spring network's membrane stiffness
   /// does not depend on its edge length, so this holds at every subdivision level).
   double skin_stiffness_n_per_m = 450.0;
@@ -56,8 +56,8 @@ struct FaceSolverParams {
   /// Velocity decays as exp(−t / damping_time): soft tissue is close to critically damped (the
   /// lowest mode is 77 Hz, 2 ms), so a lip that has just shut does not fly open again.
   double damping_time_s = 0.005;
-  double teeth_margin_m = 0.0005;    ///< skin kept this far outside the teeth
-  double max_skin_sink_m = 0.004;    ///< skin may not sink deeper than this below its rest (skull)
+  double teeth_margin_m = 0.0005;  ///< skin kept this far outside the teeth
+  double max_skin_sink_m = 0.004;  ///< skin may not sink deeper than this below its rest (skull)
 };
 
 class FaceSolver {

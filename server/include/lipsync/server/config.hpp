@@ -36,14 +36,14 @@ struct ServerConfig {
   std::string listen = "127.0.0.1:50051";  ///< host:port; port 0 picks a free one
   /// host:port of the browser viewer (HTTP and WebSocket, docs/viewer.md); "" = off.
   std::string http_listen;
-  std::int64_t drain_deadline_ms = 5000;   ///< on SIGTERM: time running streams get to finish
+  std::int64_t drain_deadline_ms = 5000;  ///< on SIGTERM: time running streams get to finish
 
   // Admission limits (RESOURCE_EXHAUSTED beyond them).
-  std::size_t max_streams = 10'000;               ///< concurrent Animate + Subscribe streams
-  std::size_t max_sessions = 10'000;              ///< named sessions held (live or retained)
-  std::size_t max_subscribers_per_session = 100;  ///< concurrent subscribers of one session
-  std::size_t max_phonemes = 100'000;             ///< phonemes per utterance
-  std::int64_t max_utterance_ms = 3'600'000;      ///< utterance length (end of the last phoneme)
+  std::size_t max_streams = 10'000;                 ///< concurrent Animate + Subscribe streams
+  std::size_t max_sessions = 10'000;                ///< named sessions held (live or retained)
+  std::size_t max_subscribers_per_session = 100;    ///< concurrent subscribers of one session
+  std::size_t max_phonemes = 100'000;               ///< phonemes per utterance
+  std::int64_t max_utterance_ms = 3'600'000;        ///< utterance length (end of the last phoneme)
   std::size_t max_message_bytes = 4 * 1024 * 1024;  ///< largest request message
   /// gRPC's memory quota for the transport (read buffers of every connection, call arenas);
   /// 0 = unbounded; unset = sized from max_message_bytes and the calls in progress
@@ -57,7 +57,7 @@ struct ServerConfig {
   /// (it stopped reading, so its RESOURCE_EXHAUSTED cannot be sent) is cancelled
   /// after this long, freeing its stream.
   std::int64_t stalled_subscriber_ms = 5'000;
-  std::int64_t session_retention_ms = 10'000;   ///< how long a finished session stays joinable
+  std::int64_t session_retention_ms = 10'000;  ///< how long a finished session stays joinable
 
   // The physics face (mesh output).
   std::size_t face_threads = 0;  ///< threads that run face solvers; 0: one per core
@@ -71,11 +71,11 @@ struct ServerConfig {
   /// DEADLINE_EXCEEDED.
   std::int64_t mesh_max_lag_ms = 3'000;
 
-  std::string log_level = "info";  ///< trace, debug, info, warn, error, off
+  std::string log_level = "info";   ///< trace, debug, info, warn, error, off
   std::string log_format = "text";  ///< text or json (one object per line)
   /// host:port of the Prometheus endpoint (GET /metrics); "" = none. Port 0 picks a free one.
   std::string metrics_listen;
-  std::vector<ModelFile> models;   ///< extra models beside the built-in one
+  std::vector<ModelFile> models;  ///< extra models beside the built-in one
   /// How this replica names itself in errors about sessions it does not hold (a balancer
   /// misrouting shows in one look); "" = "<host name> (<listen address>)".
   std::string replica_name;

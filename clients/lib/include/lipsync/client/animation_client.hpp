@@ -25,6 +25,8 @@
 // must return quickly (append to a buffer, record a time); they must not throw.
 #pragma once
 
+#include <grpcpp/grpcpp.h>
+
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -38,12 +40,10 @@
 #include <string_view>
 #include <vector>
 
-#include <grpcpp/grpcpp.h>
-
 #include "lipsync/track.hpp"
 #include "lipsync/utterance.hpp"
-#include "lipsync/visemes.hpp"
 #include "lipsync/v1/lipsync.grpc.pb.h"
+#include "lipsync/visemes.hpp"
 
 namespace lipsync::client {
 
@@ -82,10 +82,10 @@ struct TlsOptions {
 };
 
 struct ClientOptions {
-  std::chrono::milliseconds connect_timeout{5000};  ///< wait_connected()
-  std::chrono::milliseconds unary_timeout{30000};   ///< Render, ListModels, GetModel
+  std::chrono::milliseconds connect_timeout{5000};        ///< wait_connected()
+  std::chrono::milliseconds unary_timeout{30000};         ///< Render, ListModels, GetModel
   std::chrono::milliseconds stream_timeout{3600 * 1000};  ///< whole Animate / Subscribe stream
-  TlsOptions tls;                                   ///< plaintext unless asked
+  TlsOptions tls;                                         ///< plaintext unless asked
   std::string api_key;  ///< sent as `authorization: Bearer <key>` on every call; "": none
 };
 

@@ -62,9 +62,9 @@ struct PlaybackStats {
   std::uint64_t frames_rejected = 0;  ///< not after the newest frame, or the wrong number of values
   std::uint64_t frames_dropped = 0;   ///< pushed out unsampled by the capacity limit
   std::uint64_t samples = 0;
-  std::uint64_t underruns = 0;        ///< samples in state underrun
-  std::uint64_t clamped_samples = 0;  ///< samples that asked to go backwards
-  std::int64_t max_behind_us = 0;     ///< largest −lead_us over underrun samples, µs
+  std::uint64_t underruns = 0;                   ///< samples in state underrun
+  std::uint64_t clamped_samples = 0;             ///< samples that asked to go backwards
+  std::int64_t max_behind_us = 0;                ///< largest −lead_us over underrun samples, µs
   std::optional<std::int64_t> min_lead_us;       ///< smallest lead_us over playing samples, µs
   std::optional<std::int64_t> last_lateness_us;  ///< arrival − play time of the newest timed push, µs
   std::optional<std::int64_t> max_lateness_us;   ///< largest such lateness, µs

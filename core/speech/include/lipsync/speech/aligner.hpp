@@ -50,10 +50,10 @@ struct AlignmentOptions {
 };
 
 struct Alignment {
-  LabeledUtterance phones;              ///< phone_set "arpabet"; "" is silence; tiles [0, audio end]
-  std::vector<LabeledInterval> words;   ///< transcript words (lower case); empty without a transcript
-  std::vector<std::string> notes;       ///< conversions done on the audio, for the user
-  std::vector<RefinedBoundary> refined; ///< what refine_closures did to each lip boundary
+  LabeledUtterance phones;               ///< phone_set "arpabet"; "" is silence; tiles [0, audio end]
+  std::vector<LabeledInterval> words;    ///< transcript words (lower case); empty without a transcript
+  std::vector<std::string> notes;        ///< conversions done on the audio, for the user
+  std::vector<RefinedBoundary> refined;  ///< what refine_closures did to each lip boundary
 };
 
 /// Aligns `audio` (any rate, converted to 16 kHz); `source` names it in errors.

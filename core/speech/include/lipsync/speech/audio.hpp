@@ -43,8 +43,8 @@ struct WavLayout {
 };
 
 struct DecodedWav {
-  PcmAudio audio;    ///< mono, 16-bit, at the file's own rate
-  WavLayout layout;  ///< as found in the file
+  PcmAudio audio;                  ///< mono, 16-bit, at the file's own rate
+  WavLayout layout;                ///< as found in the file
   std::vector<std::string> notes;  ///< conversions done ("2 channels averaged to mono", ...)
 };
 

@@ -48,12 +48,12 @@ struct ClosureRefinerOptions {
 
 /// What happened to one boundary of a lip phone.
 struct RefinedBoundary {
-  std::size_t phone = 0;         ///< index into the utterance's intervals
-  bool release = false;          ///< false: the phone's start (closure); true: its end (release)
-  std::int64_t aligned_us = 0;   ///< where the aligner put it
-  std::int64_t refined_us = 0;   ///< where it is now (aligned_us when kept)
-  double step_db = 0;            ///< the energy step found there (the confidence); 0 when none
-  bool moved = false;            ///< step_db reached min_step_db and the boundary moved
+  std::size_t phone = 0;        ///< index into the utterance's intervals
+  bool release = false;         ///< false: the phone's start (closure); true: its end (release)
+  std::int64_t aligned_us = 0;  ///< where the aligner put it
+  std::int64_t refined_us = 0;  ///< where it is now (aligned_us when kept)
+  double step_db = 0;           ///< the energy step found there (the confidence); 0 when none
+  bool moved = false;           ///< step_db reached min_step_db and the boundary moved
 };
 
 /// True for the ARPAbet phones whose boundaries refine_closures moves: P B M F V

@@ -38,8 +38,8 @@ struct SynthesisOptions {
 };
 
 struct Synthesis {
-  PcmAudio audio;              ///< mono 16-bit at espeak-ng's rate (22 050 Hz)
-  LabeledUtterance phonemes;   ///< phone_set_for_voice(voice); covers [0, audio end] without gaps
+  PcmAudio audio;             ///< mono 16-bit at espeak-ng's rate (22 050 Hz)
+  LabeledUtterance phonemes;  ///< phone_set_for_voice(voice); covers [0, audio end] without gaps
 };
 
 /// One voice file of espeak-ng-data, as `espeak-ng --voices` lists it.
