@@ -31,22 +31,27 @@ ParseOptions parse_options_from(const Arguments& arguments) {
 
 TrackFormat parse_track_format_option(std::string_view text) {
   if (const auto format = track_format_from_string(text)) return *format;
-  throw UsageError("--format: unknown track format '" + std::string(text) + "' (choose json, csv or arkit-csv)");
+  throw UsageError("--format: unknown track format '" + std::string(text) + "' (choose " +
+                   std::string(kNameList<kTrackFormats, ListStyle::choice>.view()) + ")");
 }
 
 RenderFormat parse_render_format_option(std::string_view text) {
   if (const auto format = track_format_from_string(text)) return {.track = *format, .visemes = std::nullopt};
   if (const auto format = viseme_format_from_string(text)) return {.track = std::nullopt, .visemes = *format};
-  if (text == "moho-dat") return {.track = std::nullopt, .visemes = std::nullopt, .moho_switch = true};
-  throw UsageError("--format: unknown format '" + std::string(text) +
-                   "' (choose json, csv, arkit-csv, visemes-oculus, visemes-azure, visemes-polly, rhubarb-tsv, "
-                   "rhubarb-json or moho-dat)");
+  if (format_named(kMouthSwitchFormats, text)) {
+    return {.track = std::nullopt, .visemes = std::nullopt, .moho_switch = true};
+  }
+  static constexpr auto kEveryFormat =
+      kJoinedText<kNameList<kTrackFormats, ListStyle::commas>, ", ", kNameList<kVisemeFormats, ListStyle::commas>,
+                  " or ", kNameList<kMouthSwitchFormats, ListStyle::choice>>;
+  throw UsageError("--format: unknown format '" + std::string(text) + "' (choose " + std::string(kEveryFormat.view()) +
+                   ")");
 }
 
 InputFormat parse_input_format_option(std::string_view text) {
   if (const auto format = input_format_from_string(text)) return *format;
-  throw UsageError("--input-format: unknown input format '" + std::string(text) +
-                   "' (choose json, textgrid, timit, lab, pho or flite)");
+  throw UsageError("--input-format: unknown input format '" + std::string(text) + "' (choose " +
+                   std::string(kNameList<kInputFormats, ListStyle::choice>.view()) + ")");
 }
 
 RenderPlan parse_render_plan(const Arguments& arguments) {
@@ -120,15 +125,7 @@ Track render_utterance(const LabeledUtterance& utterance, const ArticulationMode
 }
 
 void write_output(const Track& track, const ArticulationModel& model, TrackFormat format, const std::string& output) {
-  if (output == "-") {
-    write_track(track, model, format, std::cout);
-    std::cout.flush();
-    if (!std::cout) throw FileError("cannot write the track to standard output");
-    return;
-  }
-  AtomicOutputFile file(output);
-  write_track(track, model, format, file.stream());
-  file.commit();
+  write_to_output(output, "track", [&](std::ostream& out) { write_track(track, model, format, out); });
 }
 
 void write_viseme_output(const Track& track, const ArticulationModel& model, const VisemeOptions& options,
@@ -137,15 +134,7 @@ void write_viseme_output(const Track& track, const ArticulationModel& model, con
   const VisemeTrack visemes = compute_visemes(classifier, track);
   const VisemeTrackView view{
       .model = model.name(), .classifier = classifier, .track = track, .visemes = visemes, .end_us = end_us};
-  if (output == "-") {
-    write_visemes(view, format, std::cout);
-    std::cout.flush();
-    if (!std::cout) throw FileError("cannot write the visemes to standard output");
-    return;
-  }
-  AtomicOutputFile file(output);
-  write_visemes(view, format, file.stream());
-  file.commit();
+  write_to_output(output, "visemes", [&](std::ostream& out) { write_visemes(view, format, out); });
 }
 
 void write_moho_output(const Track& track, const ArticulationModel& model, const VisemeOptions& options, int fps,
@@ -154,15 +143,7 @@ void write_moho_output(const Track& track, const ArticulationModel& model, const
   const VisemeTrack visemes = compute_visemes(classifier, track);
   const VisemeTrackView view{
       .model = model.name(), .classifier = classifier, .track = track, .visemes = visemes, .end_us = end_us};
-  if (output == "-") {
-    write_moho_switch(view, fps, std::cout);
-    std::cout.flush();
-    if (!std::cout) throw FileError("cannot write the switch data to standard output");
-    return;
-  }
-  AtomicOutputFile file(output);
-  write_moho_switch(view, fps, file.stream());
-  file.commit();
+  write_to_output(output, "switch data", [&](std::ostream& out) { write_moho_switch(view, fps, out); });
 }
 
 }  // namespace lipsync::cli

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "arguments.hpp"
+#include "format_choices.hpp"
 #include "lipsync/formats.hpp"
 #include "lipsync/model.hpp"
 #include "lipsync/moho_writer.hpp"
@@ -33,11 +34,13 @@ namespace lipsync::cli {
 inline constexpr OptionSpec kTrackOutputOption = {
     "output", 'o', "FILE", "write the track to FILE (all or nothing, via a temporary file); - for stdout", "stdout"};
 inline constexpr OptionSpec kTrackFormatOption = {
-    "format", 0, "FORMAT", "track format: json, csv or arkit-csv (Unreal Live Link Face CSV)", "json"};
+    "format", 0, "FORMAT", kJoinedText<"track format: ", kNameList<kTrackFormats, ListStyle::choice_noted>>.view(),
+    "json"};
 inline constexpr OptionSpec kRenderFormatOption = {
     "format", 0, "FORMAT",
-    "track format: json, csv, arkit-csv (Unreal Live Link Face CSV), or visemes: visemes-oculus, visemes-azure, "
-    "visemes-polly, rhubarb-tsv, rhubarb-json, or moho-dat (Moho/OpenToonz/Papagayo switch data, Preston Blair mouths)",
+    kJoinedText<"track format: ", kNameList<kTrackFormats, ListStyle::commas_noted>, ", or visemes: ",
+                kNameList<kVisemeFormats, ListStyle::commas_noted>, ", or ",
+                kNameList<kMouthSwitchFormats, ListStyle::commas_noted>>.view(),
     "json"};
 inline constexpr OptionSpec kMohoFpsOption = {
     "moho-fps", 0, "N",
@@ -54,7 +57,7 @@ inline constexpr OptionSpec kPhoneSetOption = {
     "phone-set", 0, "NAME", "phone set of the labels (see 'lipsync phone-sets'), or auto to detect it",
     "the set the file declares, else auto"};
 inline constexpr OptionSpec kInputFormatOption = {"input-format", 0, "FORMAT",
-                                                  "json, textgrid, timit, lab, pho or flite",
+                                                  kNameList<kInputFormats, ListStyle::choice>.view(),
                                                   "detected from the content, then the file extension"};
 inline constexpr OptionSpec kTierOption = {"tier", 0, "NAME", "TextGrid tier that holds the phonemes", "phones"};
 inline constexpr OptionSpec kSampleRateOption = {

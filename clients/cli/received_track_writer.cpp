@@ -38,7 +38,8 @@ NamedTrack named_track(const client::ReceivedTrack& received, TrackFormat format
   if (header.channels().empty() && format != TrackFormat::arkit_csv) {
     throw InputError(source, 0,
                      "the track carries no channel values (only ARKit weights), so it cannot be written as " +
-                         std::string(to_string(format)) + " (use --format arkit-csv)");
+                         std::string(to_string(format)) + " (use --format " +
+                         std::string(to_string(TrackFormat::arkit_csv)) + ")");
   }
   NamedTrack named;
   named.model = header.model();
@@ -58,7 +59,8 @@ NamedTrack named_track(const client::ReceivedTrack& received, TrackFormat format
   } else if (format == TrackFormat::arkit_csv) {
     throw InputError(source, 0,
                      "the track carries no ARKit weights and its model '" + header.model() +
-                         "' is not the built-in one, so it cannot be written as arkit-csv");
+                         "' is not the built-in one, so it cannot be written as " +
+                         std::string(to_string(TrackFormat::arkit_csv)));
   }
   return named;
 }
@@ -77,15 +79,7 @@ void write_named_track(const NamedTrack& track, TrackFormat format, std::ostream
 void write_received_track(const client::ReceivedTrack& received, TrackFormat format, const std::string& output,
                           const std::string& source) {
   const NamedTrack named = named_track(received, format, source);
-  if (output == "-") {
-    write_named_track(named, format, std::cout);
-    std::cout.flush();
-    if (!std::cout) throw FileError("cannot write the track to standard output");
-    return;
-  }
-  AtomicOutputFile file(output);
-  write_named_track(named, format, file.stream());
-  file.commit();
+  write_to_output(output, "track", [&](std::ostream& out) { write_named_track(named, format, out); });
 }
 
 }  // namespace lipsync::cli

@@ -213,12 +213,16 @@ OutputRequest parse_output_request(const Arguments& arguments) {
   if (out.format.visemes) out.visemes.vocabulary = vocabulary_of(*out.format.visemes);
   if (out.format.moho_switch) out.visemes.vocabulary = VisemeVocabulary::rhubarb;
   if (const auto text = arguments.value("moho-fps")) {
-    if (!out.format.moho_switch) throw UsageError("--moho-fps needs --format moho-dat");
+    if (!out.format.moho_switch) {
+      throw UsageError("--moho-fps needs --format " +
+                       std::string(name_of(kMouthSwitchFormats, MouthSwitchFormat::moho_dat)));
+    }
     out.moho_fps = parse_int_option("moho-fps", *text, kMinMohoFps, kMaxMohoFps);
   }
   if (const auto letters = arguments.value("extended-shapes")) {
     if (out.visemes.vocabulary != VisemeVocabulary::rhubarb || !out.format.visemes)
-      throw UsageError("--extended-shapes needs --format rhubarb-tsv or rhubarb-json");
+      throw UsageError("--extended-shapes needs --format " + std::string(to_string(VisemeFormat::rhubarb_tsv)) +
+                       " or " + std::string(to_string(VisemeFormat::rhubarb_json)));
     const auto shapes = rhubarb_shapes_from_string(*letters);
     if (!shapes)
       throw UsageError("--extended-shapes: '" + *letters + "' is not a set of G, H and X (e.g. GHX, GX or \"\")");

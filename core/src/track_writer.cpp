@@ -356,24 +356,9 @@ void check_track_arrays(const Track& track) {
 
 }  // namespace
 
-std::string_view to_string(TrackFormat format) {
-  switch (format) {
-    case TrackFormat::json:
-      return "json";
-    case TrackFormat::csv:
-      return "csv";
-    case TrackFormat::arkit_csv:
-      return "arkit-csv";
-  }
-  return "?";
-}
+std::string_view to_string(TrackFormat format) { return name_of(kTrackFormats, format); }
 
-std::optional<TrackFormat> track_format_from_string(std::string_view name) {
-  for (auto format : {TrackFormat::json, TrackFormat::csv, TrackFormat::arkit_csv}) {
-    if (to_string(format) == name) return format;
-  }
-  return std::nullopt;
-}
+std::optional<TrackFormat> track_format_from_string(std::string_view name) { return format_named(kTrackFormats, name); }
 
 void write_track(const NamedTrackView& view, TrackFormat format, std::ostream& out) {
   const Track& track = view.track;

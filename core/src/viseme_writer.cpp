@@ -173,28 +173,10 @@ void write_rhubarb_json(const VisemeTrackView& view, std::ostream& out) {
 
 }  // namespace
 
-std::string_view to_string(VisemeFormat format) {
-  switch (format) {
-    case VisemeFormat::oculus:
-      return "visemes-oculus";
-    case VisemeFormat::azure:
-      return "visemes-azure";
-    case VisemeFormat::polly:
-      return "visemes-polly";
-    case VisemeFormat::rhubarb_tsv:
-      return "rhubarb-tsv";
-    case VisemeFormat::rhubarb_json:
-      return "rhubarb-json";
-  }
-  return "?";
-}
+std::string_view to_string(VisemeFormat format) { return name_of(kVisemeFormats, format); }
 
 std::optional<VisemeFormat> viseme_format_from_string(std::string_view name) {
-  for (auto format : {VisemeFormat::oculus, VisemeFormat::azure, VisemeFormat::polly, VisemeFormat::rhubarb_tsv,
-                      VisemeFormat::rhubarb_json}) {
-    if (to_string(format) == name) return format;
-  }
-  return std::nullopt;
+  return format_named(kVisemeFormats, name);
 }
 
 VisemeVocabulary vocabulary_of(VisemeFormat format) {

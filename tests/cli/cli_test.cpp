@@ -20,9 +20,13 @@
 #include <vector>
 
 #include "../support/child_process.hpp"
+#include "lipsync/formats.hpp"
 #include "lipsync/model.hpp"
+#include "lipsync/moho_writer.hpp"
 #include "lipsync/phone_set.hpp"
 #include "lipsync/setting_ranges.hpp"
+#include "lipsync/track_writer.hpp"
+#include "lipsync/viseme_writer.hpp"
 
 namespace lipsync {
 namespace {
@@ -30,6 +34,7 @@ namespace {
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 using testing::make_temp_dir;
+using ::testing::Not;
 using testing::read_text;
 using testing::run_program;
 using testing::RunResult;
@@ -200,6 +205,29 @@ TEST_F(CliTest, every_command_has_help) {
     EXPECT_THAT(result.out, StartsWith("Usage: lipsync ")) << args[0];
     EXPECT_THAT(result.out, HasSubstr("-h, --help")) << args[0];
   }
+}
+
+TEST_F(CliTest, help_and_errors_list_exactly_the_formats_the_core_names) {
+  std::vector<std::string_view> render_formats;
+  for (const auto& entry : kTrackFormats) render_formats.push_back(entry.name);
+  for (const auto& entry : kVisemeFormats) render_formats.push_back(entry.name);
+  for (const auto& entry : kMouthSwitchFormats) render_formats.push_back(entry.name);
+  const std::string help = help_entries(run({"render", "--help"}).out)["--format FORMAT"];
+  const RunResult unknown = run({"render", "--format", "nope", "x.lab"});
+  EXPECT_EQ(unknown.status, 2) << describe(unknown);
+  for (const std::string_view name : render_formats) {
+    EXPECT_THAT(help, HasSubstr(std::string(name))) << name;
+    EXPECT_THAT(unknown.err, HasSubstr(std::string(name))) << name;
+  }
+  EXPECT_THAT(unknown.err, HasSubstr("rhubarb-json or moho-dat)"));
+  // Every name offered is accepted (a missing input file is the next complaint, not the format).
+  for (const std::string_view name : render_formats) {
+    const RunResult result = run({"render", "--format", std::string(name), "missing.lab"});
+    EXPECT_THAT(result.err, Not(HasSubstr("--format"))) << name << ": " << result.err;
+  }
+  const RunResult input = run({"render", "--input-format", "nope", "x.lab"});
+  for (const auto& entry : kInputFormats) EXPECT_THAT(input.err, HasSubstr(std::string(entry.name)));
+  EXPECT_THAT(input.err, HasSubstr("pho or flite)"));
 }
 
 // ---------------------------------------------------------------------------

@@ -16,11 +16,22 @@
 #include <string>
 #include <string_view>
 
+#include "lipsync/named_format.hpp"
 #include "lipsync/utterance.hpp"
 
 namespace lipsync {
 
 enum class InputFormat { json, textgrid, timit, lab, pho, flite };
+
+/// The input formats by name, in the order help lists them.
+inline constexpr std::array<NamedFormat<InputFormat>, 6> kInputFormats{{
+    {InputFormat::json, "json"},
+    {InputFormat::textgrid, "textgrid"},
+    {InputFormat::timit, "timit"},
+    {InputFormat::lab, "lab"},
+    {InputFormat::pho, "pho"},
+    {InputFormat::flite, "flite"},
+}};
 
 std::string_view to_string(InputFormat format);
 std::optional<InputFormat> input_format_from_string(std::string_view name);

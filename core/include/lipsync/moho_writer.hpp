@@ -28,14 +28,22 @@
 // with the rest mouth (it marks the end, so it may repeat the mouth before it).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <ostream>
 #include <string_view>
 #include <vector>
 
+#include "lipsync/named_format.hpp"
 #include "lipsync/viseme_writer.hpp"
 
 namespace lipsync {
+
+/// Switch data is a format of its own beside the track and viseme formats.
+enum class MouthSwitchFormat { moho_dat };
+inline constexpr std::array<NamedFormat<MouthSwitchFormat>, 1> kMouthSwitchFormats{{
+    {MouthSwitchFormat::moho_dat, "moho-dat", "Moho/OpenToonz/Papagayo switch data, Preston Blair mouths"},
+}};
 
 /// Moho frame rates accepted (frames per second, whole numbers).
 inline constexpr int kMinMohoFps = 1;

@@ -17,11 +17,19 @@
 #include <string_view>
 
 #include "lipsync/model.hpp"
+#include "lipsync/named_format.hpp"
 #include "lipsync/track.hpp"
 
 namespace lipsync {
 
 enum class TrackFormat { json, csv, arkit_csv };
+
+/// The track formats by name, in the order help lists them.
+inline constexpr std::array<NamedFormat<TrackFormat>, 3> kTrackFormats{{
+    {TrackFormat::json, "json"},
+    {TrackFormat::csv, "csv"},
+    {TrackFormat::arkit_csv, "arkit-csv", "Unreal Live Link Face CSV"},
+}};
 
 std::string_view to_string(TrackFormat format);
 std::optional<TrackFormat> track_format_from_string(std::string_view name);

@@ -15,6 +15,7 @@
 #include <string_view>
 #include <vector>
 
+#include "lipsync/named_format.hpp"
 #include "lipsync/track.hpp"
 #include "lipsync/visemes.hpp"
 
@@ -22,7 +23,15 @@ namespace lipsync {
 
 enum class VisemeFormat { oculus, azure, polly, rhubarb_tsv, rhubarb_json };
 
-/// "visemes-oculus", "visemes-azure", "visemes-polly", "rhubarb-tsv", "rhubarb-json".
+/// The viseme formats by name, in the order help lists them.
+inline constexpr std::array<NamedFormat<VisemeFormat>, 5> kVisemeFormats{{
+    {VisemeFormat::oculus, "visemes-oculus"},
+    {VisemeFormat::azure, "visemes-azure"},
+    {VisemeFormat::polly, "visemes-polly"},
+    {VisemeFormat::rhubarb_tsv, "rhubarb-tsv"},
+    {VisemeFormat::rhubarb_json, "rhubarb-json"},
+}};
+
 std::string_view to_string(VisemeFormat format);
 std::optional<VisemeFormat> viseme_format_from_string(std::string_view name);
 /// The vocabulary a format is written in.

@@ -1,5 +1,5 @@
-// Format names and the entry point that decodes the text and hands it to the
-// reader of the chosen format.
+// Input format names (kInputFormats, formats.hpp) and the entry point that decodes the text
+// and hands it to the reader of the chosen format.
 #include <algorithm>
 #include <array>
 #include <cctype>
@@ -12,34 +12,14 @@
 #include "lipsync/formats.hpp"
 
 namespace lipsync {
-namespace {
 
-constexpr std::array<std::pair<InputFormat, std::string_view>, 6> kFormatNames{{
-    {InputFormat::json, "json"},
-    {InputFormat::textgrid, "textgrid"},
-    {InputFormat::timit, "timit"},
-    {InputFormat::lab, "lab"},
-    {InputFormat::pho, "pho"},
-    {InputFormat::flite, "flite"},
-}};
-
-}  // namespace
-
-std::string_view to_string(InputFormat format) {
-  for (const auto& [value, name] : kFormatNames) {
-    if (value == format) return name;
-  }
-  return "unknown";
-}
+std::string_view to_string(InputFormat format) { return name_of(kInputFormats, format); }
 
 std::optional<InputFormat> input_format_from_string(std::string_view name) {
   std::string lower(name);
   std::transform(lower.begin(), lower.end(), lower.begin(),
                  [](char ch) { return static_cast<char>(std::tolower(static_cast<unsigned char>(ch))); });
-  for (const auto& [value, known] : kFormatNames) {
-    if (known == lower) return value;
-  }
-  return std::nullopt;
+  return format_named(kInputFormats, lower);
 }
 
 LabeledUtterance parse_utterance(std::string_view content, InputFormat format, std::string_view source,
