@@ -48,15 +48,7 @@ int run_align(std::span<const std::string_view> args) {
   const std::string source = input == "-" ? std::string(kStdinName) : input;
   const speech::Alignment alignment = align_wav(content, source, transcript);
   const std::int64_t duration_us = alignment.phones.intervals.back().end_us;
-  if (output == "-") {
-    speech::write_textgrid(std::cout, alignment, duration_us);
-    std::cout.flush();
-    if (!std::cout) throw FileError("cannot write the TextGrid to standard output");
-    return 0;
-  }
-  AtomicOutputFile file(output);
-  speech::write_textgrid(file.stream(), alignment, duration_us);
-  file.commit();
+  write_to_output(output, "TextGrid", [&](std::ostream& out) { speech::write_textgrid(out, alignment, duration_us); });
   return 0;
 }
 

@@ -16,6 +16,7 @@
 #include <csignal>
 #include <cstring>
 #include <filesystem>
+#include <iostream>
 
 #include "cli_error.hpp"
 
@@ -130,6 +131,19 @@ void AtomicOutputFile::discard() noexcept {
   if (stream_.is_open()) stream_.close();
   ::unlink(temp_path_.c_str());
   done_ = true;
+}
+
+void write_to_output(const std::string& output, std::string_view what,
+                     const std::function<void(std::ostream&)>& write) {
+  if (output == "-") {
+    write(std::cout);
+    std::cout.flush();
+    if (!std::cout) throw FileError("cannot write the " + std::string(what) + " to standard output");
+    return;
+  }
+  AtomicOutputFile file(output);
+  write(file.stream());
+  file.commit();
 }
 
 }  // namespace lipsync::cli

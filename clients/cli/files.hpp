@@ -8,7 +8,10 @@
 #pragma once
 
 #include <fstream>
+#include <functional>
+#include <ostream>
 #include <string>
+#include <string_view>
 
 namespace lipsync::cli {
 
@@ -41,5 +44,10 @@ class AtomicOutputFile {
   std::ofstream stream_;
   bool done_ = false;
 };
+
+/// Writes what `write` puts on its stream to `output`: for "-" to standard output, flushed (a
+/// failed write is FileError "cannot write the WHAT to standard output", WHAT being `what`); for
+/// a path all or nothing through an AtomicOutputFile.
+void write_to_output(const std::string& output, std::string_view what, const std::function<void(std::ostream&)>& write);
 
 }  // namespace lipsync::cli
