@@ -19,6 +19,8 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   # deploy/fuzz.sh (CI): clang 14 and its libFuzzer + sanitizer runtimes
   clang-14 libclang-rt-14-dev
+  # deploy/style.sh (CI): the C++ layout and lint checks
+  clang-format-14 clang-tidy-14
   # TTS front-ends used by the examples and tests (phoneme timings)
   flite festival festvox-kallpc16k
   # lipsync::speech: `lipsync say` (espeak-ng) and `lipsync align` (PocketSphinx and its en-us model)

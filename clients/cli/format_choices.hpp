@@ -62,7 +62,7 @@ constexpr auto make_name_list() {
 
 template <FixedText... Parts>
 constexpr auto make_joined_text() {
-  FixedText<(Parts.length + ... + 0) + 1> text;
+  FixedText<(Parts.kLength + ... + 0) + 1> text;
   char* out = text.chars;
   ((out = setting_help_detail::write_text(Parts.view(), out)), ...);
   return text;

@@ -45,6 +45,7 @@ int run_loadtest(std::span<const std::string_view> args) {
   std::vector<std::string> words = {kGeneratorName};
   words.insert(words.end(), args.begin(), args.end());
   std::vector<char*> argv;
+  argv.reserve(words.size() + 1);
   for (std::string& word : words) argv.push_back(word.data());
   argv.push_back(nullptr);
   std::cout.flush();

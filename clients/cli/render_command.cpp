@@ -75,7 +75,7 @@ std::string find_on_path(const std::string& program) {
   while (true) {
     const auto colon = rest.find(':');
     const std::string dir(rest.substr(0, colon));
-    const std::string candidate = (dir.empty() ? std::string(".") : dir) + "/" + program;
+    std::string candidate = (dir.empty() ? std::string(".") : dir) + "/" + program;
     if (::access(candidate.c_str(), X_OK) == 0) return candidate;
     if (colon == std::string_view::npos) return {};
     rest.remove_prefix(colon + 1);
@@ -125,6 +125,7 @@ class FfmpegWriter {
       const int null_out = ::open("/dev/null", O_WRONLY);
       if (null_out >= 0) ::dup2(null_out, STDOUT_FILENO);
       std::vector<char*> argv;
+      argv.reserve(args.size() + 1);
       for (std::string& arg : args) argv.push_back(arg.data());
       argv.push_back(nullptr);
       ::execv(args[0].c_str(), argv.data());

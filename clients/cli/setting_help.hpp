@@ -24,7 +24,7 @@ struct FixedText {
   constexpr FixedText() = default;
   constexpr FixedText(const char (&text)[N]) { std::copy_n(text, N, chars); }  // NOLINT: implicit by design
   constexpr std::string_view view() const { return {chars, N - 1}; }
-  static constexpr std::size_t length = N - 1;
+  static constexpr std::size_t kLength = N - 1;
 };
 
 namespace setting_help_detail {
@@ -53,15 +53,15 @@ constexpr char* write_text(std::string_view text, char* out) { return std::copy(
 
 template <FixedText Lead, IntSetting Setting, FixedText Tail>
 constexpr auto make_ranged_help() {
-  constexpr std::string_view separator = ", ";
-  constexpr std::string_view to = " to ";
-  constexpr std::size_t length = Lead.length + separator.size() + decimal_length(Setting.min) + to.size() +
-                                 decimal_length(Setting.max) + Tail.length;
-  FixedText<length + 1> help;
+  constexpr std::string_view kSeparator = ", ";
+  constexpr std::string_view kTo = " to ";
+  constexpr std::size_t kLength = Lead.kLength + kSeparator.size() + decimal_length(Setting.min) + kTo.size() +
+                                  decimal_length(Setting.max) + Tail.kLength;
+  FixedText<kLength + 1> help;
   char* out = write_text(Lead.view(), help.chars);
-  out = write_text(separator, out);
+  out = write_text(kSeparator, out);
   out = write_decimal(Setting.min, out);
-  out = write_text(to, out);
+  out = write_text(kTo, out);
   out = write_decimal(Setting.max, out);
   write_text(Tail.view(), out);
   return help;

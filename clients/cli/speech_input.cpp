@@ -19,7 +19,7 @@ speech::SynthesisOptions synthesis_options(const Arguments& arguments) {
 }
 
 std::optional<std::string> transcript_option(const Arguments& arguments) {
-  const auto text = arguments.value("text");
+  auto text = arguments.value("text");
   const auto file = arguments.value("text-file");
   if (text && file) throw UsageError("--text and --text-file cannot both be given");
   if (file) {

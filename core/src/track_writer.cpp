@@ -38,12 +38,12 @@
 namespace lipsync {
 namespace {
 
-constexpr std::size_t kFlushBytes = 64 * 1024;
+constexpr std::size_t kFlushBytes = std::size_t{64} * 1024;
 
 /// Text accumulated for the stream; flushed when a record ends past kFlushBytes.
 class TextBuffer {
  public:
-  explicit TextBuffer(std::ostream& out) : out_(out) { text_.reserve(kFlushBytes + 8 * 1024); }
+  explicit TextBuffer(std::ostream& out) : out_(out) { text_.reserve(kFlushBytes + std::size_t{8} * 1024); }
 
   void put(std::string_view text) { text_.append(text); }
   void put(char ch) { text_.push_back(ch); }

@@ -56,7 +56,7 @@ void flush(std::string& text, std::ostream& out) {
   text.clear();
 }
 
-constexpr std::size_t kFlushBytes = 64 * 1024;
+constexpr std::size_t kFlushBytes = std::size_t{64} * 1024;
 
 void write_lipsync_visemes(const VisemeTrackView& view, std::ostream& out) {
   const Track& track = view.track;

@@ -80,7 +80,7 @@ Family<Counter>& MetricsRegistry::counter(std::string name, std::string help, st
 }
 
 Family<Histogram>& MetricsRegistry::histogram(std::string name, std::string help, std::vector<std::string> label_names,
-                                              std::vector<double> bounds_s) {
+                                              const std::vector<double>& bounds_s) {
   std::lock_guard lock(mutex_);
   histograms_.push_back(
       std::make_unique<Family<Histogram>>(std::move(name), std::move(help), std::move(label_names),
@@ -129,8 +129,8 @@ namespace {
 
 // From 100 µs to 10 s: a frame written at once is well under a millisecond; a held-back
 // producer or a subscriber behind a slow link takes seconds.
-const std::vector<double> kLatencyBounds_s = {0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025,
-                                              0.05,   0.1,     0.25,   0.5,   1,      2.5,   5,    10};
+const std::vector<double> kLatencyBoundsSeconds = {0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025,
+                                                   0.05,   0.1,     0.25,   0.5,   1,      2.5,   5,    10};
 
 }  // namespace
 
@@ -152,12 +152,12 @@ ServerMetrics::ServerMetrics(MetricsRegistry& registry_in)
                         .histogram("lipsyncd_write_latency_seconds",
                                    "Per stream message: from computable (queued for the stream) to written "
                                    "(the write completed).",
-                                   {}, kLatencyBounds_s)
+                                   {}, kLatencyBoundsSeconds)
                         .with({})),
       face_solver(registry
                       .histogram("lipsyncd_face_solver_seconds",
                                  "Face solver time per mesh frame batch (Animate) or per mesh Render.", {},
-                                 kLatencyBounds_s)
+                                 kLatencyBoundsSeconds)
                       .with({})) {}
 
 }  // namespace lipsync::server

@@ -117,7 +117,7 @@ class MetricsRegistry {
  public:
   Family<Counter>& counter(std::string name, std::string help, std::vector<std::string> label_names);
   Family<Histogram>& histogram(std::string name, std::string help, std::vector<std::string> label_names,
-                               std::vector<double> bounds_s);
+                               const std::vector<double>& bounds_s);
   void gauge(Gauge gauge);
 
   /// Everything, in the Prometheus text format.

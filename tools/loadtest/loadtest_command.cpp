@@ -560,7 +560,7 @@ Percentiles percentiles(std::vector<std::int32_t>& values) {
   if (values.empty()) return result;
   std::sort(values.begin(), values.end());
   const auto at = [&](double q) {
-    const auto index = static_cast<std::size_t>(q * static_cast<double>(values.size() - 1) + 0.5);
+    const auto index = static_cast<std::size_t>(std::lround(q * static_cast<double>(values.size() - 1)));
     return static_cast<double>(values[index]) / 1000.0;
   };
   result.p50_ms = at(0.50);

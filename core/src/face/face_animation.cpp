@@ -295,6 +295,7 @@ GlbSummary write_face_glb(std::ostream& out, const FaceMesh& mesh, const FaceAni
 
   // Key times in seconds relative to the first frame; weights one-hot per key.
   std::vector<float> times;
+  times.reserve(keys.size());
   for (const std::size_t key : keys)
     times.push_back(static_cast<float>(static_cast<double>(animation.t_us[key] - animation.t_us[0]) * 1e-6));
   const std::size_t time_accessor =

@@ -155,7 +155,10 @@ class PraatTokenizer {
 class TextGridReader {
  public:
   TextGridReader(std::string_view text, const std::string& source, std::string_view tier_name)
-      : tokens_(text, source), source_(source), tier_name_(tier_name), max_count_(text.size()) {}
+      : tokens_(text, source),
+        source_(source),
+        tier_name_(tier_name),
+        max_count_(static_cast<std::int64_t>(text.size())) {}
 
   LabeledUtterance read() {
     const Token file_type = tokens_.next();

@@ -39,12 +39,12 @@ struct ServerConfig {
   std::int64_t drain_deadline_ms = 5000;  ///< on SIGTERM: time running streams get to finish
 
   // Admission limits (RESOURCE_EXHAUSTED beyond them).
-  std::size_t max_streams = 10'000;                 ///< concurrent Animate + Subscribe streams
-  std::size_t max_sessions = 10'000;                ///< named sessions held (live or retained)
-  std::size_t max_subscribers_per_session = 100;    ///< concurrent subscribers of one session
-  std::size_t max_phonemes = 100'000;               ///< phonemes per utterance
-  std::int64_t max_utterance_ms = 3'600'000;        ///< utterance length (end of the last phoneme)
-  std::size_t max_message_bytes = 4 * 1024 * 1024;  ///< largest request message
+  std::size_t max_streams = 10'000;                              ///< concurrent Animate + Subscribe streams
+  std::size_t max_sessions = 10'000;                             ///< named sessions held (live or retained)
+  std::size_t max_subscribers_per_session = 100;                 ///< concurrent subscribers of one session
+  std::size_t max_phonemes = 100'000;                            ///< phonemes per utterance
+  std::int64_t max_utterance_ms = 3'600'000;                     ///< utterance length (end of the last phoneme)
+  std::size_t max_message_bytes = std::size_t{4} * 1024 * 1024;  ///< largest request message
   /// gRPC's memory quota for the transport (read buffers of every connection, call arenas);
   /// 0 = unbounded; unset = sized from max_message_bytes and the calls in progress
   /// (server/src/transport/transport_quota.hpp: a message over the limit then costs about 20 MB at idle).
