@@ -1,5 +1,11 @@
 // Loading and validating an articulation model (schema: docs/model.md).
 //
+// from_json reads the sections in the schema's order, one helper each: the header (format,
+// version, name; read_header), the channels (read_channels), the dominance defaults
+// (read_dominance), the phonemes with their targets and dominance and each release's closure
+// (read_phonemes, read_phoneme), the silence phoneme (silence_index) and the ARKit matrix
+// (read_arkit). ObjectReader remembers the keys it read, so a misspelt key is an error.
+//
 // Validation happens here, once: every later lookup is by index and trusts the
 // model. Each error names the source, the phoneme (or channel, or blendshape)
 // and the field, with the offending value.
@@ -159,27 +165,28 @@ DominanceParams read_dominance(ObjectReader& reader, DominanceParams params) {
   return params;
 }
 
-}  // namespace
-
-ArticulationModel ArticulationModel::from_json(std::string_view json_text, std::string_view source_name) {
-  const std::string source(source_name);
-  json root;
+json parse_model_json(std::string_view json_text, const std::string& source) {
   try {
-    root = json::parse(json_text.begin(), json_text.end());
+    return json::parse(json_text.begin(), json_text.end());
   } catch (const json::exception& e) {  // parse_error, and out_of_range for a number that overflows
     throw InputError(source, 0, std::string("not valid JSON: ") + e.what());
   }
-  ArticulationModel model;
-  ObjectReader top(root, "model", source);
+}
+
+/// Checks the format tag and version; returns the model's name.
+std::string read_header(ObjectReader& top) {
   if (top.required_string("format") != kFormatTag) {
     top.fail_field("format", "must be \"" + std::string(kFormatTag) + "\"");
   }
   if (const double version = top.required_number("version"); version != 1) {
     top.fail_field("version", "unsupported version " + std::to_string(version) + " (this build reads 1)");
   }
-  model.name_ = top.required_string("name");
+  return top.required_string("name");
+}
 
-  // Channels.
+/// "channels": a non-empty array of uniquely named channels, each with min < max and rest within.
+std::vector<ChannelSpec> read_channels(ObjectReader& top, const std::string& source) {
+  std::vector<ChannelSpec> out;
   const json& channels = top.required("channels");
   if (!channels.is_array() || channels.empty()) top.fail_field("channels", "must be a non-empty array");
   for (std::size_t i = 0; i < channels.size(); ++i) {
@@ -201,108 +208,139 @@ ArticulationModel ArticulationModel::from_json(std::string_view json_text, std::
     if (channel.rest < channel.min || channel.rest > channel.max) {
       named.fail_field("rest", "must lie within [min, max]");
     }
-    for (const auto& other : model.channels_) {
+    for (const auto& other : out) {
       if (other.name == channel.name) named.fail("duplicate channel name");
     }
-    model.channels_.push_back(std::move(channel));
+    out.push_back(std::move(channel));
   }
-  const auto channel_index = [&](const ObjectReader& reader, const std::string& name) -> std::size_t {
-    for (std::size_t i = 0; i < model.channels_.size(); ++i) {
-      if (model.channels_[i].name == name) return i;
+  return out;
+}
+
+/// The index of the channel `name`; an unknown name fails in `reader`'s object.
+std::size_t channel_index(const std::vector<ChannelSpec>& channels, const ObjectReader& reader,
+                          const std::string& name) {
+  for (std::size_t i = 0; i < channels.size(); ++i) {
+    if (channels[i].name == name) return i;
+  }
+  reader.fail("unknown channel '" + name + "'");
+}
+
+/// A phoneme as read, with the closure it names (a release's, else empty).
+struct PhonemeEntry {
+  PhonemeSpec spec;
+  std::string closure;
+};
+
+/// One phoneme of "phonemes": its class, its targets (the channels' rest values where absent),
+/// its dominance (the defaults, then the phoneme's, then per channel) and a release's closure.
+PhonemeEntry read_phoneme(const std::string& name, const json& body, const std::vector<ChannelSpec>& channels,
+                          const DominanceParams& defaults, const std::string& source) {
+  ObjectReader reader(body, "phoneme '" + name + "'", source);
+  PhonemeSpec spec;
+  spec.name = name;
+  const std::string class_name = reader.required_string("class");
+  const auto cls = phoneme_class_from_string(class_name);
+  if (!cls) {
+    reader.fail_field("class", "must be vowel, consonant, closure, release or silence, got '" + class_name + "'");
+  }
+  spec.phoneme_class = *cls;
+
+  spec.targets.resize(channels.size());
+  for (std::size_t c = 0; c < channels.size(); ++c) spec.targets[c] = channels[c].rest;
+  if (const json* targets = reader.optional("targets")) {
+    ObjectReader target_reader(*targets, reader.where() + " targets", source);
+    for (const auto& [channel, value] : targets->items()) {
+      const std::size_t c = channel_index(channels, target_reader, channel);
+      target_reader.optional(channel);
+      const double target = target_reader.number(channel, value);
+      const ChannelSpec& spec_channel = channels[c];
+      if (target < spec_channel.min || target > spec_channel.max) {
+        target_reader.fail_field(channel, "target " + value.dump() + " is outside the channel range [" +
+                                              std::to_string(spec_channel.min) + ", " +
+                                              std::to_string(spec_channel.max) + "]");
+      }
+      spec.targets[c] = target;
     }
-    reader.fail("unknown channel '" + name + "'");
-  };
-
-  DominanceParams defaults;
-  {
-    ObjectReader reader(top.required("dominance_defaults"), "dominance_defaults", source);
-    defaults = read_dominance(reader, defaults);
   }
 
-  // Phonemes.
+  DominanceParams phoneme_defaults = defaults;
+  if (const json* dominance = reader.optional("dominance")) {
+    ObjectReader dominance_reader(*dominance, reader.where() + " dominance", source);
+    phoneme_defaults = read_dominance(dominance_reader, defaults);
+  }
+  spec.dominance.assign(channels.size(), phoneme_defaults);
+  if (const json* per_channel = reader.optional("channel_dominance")) {
+    ObjectReader list_reader(*per_channel, reader.where() + " channel_dominance", source);
+    for (const auto& [channel, params] : per_channel->items()) {
+      const std::size_t c = channel_index(channels, list_reader, channel);
+      ObjectReader channel_reader(params, reader.where() + " channel_dominance '" + channel + "'", source);
+      spec.dominance[c] = read_dominance(channel_reader, phoneme_defaults);
+    }
+  }
+
+  std::string closure = reader.optional_string("closure");
+  if (spec.phoneme_class == PhonemeClass::release) {
+    if (closure.empty()) reader.fail_field("closure", "is required for a release phoneme");
+  } else if (!closure.empty()) {
+    reader.fail_field("closure", "is only allowed for release phonemes");
+  }
+  reader.reject_unknown_keys();
+
+  std::size_t strongest = 0;
+  for (std::size_t c = 1; c < spec.dominance.size(); ++c) {
+    if (spec.dominance[c].alpha > spec.dominance[strongest].alpha) strongest = c;
+  }
+  spec.keyframe_t_off_s = spec.dominance[strongest].t_off_s;
+  return {std::move(spec), std::move(closure)};
+}
+
+std::optional<int> find_phoneme(const std::vector<PhonemeSpec>& phonemes, std::string_view name) {
+  for (std::size_t i = 0; i < phonemes.size(); ++i) {
+    if (phonemes[i].name == name) return static_cast<int>(i);
+  }
+  return std::nullopt;
+}
+
+/// "phonemes": a non-empty object of phonemes, each release linked to its closure phoneme.
+std::vector<PhonemeSpec> read_phonemes(ObjectReader& top, const std::vector<ChannelSpec>& channels,
+                                       const DominanceParams& defaults, const std::string& source) {
+  std::vector<PhonemeSpec> out;
   const json& phonemes = top.required("phonemes");
   if (!phonemes.is_object() || phonemes.empty()) top.fail_field("phonemes", "must be a non-empty object");
   std::vector<std::pair<std::size_t, std::string>> closure_names;  // release index, closure name
   for (const auto& [name, body] : phonemes.items()) {
-    ObjectReader reader(body, "phoneme '" + name + "'", source);
-    PhonemeSpec spec;
-    spec.name = name;
-    const std::string class_name = reader.required_string("class");
-    const auto cls = phoneme_class_from_string(class_name);
-    if (!cls) {
-      reader.fail_field("class", "must be vowel, consonant, closure, release or silence, got '" + class_name + "'");
-    }
-    spec.phoneme_class = *cls;
-
-    spec.targets.resize(model.channels_.size());
-    for (std::size_t c = 0; c < model.channels_.size(); ++c) spec.targets[c] = model.channels_[c].rest;
-    if (const json* targets = reader.optional("targets")) {
-      ObjectReader target_reader(*targets, reader.where() + " targets", source);
-      for (const auto& [channel, value] : targets->items()) {
-        const std::size_t c = channel_index(target_reader, channel);
-        target_reader.optional(channel);
-        const double target = target_reader.number(channel, value);
-        const ChannelSpec& spec_channel = model.channels_[c];
-        if (target < spec_channel.min || target > spec_channel.max) {
-          target_reader.fail_field(channel, "target " + value.dump() + " is outside the channel range [" +
-                                                std::to_string(spec_channel.min) + ", " +
-                                                std::to_string(spec_channel.max) + "]");
-        }
-        spec.targets[c] = target;
-      }
-    }
-
-    DominanceParams phoneme_defaults = defaults;
-    if (const json* dominance = reader.optional("dominance")) {
-      ObjectReader dominance_reader(*dominance, reader.where() + " dominance", source);
-      phoneme_defaults = read_dominance(dominance_reader, defaults);
-    }
-    spec.dominance.assign(model.channels_.size(), phoneme_defaults);
-    if (const json* per_channel = reader.optional("channel_dominance")) {
-      ObjectReader list_reader(*per_channel, reader.where() + " channel_dominance", source);
-      for (const auto& [channel, params] : per_channel->items()) {
-        const std::size_t c = channel_index(list_reader, channel);
-        ObjectReader channel_reader(params, reader.where() + " channel_dominance '" + channel + "'", source);
-        spec.dominance[c] = read_dominance(channel_reader, phoneme_defaults);
-      }
-    }
-
-    const std::string closure = reader.optional_string("closure");
-    if (spec.phoneme_class == PhonemeClass::release) {
-      if (closure.empty()) reader.fail_field("closure", "is required for a release phoneme");
-      closure_names.emplace_back(model.phonemes_.size(), closure);
-    } else if (!closure.empty()) {
-      reader.fail_field("closure", "is only allowed for release phonemes");
-    }
-    reader.reject_unknown_keys();
-
-    std::size_t strongest = 0;
-    for (std::size_t c = 1; c < spec.dominance.size(); ++c) {
-      if (spec.dominance[c].alpha > spec.dominance[strongest].alpha) strongest = c;
-    }
-    spec.keyframe_t_off_s = spec.dominance[strongest].t_off_s;
-    model.phonemes_.push_back(std::move(spec));
+    PhonemeEntry entry = read_phoneme(name, body, channels, defaults, source);
+    if (entry.spec.phoneme_class == PhonemeClass::release) closure_names.emplace_back(out.size(), entry.closure);
+    out.push_back(std::move(entry.spec));
   }
   for (const auto& [release, closure] : closure_names) {
-    const auto closure_index = model.find_phoneme(closure);
-    const std::string& release_name = model.phonemes_[release].name;
+    const auto closure_index = find_phoneme(out, closure);
+    const std::string& release_name = out[release].name;
     if (!closure_index) {
       throw InputError(source, 0, "phoneme '" + release_name + "', field 'closure': unknown phoneme '" + closure + "'");
     }
-    if (model.phonemes_[static_cast<std::size_t>(*closure_index)].phoneme_class != PhonemeClass::closure) {
+    if (out[static_cast<std::size_t>(*closure_index)].phoneme_class != PhonemeClass::closure) {
       throw InputError(source, 0,
                        "phoneme '" + release_name + "', field 'closure': '" + closure + "' is not of class closure");
     }
-    model.phonemes_[release].closure_phoneme = *closure_index;
+    out[release].closure_phoneme = *closure_index;
   }
-  const auto silence = model.find_phoneme("sil");
-  if (!silence || model.phonemes_[static_cast<std::size_t>(*silence)].phoneme_class != PhonemeClass::silence) {
+  return out;
+}
+
+/// The index of the phoneme "sil", which must be of class silence.
+int silence_index(const std::vector<PhonemeSpec>& phonemes, const std::string& source) {
+  const auto silence = find_phoneme(phonemes, "sil");
+  if (!silence || phonemes[static_cast<std::size_t>(*silence)].phoneme_class != PhonemeClass::silence) {
     throw InputError(source, 0, "phonemes: the model needs a phoneme 'sil' of class silence");
   }
-  model.silence_phoneme_ = *silence;
+  return *silence;
+}
 
-  // ARKit retargeting.
-  model.arkit_matrix_.assign(kArkitNames.size() * model.channels_.size(), 0.0);
+/// "arkit" (optional): per ARKit blendshape, the weights of the channels; the row-major
+/// 52 × channel count matrix, zero where not given.
+std::vector<double> read_arkit(ObjectReader& top, const std::vector<ChannelSpec>& channels, const std::string& source) {
+  std::vector<double> matrix(kArkitNames.size() * channels.size(), 0.0);
   if (const json* arkit = top.optional("arkit")) {
     ObjectReader arkit_reader(*arkit, "arkit", source);
     for (const auto& [shape, row] : arkit->items()) {
@@ -317,13 +355,33 @@ ArticulationModel ArticulationModel::from_json(std::string_view json_text, std::
       row_reader.reject_unknown_keys();
       ObjectReader weight_reader(weights, "arkit '" + shape + "' weights", source);
       for (const auto& [channel, weight] : weights.items()) {
-        const std::size_t c = channel_index(weight_reader, channel);
+        const std::size_t c = channel_index(channels, weight_reader, channel);
         weight_reader.optional(channel);
-        model.arkit_matrix_[shape_index * model.channels_.size() + c] = weight_reader.number(channel, weight);
+        matrix[shape_index * channels.size() + c] = weight_reader.number(channel, weight);
       }
     }
     arkit_reader.reject_unknown_keys();
   }
+  return matrix;
+}
+
+}  // namespace
+
+ArticulationModel ArticulationModel::from_json(std::string_view json_text, std::string_view source_name) {
+  const std::string source(source_name);
+  const json root = parse_model_json(json_text, source);
+  ArticulationModel model;
+  ObjectReader top(root, "model", source);
+  model.name_ = read_header(top);
+  model.channels_ = read_channels(top, source);
+  DominanceParams defaults;
+  {
+    ObjectReader reader(top.required("dominance_defaults"), "dominance_defaults", source);
+    defaults = read_dominance(reader, defaults);
+  }
+  model.phonemes_ = read_phonemes(top, model.channels_, defaults, source);
+  model.silence_phoneme_ = silence_index(model.phonemes_, source);
+  model.arkit_matrix_ = read_arkit(top, model.channels_, source);
   top.reject_unknown_keys();
   return model;
 }

@@ -1,5 +1,10 @@
 // Builds the simulated face from the canonical mesh; see face_mesh.hpp for the layout and
-// docs/face.md for the anatomy and its figures.
+// docs/face.md for the anatomy and its figures. build_face_mesh() runs one step per helper, in
+// this order: open the mouth (open_mouth, order_lip_loop), close it off behind the lips with the
+// inner-lip and cavity rings (add_mouth_cavity), subdivide with the lip lines refined as polylines
+// (subdivide_soft_nodes), weight the soft nodes between skull and jaw (assign_jaw_weights), then
+// add the rigid parts: the teeth arches, with the inner lips pushed outside them (add_teeth), and
+// the tongue (add_tongue).
 #include "lipsync/face/face_mesh.hpp"
 
 #include <algorithm>
@@ -104,6 +109,227 @@ void add_tongue(FaceMesh& mesh) {
   }
 }
 
+using LoopRing = std::array<std::uint32_t, kLoopSize>;
+
+// The soft nodes while they are built: per-vertex arrays that grow together, and the triangles.
+struct SoftNodes {
+  std::vector<Vec3> pos;
+  std::vector<std::array<double, 2>> uv;
+  std::vector<double> depth;  // rings behind the lip line (FaceMesh::ring_depth)
+  std::vector<double> side;   // +1 upper lip, −1 lower lip, 0 elsewhere; blended at midpoints
+  std::vector<std::array<std::uint32_t, 3>> tris;
+
+  std::uint32_t add(Vec3 p, std::array<double, 2> t, double d, double s) {
+    const auto id = static_cast<std::uint32_t>(pos.size());
+    pos.push_back(p);
+    uv.push_back(t);
+    depth.push_back(d);
+    side.push_back(s);
+    return id;
+  }
+};
+
+// The asset in metres with the mouth opened: every triangle whose three vertices lie on the
+// inner-lip loop is dropped.
+SoftNodes open_mouth(const FaceAsset& asset) {
+  SoftNodes nodes;
+  nodes.uv = asset.uvs;
+  for (const auto& p : asset.positions_cm) nodes.pos.push_back(kMetresPerCentimetre * p);
+  nodes.depth.assign(nodes.pos.size(), 0.0);
+  nodes.side.assign(nodes.pos.size(), 0.0);
+  std::vector<bool> on_loop(nodes.pos.size(), false);
+  for (const auto id : kInnerLipLoop) on_loop.at(id) = true;
+  for (const auto& t : asset.triangles)
+    if (!(on_loop[t[0]] && on_loop[t[1]] && on_loop[t[2]])) nodes.tris.push_back(t);
+  return nodes;
+}
+
+// The inner-lip loop in the direction the skin's triangles traverse it, with the side of each
+// vertex: +1 upper lip, −1 lower lip, 0 corners; and a smooth version sin(π k / 10) around the
+// loop (k from corner 78) for the cavity's lens-shaped cross-section.
+struct LipLoop {
+  LoopRing ids{};  // ordered so that ids[k]→ids[k+1] is a skin edge
+  std::array<double, kLoopSize> side{}, smooth_side{};
+};
+
+// Orders the loop after the opened skin (a boundary edge a→b of the skin) and marks each loop
+// vertex's side in `nodes`.
+LipLoop order_lip_loop(SoftNodes& nodes) {
+  std::map<std::pair<std::uint32_t, std::uint32_t>, int> directed;
+  for (const auto& t : nodes.tris)
+    for (int e = 0; e < 3; ++e) ++directed[{t[e], t[(e + 1) % 3]}];
+  const bool forward = directed.count({kInnerLipLoop[0], kInnerLipLoop[1]}) > 0;
+  LipLoop loop;
+  for (std::size_t k = 0; k < kLoopSize; ++k)
+    loop.ids[k] = forward ? kInnerLipLoop[k] : kInnerLipLoop[(kLoopSize - k) % kLoopSize];
+  for (std::size_t k = 0; k < kLoopSize; ++k) {
+    const auto id = loop.ids[k];
+    const auto at =
+        static_cast<std::size_t>(std::find(kInnerLipLoop.begin(), kInnerLipLoop.end(), id) - kInnerLipLoop.begin());
+    loop.side[k] = (at >= kUpperBegin && at < kUpperEnd) ? 1.0 : (at >= kLowerBegin && at < kLowerEnd) ? -1.0 : 0.0;
+    loop.smooth_side[k] = std::sin(std::numbers::pi * static_cast<double>(at) / 10.0);
+    nodes.side[id] = loop.side[k];
+  }
+  return loop;
+}
+
+// Rings behind the lip line: inner lip (1, 2) and cavity (3, 4), then a fan to one vertex at the
+// back. Returns the rings, the lip loop first.
+std::vector<LoopRing> add_mouth_cavity(SoftNodes& nodes, const LipLoop& loop, Vec3 centre) {
+  struct RingShape {
+    double x_scale, vertical_m, back_m;
+    bool smooth_side, from_centre_z;
+  };
+  constexpr std::array<RingShape, 4> kRings = {{
+      {0.97, 0.0010, 0.003, false, false},  // mucosa just behind the lip line
+      {0.93, 0.0040, 0.007, false, false},  // toward the gums (sulcus)
+      {1.05, 0.0140, 0.016, true, false},   // cavity, around the teeth
+      {0.80, 0.0160, 0.042, true, true},    // cavity, toward the pharynx
+  }};
+  std::vector<LoopRing> rings = {loop.ids};
+  for (std::size_t r = 0; r < kRings.size(); ++r) {
+    const RingShape& shape = kRings[r];
+    LoopRing ring{};
+    for (std::size_t k = 0; k < kLoopSize; ++k) {
+      const Vec3 p = nodes.pos[loop.ids[k]];
+      const double s = shape.smooth_side ? loop.smooth_side[k] : loop.side[k];
+      Vec3 q{centre.x + shape.x_scale * (p.x - centre.x), p.y + s * shape.vertical_m,
+             (shape.from_centre_z ? centre.z : p.z) - shape.back_m};
+      if (shape.smooth_side) q.y = centre.y + 0.4 * (p.y - centre.y) + s * shape.vertical_m;
+      ring[k] = nodes.add(q, nodes.uv[loop.ids[k]], static_cast<double>(r + 1),
+                          loop.side[k] != 0.0 ? loop.side[k] : (r >= 2 ? (s >= 0 ? 1.0 : -1.0) : 0.0));
+    }
+    rings.push_back(ring);
+  }
+  const auto back = nodes.add({centre.x, centre.y - 0.002, centre.z - 0.052}, nodes.uv[13], 5.0, 0.0);
+  for (std::size_t r = 0; r + 1 < rings.size(); ++r) {
+    for (std::size_t k = 0; k < kLoopSize; ++k) {
+      const auto v0 = rings[r][k], v1 = rings[r][(k + 1) % kLoopSize];
+      const auto w0 = rings[r + 1][k], w1 = rings[r + 1][(k + 1) % kLoopSize];
+      nodes.tris.push_back({v1, v0, w0});
+      nodes.tris.push_back({v1, w0, w1});
+    }
+  }
+  for (std::size_t k = 0; k < kLoopSize; ++k)
+    nodes.tris.push_back({rings.back()[(k + 1) % kLoopSize], rings.back()[k], back});
+  return rings;
+}
+
+// One lip of a ring as a polyline: from corner to corner through the wanted side, ordered right
+// (x < 0) to left, with both corners.
+std::vector<std::uint32_t> lip_line(const SoftNodes& nodes, const LoopRing& ring, double wanted_side) {
+  const auto& side = nodes.side;
+  std::vector<std::uint32_t> line;
+  std::size_t start = 0;
+  for (std::size_t k = 0; k < kLoopSize; ++k)
+    if (side[ring[k]] == wanted_side && side[ring[(k + kLoopSize - 1) % kLoopSize]] != wanted_side) start = k;
+  line.push_back(ring[(start + kLoopSize - 1) % kLoopSize]);
+  for (std::size_t k = start; side[ring[k % kLoopSize]] == wanted_side; ++k) line.push_back(ring[k % kLoopSize]);
+  line.push_back(ring[(start + line.size() - 1) % kLoopSize]);
+  if (nodes.pos[line.front()].x > nodes.pos[line.back()].x) std::reverse(line.begin(), line.end());
+  return line;
+}
+
+// The lip lines of rings 0 (the lip line) and 1 (behind it), each with both corners.
+struct LipLines {
+  std::vector<std::uint32_t> upper0, lower0, upper1, lower1;
+};
+
+// Subdivides `levels` times, carrying positions, UVs, ring depth and side to the midpoints, and
+// refining the lip lines as polylines.
+void subdivide_soft_nodes(SoftNodes& nodes, LipLines& lines, int levels) {
+  for (int level = 0; level < levels; ++level) {
+    const auto old_count = static_cast<std::uint32_t>(nodes.pos.size());
+    Subdivision sub = subdivide(nodes.tris, old_count);
+    std::unordered_map<std::uint64_t, std::uint32_t> mid;
+    for (std::size_t k = 0; k < sub.midpoint_parents.size(); ++k) {
+      const auto [a, b] = sub.midpoint_parents[k];
+      mid[edge_key(a, b)] = old_count + static_cast<std::uint32_t>(k);
+      const auto& pos = nodes.pos;
+      const auto& uv = nodes.uv;
+      nodes.add(0.5 * (pos[a] + pos[b]), {0.5 * (uv[a][0] + uv[b][0]), 0.5 * (uv[a][1] + uv[b][1])},
+                0.5 * (nodes.depth[a] + nodes.depth[b]), 0.5 * (nodes.side[a] + nodes.side[b]));
+    }
+    for (auto* line : {&lines.upper0, &lines.lower0, &lines.upper1, &lines.lower1}) {
+      std::vector<std::uint32_t> refined{line->front()};
+      for (std::size_t k = 1; k < line->size(); ++k) {
+        refined.push_back(mid.at(edge_key((*line)[k - 1], (*line)[k])));
+        refined.push_back((*line)[k]);
+      }
+      *line = std::move(refined);
+    }
+    nodes.tris = std::move(sub.triangles);
+  }
+}
+
+// Jaw weights. Lip-line rings follow their side (upper lip on the skull, lower on the jaw).
+// Skin follows the plane through the hinge axis and the mouth centre: below it the jaw, above it
+// the skull, blended over a band 2 mm wide at the mouth that widens by half the lateral distance
+// (cheeks stretch between the bones) and drops laterally so the upper cheeks stay on the skull.
+void assign_jaw_weights(FaceMesh& mesh, const SoftNodes& nodes, const LipLines& lines) {
+  const Vec3 centre = mesh.mouth_centre_m;
+  const Vec3 hinge = mesh.anatomy.jaw_hinge_m;
+  const double slope = (centre.y - hinge.y) / (centre.z - hinge.z);
+  mesh.jaw_weights.resize(nodes.pos.size());
+  for (std::size_t i = 0; i < nodes.pos.size(); ++i) {
+    const Vec3 p = nodes.pos[i];
+    if (nodes.depth[i] > 0.0) {
+      mesh.jaw_weights[i] = std::clamp(0.5 - 0.5 * nodes.side[i], 0.0, 1.0);
+      continue;
+    }
+    const double lateral = std::hypot(p.x - centre.x, std::max(0.0, centre.z - p.z));
+    const double line_y = hinge.y + slope * (p.z - hinge.z) - 0.2 * lateral;
+    const double band = 0.002 + 0.5 * lateral;
+    mesh.jaw_weights[i] = smoothstep(band, -band, p.y - line_y);
+  }
+  for (const auto id : lines.upper0) mesh.jaw_weights[id] = 0.0;
+  for (const auto id : lines.lower0) mesh.jaw_weights[id] = 1.0;
+  mesh.jaw_weights[mesh.mouth_corners[0]] = mesh.jaw_weights[mesh.mouth_corners[1]] = 0.5;
+}
+
+// The soft nodes become the mesh's first vertices, each with its part by ring depth.
+void store_soft_nodes(FaceMesh& mesh, SoftNodes&& nodes) {
+  mesh.rest_positions_m = std::move(nodes.pos);
+  for (const auto& t : nodes.uv) mesh.uvs.push_back({static_cast<float>(t[0]), static_cast<float>(t[1])});
+  mesh.triangles = std::move(nodes.tris);
+  mesh.ring_depth = std::move(nodes.depth);
+  for (std::size_t i = 0; i < mesh.soft_node_count; ++i)
+    mesh.parts.push_back(mesh.ring_depth[i] == 0.0   ? FacePart::skin
+                         : mesh.ring_depth[i] <= 2.0 ? FacePart::inner_lip
+                                                     : FacePart::mouth_cavity);
+}
+
+// Teeth: elliptic arches (x semi-axis a, z semi-axis b) whose front passes teeth_front_z at x = 0.
+// The inner lips rest outside the teeth (by 1 mm), so the rest pose satisfies the contacts.
+void add_teeth(FaceMesh& mesh, double teeth_front_z) {
+  const FaceAnatomy& anatomy = mesh.anatomy;
+  const Vec3 centre = mesh.mouth_centre_m;
+  mesh.upper_arch_a_m = anatomy.arch_half_width_m;
+  mesh.upper_arch_b_m = anatomy.arch_depth_m;
+  mesh.upper_arch_centre_z_m = teeth_front_z - mesh.upper_arch_b_m;
+  mesh.upper_teeth_y_min_m = centre.y - anatomy.upper_teeth_edge_below_centre_m;
+  mesh.upper_teeth_y_max_m = mesh.upper_teeth_y_min_m + anatomy.teeth_height_m;
+  mesh.lower_arch_a_m = anatomy.arch_half_width_m - anatomy.overjet_m;
+  mesh.lower_arch_b_m = anatomy.arch_depth_m - anatomy.overjet_m;
+  mesh.lower_arch_centre_z_m = mesh.upper_arch_centre_z_m;
+  mesh.lower_teeth_y_max_m = centre.y + anatomy.lower_teeth_edge_above_centre_m;
+  mesh.lower_teeth_y_min_m = mesh.lower_teeth_y_max_m - anatomy.teeth_height_m;
+  mesh.upper_teeth_begin = mesh.soft_node_count;
+  add_arch(mesh, mesh.upper_arch_centre_z_m, mesh.upper_arch_a_m, mesh.upper_arch_b_m, anatomy.teeth_thickness_m,
+           mesh.upper_teeth_y_min_m, mesh.upper_teeth_y_max_m, FacePart::upper_teeth);
+  mesh.lower_teeth_begin = static_cast<std::uint32_t>(mesh.rest_positions_m.size());
+  add_arch(mesh, mesh.lower_arch_centre_z_m, mesh.lower_arch_a_m, mesh.lower_arch_b_m, anatomy.teeth_thickness_m,
+           mesh.lower_teeth_y_min_m, mesh.lower_teeth_y_max_m, FacePart::lower_teeth);
+  for (std::uint32_t i = 0; i < mesh.soft_node_count; ++i) {
+    if (mesh.ring_depth[i] == 0.0 || mesh.ring_depth[i] > 2.5) continue;
+    Vec3& p = mesh.rest_positions_m[i];
+    detail::push_out_of_arch(p, mesh.upper_arch_centre_z_m, mesh.upper_arch_a_m, mesh.upper_arch_b_m,
+                             mesh.upper_teeth_y_min_m, mesh.upper_teeth_y_max_m, 0.001);
+    detail::push_out_of_arch(p, mesh.lower_arch_centre_z_m, mesh.lower_arch_a_m, mesh.lower_arch_b_m,
+                             mesh.lower_teeth_y_min_m, mesh.lower_teeth_y_max_m, 0.001);
+  }
+}
+
 }  // namespace
 
 FaceAsset FaceAsset::from_json(std::string_view json_text, std::string_view source) {
@@ -167,195 +393,29 @@ FaceMesh build_face_mesh(const FaceAsset& asset, int subdivision_level, const Fa
   mesh.anatomy = anatomy;
   mesh.subdivision_level = subdivision_level;
 
-  std::vector<Vec3> pos;
-  std::vector<std::array<double, 2>> uv = asset.uvs;
-  for (const auto& p : asset.positions_cm) pos.push_back(kMetresPerCentimetre * p);
-  std::vector<double> depth(pos.size(), 0.0), side(pos.size(), 0.0);
-
-  // Open the mouth: drop every triangle whose three vertices lie on the inner-lip loop.
-  std::vector<bool> on_loop(pos.size(), false);
-  for (const auto id : kInnerLipLoop) on_loop.at(id) = true;
-  std::vector<std::array<std::uint32_t, 3>> tris;
-  for (const auto& t : asset.triangles)
-    if (!(on_loop[t[0]] && on_loop[t[1]] && on_loop[t[2]])) tris.push_back(t);
-
-  // The loop's direction as the skin's triangles traverse it: a boundary edge a→b of the skin.
-  std::map<std::pair<std::uint32_t, std::uint32_t>, int> directed;
-  for (const auto& t : tris)
-    for (int e = 0; e < 3; ++e) ++directed[{t[e], t[(e + 1) % 3]}];
-  const bool forward = directed.count({kInnerLipLoop[0], kInnerLipLoop[1]}) > 0;
-  std::array<std::uint32_t, kLoopSize> loop{};  // ordered so that loop[k]→loop[k+1] is a skin edge
-  for (std::size_t k = 0; k < kLoopSize; ++k)
-    loop[k] = forward ? kInnerLipLoop[k] : kInnerLipLoop[(kLoopSize - k) % kLoopSize];
-
-  const Vec3 centre = 0.5 * (pos[13] + pos[14]);
+  SoftNodes nodes = open_mouth(asset);
+  const LipLoop loop = order_lip_loop(nodes);
+  const Vec3 centre = 0.5 * (nodes.pos[13] + nodes.pos[14]);
   mesh.mouth_centre_m = centre;
-  const double teeth_front_z = pos[13].z - anatomy.upper_teeth_depth_m;
+  const double teeth_front_z = nodes.pos[13].z - anatomy.upper_teeth_depth_m;
+  const std::vector<LoopRing> rings = add_mouth_cavity(nodes, loop, centre);
 
-  // Side of each loop vertex: +1 upper lip, −1 lower lip, 0 corners; and a smooth version
-  // sin(π k / 10) around the loop (k from corner 78) for the cavity's lens-shaped cross-section.
-  std::array<double, kLoopSize> loop_side{}, loop_smooth_side{};
-  for (std::size_t k = 0; k < kLoopSize; ++k) {
-    const auto id = loop[k];
-    const auto at =
-        static_cast<std::size_t>(std::find(kInnerLipLoop.begin(), kInnerLipLoop.end(), id) - kInnerLipLoop.begin());
-    loop_side[k] = (at >= kUpperBegin && at < kUpperEnd) ? 1.0 : (at >= kLowerBegin && at < kLowerEnd) ? -1.0 : 0.0;
-    loop_smooth_side[k] = std::sin(std::numbers::pi * static_cast<double>(at) / 10.0);
-    side[id] = loop_side[k];
-  }
-
-  // Rings behind the lip line: inner lip (1, 2) and cavity (3, 4), then a fan to the back.
-  struct RingShape {
-    double x_scale, vertical_m, back_m;
-    bool smooth_side, from_centre_z;
-  };
-  constexpr std::array<RingShape, 4> kRings = {{
-      {0.97, 0.0010, 0.003, false, false},  // mucosa just behind the lip line
-      {0.93, 0.0040, 0.007, false, false},  // toward the gums (sulcus)
-      {1.05, 0.0140, 0.016, true, false},   // cavity, around the teeth
-      {0.80, 0.0160, 0.042, true, true},    // cavity, toward the pharynx
-  }};
-  std::vector<std::array<std::uint32_t, kLoopSize>> rings = {loop};
-  for (std::size_t r = 0; r < kRings.size(); ++r) {
-    const RingShape& shape = kRings[r];
-    std::array<std::uint32_t, kLoopSize> ring{};
-    for (std::size_t k = 0; k < kLoopSize; ++k) {
-      const Vec3 p = pos[loop[k]];
-      const double s = shape.smooth_side ? loop_smooth_side[k] : loop_side[k];
-      Vec3 q{centre.x + shape.x_scale * (p.x - centre.x), p.y + s * shape.vertical_m,
-             (shape.from_centre_z ? centre.z : p.z) - shape.back_m};
-      if (shape.smooth_side) q.y = centre.y + 0.4 * (p.y - centre.y) + s * shape.vertical_m;
-      ring[k] = static_cast<std::uint32_t>(pos.size());
-      pos.push_back(q);
-      uv.push_back(uv[loop[k]]);
-      depth.push_back(static_cast<double>(r + 1));
-      side.push_back(loop_side[k] != 0.0 ? loop_side[k] : (r >= 2 ? (s >= 0 ? 1.0 : -1.0) : 0.0));
-    }
-    rings.push_back(ring);
-  }
-  const auto back = static_cast<std::uint32_t>(pos.size());
-  pos.push_back({centre.x, centre.y - 0.002, centre.z - 0.052});
-  uv.push_back(uv[13]);
-  depth.push_back(5.0);
-  side.push_back(0.0);
-  for (std::size_t r = 0; r + 1 < rings.size(); ++r) {
-    for (std::size_t k = 0; k < kLoopSize; ++k) {
-      const auto v0 = rings[r][k], v1 = rings[r][(k + 1) % kLoopSize];
-      const auto w0 = rings[r + 1][k], w1 = rings[r + 1][(k + 1) % kLoopSize];
-      tris.push_back({v1, v0, w0});
-      tris.push_back({v1, w0, w1});
-    }
-  }
-  for (std::size_t k = 0; k < kLoopSize; ++k)
-    tris.push_back({rings.back()[(k + 1) % kLoopSize], rings.back()[k], back});
-
-  // Subdivide, carrying positions, UVs, ring depth and side to the midpoints, and refining the
-  // lip lines (rings 0 and 1) as polylines.
-  auto lip_line = [&](const std::array<std::uint32_t, kLoopSize>& ring, double wanted_side) {
-    // From corner to corner through the wanted side, then ordered right (x < 0) to left.
-    std::vector<std::uint32_t> line;
-    std::size_t start = 0;
-    for (std::size_t k = 0; k < kLoopSize; ++k)
-      if (side[ring[k]] == wanted_side && side[ring[(k + kLoopSize - 1) % kLoopSize]] != wanted_side) start = k;
-    line.push_back(ring[(start + kLoopSize - 1) % kLoopSize]);
-    for (std::size_t k = start; side[ring[k % kLoopSize]] == wanted_side; ++k) line.push_back(ring[k % kLoopSize]);
-    line.push_back(ring[(start + line.size() - 1) % kLoopSize]);
-    if (pos[line.front()].x > pos[line.back()].x) std::reverse(line.begin(), line.end());
-    return line;  // with both corners
-  };
-  std::vector<std::uint32_t> up0 = lip_line(rings[0], 1.0), lo0 = lip_line(rings[0], -1.0);
-  std::vector<std::uint32_t> up1 = lip_line(rings[1], 1.0), lo1 = lip_line(rings[1], -1.0);
-  const std::uint32_t right_corner = up0.front(), left_corner = up0.back();
-
-  for (int level = 0; level < subdivision_level; ++level) {
-    const auto old_count = static_cast<std::uint32_t>(pos.size());
-    Subdivision sub = subdivide(tris, old_count);
-    std::unordered_map<std::uint64_t, std::uint32_t> mid;
-    for (std::size_t k = 0; k < sub.midpoint_parents.size(); ++k) {
-      const auto [a, b] = sub.midpoint_parents[k];
-      mid[edge_key(a, b)] = old_count + static_cast<std::uint32_t>(k);
-      pos.push_back(0.5 * (pos[a] + pos[b]));
-      uv.push_back({0.5 * (uv[a][0] + uv[b][0]), 0.5 * (uv[a][1] + uv[b][1])});
-      depth.push_back(0.5 * (depth[a] + depth[b]));
-      side.push_back(0.5 * (side[a] + side[b]));
-    }
-    for (auto* line : {&up0, &lo0, &up1, &lo1}) {
-      std::vector<std::uint32_t> refined{line->front()};
-      for (std::size_t k = 1; k < line->size(); ++k) {
-        refined.push_back(mid.at(edge_key((*line)[k - 1], (*line)[k])));
-        refined.push_back((*line)[k]);
-      }
-      *line = std::move(refined);
-    }
-    tris = std::move(sub.triangles);
-  }
+  LipLines lines{lip_line(nodes, rings[0], 1.0), lip_line(nodes, rings[0], -1.0), lip_line(nodes, rings[1], 1.0),
+                 lip_line(nodes, rings[1], -1.0)};
+  mesh.mouth_corners = {lines.upper0.front(), lines.upper0.back()};
+  subdivide_soft_nodes(nodes, lines, subdivision_level);
   auto interior = [](const std::vector<std::uint32_t>& line) {
     return std::vector<std::uint32_t>(line.begin() + 1, line.end() - 1);
   };
-  mesh.upper_lip_line = interior(up0);
-  mesh.lower_lip_line = interior(lo0);
-  mesh.upper_inner_ring = interior(up1);
-  mesh.lower_inner_ring = interior(lo1);
-  mesh.mouth_corners = {right_corner, left_corner};
+  mesh.upper_lip_line = interior(lines.upper0);
+  mesh.lower_lip_line = interior(lines.lower0);
+  mesh.upper_inner_ring = interior(lines.upper1);
+  mesh.lower_inner_ring = interior(lines.lower1);
 
-  // Jaw weights. Lip-line rings follow their side (upper lip on the skull, lower on the jaw).
-  // Skin follows the plane through the hinge axis and the mouth centre: below it the jaw, above it
-  // the skull, blended over a band 2 mm wide at the mouth that widens by half the lateral distance
-  // (cheeks stretch between the bones) and drops laterally so the upper cheeks stay on the skull.
-  const Vec3 hinge = anatomy.jaw_hinge_m;
-  const double slope = (centre.y - hinge.y) / (centre.z - hinge.z);
-  mesh.soft_node_count = static_cast<std::uint32_t>(pos.size());
-  mesh.jaw_weights.resize(pos.size());
-  for (std::size_t i = 0; i < pos.size(); ++i) {
-    const Vec3 p = pos[i];
-    if (depth[i] > 0.0) {
-      mesh.jaw_weights[i] = std::clamp(0.5 - 0.5 * side[i], 0.0, 1.0);
-      continue;
-    }
-    const double lateral = std::hypot(p.x - centre.x, std::max(0.0, centre.z - p.z));
-    const double line_y = hinge.y + slope * (p.z - hinge.z) - 0.2 * lateral;
-    const double band = 0.002 + 0.5 * lateral;
-    mesh.jaw_weights[i] = smoothstep(band, -band, p.y - line_y);
-  }
-  for (const auto id : up0) mesh.jaw_weights[id] = 0.0;
-  for (const auto id : lo0) mesh.jaw_weights[id] = 1.0;
-  mesh.jaw_weights[right_corner] = mesh.jaw_weights[left_corner] = 0.5;
-
-  mesh.rest_positions_m = std::move(pos);
-  for (const auto& t : uv) mesh.uvs.push_back({static_cast<float>(t[0]), static_cast<float>(t[1])});
-  mesh.triangles = std::move(tris);
-  mesh.ring_depth = std::move(depth);
-  for (std::size_t i = 0; i < mesh.soft_node_count; ++i)
-    mesh.parts.push_back(mesh.ring_depth[i] == 0.0   ? FacePart::skin
-                         : mesh.ring_depth[i] <= 2.0 ? FacePart::inner_lip
-                                                     : FacePart::mouth_cavity);
-
-  // Teeth: elliptic arches (x semi-axis a, z semi-axis b) whose front passes teeth_front_z at x = 0.
-  mesh.upper_arch_a_m = anatomy.arch_half_width_m;
-  mesh.upper_arch_b_m = anatomy.arch_depth_m;
-  mesh.upper_arch_centre_z_m = teeth_front_z - mesh.upper_arch_b_m;
-  mesh.upper_teeth_y_min_m = centre.y - anatomy.upper_teeth_edge_below_centre_m;
-  mesh.upper_teeth_y_max_m = mesh.upper_teeth_y_min_m + anatomy.teeth_height_m;
-  mesh.lower_arch_a_m = anatomy.arch_half_width_m - anatomy.overjet_m;
-  mesh.lower_arch_b_m = anatomy.arch_depth_m - anatomy.overjet_m;
-  mesh.lower_arch_centre_z_m = mesh.upper_arch_centre_z_m;
-  mesh.lower_teeth_y_max_m = centre.y + anatomy.lower_teeth_edge_above_centre_m;
-  mesh.lower_teeth_y_min_m = mesh.lower_teeth_y_max_m - anatomy.teeth_height_m;
-  mesh.upper_teeth_begin = mesh.soft_node_count;
-  add_arch(mesh, mesh.upper_arch_centre_z_m, mesh.upper_arch_a_m, mesh.upper_arch_b_m, anatomy.teeth_thickness_m,
-           mesh.upper_teeth_y_min_m, mesh.upper_teeth_y_max_m, FacePart::upper_teeth);
-  mesh.lower_teeth_begin = static_cast<std::uint32_t>(mesh.rest_positions_m.size());
-  add_arch(mesh, mesh.lower_arch_centre_z_m, mesh.lower_arch_a_m, mesh.lower_arch_b_m, anatomy.teeth_thickness_m,
-           mesh.lower_teeth_y_min_m, mesh.lower_teeth_y_max_m, FacePart::lower_teeth);
-  // The inner lips rest outside the teeth (by 1 mm), so the rest pose satisfies the contacts.
-  for (std::uint32_t i = 0; i < mesh.soft_node_count; ++i) {
-    if (mesh.ring_depth[i] == 0.0 || mesh.ring_depth[i] > 2.5) continue;
-    Vec3& p = mesh.rest_positions_m[i];
-    detail::push_out_of_arch(p, mesh.upper_arch_centre_z_m, mesh.upper_arch_a_m, mesh.upper_arch_b_m,
-                             mesh.upper_teeth_y_min_m, mesh.upper_teeth_y_max_m, 0.001);
-    detail::push_out_of_arch(p, mesh.lower_arch_centre_z_m, mesh.lower_arch_a_m, mesh.lower_arch_b_m,
-                             mesh.lower_teeth_y_min_m, mesh.lower_teeth_y_max_m, 0.001);
-  }
+  mesh.soft_node_count = static_cast<std::uint32_t>(nodes.pos.size());
+  assign_jaw_weights(mesh, nodes, lines);
+  store_soft_nodes(mesh, std::move(nodes));
+  add_teeth(mesh, teeth_front_z);
   mesh.tongue_begin = static_cast<std::uint32_t>(mesh.rest_positions_m.size());
   const Vec3 r = anatomy.tongue_semi_axes_m;
   mesh.tongue_centre_m = {centre.x, centre.y - anatomy.tongue_below_centre_m,

@@ -340,6 +340,81 @@ Response serve_asset(const Request& request, const std::string& path) {
                        "lipsyncd: no such page: " + path + " (the viewer is at /view?session=NAME)\n");
 }
 
+/// Where close() finds a connection's running call, for a route's CallRegistration.
+struct CallSlot {
+  std::mutex& mutex;
+  grpc::ClientContext*& call;
+  const std::atomic<bool>& closing;
+};
+
+/// /ws?session=NAME: upgrades to a WebSocket and follows the session until it ends or the viewer
+/// closes. Returns whether the connection stays open for another request (only after answering a
+/// request that is not an upgrade).
+bool serve_websocket(tcp::socket& socket, const Request& request, const QueryParameters& query, v1::LipSync::Stub& stub,
+                     const CallSlot& slot) {
+  beast::error_code error;
+  if (!websocket::is_upgrade(request)) {
+    http::write(socket, text_response(request, http::status::upgrade_required, "/ws is a WebSocket: open it as one\n"),
+                error);
+    return !error;
+  }
+  websocket::stream<tcp::socket&> ws(socket);
+  ws.set_option(websocket::stream_base::decorator(
+      [](websocket::response_type& response) { response.set(http::field::server, "lipsyncd"); }));
+  ws.accept(request, error);
+  if (error) return false;
+  grpc::ClientContext context;
+  forward_api_key(request, query, context);
+  CallRegistration registration(slot.mutex, slot.call, context, slot.closing);
+  if (!registration.admitted) {
+    ws.close(websocket::close_reason(websocket::close_code::going_away, "lipsyncd is shutting down"), error);
+    return false;
+  }
+  const auto started = std::chrono::steady_clock::now();
+  follow_session(ws, stub, query, context, slot.closing);
+  spdlog::info(
+      "viewer WebSocket end peer={} session='{}' duration_ms={}", socket.remote_endpoint(error).address().to_string(),
+      query.count("session") ? query.at("session") : "",
+      std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - started).count());
+  return false;
+}
+
+/// POST /sessions: the quick try (docs/viewer.md): pasted phoneme text animated into a new
+/// session, or with ?speak=1 the text spoken; the answer says where to watch it.
+Response serve_sessions(const Request& request, const QueryParameters& query, v1::LipSync::Stub& stub,
+                        const ModelCatalog& catalog, const CallSlot& slot) {
+  if (request.method() != http::verb::post) {
+    Response response =
+        text_response(request, http::status::method_not_allowed, "/sessions: only POST (the phoneme text)\n");
+    response.set(http::field::allow, "POST");
+    return response;
+  }
+  try {
+    const auto speak = query.find("speak");
+    const bool speaking = speak != query.end() && speak->second == "1";
+    if (speak != query.end() && !speaking && speak->second != "0") {
+      throw QuickTryError("speak: expected 1 (speak the text with espeak-ng) or 0, got '" + speak->second + "'");
+    }
+    const QuickTry plan = speaking ? QuickTry{} : plan_quick_try(query, request.body(), catalog, unix_now_us());
+    const v1::SpeakRequest spoken =
+        speaking ? plan_quick_speak(query, request.body(), unix_now_us()) : v1::SpeakRequest{};
+    grpc::ClientContext context;
+    forward_api_key(request, query, context);
+    CallRegistration registration(slot.mutex, slot.call, context, slot.closing);
+    return !registration.admitted
+               ? text_response(request, http::status::service_unavailable,
+                               error_json("UNAVAILABLE", "lipsyncd is shutting down"), "application/json")
+           : speaking ? quick_speak(request, stub, spoken, context)
+                      : quick_try(request, stub, plan, context);
+  } catch (const InputError& bad) {
+    return text_response(request, http::status::bad_request, error_json("INVALID_ARGUMENT", bad.what()),
+                         "application/json");
+  } catch (const QuickTryError& bad) {
+    return text_response(request, http::status::bad_request, error_json("INVALID_ARGUMENT", bad.what()),
+                         "application/json");
+  }
+}
+
 }  // namespace
 
 HttpViewer::HttpViewer(const std::string& host_port, std::shared_ptr<grpc::Channel> service,
@@ -422,34 +497,10 @@ void HttpViewer::serve(Connection& connection) {
       break;
     }
 
+    const CallSlot slot{connection.call_mutex, connection.call, closing_};
     if (path == "/ws") {
-      if (!websocket::is_upgrade(request)) {
-        http::write(connection.socket,
-                    text_response(request, http::status::upgrade_required, "/ws is a WebSocket: open it as one\n"),
-                    error);
-        if (error) break;
-        continue;
-      }
-      websocket::stream<tcp::socket&> ws(connection.socket);
-      ws.set_option(websocket::stream_base::decorator(
-          [](websocket::response_type& response) { response.set(http::field::server, "lipsyncd"); }));
-      ws.accept(request, error);
-      if (error) break;
-      grpc::ClientContext context;
-      forward_api_key(request, query, context);
-      CallRegistration registration(connection.call_mutex, connection.call, context, closing_);
-      if (!registration.admitted) {
-        ws.close(websocket::close_reason(websocket::close_code::going_away, "lipsyncd is shutting down"), error);
-        break;
-      }
-      const auto started = std::chrono::steady_clock::now();
-      follow_session(ws, *stub, query, context, closing_);
-      spdlog::info(
-          "viewer WebSocket end peer={} session='{}' duration_ms={}",
-          connection.socket.remote_endpoint(error).address().to_string(),
-          query.count("session") ? query.at("session") : "",
-          std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - started).count());
-      break;
+      if (!serve_websocket(connection.socket, request, query, *stub, slot)) break;
+      continue;
     }
 
     if (path == "/audio") {
@@ -459,36 +510,7 @@ void HttpViewer::serve(Connection& connection) {
 
     Response response;
     if (path == "/sessions") {
-      if (request.method() != http::verb::post) {
-        response =
-            text_response(request, http::status::method_not_allowed, "/sessions: only POST (the phoneme text)\n");
-        response.set(http::field::allow, "POST");
-      } else {
-        try {
-          const auto speak = query.find("speak");
-          const bool speaking = speak != query.end() && speak->second == "1";
-          if (speak != query.end() && !speaking && speak->second != "0") {
-            throw QuickTryError("speak: expected 1 (speak the text with espeak-ng) or 0, got '" + speak->second + "'");
-          }
-          const QuickTry plan = speaking ? QuickTry{} : plan_quick_try(query, request.body(), catalog_, unix_now_us());
-          const v1::SpeakRequest spoken =
-              speaking ? plan_quick_speak(query, request.body(), unix_now_us()) : v1::SpeakRequest{};
-          grpc::ClientContext context;
-          forward_api_key(request, query, context);
-          CallRegistration registration(connection.call_mutex, connection.call, context, closing_);
-          response = !registration.admitted
-                         ? text_response(request, http::status::service_unavailable,
-                                         error_json("UNAVAILABLE", "lipsyncd is shutting down"), "application/json")
-                     : speaking ? quick_speak(request, *stub, spoken, context)
-                                : quick_try(request, *stub, plan, context);
-        } catch (const InputError& bad) {
-          response = text_response(request, http::status::bad_request, error_json("INVALID_ARGUMENT", bad.what()),
-                                   "application/json");
-        } catch (const QuickTryError& bad) {
-          response = text_response(request, http::status::bad_request, error_json("INVALID_ARGUMENT", bad.what()),
-                                   "application/json");
-        }
-      }
+      response = serve_sessions(request, query, *stub, catalog_, slot);
     } else {
       response = serve_asset(request, path);
     }

@@ -1,0 +1,146 @@
+// The supernodal factor's construction from Eigen's L and its two substitutions; the layout and
+// why it is fast are in supernodal_factor.hpp.
+#include "face/supernodal_factor.hpp"
+
+#include <algorithm>
+#include <cstring>
+
+namespace lipsync::face::detail {
+
+namespace {
+
+// Four consecutive values (unaligned) and one of them in all lanes (shufps).
+Float4 load4(const float* p) {
+  Float4 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+template <int lane>
+Float4 splat(Float4 v) {
+  return Float4{v[lane], v[lane], v[lane], v[lane]};
+}
+
+// Σ o[c] · zs[c], c < w.
+Float4 dot(const float* o, const Float4* zs, int w) {
+  Float4 a = {0, 0, 0, 0}, b = {0, 0, 0, 0};
+  int c = 0;
+  for (; c + 4 <= w; c += 4) {
+    const Float4 v = load4(o + c);
+    a += splat<0>(v) * zs[c];
+    b += splat<1>(v) * zs[c + 1];
+    a += splat<2>(v) * zs[c + 2];
+    b += splat<3>(v) * zs[c + 3];
+  }
+  for (; c < w; ++c) a += o[c] * zs[c];
+  return a + b;
+}
+
+}  // namespace
+
+void SupernodalFactor::build(std::size_t n, const int* outer, const int* inner, const double* l) {
+  const bool small = n <= 65536;
+  inverse_diagonal.resize(n);
+  for (std::size_t j = 0; j < n; ++j) inverse_diagonal[j] = static_cast<float>(1.0 / l[outer[j]]);
+  // Column j + 1 continues j's supernode when struct(j) = {j + 1} ∪ struct(j + 1).
+  auto continues = [&](std::size_t j) {
+    const int b0 = outer[j] + 1, e0 = outer[j + 1], b1 = outer[j + 1] + 1, e1 = outer[j + 2];
+    if (e0 - b0 != e1 - b1 + 1 || inner[b0] != static_cast<int>(j + 1)) return false;
+    return std::equal(inner + b0 + 1, inner + e0, inner + b1);
+  };
+  for (std::size_t c0 = 0; c0 < n;) {
+    std::size_t w = 1;
+    while (c0 + w < n && continues(c0 + w - 1)) ++w;
+    Supernode s{};
+    s.first_column = static_cast<int>(c0);
+    s.width = static_cast<int>(w);
+    s.diagonal_offset = static_cast<int>(value.size());
+    for (std::size_t c2 = 1; c2 < w; ++c2)
+      for (std::size_t c = 0; c < c2; ++c) value.push_back(static_cast<float>(l[outer[c0 + c] + (c2 - c)]));
+    // Rows below: those of the last column, after its diagonal.
+    const int last = outer[c0 + w - 1];
+    s.row_begin = static_cast<int>(small ? row16.size() : row32.size());
+    s.block_offset = static_cast<int>(value.size());
+    for (int p = last + 1; p < outer[c0 + w]; ++p) {
+      if (small)
+        row16.push_back(static_cast<std::uint16_t>(inner[p]));
+      else
+        row32.push_back(static_cast<std::uint32_t>(inner[p]));
+      const int k = p - (last + 1);  // position among the rows below
+      for (std::size_t c = 0; c < w; ++c)
+        value.push_back(static_cast<float>(l[outer[c0 + c] + static_cast<int>(w - c) + k]));
+    }
+    s.row_end = static_cast<int>(small ? row16.size() : row32.size());
+    supernodes.push_back(s);
+    c0 += w;
+  }
+}
+
+template <typename Index>
+void SupernodalFactor::solve(const Index* row, Float4* z) const {
+  const float* inv = inverse_diagonal.data();
+  for (const Supernode& s : supernodes) {  // L y = b
+    Float4* zs = z + s.first_column;
+    const int w = s.width;
+    const float* d = value.data() + s.diagonal_offset;
+    for (int c = 0; c < w; d += c, ++c) zs[c] = (zs[c] - dot(d, zs, c)) * inv[s.first_column + c];
+    const float* o = value.data() + s.block_offset;
+    if (w == 1) {  // a single column: a plain scatter
+      const Float4 z0 = zs[0];
+      for (int k = s.row_begin; k < s.row_end; ++k) z[row[k]] -= *o++ * z0;
+      continue;
+    }
+    for (int k = s.row_begin; k < s.row_end; ++k, o += w) z[row[k]] -= dot(o, zs, w);
+  }
+  for (auto it = supernodes.rbegin(); it != supernodes.rend(); ++it) {  // Lᵀ x = y
+    const Supernode& s = *it;
+    Float4* zs = z + s.first_column;
+    const int w = s.width;
+    const float* block = value.data() + s.block_offset;
+    int c = 0;
+    for (; c + 4 <= w; c += 4) {
+      Float4 a0 = {0, 0, 0, 0}, a1 = a0, a2 = a0, a3 = a0;
+      const float* o = block + c;
+      for (int k = s.row_begin; k < s.row_end; ++k, o += w) {
+        const Float4 zr = z[row[k]], v = load4(o);
+        a0 += splat<0>(v) * zr;
+        a1 += splat<1>(v) * zr;
+        a2 += splat<2>(v) * zr;
+        a3 += splat<3>(v) * zr;
+      }
+      zs[c] -= a0;
+      zs[c + 1] -= a1;
+      zs[c + 2] -= a2;
+      zs[c + 3] -= a3;
+    }
+    if (c < w) {  // the last one to three columns
+      Float4 a0 = {0, 0, 0, 0}, a1 = a0, a2 = a0;
+      const float* o = block + c;
+      const int rest = w - c;
+      for (int k = s.row_begin; k < s.row_end; ++k, o += w) {
+        const Float4 zr = z[row[k]];
+        a0 += o[0] * zr;
+        if (rest > 1) a1 += o[1] * zr;
+        if (rest > 2) a2 += o[2] * zr;
+      }
+      zs[c] -= a0;
+      if (rest > 1) zs[c + 1] -= a1;
+      if (rest > 2) zs[c + 2] -= a2;
+    }
+    // The diagonal block, by rows from the last: finish unknown c, then remove it from those left of it.
+    for (c = w - 1; c >= 0; --c) {
+      const Float4 zc = zs[c] * inv[s.first_column + c];
+      zs[c] = zc;
+      const float* d = value.data() + s.diagonal_offset + c * (c - 1) / 2;
+      for (int c2 = 0; c2 < c; ++c2) zs[c2] -= d[c2] * zc;
+    }
+  }
+}
+
+void SupernodalFactor::solve_in_place(Float4* z) const {
+  if (row32.empty())
+    solve(row16.data(), z);
+  else
+    solve(row32.data(), z);
+}
+
+}  // namespace lipsync::face::detail
