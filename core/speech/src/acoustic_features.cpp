@@ -19,7 +19,12 @@ constexpr double kLowestHz = 100.0;
 constexpr double kHighestHz = 7600.0;
 constexpr double kPreEmphasis = 0.97;
 constexpr int kDeltaSpan = 2;
-constexpr bool kNormaliseVariance = false;
+// Weights on the mean-normalised features (variances are kept: normalising them made a
+// pause's frames look like every other's). The deltas, the spectrum's movement, mark phone
+// boundaries best across voices, the level c0 least; chosen on the Festival corpus of
+// tools/speech/measure_language_alignment.py (docs/languages.md).
+constexpr double kLevelWeight = 0.6;
+constexpr double kDeltaWeight = 3.0;
 // Floor of a band's power (relative to full scale squared), so digital silence has a finite log.
 constexpr double kPowerFloor = 1e-10;
 // How far below the utterance's loudest band power every band is floored, dB.
@@ -143,19 +148,15 @@ FeatureFrames mfcc_features(const PcmAudio& audio) {
       features[k * dims + kCepstra + c] = delta / denominator;
     }
   }
-  // Cepstral mean and variance normalisation over the utterance.
+  // Cepstral mean normalisation over the utterance, then the weights.
   result.values.resize(frames * dims);
   for (int d = 0; d < dims; ++d) {
     double mean = 0.0;
     for (std::size_t k = 0; k < frames; ++k) mean += features[k * dims + d];
     mean /= static_cast<double>(frames);
-    double variance = 0.0;
+    const double weight = d == 0 ? kLevelWeight : d >= kCepstra ? kDeltaWeight : 1.0;
     for (std::size_t k = 0; k < frames; ++k)
-      variance += (features[k * dims + d] - mean) * (features[k * dims + d] - mean);
-    const double scale =
-        kNormaliseVariance ? 1.0 / std::sqrt(std::max(variance / static_cast<double>(frames), 1e-12)) : 1.0;
-    for (std::size_t k = 0; k < frames; ++k)
-      result.values[k * dims + d] = static_cast<float>((features[k * dims + d] - mean) * scale);
+      result.values[k * dims + d] = static_cast<float>((features[k * dims + d] - mean) * weight);
   }
   return result;
 }

@@ -307,6 +307,19 @@ Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view sour
     interval.start_us += kSynthesisPaddingUs;
     interval.end_us += kSynthesisPaddingUs;
   }
+  // The padding is pause: its own intervals (merged with a pause espeak-ng begins or ends with).
+  std::vector<LabeledInterval>& padded_phones = synthesis_phones.intervals;
+  if (padded_phones.front().label.empty()) {
+    padded_phones.front().start_us = 0;
+  } else {
+    padded_phones.insert(padded_phones.begin(), LabeledInterval{"", 0, kSynthesisPaddingUs, 0});
+  }
+  const std::int64_t spoken_end_us = spoken.duration_us();
+  if (padded_phones.back().label.empty()) {
+    padded_phones.back().end_us = spoken_end_us;
+  } else {
+    padded_phones.push_back(LabeledInterval{"", padded_phones.back().end_us, spoken_end_us, 0});
+  }
   move_stop_starts_to_closures(spoken, synthesis_phones);
 
   const FeatureFrames synthesis_frames = mfcc_features(spoken);

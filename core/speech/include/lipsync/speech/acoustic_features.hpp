@@ -5,8 +5,9 @@
 // Each frame analyses 25 ms of 16 kHz audio (pre-emphasis 0.97, Hamming window,
 // 512-point FFT), pools the power spectrum in 26 triangular mel bands between
 // 100 and 7600 Hz, and takes the DCT-II of the bands' log power: c0 … c12. The
-// deltas are the usual regression over ±2 frames. Cepstral mean and variance
-// normalisation (every dimension to mean 0, variance 1 over the utterance)
+// deltas are the usual regression over ±2 frames. Every band is floored 60 dB
+// under the utterance's loudest, so digital silence and a quiet room look alike.
+// Cepstral mean normalisation (every dimension to mean 0 over the utterance)
 // removes what a microphone, a room or a synthesiser's voice adds to every frame
 // alike (a fixed filter is a constant offset of the cepstrum), so a recording and
 // espeak-ng's rendering of the same transcript can be compared frame by frame.
@@ -38,8 +39,9 @@ struct FeatureFrames {
 };
 
 /// 13 MFCCs and their 13 deltas per frame (26 dimensions) of `audio`, which must be
-/// at kFeatureRateHz (resample() first); every dimension normalised to mean 0 and
-/// variance 1 over the frames. Audio shorter than one window gives no frames.
+/// at kFeatureRateHz (resample() first); every dimension normalised to mean 0 over
+/// the frames, then c0 weighted 0.6 and the deltas 3 (for distances between frames). Audio shorter than one window
+/// gives no frames.
 FeatureFrames mfcc_features(const PcmAudio& audio);
 
 /// The centre of frame `k`, µs.

@@ -36,6 +36,14 @@
 
 namespace lipsync::speech {
 
+/// The closure refiner's settings after a warp: its boundaries are less exact than
+/// PocketSphinx's, so the energy steps are looked for farther from them.
+inline ClosureRefinerOptions dtw_refiner_options() {
+  ClosureRefinerOptions options;
+  options.search_us = 50'000;
+  return options;
+}
+
 struct DtwAlignmentOptions {
   /// What the recording says (UTF-8, in the voice's language).
   std::string transcript;
@@ -51,7 +59,7 @@ struct DtwAlignmentOptions {
   /// Move the lip phones' boundaries to the energy steps (of the synthesis before the
   /// warp and of the recording after it).
   bool refine_closures = true;
-  ClosureRefinerOptions refiner;
+  ClosureRefinerOptions refiner = dtw_refiner_options();
 };
 
 /// A warp between frame sequences `a` (rows) and `b` (columns): for each frame of
