@@ -210,6 +210,14 @@ WarpPath warp(const FeatureFrames& a, const FeatureFrames& b, std::size_t band_f
     std::swap(previous, current);
   }
   path.mean_distance = previous[columns - 1] / static_cast<double>(rows + columns);
+  // The distance of unrelated frames: every frame of a against b's frames at a fixed stride.
+  double sum = 0.0;
+  std::size_t pairs = 0;
+  const std::size_t stride = std::max<std::size_t>(1, columns / 64);
+  for (std::size_t i = 0; i < rows; ++i) {
+    for (std::size_t j = i % stride; j < columns; j += stride, ++pairs) sum += frame_distance(a, i, b, j);
+  }
+  path.unrelated_distance = sum / static_cast<double>(pairs);
 
   path.first.assign(rows, 0);
   path.last.assign(rows, 0);
@@ -255,7 +263,7 @@ Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view sour
     throw InputError(source, 0, "the transcript is empty: alignment with --voice " + voice + " needs the words spoken");
   }
   const double duration_s = double(input.samples.size()) / input.sample_rate_hz;
-  char text[200];
+  char text[400];
   if (duration_s > options.max_duration_s) {
     std::snprintf(text, sizeof text,
                   "%.1f s of audio is longer than the %.0f s an alignment accepts; split it at pauses", duration_s,
@@ -327,15 +335,19 @@ Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view sour
   const auto band_frames = static_cast<std::size_t>(std::max(1.0, options.band_s * 1e6 / kFeatureHopUs));
   const WarpPath path = warp(synthesis_frames, recording_frames, band_frames, speech_frames(synthesis_frames),
                              speech_frames(recording_frames));
-  if (path.mean_distance > options.max_mean_distance) {
+  if (path.mean_distance > options.max_distance_ratio * path.unrelated_distance) {
     std::snprintf(text, sizeof text,
-                  "the recording does not match the transcript as espeak-ng voice '%s' speaks it (mean distance "
-                  "%.2f along the best warp, at most %.2f accepted): is it the transcript, in that language?",
-                  voice.c_str(), path.mean_distance, options.max_mean_distance);
+                  "the recording does not match the transcript as espeak-ng voice '%s' speaks it (the best warp's "
+                  "frames are %.0f %% as far apart as unrelated frames, at most %.0f %% accepted): is it speech, "
+                  "saying the transcript, in that voice's language?",
+                  voice.c_str(), 100.0 * path.mean_distance / path.unrelated_distance,
+                  100.0 * options.max_distance_ratio);
     throw InputError(source, 0, text);
   }
-  std::snprintf(text, sizeof text, "aligned against espeak-ng voice '%s' (mean distance %.2f along the warp)",
-                voice.c_str(), path.mean_distance);
+  std::snprintf(text, sizeof text,
+                "aligned against espeak-ng voice '%s' (mean distance along the warp %.2f, %.0f %% of unrelated "
+                "frames)",
+                voice.c_str(), path.mean_distance, 100.0 * path.mean_distance / path.unrelated_distance);
   result.notes.push_back(text);
 
   // Carry every boundary across, then keep the phonemes in order and at least kMinPhoneUs long.
