@@ -11,7 +11,13 @@ its error is |aligned start - Festival start|. A bilabial closure (/p b m/ match
 /p b m/) counts as within 30 ms when the start is.
 
 Usage: measure_language_alignment.py LIPSYNC_BINARY OUT_DIR [--voices it,ca,...] [--markdown]
-Also makes the corpus of tests/data/languages (--corpus DIR: the WAVs and Festival's segments).
+       measure_language_alignment.py LIPSYNC_BINARY OUT_DIR --corpus tests/data/recorded_languages
+The second form (re)makes the test corpus: CORPUS_ITEMS spoken by Festival (NAME.wav), their
+transcripts (NAME.txt, first line the espeak-ng voice) and NAME.truth.tsv, one line per
+Festival segment the scoring matches: Festival's label and start (s), the index and label
+of the aligned phone it is matched to (in the 'phones' tier, pauses included: espeak-ng's
+phoneme sequence for a text does not depend on the recording), and its kind, a sum of 1 (its
+start is a scored boundary: the phone before is matched too) and 2 (a bilabial closure). tests/languages/recorded_languages_test.cpp reads them.
 """
 import argparse
 import json
@@ -204,6 +210,50 @@ def boundary_errors(truth, aligned, english_espeak):
     return errors, bilabial
 
 
+# The test corpus: (voice code, sentence index) of VOICES.
+CORPUS_ITEMS = [("it", 3), ("cs", 1), ("ca", 1)]
+
+
+def scored_pairs(truth, aligned, english_espeak=False):
+    """(truth index, aligned index, kind) as boundary_errors scores them; indices into the full lists."""
+    t_index = [k for k, s in enumerate(truth) if s[0] not in PAUSES]
+    a_index = [k for k, s in enumerate(aligned) if s[0] not in PAUSES]
+    a = [phone_key(truth[k][0], True) for k in t_index]
+    b = [phone_key(aligned[k][0], False, english_espeak) for k in a_index]
+    result, previous = [], None
+    for i, j in needleman_wunsch(a, b):
+        consecutive = previous == (i - 1, j - 1)
+        previous = (i, j)
+        if match_score(a[i], b[j]) < 0:
+            continue
+        bilabial = a[i] in ("p", "b", "m") and b[j] in ("p", "b", "m")
+        if consecutive or bilabial:
+            result.append((t_index[i], a_index[j], (1 if consecutive else 0) + (2 if bilabial else 0)))
+    return result
+
+
+def make_corpus(lipsync, work_dir, corpus_dir):
+    os.makedirs(corpus_dir, exist_ok=True)
+    for code, k in CORPUS_ITEMS:
+        festival_voice, espeak_voice, sentences = VOICES[code]
+        sentence = sentences[k]
+        name = f"{code}_{k}"
+        base = os.path.join(corpus_dir, name)
+        speak_with_festival(festival_voice, sentence, base + ".wav", os.path.join(work_dir, name + ".corpus.segs"))
+        truth = read_festival_segs(os.path.join(work_dir, name + ".corpus.segs"))
+        grid = os.path.join(work_dir, name + ".corpus.TextGrid")
+        subprocess.run([lipsync, "align", base + ".wav", "--text", sentence, "--voice", espeak_voice, "-o", grid],
+                       check=True)
+        aligned = read_textgrid_phones(grid)
+        with open(base + ".txt", "w", encoding="utf-8") as out:
+            out.write(f"{espeak_voice}\n{sentence}\n")
+        with open(base + ".truth.tsv", "w", encoding="utf-8") as out:
+            out.write("# festival_label\tfestival_start_s\taligned_index\taligned_label\tkind\n")
+            for i, j, kind in scored_pairs(truth, aligned):
+                out.write(f"{truth[i][0]}\t{truth[i][1]:.4f}\t{j}\t{aligned[j][0]}\t{kind}\n")
+        print(f"{name}: {len(truth)} Festival segments, {len(aligned)} aligned phones", file=sys.stderr)
+
+
 def percentile(values, q):
     ordered = sorted(values)
     return ordered[min(len(ordered) - 1, int(round(q * (len(ordered) - 1))))]
@@ -215,9 +265,12 @@ def main():
     parser.add_argument("out_dir")
     parser.add_argument("--voices", default=",".join(VOICES))
     parser.add_argument("--markdown", action="store_true", help="print the table for docs/languages.md")
-    parser.add_argument("--english-pocketsphinx", action="store_true", default=True)
+    parser.add_argument("--corpus", help="make the test corpus in this directory instead")
     args = parser.parse_args()
     os.makedirs(args.out_dir, exist_ok=True)
+    if args.corpus:
+        make_corpus(args.lipsync, args.out_dir, args.corpus)
+        return
     rows = []
     for code in args.voices.split(","):
         festival_voice, espeak_voice, sentences = VOICES[code]
