@@ -1,6 +1,7 @@
 // `lipsync align SPEECH.wav`: recorded speech in, a Praat TextGrid of its
 // phones (and words, with a transcript) out, which `lipsync render` and other
-// tools read. The alignment is lipsync::speech::align_speech (PocketSphinx).
+// tools read. The alignment is lipsync::speech::align_speech (PocketSphinx, English)
+// or align_speech_to_synthesis (any espeak-ng voice, dtw_aligner.hpp).
 #include <iostream>
 
 #include "arguments.hpp"
@@ -18,12 +19,19 @@ constexpr OptionSpec kOptions[] = {
      "stdout"},
     kTextOption,
     kTextFileOption,
+    kRecordingVoiceOption,
+    kAlignerOption,
 };
 
-constexpr std::string_view kUsage = "lipsync align SPEECH.wav [--text WORDS | --text-file FILE] [options]";
+constexpr std::string_view kUsage =
+    "lipsync align SPEECH.wav [--text WORDS | --text-file FILE] [--voice NAME] [options]";
 constexpr std::string_view kDescription =
     "Aligns recorded speech with PocketSphinx and writes a Praat TextGrid with the tiers\n"
     "'phones' (ARPAbet, empty labels for pauses) and, with a transcript, 'words'.\n"
+    "With a non-English --voice (or --aligner dtw) the recording is aligned instead against\n"
+    "espeak-ng's rendering of the transcript in that voice (MFCC frames, dynamic time\n"
+    "warping; docs/languages.md): 'phones' then has espeak-ng's phonemes (IPA), no 'words',\n"
+    "and up to 600 s of audio are accepted.\n"
     "With --text or --text-file the words are force-aligned; without, the phones are\n"
     "recognised freely (less exact). Either way the starts and ends of /p b m f v/ then\n"
     "move to where the sound shows the lips closing and opening (the steps of its\n"
@@ -42,11 +50,11 @@ int run_align(std::span<const std::string_view> args) {
   }
   const std::string& input = arguments.positional().front();
   const std::string output = arguments.value("output").value_or("-");
-  const std::optional<std::string> transcript = transcript_option(arguments);
+  const RecordingAlignment request = recording_alignment_options(arguments);
 
   const std::string content = read_file(input);
   const std::string source = input == "-" ? std::string(kStdinName) : input;
-  const speech::Alignment alignment = align_wav(content, source, transcript);
+  const speech::Alignment alignment = align_wav(content, source, request);
   const std::int64_t duration_us = alignment.phones.intervals.back().end_us;
   write_to_output(output, "TextGrid", [&](std::ostream& out) { speech::write_textgrid(out, alignment, duration_us); });
   return 0;

@@ -65,6 +65,8 @@ constexpr OptionSpec kOptions[] = {
     kStillAtOption,
     kTextOption,
     kTextFileOption,
+    kRecordingVoiceOption,
+    kAlignerOption,
 };
 
 // ffmpeg as a child process: raw RGB24 frames on its stdin, its output a temporary file that
@@ -199,7 +201,8 @@ constexpr std::string_view kDescription =
     "animation track: one frame per grid step at --fps, plus key frames at the closure\n"
     "and release of /p b m f v/ and in phonemes too short for the grid.\n"
     "A WAV INPUT is recorded speech: it is aligned to --text / --text-file with\n"
-    "PocketSphinx (phones are recognised without them, less exactly), and it is the\n"
+    "PocketSphinx (phones are recognised without them, less exactly), or, with a\n"
+    "non-English --voice, against espeak-ng's rendering of the transcript; it is the\n"
     "sound of --video. With audio the track covers it to its end.\n"
     "With --mesh, --video or --still it also simulates the physics face on the\n"
     "uniform grid (docs/face.md); the track is then written only if -o is given.";
@@ -377,7 +380,8 @@ int run_render(std::span<const std::string_view> args) {
   if (input == "-" && arguments.value("model") == "-") {
     throw UsageError("--model: '-' and INPUT '-' cannot both read standard input");
   }
-  const std::optional<std::string> transcript = transcript_option(arguments);
+  const RecordingAlignment recording = recording_alignment_options(arguments);
+  const std::optional<std::string>& transcript = recording.transcript;
   OutputRequest out = parse_output_request(arguments);
 
   const std::string content = read_file(input);
@@ -386,12 +390,14 @@ int run_render(std::span<const std::string_view> args) {
   if (speech::looks_like_wav(content)) {
     // Recorded speech: aligned (or its phones recognised), and it is the video's sound.
     if (input_format) throw UsageError("--input-format: INPUT '" + source + "' is a WAV file, not a phoneme file");
-    const speech::Alignment alignment = align_wav(content, source, transcript);
+    const speech::Alignment alignment = align_wav(content, source, recording);
     utterance = alignment.phones;
     out.audio_end_us = speech::wav_layout_and_duration_us(content, source).second;
     if (out.video_path && !out.audio_path && input != "-") out.audio_path = input;
   } else {
     if (transcript) throw UsageError("--text and --text-file need a WAV INPUT, and '" + source + "' is not one");
+    if (arguments.value("voice") || arguments.value("aligner"))
+      throw UsageError("--voice and --aligner need a WAV INPUT, and '" + source + "' is not one");
     const InputFormat chosen_format = input_format ? *input_format : detect_input_format(source, content);
     utterance = parse_utterance(content, chosen_format, source, parse_options);
     if (out.audio_path) out.audio_end_us = wav_duration_if_wav(*out.audio_path);

@@ -1,0 +1,95 @@
+// Audio in, any language: a recording aligned against espeak-ng's own rendering of
+// its transcript, the way aeneas aligns words, here at phoneme level.
+//
+// PocketSphinx knows English only. For any espeak-ng voice the transcript is
+// spoken by espeak-ng (synthesizer.hpp), whose phonemes come with exact times on
+// its own audio. Both audios become MFCC frames every 10 ms
+// (acoustic_features.hpp), and dynamic time warping finds the cheapest monotone
+// path through their frame-to-frame distances (Euclidean, steps →, ↓ and ↘, the
+// diagonal counted twice so that no shape of path is favoured). Each phoneme
+// boundary of the synthesis is carried along the path to the recording: a
+// boundary between synthesis frames i−1 and i lands between the last recording
+// frame matched to i−1 and the first matched to i, interpolated within the frame.
+//
+// espeak-ng reports a stop at its burst, so before the warp the lip phones' starts
+// are moved to the closures in espeak-ng's own audio (closure_refiner.hpp), and
+// after it the lip phones' boundaries move to the recording's energy steps, as
+// with PocketSphinx.
+//
+// Bounds: the path is searched in a band around the line from the start of
+// speech in one audio to the start in the other, and from end to end (leading
+// and trailing pauses matched to each other), `band_s` wide on each side of it,
+// so time and memory grow with length × band (a 10-minute file on one core of this
+// machine: 29 s, 70 % of it resampling espeak-ng's 22 050 Hz audio, and 210 MB at the
+// peak, 60 MB of it the path's steps). A recording that does not say the transcript in that
+// voice's language shows as a mean distance along the path near that of unrelated
+// frames, and is an error rather than a guess.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "lipsync/speech/acoustic_features.hpp"
+#include "lipsync/speech/aligner.hpp"
+#include "lipsync/speech/synthesizer.hpp"
+
+namespace lipsync::speech {
+
+/// The closure refiner's settings after a warp: its boundaries are less exact than
+/// PocketSphinx's, so the energy steps are looked for farther from them.
+inline ClosureRefinerOptions dtw_refiner_options() {
+  ClosureRefinerOptions options;
+  options.search_us = 50'000;
+  return options;
+}
+
+struct DtwAlignmentOptions {
+  /// What the recording says (UTF-8, in the voice's language).
+  std::string transcript;
+  /// The voice that renders the transcript; its rate should be close to the speaker's.
+  SynthesisOptions synthesis;
+  /// Longest audio accepted, seconds.
+  double max_duration_s = 600;
+  /// How far the path may stray from the proportional line, seconds, each side.
+  double band_s = 5.0;
+  /// The largest mean distance of the frames the warp matches, as a share of the mean distance of
+  /// unrelated frames (the recording's against the synthesis's across the whole matrix), accepted
+  /// as the same words. On Festival's voices the right transcript gives 0.40 to 0.65, white noise
+  /// 0.71; another sentence of similar length in the same language gives 0.50 to 0.67 and is
+  /// not always refused.
+  double max_distance_ratio = 0.68;
+  /// Move the lip phones' boundaries to the energy steps (of the synthesis before the
+  /// warp and of the recording after it).
+  bool refine_closures = true;
+  ClosureRefinerOptions refiner = dtw_refiner_options();
+};
+
+/// A warp between frame sequences `a` (rows) and `b` (columns): for each frame of
+/// `a`, the first and last frame of `b` the path matches to it.
+struct WarpPath {
+  std::vector<std::size_t> first, last;
+  double mean_distance = 0;       ///< mean frame distance along the path
+  double unrelated_distance = 0;  ///< mean distance of frames of a to frames of b across the whole matrix
+};
+
+/// The cheapest monotone path from (0, 0) to (a.size()−1, b.size()−1) within
+/// `band_frames` of the line through (0, 0), (a_speech_start, b_speech_start),
+/// (a_speech_end, b_speech_end), (a.size()−1, b.size()−1). Needs frames in both.
+WarpPath warp(const FeatureFrames& a, const FeatureFrames& b, std::size_t band_frames,
+              std::pair<std::size_t, std::size_t> a_speech, std::pair<std::size_t, std::size_t> b_speech);
+
+/// The time in b of the time `a_us` in a, µs (frame centres interpolated).
+std::int64_t carry_time_us(const WarpPath& path, std::int64_t a_us);
+
+/// The frames from the first to the last whose level is within 35 dB of the loudest (the speech).
+std::pair<std::size_t, std::size_t> speech_frames(const FeatureFrames& frames);
+
+/// Aligns `audio` (any rate) against options.synthesis's rendering of options.transcript:
+/// phones in phone_set_for_voice(voice) ("" for pauses), tiling [0, audio end]; no words.
+/// `source` names the audio in errors. Throws InputError: an empty transcript, an unknown
+/// voice, silent or too long audio, a recording that does not match the transcript.
+Alignment align_speech_to_synthesis(const PcmAudio& audio, std::string_view source, const DtwAlignmentOptions& options);
+
+}  // namespace lipsync::speech

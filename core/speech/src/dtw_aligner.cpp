@@ -1,0 +1,377 @@
+// Alignment of a recording against espeak-ng's rendering of its transcript by
+// dynamic time warping of MFCC frames (lipsync/speech/dtw_aligner.hpp).
+#include "lipsync/speech/dtw_aligner.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "lipsync/error.hpp"
+
+namespace lipsync::speech {
+namespace {
+
+// Audio whose loudest 20 ms stays below this level holds no speech to align.
+constexpr double kSilenceDbfs = -50.0;
+// Frames this far below the loudest are taken as pause when finding where speech starts and ends.
+constexpr double kSpeechRangeDb = 35.0;
+// The shortest a carried phoneme may become, µs.
+constexpr std::int64_t kMinPhoneUs = 1'000;
+// Silence added before and after espeak-ng's audio (which starts speaking at once), so the
+// recording's leading and trailing pauses have pause to match, µs.
+constexpr std::int64_t kSynthesisPaddingUs = 300'000;
+// How far before espeak-ng's start of a stop its closure is looked for, µs.
+constexpr std::int64_t kStopClosureSearchUs = 150'000;
+// The smallest fall of the formant band's level taken as a stop's closure, dB.
+constexpr double kStopClosureStepDb = 10.0;
+// The recording may be this many times longer or shorter than the synthesis.
+constexpr double kMostDurationRatio = 4.0;
+
+enum Step : std::uint8_t { kDiagonal, kDown, kRight };
+
+double frame_distance(const FeatureFrames& a, std::size_t i, const FeatureFrames& b, std::size_t j) {
+  const float* x = a.frame(i);
+  const float* y = b.frame(j);
+  double sum = 0.0;
+  for (int d = 0; d < a.dimensions; ++d) {
+    const double difference = x[d] - y[d];
+    sum += difference * difference;
+  }
+  return std::sqrt(sum);
+}
+
+// The column of the band's centre line at row i: piecewise linear through the corners and
+// the starts and ends of speech.
+double centre_column(std::size_t i, const std::size_t (&rows)[4], const std::size_t (&columns)[4]) {
+  for (int piece = 0; piece < 3; ++piece) {
+    if (i <= rows[piece + 1] || piece == 2) {
+      const double span = static_cast<double>(rows[piece + 1]) - static_cast<double>(rows[piece]);
+      const double t = span <= 0 ? 1.0 : (static_cast<double>(i) - static_cast<double>(rows[piece])) / span;
+      return static_cast<double>(columns[piece]) +
+             t * (static_cast<double>(columns[piece + 1]) - static_cast<double>(columns[piece]));
+    }
+  }
+  return static_cast<double>(columns[3]);
+}
+
+// Level of each 20 ms window, dBFS: the loudest says whether there is speech at all.
+double loudest_window_dbfs(const PcmAudio& audio) {
+  const std::size_t window = std::max<std::size_t>(1, static_cast<std::size_t>(audio.sample_rate_hz / 50));
+  double loudest = -200.0;
+  for (std::size_t start = 0; start < audio.samples.size(); start += window) {
+    const std::size_t end = std::min(audio.samples.size(), start + window);
+    double sum = 0.0;
+    for (std::size_t i = start; i < end; ++i) sum += double(audio.samples[i]) * audio.samples[i];
+    const double mean = sum / double(end - start) / (32768.0 * 32768.0);
+    if (mean > 0) loudest = std::max(loudest, 10.0 * std::log10(mean));
+  }
+  return loudest;
+}
+
+bool has_word_character(std::string_view text) {
+  for (const char c : text) {
+    const auto byte = static_cast<unsigned char>(c);
+    if (byte >= 0x80 || std::isalnum(byte)) return true;
+  }
+  return false;
+}
+
+// The ARPAbet lip phone a label of espeak-ng (mnemonic or IPA) stands for, for the closure
+// refiner: p b m f v, alone or with length marks and diacritics ("pʰ", "mː", "b:"); else "X".
+std::string lip_phone_for_refiner(const std::string& label) {
+  if (label.empty()) return label;
+  const char first = label.front();
+  if (first != 'p' && first != 'b' && first != 'm' && first != 'f' && first != 'v') return "X";
+  if (label.size() > 1 && std::isalpha(static_cast<unsigned char>(label[1]))) return "X";  // "pf", "ts"…
+  return std::string(1, static_cast<char>(std::toupper(static_cast<unsigned char>(first))));
+}
+
+// Runs the closure refiner on `phones` (labels of espeak-ng) through their ARPAbet stand-ins.
+std::vector<RefinedBoundary> refine_lip_phones(const PcmAudio& audio, LabeledUtterance& phones,
+                                               const ClosureRefinerOptions& options) {
+  LabeledUtterance stand_in = phones;
+  for (LabeledInterval& interval : stand_in.intervals) interval.label = lip_phone_for_refiner(interval.label);
+  std::vector<RefinedBoundary> refined = refine_closures(audio, stand_in, options);
+  for (std::size_t i = 0; i < phones.intervals.size(); ++i) {
+    phones.intervals[i].start_us = stand_in.intervals[i].start_us;
+    phones.intervals[i].end_us = stand_in.intervals[i].end_us;
+  }
+  return refined;
+}
+
+// A label of espeak-ng (mnemonic or IPA) that begins with an oral closure: a plosive or an
+// affricate (p, b, t, d, k, g, c, ɟ, q, ʈ, ɖ with any marks: "tʃ", "kʰ", "t#", "dZ").
+bool starts_with_closure(const std::string& label) {
+  if (label.empty()) return false;
+  if (std::string_view("pbtdkgcq").find(label.front()) != std::string_view::npos) return true;
+  return label.starts_with("ɟ") || label.starts_with("ʈ") || label.starts_with("ɖ");
+}
+
+// espeak-ng starts a stop's phoneme event at its burst, the closure's silence still counted in
+// the phoneme before. Each stop's start moves back to the steepest fall of the formant band's
+// level within kStopClosureSearchUs before it (the closure), when the fall is clear, so that
+// what is carried to the recording is where the stop begins, as in a recording's labels.
+void move_stop_starts_to_closures(const PcmAudio& audio, LabeledUtterance& phones) {
+  const std::vector<double> level_db = formant_band_levels_db(audio, 10'000, 1'000);  // window [t, t+10 ms)
+  if (level_db.size() < 20) return;
+  std::vector<LabeledInterval>& intervals = phones.intervals;
+  for (std::size_t k = 1; k < intervals.size(); ++k) {
+    if (!starts_with_closure(intervals[k].label)) continue;
+    const std::int64_t start_ms = intervals[k].start_us / 1000;
+    const std::int64_t earliest_ms =
+        std::max<std::int64_t>({10, start_ms - kStopClosureSearchUs / 1000, intervals[k - 1].start_us / 1000 + 10});
+    double best_fall_db = kStopClosureStepDb;
+    std::int64_t best_ms = -1;
+    for (std::int64_t t = earliest_ms; t <= start_ms - 5 && t < static_cast<std::int64_t>(level_db.size()); ++t) {
+      const double fall = level_db[t - 10] - level_db[t];
+      if (fall > best_fall_db) {
+        best_fall_db = fall;
+        best_ms = t;
+      }
+    }
+    if (best_ms < 0) continue;
+    intervals[k].start_us = best_ms * 1000;
+    intervals[k - 1].end_us = best_ms * 1000;
+  }
+}
+
+// `audio` with kSynthesisPaddingUs of silence before and after.
+PcmAudio padded(const PcmAudio& audio) {
+  const auto padding = static_cast<std::size_t>(audio.sample_rate_hz * kSynthesisPaddingUs / 1'000'000);
+  PcmAudio result{audio.sample_rate_hz, std::vector<std::int16_t>(padding, 0)};
+  result.samples.insert(result.samples.end(), audio.samples.begin(), audio.samples.end());
+  result.samples.resize(result.samples.size() + padding, 0);
+  return result;
+}
+
+}  // namespace
+
+std::pair<std::size_t, std::size_t> speech_frames(const FeatureFrames& frames) {
+  if (frames.level_db.empty()) return {0, 0};
+  const double loudest = *std::max_element(frames.level_db.begin(), frames.level_db.end());
+  std::size_t first = 0, last = frames.level_db.size() - 1;
+  while (first < last && frames.level_db[first] < loudest - kSpeechRangeDb) ++first;
+  while (last > first && frames.level_db[last] < loudest - kSpeechRangeDb) --last;
+  return {first, last};
+}
+
+WarpPath warp(const FeatureFrames& a, const FeatureFrames& b, std::size_t band_frames,
+              std::pair<std::size_t, std::size_t> a_speech, std::pair<std::size_t, std::size_t> b_speech) {
+  const std::size_t rows = a.size(), columns = b.size();
+  WarpPath path;
+  if (rows == 0 || columns == 0) return path;
+  const std::size_t corner_rows[4] = {0, a_speech.first, a_speech.second, rows - 1};
+  const std::size_t corner_columns[4] = {0, b_speech.first, b_speech.second, columns - 1};
+
+  // The band: columns [low[i], high[i]] of row i, each row reachable from the one above.
+  std::vector<std::size_t> low(rows), high(rows);
+  for (std::size_t i = 0; i < rows; ++i) {
+    const double centre = centre_column(i, corner_rows, corner_columns);
+    low[i] = static_cast<std::size_t>(std::max(0.0, std::floor(centre - static_cast<double>(band_frames))));
+    high[i] = static_cast<std::size_t>(
+        std::min(static_cast<double>(columns - 1), std::ceil(centre + static_cast<double>(band_frames))));
+  }
+  low[0] = 0;
+  high[rows - 1] = columns - 1;
+  for (std::size_t i = 1; i < rows; ++i) low[i] = std::max(low[i], low[i - 1]);
+  for (std::size_t i = rows - 1; i-- > 0;) {
+    high[i] = std::min(high[i], high[i + 1]);
+    if (low[i + 1] > 0) high[i] = std::max(high[i], low[i + 1] - 1);
+  }
+
+  std::vector<std::size_t> offset(rows + 1, 0);
+  for (std::size_t i = 0; i < rows; ++i) offset[i + 1] = offset[i] + (high[i] - low[i] + 1);
+  std::vector<std::uint8_t> steps(offset[rows]);
+  constexpr double kUnreachable = std::numeric_limits<double>::infinity();
+  std::vector<double> previous(columns, kUnreachable), current(columns, kUnreachable);
+  for (std::size_t i = 0; i < rows; ++i) {
+    for (std::size_t j = low[i]; j <= high[i]; ++j) {
+      const double distance = frame_distance(a, i, b, j);
+      double best = kUnreachable;
+      Step step = kDiagonal;
+      if (i == 0 && j == 0) best = distance;
+      if (i > 0 && j > 0 && j - 1 >= low[i - 1] && j - 1 <= high[i - 1] && previous[j - 1] + 2 * distance < best) {
+        best = previous[j - 1] + 2 * distance;
+        step = kDiagonal;
+      }
+      if (i > 0 && j >= low[i - 1] && j <= high[i - 1] && previous[j] + distance < best) {
+        best = previous[j] + distance;
+        step = kDown;
+      }
+      if (j > low[i] && current[j - 1] + distance < best) {
+        best = current[j - 1] + distance;
+        step = kRight;
+      }
+      current[j] = best;
+      steps[offset[i] + (j - low[i])] = step;
+    }
+    std::swap(previous, current);
+  }
+  path.mean_distance = previous[columns - 1] / static_cast<double>(rows + columns);
+  // The distance of unrelated frames: every frame of a against b's frames at a fixed stride.
+  double sum = 0.0;
+  std::size_t pairs = 0;
+  const std::size_t stride = std::max<std::size_t>(1, columns / 64);
+  for (std::size_t i = 0; i < rows; ++i) {
+    for (std::size_t j = i % stride; j < columns; j += stride, ++pairs) sum += frame_distance(a, i, b, j);
+  }
+  path.unrelated_distance = sum / static_cast<double>(pairs);
+
+  path.first.assign(rows, 0);
+  path.last.assign(rows, 0);
+  std::size_t i = rows - 1, j = columns - 1;
+  path.last[i] = j;
+  path.first[i] = j;
+  while (i > 0 || j > 0) {
+    const Step step = static_cast<Step>(steps[offset[i] + (j - low[i])]);
+    if (step == kRight) {
+      --j;
+    } else {
+      if (step == kDiagonal) --j;
+      --i;
+      path.last[i] = j;
+    }
+    path.first[i] = j;
+  }
+  return path;
+}
+
+std::int64_t carry_time_us(const WarpPath& path, std::int64_t a_us) {
+  const std::size_t rows = path.first.size();
+  if (rows == 0) return a_us;
+  const double position = static_cast<double>(a_us - feature_frame_centre_us(0)) / kFeatureHopUs;
+  if (position <= 0)
+    return std::max<std::int64_t>(0, feature_frame_centre_us(path.first[0]) + (a_us - feature_frame_centre_us(0)));
+  if (position >= static_cast<double>(rows - 1)) {
+    return feature_frame_centre_us(path.last[rows - 1]) + (a_us - feature_frame_centre_us(rows - 1));
+  }
+  const auto row = static_cast<std::size_t>(std::floor(position));  // between rows `row` and `row + 1`
+  const double fraction = position - static_cast<double>(row);
+  const double from = static_cast<double>(path.last[row]);
+  const double to = static_cast<double>(path.first[row + 1]);
+  const double column = from + fraction * (to - from);
+  return feature_frame_centre_us(0) + static_cast<std::int64_t>(std::llround(column * kFeatureHopUs));
+}
+
+Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view source_view,
+                                    const DtwAlignmentOptions& options) {
+  const std::string source(source_view);
+  const std::string& voice = options.synthesis.voice;
+  if (!has_word_character(options.transcript)) {
+    throw InputError(source, 0, "the transcript is empty: alignment with --voice " + voice + " needs the words spoken");
+  }
+  const double duration_s = double(input.samples.size()) / input.sample_rate_hz;
+  char text[400];
+  if (duration_s > options.max_duration_s) {
+    std::snprintf(text, sizeof text,
+                  "%.1f s of audio is longer than the %.0f s an alignment accepts; split it at pauses", duration_s,
+                  options.max_duration_s);
+    throw InputError(source, 0, text);
+  }
+  if (input.sample_rate_hz < 8000) {
+    throw InputError(source, 0,
+                     "sample rate " + std::to_string(input.sample_rate_hz) +
+                         " Hz is too low for alignment (16000 Hz wanted, 8000 Hz at least)");
+  }
+  if (duration_s < 0.1) throw InputError(source, 0, "the audio is too short to align (under 0.1 s)");
+  const double loudest = loudest_window_dbfs(input);
+  if (loudest < kSilenceDbfs) {
+    std::snprintf(text, sizeof text, "no speech found: the audio is silent (its loudest 20 ms is at %.0f dBFS)",
+                  loudest);
+    throw InputError(source, 0, text);
+  }
+
+  Synthesis synthesis;
+  try {
+    synthesis = synthesize(options.transcript, options.synthesis);
+  } catch (const InputError& error) {
+    throw InputError(source, 0, "cannot speak the transcript with espeak-ng voice '" + voice + "': " + error.message());
+  }
+  if (synthesis.phonemes.intervals.empty()) {
+    throw InputError(source, 0, "espeak-ng voice '" + voice + "' spoke no phonemes for the transcript");
+  }
+  const double synthesis_s = double(synthesis.audio.samples.size()) / synthesis.audio.sample_rate_hz;
+  if (duration_s > kMostDurationRatio * synthesis_s || synthesis_s > kMostDurationRatio * duration_s) {
+    std::snprintf(text, sizeof text,
+                  "the recording (%.1f s) cannot be the transcript: espeak-ng voice '%s' speaks it in %.1f s "
+                  "(more than %.0f times longer or shorter)",
+                  duration_s, voice.c_str(), synthesis_s, kMostDurationRatio);
+    throw InputError(source, 0, text);
+  }
+
+  Alignment result;
+  result.phones.source = source;
+  result.phones.phone_set = phone_set_for_voice(voice);
+  if (input.sample_rate_hz != kFeatureRateHz) {
+    result.notes.push_back("resampled from " + std::to_string(input.sample_rate_hz) + " Hz to " +
+                           std::to_string(kFeatureRateHz) + " Hz for the alignment");
+  }
+  const PcmAudio recording = resample(input, kFeatureRateHz);
+  const PcmAudio spoken = padded(resample(synthesis.audio, kFeatureRateHz));
+  LabeledUtterance synthesis_phones = synthesis.phonemes;
+  for (LabeledInterval& interval : synthesis_phones.intervals) {
+    interval.start_us += kSynthesisPaddingUs;
+    interval.end_us += kSynthesisPaddingUs;
+  }
+  // The padding is pause: its own intervals (merged with a pause espeak-ng begins or ends with).
+  std::vector<LabeledInterval>& padded_phones = synthesis_phones.intervals;
+  if (padded_phones.front().label.empty()) {
+    padded_phones.front().start_us = 0;
+  } else {
+    padded_phones.insert(padded_phones.begin(), LabeledInterval{"", 0, kSynthesisPaddingUs, 0});
+  }
+  const std::int64_t spoken_end_us = spoken.duration_us();
+  if (padded_phones.back().label.empty()) {
+    padded_phones.back().end_us = spoken_end_us;
+  } else {
+    padded_phones.push_back(LabeledInterval{"", padded_phones.back().end_us, spoken_end_us, 0});
+  }
+  move_stop_starts_to_closures(spoken, synthesis_phones);
+
+  const FeatureFrames synthesis_frames = mfcc_features(spoken);
+  const FeatureFrames recording_frames = mfcc_features(recording);
+  const auto band_frames = static_cast<std::size_t>(std::max(1.0, options.band_s * 1e6 / kFeatureHopUs));
+  const WarpPath path = warp(synthesis_frames, recording_frames, band_frames, speech_frames(synthesis_frames),
+                             speech_frames(recording_frames));
+  if (path.mean_distance > options.max_distance_ratio * path.unrelated_distance) {
+    std::snprintf(text, sizeof text,
+                  "the recording does not match the transcript as espeak-ng voice '%s' speaks it (the best warp's "
+                  "frames are %.0f %% as far apart as unrelated frames, at most %.0f %% accepted): is it speech, "
+                  "saying the transcript, in that voice's language?",
+                  voice.c_str(), 100.0 * path.mean_distance / path.unrelated_distance,
+                  100.0 * options.max_distance_ratio);
+    throw InputError(source, 0, text);
+  }
+  std::snprintf(text, sizeof text,
+                "aligned against espeak-ng voice '%s' (mean distance along the warp %.2f, %.0f %% of unrelated "
+                "frames)",
+                voice.c_str(), path.mean_distance, 100.0 * path.mean_distance / path.unrelated_distance);
+  result.notes.push_back(text);
+
+  // Carry every boundary across, then keep the phonemes in order and at least kMinPhoneUs long.
+  const std::vector<LabeledInterval>& spoken_phones = synthesis_phones.intervals;
+  const std::size_t count = spoken_phones.size();
+  const std::int64_t end_us = input.duration_us();
+  std::vector<std::int64_t> bounds(count + 1);
+  bounds[0] = 0;
+  bounds[count] = end_us;
+  for (std::size_t k = 1; k < count; ++k) bounds[k] = carry_time_us(path, spoken_phones[k].start_us);
+  for (std::size_t k = 1; k < count; ++k) bounds[k] = std::max(bounds[k], bounds[k - 1] + kMinPhoneUs);
+  for (std::size_t k = count; k-- > 1;) bounds[k] = std::min(bounds[k], bounds[k + 1] - kMinPhoneUs);
+  for (std::size_t k = 0; k < count; ++k) {
+    LabeledInterval interval = spoken_phones[k];
+    interval.start_us = bounds[k];
+    interval.end_us = bounds[k + 1];
+    interval.line = static_cast<int>(k + 1);
+    if (interval.end_us > interval.start_us) result.phones.intervals.push_back(std::move(interval));
+  }
+  if (result.phones.intervals.empty()) throw InputError(source, 0, "the audio is too short for the transcript");
+  result.phones.intervals.front().start_us = 0;
+  result.phones.intervals.back().end_us = end_us;
+  if (options.refine_closures) result.refined = refine_lip_phones(recording, result.phones, options.refiner);
+  return result;
+}
+
+}  // namespace lipsync::speech

@@ -1,0 +1,12 @@
+#!/bin/sh
+# Remakes this corpus: Festival's Italian (festvox-italp16k), Czech (festvox-czech-dita) and
+# Catalan (festvox-ca-ona-hts) voices speak one sentence each (NAME.wav, NAME.txt: the espeak-ng
+# voice and the transcript), with Festival's own segment times matched to the phones
+# `lipsync align --voice` gives (NAME.truth.tsv). Needs festival, those voices and a built lipsync:
+#   tests/data/recorded_languages/regenerate.sh build/clients/cli/lipsync
+set -eu
+lipsync=${1:?usage: regenerate.sh LIPSYNC_BINARY}
+here=$(dirname "$0")
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+python3 "$here/../../../tools/speech/measure_language_alignment.py" "$lipsync" "$work" --corpus "$here"

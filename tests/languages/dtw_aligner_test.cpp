@@ -1,0 +1,99 @@
+// The parts of the DTW aligner (lipsync/speech/dtw_aligner.hpp, acoustic_features.hpp) on
+// made-up signals: MFCC frames every 10 ms with mean zero, the start and end of speech found
+// past pauses, a warp of a sequence with itself on the diagonal, and boundaries carried across
+// a uniform stretch.
+#include "lipsync/speech/dtw_aligner.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+
+namespace lipsync::speech {
+namespace {
+
+// `seconds` of a tone whose pitch and loudness change every 100 ms, between pauses of `pause_s`.
+PcmAudio varied_tones(double seconds, double pause_s) {
+  PcmAudio audio;
+  std::mt19937 random(28);
+  std::uniform_real_distribution<double> pitch_hz(150.0, 2500.0);
+  const auto pause = static_cast<std::size_t>(pause_s * kFeatureRateHz);
+  audio.samples.assign(pause, 0);
+  double frequency = pitch_hz(random), phase = 0;
+  for (std::size_t i = 0; i < static_cast<std::size_t>(seconds * kFeatureRateHz); ++i) {
+    if (i % 1600 == 0) frequency = pitch_hz(random);
+    phase += 2 * std::numbers::pi * frequency / kFeatureRateHz;
+    audio.samples.push_back(static_cast<std::int16_t>(8000 * std::sin(phase) + 2000 * std::sin(3.1 * phase)));
+  }
+  audio.samples.resize(audio.samples.size() + pause, 0);
+  return audio;
+}
+
+FeatureFrames stretched(const FeatureFrames& frames, int factor) {
+  FeatureFrames result;
+  result.dimensions = frames.dimensions;
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    for (int copy = 0; copy < factor; ++copy) {
+      result.values.insert(result.values.end(), frames.frame(k), frames.frame(k) + frames.dimensions);
+      result.level_db.push_back(frames.level_db[k]);
+    }
+  }
+  return result;
+}
+
+TEST(AcousticFeatures, one_frame_every_10_ms_with_every_dimension_of_mean_zero) {
+  const PcmAudio audio = varied_tones(2.0, 0.3);
+  const FeatureFrames frames = mfcc_features(audio);
+  EXPECT_EQ(frames.dimensions, 26);
+  EXPECT_EQ(frames.size(), 1 + (audio.samples.size() - 400) / 160);
+  for (int d = 0; d < frames.dimensions; ++d) {
+    double sum = 0;
+    for (std::size_t k = 0; k < frames.size(); ++k) sum += frames.frame(k)[d];
+    EXPECT_NEAR(sum / double(frames.size()), 0.0, 1e-3) << "dimension " << d;
+  }
+  EXPECT_EQ(mfcc_features(PcmAudio{kFeatureRateHz, std::vector<std::int16_t>(399, 0)}).size(), 0U);
+}
+
+TEST(AcousticFeatures, speech_is_found_between_the_pauses) {
+  const FeatureFrames frames = mfcc_features(varied_tones(2.0, 0.3));
+  const auto [first, last] = speech_frames(frames);
+  EXPECT_NEAR(double(first), 28.0, 3.0);  // the first window reaching into the tone, 300 ms − 25 ms
+  EXPECT_NEAR(double(last), 230.0, 3.0);  // the last window starting within it, 2.3 s
+}
+
+TEST(DtwWarp, a_sequence_warped_to_itself_stays_on_the_diagonal) {
+  const FeatureFrames frames = mfcc_features(varied_tones(2.0, 0.3));
+  const WarpPath path = warp(frames, frames, 50, speech_frames(frames), speech_frames(frames));
+  ASSERT_EQ(path.first.size(), frames.size());
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    EXPECT_EQ(path.first[k], k);
+    EXPECT_EQ(path.last[k], k);
+  }
+  EXPECT_NEAR(path.mean_distance, 0.0, 1e-9);
+  EXPECT_GT(path.unrelated_distance, 1.0);
+  EXPECT_EQ(carry_time_us(path, 123'456), 123'456);
+}
+
+TEST(DtwWarp, boundaries_carried_across_a_uniform_stretch_double_their_times) {
+  const FeatureFrames frames = mfcc_features(varied_tones(2.0, 0.3));
+  const FeatureFrames twice = stretched(frames, 2);
+  const WarpPath path = warp(frames, twice, 500, speech_frames(frames), speech_frames(twice));
+  for (const std::int64_t t_us : {400'000, 800'000, 1'500'000, 2'000'000}) {
+    // Frame k of `frames` is frames 2k and 2k+1 of `twice`: time t lands at about 2t.
+    EXPECT_NEAR(double(carry_time_us(path, t_us)), 2.0 * double(t_us), 25'000.0) << t_us;
+  }
+}
+
+TEST(DtwWarp, a_narrow_band_still_reaches_the_far_corner) {
+  const FeatureFrames frames = mfcc_features(varied_tones(1.0, 0.1));
+  const FeatureFrames thrice = stretched(frames, 3);
+  const WarpPath path = warp(frames, thrice, 1, {0, frames.size() - 1}, {0, thrice.size() - 1});
+  ASSERT_EQ(path.last.size(), frames.size());
+  EXPECT_EQ(path.first.front(), 0U);
+  EXPECT_EQ(path.last.back(), thrice.size() - 1);
+  for (std::size_t k = 1; k < frames.size(); ++k) EXPECT_GE(path.first[k], path.last[k - 1]) << k;
+}
+
+}  // namespace
+}  // namespace lipsync::speech

@@ -1,0 +1,322 @@
+#!/usr/bin/env python3
+"""Measures `lipsync align --voice V` (DTW against espeak-ng's rendering) on Festival voices.
+
+Festival speaks each sentence and writes its own segment times (utt.save.segs): the truth.
+`lipsync align X.wav --text T --voice V` aligns the WAV; its phones (espeak-ng's IPA, or its
+English mnemonics) are matched to Festival's by a Needleman-Wunsch alignment of the two
+phone sequences after mapping both to a coarse key (Festival's SAMPA-like labels without
+stress digits, IPA without length marks and diacritics; see phone_key). A boundary is
+scored when a phone and the one before it are matched on both sides (pauses excluded):
+its error is |aligned start - Festival start|. A bilabial closure (/p b m/ matched to
+/p b m/) counts as within 30 ms when the start is.
+
+Usage: measure_language_alignment.py LIPSYNC_BINARY OUT_DIR [--voices it,ca,...] [--markdown]
+       measure_language_alignment.py LIPSYNC_BINARY OUT_DIR --corpus tests/data/recorded_languages
+The second form (re)makes the test corpus: CORPUS_ITEMS spoken by Festival (NAME.wav), their
+transcripts (NAME.txt, first line the espeak-ng voice) and NAME.truth.tsv, one line per
+Festival segment the scoring matches: Festival's label and start (s), the index and label
+of the aligned phone it is matched to (in the 'phones' tier, pauses included: espeak-ng's
+phoneme sequence for a text does not depend on the recording), and its kind, a sum of 1 (its
+start is a scored boundary: the phone before is matched too) and 2 (a bilabial closure). tests/languages/recorded_languages_test.cpp reads them.
+"""
+import argparse
+import json
+import os
+import re
+import statistics
+import subprocess
+import sys
+
+# Festival voice, espeak-ng voice, sentences (the same text for both).
+VOICES = {
+    "it": ("lp_diphone", "it", [
+        "Buon giorno, come stai? Mi piace molto la pasta al pomodoro.",
+        "Il bambino beve un bicchiere di latte freddo ogni mattina.",
+        "Abbiamo perso il treno per Milano e siamo tornati a piedi.",
+        "La mamma compra le mele rosse al mercato di Bologna.",
+    ]),
+    "ca": ("upc_ca_ona_hts", "ca", [
+        "Bon dia, com estas? M'agrada molt el pa amb tomaquet.",
+        "La mare compra pomes vermelles al mercat de Barcelona.",
+        "El meu pare treballa en una biblioteca molt bonica.",
+        "Obrim la porta i mirem el mar blau des de la platja.",
+    ]),
+    "fi": ("suo_fi_lj_diphone", "fi", [
+        "Hyvaa huomenta, mita kuuluu? Minulla on kaunis punainen pallo.",
+        "Isa osti uuden auton ja ajoi sen kotiin Helsingista.",
+        "Poika juo maitoa ja syo leipaa aamulla ennen koulua.",
+        "Meri on tanaan sininen ja tuuli puhaltaa lannesta.",
+    ]),
+    "cs": ("czech_dita", "cs", [
+        "Dobrý den, jak se máte? Mám rád pivo a chleba.",
+        "Maminka koupila modré boty a malou bílou tašku.",
+        "Pojedeme vlakem do Brna a potom budeme pracovat.",
+        "Bratr pije mléko a babička peče buchty.",
+    ]),
+    "ru": ("msu_ru_nsh_clunits", "ru", [
+        "Доброе утро, как дела? Мама мыла раму.",
+        "Папа купил большой белый автобус.",
+        "Мы были в библиотеке и потом пошли домой.",
+        "Бабушка пьёт молоко и ест пирог с мясом.",
+    ]),
+    "hi": ("hindi_NSK_diphone", "hi", [
+        "नमस्ते, आप कैसे हैं?",
+        "मेरा नाम भारत है और मैं बम्बई में रहता हूँ।",
+        "बच्चे पानी पीते हैं और बाज़ार जाते हैं।",
+        "पिताजी ने एक बड़ा मकान बनाया।",
+    ]),
+    "en": ("kal_diphone", "en-us", [
+        "Bob may buy the blue boat in my harbour.",
+        "The big brown dog jumped over a fence to be with me.",
+        "Please pass me a map of the bay before we move.",
+        "My mother ate apple pie from a paper plate.",
+    ]),
+}
+
+# Festival label (stress digits dropped) → IPA-like, before the coarse key.
+FESTIVAL_TO_IPA = {
+    "tS": "tʃ", "dZ": "dʒ", "S": "ʃ", "Z": "ʒ", "O": "ɔ", "E": "ɛ", "J": "ɲ", "L": "ʎ", "N": "ŋ",
+    "ax": "ə", "@": "ə", "ts": "ts", "dz": "dz", "jj": "j", "rr": "r", "ll": "l", "nn": "n",
+    # English "radio" phones
+    "aa": "ɑ", "ae": "æ", "ah": "ʌ", "ao": "ɔ", "aw": "a", "ay": "a", "eh": "ɛ", "er": "ɜ", "ey": "e",
+    "ih": "ɪ", "iy": "i", "ow": "o", "oy": "ɔ", "uh": "ʊ", "uw": "u", "ch": "tʃ", "jh": "dʒ",
+    "sh": "ʃ", "zh": "ʒ", "th": "θ", "dh": "ð", "ng": "ŋ", "hh": "h", "hv": "h", "y": "j", "dx": "t",
+    "axr": "ə", "el": "l", "em": "m", "en": "n", "nx": "n",
+}
+# espeak-ng's English mnemonics → IPA-like (the English voices' phone set).
+ESPEAK_EN_TO_IPA = {
+    "@": "ə", "3": "ɜ", "3:": "ɜ", "a": "æ", "aa": "ɑ", "A:": "ɑ", "A@": "ɑ", "E": "ɛ", "eI": "e", "I": "ɪ",
+    "i": "i", "i:": "i", "O:": "ɔ", "O": "ɔ", "oU": "o", "U": "ʊ", "u:": "u", "V": "ʌ", "aI": "a", "aU": "a",
+    "OI": "ɔ", "e@": "ɛ", "I@": "ɪ", "U@": "ʊ", "tS": "tʃ", "dZ": "dʒ", "S": "ʃ", "Z": "ʒ", "T": "θ", "D": "ð",
+    "N": "ŋ", "r": "r", "r-": "r", "l": "l", "t#": "t", "d#": "d", "a#": "ə", "@L": "l", "i@": "i", "0": "ɒ",
+    "I2": "ɪ", "I#": "ɪ", "@2": "ə", "@5": "ə", "n-": "n", "aI@": "a", "aI3": "a", "eI@": "e",
+}
+FOLD = {"ɾ": "r", "ɫ": "l", "ɡ": "g", "ʁ": "r", "ɹ": "r", "ɒ": "ɔ", "ɐ": "a", "ɑ": "a", "ʌ": "a", "æ": "a",
+        "ɛ": "e", "ɪ": "i", "ʊ": "u", "ɨ": "i", "ɔ": "o", "ɜ": "ə", "ʋ": "v", "ʂ": "ʃ", "ʐ": "ʒ", "ç": "x",
+        "ɦ": "h", "ɲ": "n", "ʎ": "l", "ŋ": "n", "ɳ": "n", "ʈ": "t", "ɖ": "d", "ɽ": "r", "ʒ": "ʃ", "ð": "d",
+        "θ": "t", "ɣ": "g", "β": "b", "ɕ": "ʃ", "ʑ": "ʃ"}
+VOWELS = set("aeiouyøœəɯɤɵʉ")
+PAUSES = {"", "#", "pau", "h#", "brth", "_", "SIL", "sil"}
+
+
+def phone_key(label, festival, english_espeak=False):
+    """The coarse key of a label: one base symbol (vowels and consonants folded to broad classes)."""
+    if festival:
+        label = re.sub(r"[0-9]", "", label)
+        label = FESTIVAL_TO_IPA.get(label, FESTIVAL_TO_IPA.get(label.lower(), label))
+    elif english_espeak:
+        label = ESPEAK_EN_TO_IPA.get(label, label)
+    label = label.replace("ː", "").replace(":", "").replace("'", "").replace("ˈ", "").replace("ˌ", "")
+    for c in label:
+        if c.isalpha() or c in "əɛɔɪʊ":
+            c = c.lower() if c.isascii() else c
+            return FOLD.get(c, c)
+    return label[:1]
+
+
+def is_vowel(key):
+    return key in VOWELS
+
+
+def match_score(x, y):
+    if x == y:
+        return 3
+    if is_vowel(x) and is_vowel(y):
+        return 1
+    if not is_vowel(x) and not is_vowel(y):
+        return 0
+    return -2
+
+
+def needleman_wunsch(a, b, gap=-1):
+    """Pairs (i, j) of matched positions of key lists a and b."""
+    n, m = len(a), len(b)
+    score = [[0] * (m + 1) for _ in range(n + 1)]
+    for i in range(1, n + 1):
+        score[i][0] = i * gap
+    for j in range(1, m + 1):
+        score[0][j] = j * gap
+    for i in range(1, n + 1):
+        for j in range(1, m + 1):
+            score[i][j] = max(score[i - 1][j - 1] + match_score(a[i - 1], b[j - 1]), score[i - 1][j] + gap,
+                              score[i][j - 1] + gap)
+    pairs, i, j = [], n, m
+    while i > 0 and j > 0:
+        if score[i][j] == score[i - 1][j - 1] + match_score(a[i - 1], b[j - 1]):
+            pairs.append((i - 1, j - 1))
+            i, j = i - 1, j - 1
+        elif score[i][j] == score[i - 1][j] + gap:
+            i -= 1
+        else:
+            j -= 1
+    return pairs[::-1]
+
+
+def read_festival_segs(path):
+    """Festival's utt.save.segs: (label, start_s, end_s) after the '#' header line."""
+    lines = open(path, encoding="utf-8", errors="replace").read().splitlines()
+    body = lines[lines.index("#") + 1:]
+    segments, start = [], 0.0
+    for line in body:
+        parts = line.split()
+        if len(parts) < 3:
+            continue
+        end = float(parts[0])
+        segments.append((parts[2], start, end))
+        start = end
+    return segments
+
+
+def read_textgrid_phones(path):
+    """The 'phones' tier of a long-format TextGrid: (label, start_s, end_s)."""
+    text = open(path, encoding="utf-8").read()
+    tier = text[text.index('name = "phones"'):]
+    return [(label, float(xmin), float(xmax))
+            for xmin, xmax, label in re.findall(r'xmin = ([0-9.]+)\s*xmax = ([0-9.]+)\s*text = "([^"]*)"', tier)]
+
+
+# Festival's Czech reads ISO 8859-2 (UTF-8 letters come out as "neznámý", unknown); the others UTF-8.
+FESTIVAL_ENCODING = {"czech_dita": "iso-8859-2"}
+
+
+def speak_with_festival(festival_voice, text, wav, segs):
+    escaped = text.replace("\\", "\\\\").replace('"', '\\"')
+    encoding = FESTIVAL_ENCODING.get(festival_voice, "utf-8")
+    command = ["festival", "-b", f"(voice_{festival_voice})", f'(set! u (SynthText "{escaped}"))',
+               f'(utt.save.segs u "{segs}")', f'(utt.save.wave u "{wav}" "riff")']
+    subprocess.run([c.encode(encoding) for c in command], check=True, capture_output=True, timeout=120)
+
+
+def boundary_errors(truth, aligned, english_espeak):
+    """Errors (s) of the boundaries matched between Festival's segments and the aligner's
+    phones, and of the bilabial closures; the pairs scored."""
+    truth = [s for s in truth if s[0] not in PAUSES]
+    aligned = [s for s in aligned if s[0] not in PAUSES]
+    a = [phone_key(s[0], True) for s in truth]
+    b = [phone_key(s[0], False, english_espeak) for s in aligned]
+    pairs = needleman_wunsch(a, b)
+    errors, bilabial = [], []
+    previous = None
+    for i, j in pairs:
+        consecutive = previous == (i - 1, j - 1)
+        previous = (i, j)
+        if match_score(a[i], b[j]) < 0:
+            continue
+        error = abs(aligned[j][1] - truth[i][1])
+        if a[i] in ("p", "b", "m") and b[j] in ("p", "b", "m"):
+            bilabial.append(error)
+        if consecutive:
+            errors.append(error)
+    return errors, bilabial
+
+
+# The test corpus: (voice code, sentence index) of VOICES.
+CORPUS_ITEMS = [("it", 3), ("cs", 1), ("ca", 1)]
+
+
+def scored_pairs(truth, aligned, english_espeak=False):
+    """(truth index, aligned index, kind) as boundary_errors scores them; indices into the full lists."""
+    t_index = [k for k, s in enumerate(truth) if s[0] not in PAUSES]
+    a_index = [k for k, s in enumerate(aligned) if s[0] not in PAUSES]
+    a = [phone_key(truth[k][0], True) for k in t_index]
+    b = [phone_key(aligned[k][0], False, english_espeak) for k in a_index]
+    result, previous = [], None
+    for i, j in needleman_wunsch(a, b):
+        consecutive = previous == (i - 1, j - 1)
+        previous = (i, j)
+        if match_score(a[i], b[j]) < 0:
+            continue
+        bilabial = a[i] in ("p", "b", "m") and b[j] in ("p", "b", "m")
+        if consecutive or bilabial:
+            result.append((t_index[i], a_index[j], (1 if consecutive else 0) + (2 if bilabial else 0)))
+    return result
+
+
+def make_corpus(lipsync, work_dir, corpus_dir):
+    os.makedirs(corpus_dir, exist_ok=True)
+    for code, k in CORPUS_ITEMS:
+        festival_voice, espeak_voice, sentences = VOICES[code]
+        sentence = sentences[k]
+        name = f"{code}_{k}"
+        base = os.path.join(corpus_dir, name)
+        speak_with_festival(festival_voice, sentence, base + ".wav", os.path.join(work_dir, name + ".corpus.segs"))
+        truth = read_festival_segs(os.path.join(work_dir, name + ".corpus.segs"))
+        grid = os.path.join(work_dir, name + ".corpus.TextGrid")
+        subprocess.run([lipsync, "align", base + ".wav", "--text", sentence, "--voice", espeak_voice, "-o", grid],
+                       check=True)
+        aligned = read_textgrid_phones(grid)
+        with open(base + ".txt", "w", encoding="utf-8") as out:
+            out.write(f"{espeak_voice}\n{sentence}\n")
+        with open(base + ".truth.tsv", "w", encoding="utf-8") as out:
+            out.write("# festival_label\tfestival_start_s\taligned_index\taligned_label\tkind\n")
+            for i, j, kind in scored_pairs(truth, aligned):
+                out.write(f"{truth[i][0]}\t{truth[i][1]:.4f}\t{j}\t{aligned[j][0]}\t{kind}\n")
+        print(f"{name}: {len(truth)} Festival segments, {len(aligned)} aligned phones", file=sys.stderr)
+
+
+def percentile(values, q):
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, int(round(q * (len(ordered) - 1))))]
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("lipsync")
+    parser.add_argument("out_dir")
+    parser.add_argument("--voices", default=",".join(VOICES))
+    parser.add_argument("--markdown", action="store_true", help="print the table for docs/languages.md")
+    parser.add_argument("--corpus", help="make the test corpus in this directory instead")
+    args = parser.parse_args()
+    os.makedirs(args.out_dir, exist_ok=True)
+    if args.corpus:
+        make_corpus(args.lipsync, args.out_dir, args.corpus)
+        return
+    rows = []
+    for code in args.voices.split(","):
+        festival_voice, espeak_voice, sentences = VOICES[code]
+        aligners = [("dtw", ["--voice", espeak_voice, "--aligner", "dtw"])]
+        if code == "en":
+            aligners.append(("pocketsphinx", []))
+        for aligner, options in aligners:
+            errors, bilabial, failures = [], [], 0
+            for k, sentence in enumerate(sentences):
+                base = os.path.join(args.out_dir, f"{code}_{k}")
+                if not os.path.exists(base + ".wav"):
+                    speak_with_festival(festival_voice, sentence, base + ".wav", base + ".segs")
+                grid = f"{base}.{aligner}.TextGrid"
+                run = subprocess.run([args.lipsync, "align", base + ".wav", "--text", sentence, "-o", grid] + options,
+                                     capture_output=True, text=True)
+                if run.returncode != 0:
+                    print(f"{code} {k} {aligner}: {run.stderr.strip()}", file=sys.stderr)
+                    failures += 1
+                    continue
+                e, b = boundary_errors(read_festival_segs(base + ".segs"), read_textgrid_phones(grid),
+                                       english_espeak=(code == "en" and aligner == "dtw"))
+                if aligner == "pocketsphinx":
+                    e, b = boundary_errors(read_festival_segs(base + ".segs"),
+                                           [(l.lower(), s, t) for l, s, t in read_textgrid_phones(grid)], False)
+                errors += e
+                bilabial += b
+            row = {
+                "voice": code, "festival": festival_voice, "espeak": espeak_voice, "aligner": aligner,
+                "sentences": len(sentences), "failures": failures, "boundaries": len(errors),
+                "median_ms": 1000 * statistics.median(errors) if errors else None,
+                "p95_ms": 1000 * percentile(errors, 0.95) if errors else None,
+                "bilabials": len(bilabial),
+                "bilabial_within_30ms_pct": 100.0 * sum(e <= 0.030 for e in bilabial) / len(bilabial) if bilabial else None,
+            }
+            rows.append(row)
+            print(json.dumps(row), file=sys.stderr)
+    if args.markdown:
+        print("| Voice (Festival) | espeak-ng voice | aligner | boundaries | median | p95 | bilabials within 30 ms |")
+        print("|---|---|---|---|---|---|---|")
+        for r in rows:
+            fmt = lambda v, unit="": "–" if v is None else f"{v:.0f}{unit}"
+            print(f"| {r['voice']} ({r['festival']}) | {r['espeak']} | {r['aligner']} | {r['boundaries']} | "
+                  f"{fmt(r['median_ms'], ' ms')} | {fmt(r['p95_ms'], ' ms')} | "
+                  f"{fmt(r['bilabial_within_30ms_pct'], ' %')} ({r['bilabials']}) |")
+    json.dump(rows, open(os.path.join(args.out_dir, "results.json"), "w"), indent=1)
+
+
+if __name__ == "__main__":
+    main()
