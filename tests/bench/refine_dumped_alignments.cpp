@@ -4,7 +4,7 @@
 // where the truth, the recogniser and the refiner put its start, so that each miss
 // can be looked at.
 //
-// Usage: refine_dumped_alignments DIR [--misses]
+// Usage: refine_dumped_alignments DIR [--misses] [--min-step-db=D] [--lead-us=N] [--search-us=N]
 //        refine_dumped_alignments --levels WAV FROM_MS TO_MS   (the 1 ms levels and 10 ms falls)
 // For each source (espeak-ng, flite, festival) and mode (-text, -free) it prints the
 // refined bilabials within 20 ms, their median and p95, and the count shown closed at
@@ -77,7 +77,16 @@ int main(int argc, char** argv) {
     return 0;
   }
   const std::filesystem::path dir = argv[1];
-  const bool misses = argc > 2 && std::string_view(argv[2]) == "--misses";
+  bool misses = false;
+  speech::ClosureRefinerOptions options;
+  for (int a = 2; a < argc; ++a) {  // --misses, --min-step-db=D, --lead-us=N, --search-us=N
+    const std::string_view arg = argv[a];
+    const auto value = [&] { return std::atof(std::string(arg.substr(arg.find('=') + 1)).c_str()); };
+    if (arg == "--misses") misses = true;
+    if (arg.starts_with("--min-step-db=")) options.min_step_db = value();
+    if (arg.starts_with("--lead-us=")) options.closure_lead_us = static_cast<std::int64_t>(value());
+    if (arg.starts_with("--search-us=")) options.search_us = static_cast<std::int64_t>(value());
+  }
   const ArticulationModel& model = ArticulationModel::builtin();
   const PhoneSet arpabet = *PhoneSet::builtin("arpabet", model);
   for (const std::string source : {"espeak-ng", "flite", "festival"}) {
@@ -95,7 +104,7 @@ int main(int argc, char** argv) {
         if (espeak) testing::espeak_stops_from_their_closures(audio, reference);
         const LabeledUtterance raw = read_phones(stem + ".raw", "arpabet");
         LabeledUtterance refined = raw;
-        const auto boundaries = speech::refine_closures(audio, refined);
+        const auto boundaries = speech::refine_closures(audio, refined, options);
         testing::score_alignment(reference, reference_set, raw, arpabet, model, raw_score);
         testing::score_alignment(reference, reference_set, refined, arpabet, model, score);
         if (!misses) continue;

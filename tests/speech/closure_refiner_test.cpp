@@ -70,7 +70,8 @@ TEST(ClosureRefiner, stop_closure_and_release_move_to_the_energy_steps) {
     LabeledUtterance phones =
         phones_of({{"AA", 0, 320'000, 1}, {label, 320'000, 360'000, 2}, {"AA", 360'000, 700'000, 3}});
     speech::ClosureRefinerOptions exact;
-    exact.closure_lead_us = 0;  // the energy step itself, not the lead a natural closing gesture gets
+    exact.closure_lead_us = 0;  // the energy step itself, not the onset and lead a natural closing gesture gets
+    exact.closure_onset_fraction = 1.0;
     const std::vector<speech::RefinedBoundary> refined = speech::refine_closures(audio, phones, exact);
     ASSERT_EQ(refined.size(), 2U) << label;
     EXPECT_TRUE(refined[0].moved && refined[1].moved) << label;
@@ -84,12 +85,14 @@ TEST(ClosureRefiner, stop_closure_and_release_move_to_the_energy_steps) {
   }
 }
 
-TEST(ClosureRefiner, the_closure_is_placed_its_lead_before_the_steepest_fall) {
+TEST(ClosureRefiner, the_closure_is_placed_its_lead_before_the_onset_of_the_fall) {
+  // A step at 300 ms into digital silence: the fall of the 10 ms means is still 40 % of
+  // its peak (the default onset fraction) 3 ms before the step; the lead is 3 ms more.
   const speech::PcmAudio audio = stop(300'000, 380'000, 700'000, Closure::silent);
   LabeledUtterance phones = phones_of({{"AA", 0, 320'000, 1}, {"P", 320'000, 360'000, 2}, {"AA", 360'000, 700'000, 3}});
-  const std::vector<speech::RefinedBoundary> refined = speech::refine_closures(audio, phones);  // default lead: 8 ms
+  const std::vector<speech::RefinedBoundary> refined = speech::refine_closures(audio, phones);
   ASSERT_EQ(refined.size(), 2U);
-  EXPECT_NEAR(double(phones.intervals[1].start_us), 292e3, 2e3);
+  EXPECT_NEAR(double(phones.intervals[1].start_us), 294e3, 2e3);
   EXPECT_NEAR(double(phones.intervals[1].end_us), 380e3, 2e3);
 }
 
@@ -170,7 +173,7 @@ TEST(ClosureRefiner, a_short_pause_before_a_stop_is_taken_for_its_closure) {
   const std::vector<speech::RefinedBoundary> refined = speech::refine_closures(audio, phones);
   ASSERT_EQ(phones.intervals.size(), 3U) << "the pause is gone";
   EXPECT_EQ(phones.intervals[1].label, "P");
-  EXPECT_NEAR(double(phones.intervals[1].start_us), 292e3, 2e3) << "the closure, its lead before the fall";
+  EXPECT_NEAR(double(phones.intervals[1].start_us), 294e3, 2e3) << "the closure, its lead before the fall";
   EXPECT_EQ(phones.intervals[0].end_us, phones.intervals[1].start_us);
   ASSERT_FALSE(refined.empty());
   EXPECT_EQ(refined[0].phone, 1U);
@@ -197,7 +200,7 @@ TEST(ClosureRefiner, a_pause_between_two_stops_gives_the_second_its_closure_at_t
                                        {"AA", 400'000, 700'000, 5}});
   speech::refine_closures(audio, phones);
   ASSERT_EQ(phones.intervals.size(), 5U);
-  EXPECT_NEAR(double(phones.intervals[3].start_us), 292e3, 2e3);
+  EXPECT_NEAR(double(phones.intervals[3].start_us), 294e3, 2e3);
   EXPECT_EQ(phones.intervals[2].end_us, phones.intervals[3].start_us);
   EXPECT_EQ(phones.intervals[2].start_us, 230'000) << "the /k/ keeps its place";
 }

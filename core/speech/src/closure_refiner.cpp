@@ -185,6 +185,21 @@ Step latest_step(const LevelTrack& levels, std::int64_t from_us, std::int64_t to
   return {k * kCandidateStepUs, step_at(k)};
 }
 
+// Where the fall found at `step` begins: the earliest time, walking back from it
+// without a gap, whose fall is still closure_onset_fraction of the step's. A closing
+// gesture lowers the level over 10 to 30 ms before the steepest fall (more slowly in
+// diphone speech than in a stop's digital silence), so the onset, not the steepest
+// point, is where the lips start to seal.
+std::int64_t fall_onset_us(const LevelTrack& levels, const Step& step, std::int64_t from_us,
+                           const ClosureRefinerOptions& options) {
+  constexpr std::int64_t side = kStepWindowUs / kCandidateStepUs;
+  const auto fall = [&](std::int64_t k) { return levels.mean_db(k - side, k) - levels.mean_db(k, k + side); };
+  const std::int64_t first = std::max((from_us + kCandidateStepUs - 1) / kCandidateStepUs, side);
+  std::int64_t k = step.at_us / kCandidateStepUs;
+  while (k - 1 >= first && fall(k - 1) >= options.closure_onset_fraction * step.db) --k;
+  return k * kCandidateStepUs;
+}
+
 // Moves the start of the lip phone intervals[i] (i > 0): after a pause to the rise of
 // its sound (/m f v/), otherwise to the closure, where the formant band's level falls.
 void refine_start(const LevelTrack& levels, std::vector<LabeledInterval>& intervals, std::size_t i,
@@ -204,7 +219,8 @@ void refine_start(const LevelTrack& levels, std::vector<LabeledInterval>& interv
     return;
   }
   const Step step = best_step(levels, aligned, from, to, true, options);
-  const std::int64_t at = std::max(step.at_us - options.closure_lead_us, previous.start_us + options.min_phone_us);
+  const std::int64_t onset = fall_onset_us(levels, step, from, options);
+  const std::int64_t at = std::max(onset - options.closure_lead_us, previous.start_us + options.min_phone_us);
   const bool moved = step.db >= options.min_step_db && at <= phone.end_us - options.min_phone_us;
   if (moved) previous.end_us = phone.start_us = at;
   refined.push_back({i, false, aligned, phone.start_us, std::max(0.0, step.db), moved});
@@ -233,7 +249,8 @@ std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtter
       LabeledInterval& pause = intervals[i - 1];
       const std::int64_t aligned = intervals[i].start_us;
       const Step step = latest_step(levels, pause.start_us + options.min_phone_us, aligned, true, options.min_step_db);
-      const std::int64_t at = std::max(step.at_us - options.closure_lead_us, pause.start_us + options.min_phone_us);
+      const std::int64_t onset = fall_onset_us(levels, step, pause.start_us + options.min_phone_us, options);
+      const std::int64_t at = std::max(onset - options.closure_lead_us, pause.start_us + options.min_phone_us);
       const bool moved = step.db > 0 && at <= intervals[i].end_us - options.min_phone_us;
       if (moved) pause.end_us = intervals[i].start_us = at;
       refined.push_back({i, false, aligned, intervals[i].start_us, step.db, moved});

@@ -44,9 +44,13 @@ struct ClosureRefinerOptions {
   double min_step_db = 10.0;
   /// How much a step loses per ms of distance from the aligner's boundary, dB/ms.
   double distance_penalty_db_per_ms = 0.3;
-  /// How far before the steepest fall of the level the closure is placed, µs: the
-  /// level starts to fall while the lips are still closing.
-  std::int64_t closure_lead_us = 8'000;
+  /// Where the fall of the level begins, as a share of the steepest fall: walking back
+  /// from the steepest fall, the closure's onset is the earliest point whose fall is
+  /// still this share of it.
+  double closure_onset_fraction = 0.4;
+  /// How far before that onset the closure is placed, µs: the level starts to fall
+  /// while the lips are still closing.
+  std::int64_t closure_lead_us = 3'000;
   /// How far after the steepest rise the release is placed, µs.
   std::int64_t release_lag_us = 0;
   /// The longest pause before a /p b/ that is taken for the stop's silent closure, µs.
