@@ -18,6 +18,7 @@ with its transcript, best of three runs.
 
 Outside the build and CI; docs/input-formats.md quotes its output.
 Usage: tools/speech/compare_rhubarb.py --lipsync build/clients/cli/lipsync --rhubarb PATH [--sentences N]
+       [--misses] [--no-timing] [--lipsync-only] [--lipsync-args "ARGS"]
 """
 import argparse
 import os
@@ -102,8 +103,11 @@ def shape_at(shapes, t):
     return current
 
 
+LIPSYNC_ARGS = []
+
+
 def lipsync_shapes(binary, wav, text_file, tsv):
-    command = [binary, "render", wav, "--format", "rhubarb-tsv", "--extended-shapes", "GHX", "-o", tsv]
+    command = [binary, "render", wav, "--format", "rhubarb-tsv", "--extended-shapes", "GHX", "-o", tsv] + LIPSYNC_ARGS
     if text_file:
         command[3:3] = ["--text-file", text_file]
     run(command)
@@ -125,11 +129,16 @@ def main():
     parser.add_argument("--sentences", type=int, default=10)
     parser.add_argument("--misses", action="store_true", help="print each miss: speaker, sentence, phone, time, shape shown")
     parser.add_argument("--no-timing", action="store_true", help="skip the LibriVox wall-time runs")
+    parser.add_argument("--lipsync-only", action="store_true", help="run lipsyncd only (for trying its settings)")
+    parser.add_argument("--lipsync-args", default="", help="more arguments for lipsync render (space-separated)")
     args = parser.parse_args()
+    LIPSYNC_ARGS.extend(args.lipsync_args.split())
     for tool in (args.lipsync, args.rhubarb):
         if not os.access(tool, os.X_OK):
             sys.exit(f"compare_rhubarb: {tool}: not an executable file")
     tools = {"lipsyncd": (args.lipsync, lipsync_shapes), "Rhubarb 1.14": (args.rhubarb, rhubarb_shapes)}
+    if args.lipsync_only:
+        del tools["Rhubarb 1.14"]
     speakers = {name: fn for name, fn in (("Festival", festival), ("flite", flite)) if shutil.which(name.lower())}
     work = tempfile.mkdtemp(prefix="compare_rhubarb-")
     # score[(tool, mode)][class] = [right, total]
