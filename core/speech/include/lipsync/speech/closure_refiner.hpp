@@ -15,16 +15,19 @@
 // and within `search_us` of its end the rise R(t) = level[t, t+10 ms) -
 // level[t-10 ms, t). The boundary moves to the largest step, less a small penalty
 // per ms of distance from the aligner's boundary, when that step reaches
-// `min_step_db`: the step in dB is the move's confidence. Where no step is that
-// clear the aligner's boundary stays. Pauses next to lip phones get three rules:
+// `min_step_db`: the step in dB is the move's confidence. A release goes to the
+// steepest rise; a closure to where its fall begins (walking back from the steepest
+// fall while D(t) stays at least `closure_onset_fraction` of it) less
+// `closure_lead_us`, as the level starts to drop while the lips close. Where no step
+// is that clear the aligner's boundary stays. Pauses next to lip phones get three rules:
 // a /p b/ after a pause of at most `longest_closure_pause_us` had that silence as its
 // closure (the recogniser hears a silent closure as a pause and puts the stop at its
 // burst), so it takes the pause over and its start is refined from where the pause
 // started; when the phone before that pause is itself a stop, the pause holds that
 // stop's closure and release too, and the /p b/ starts at the pause's last fall of
 // the level instead; and an /m f v/ after a pause, with no closing movement to hear,
-// starts at the level's steepest rise (its sound's onset). Neighbouring phones keep at least
-// `min_phone_us` and their order; the utterance still tiles the same span. Pure
+// starts at the level's steepest rise (its sound's onset). Neighbouring phones keep
+// at least `min_phone_us` and their order; the utterance still tiles the same span. Pure
 // computation on the samples: the same audio and phones give the same result.
 #pragma once
 
