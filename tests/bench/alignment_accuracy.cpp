@@ -3,7 +3,8 @@
 //
 // Each sentence (ten Harvard sentences, public domain) is spoken by espeak-ng
 // through lipsync::speech::synthesize, whose phoneme events give the true
-// boundaries, and, when flite is on PATH, by flite's slt voice (`flite -psdur`
+// boundaries (its stops moved from their bursts back to the start of their closures'
+// silence, tests/speech/tts_recordings.hpp), and, when flite is on PATH, by flite's slt voice (`flite -psdur`
 // prints its segment ends; its audio is 16 kHz already), and, when festival is
 // on PATH, by Festival's kal_diphone voice (its segment relation gives the
 // boundaries; 16 kHz). Each recording is aligned twice: with its transcript
@@ -90,6 +91,7 @@ int main(int argc, char** argv) {
       } else {
         speech::Synthesis synthesis = speech::synthesize(sentence);
         recording = Recording{std::move(synthesis.audio), std::move(synthesis.phonemes)};
+        testing::espeak_stops_from_their_closures(recording->audio, recording->phonemes);
       }
       if (!recording) continue;
       audio_s += double(recording->audio.duration_us()) / 1e6;

@@ -70,7 +70,8 @@ TEST(ClosureRefiner, stop_closure_and_release_move_to_the_energy_steps) {
     LabeledUtterance phones =
         phones_of({{"AA", 0, 320'000, 1}, {label, 320'000, 360'000, 2}, {"AA", 360'000, 700'000, 3}});
     speech::ClosureRefinerOptions exact;
-    exact.closure_lead_us = 0;  // the energy step itself, not the lead a natural closing gesture gets
+    exact.closure_lead_us = 0;  // the energy step itself, not the onset and lead a natural closing gesture gets
+    exact.closure_onset_fraction = 1.0;
     const std::vector<speech::RefinedBoundary> refined = speech::refine_closures(audio, phones, exact);
     ASSERT_EQ(refined.size(), 2U) << label;
     EXPECT_TRUE(refined[0].moved && refined[1].moved) << label;
@@ -84,12 +85,14 @@ TEST(ClosureRefiner, stop_closure_and_release_move_to_the_energy_steps) {
   }
 }
 
-TEST(ClosureRefiner, the_closure_is_placed_its_lead_before_the_steepest_fall) {
+TEST(ClosureRefiner, the_closure_is_placed_its_lead_before_the_onset_of_the_fall) {
+  // A step at 300 ms into digital silence: the fall of the 10 ms means is still 40 % of
+  // its peak (the default onset fraction) 3 ms before the step; the lead is 3 ms more.
   const speech::PcmAudio audio = stop(300'000, 380'000, 700'000, Closure::silent);
   LabeledUtterance phones = phones_of({{"AA", 0, 320'000, 1}, {"P", 320'000, 360'000, 2}, {"AA", 360'000, 700'000, 3}});
-  const std::vector<speech::RefinedBoundary> refined = speech::refine_closures(audio, phones);  // default lead: 8 ms
+  const std::vector<speech::RefinedBoundary> refined = speech::refine_closures(audio, phones);
   ASSERT_EQ(refined.size(), 2U);
-  EXPECT_NEAR(double(phones.intervals[1].start_us), 292e3, 2e3);
+  EXPECT_NEAR(double(phones.intervals[1].start_us), 294e3, 2e3);
   EXPECT_NEAR(double(phones.intervals[1].end_us), 380e3, 2e3);
 }
 
@@ -142,6 +145,74 @@ TEST(ClosureRefiner, phones_keep_their_order_and_minimum_length) {
     }
   }
   EXPECT_EQ(phones.intervals.back().end_us, 700'000);
+}
+
+// Sounds one after another: each (kind, end µs) runs from the previous end.
+enum class Sound { vowel, silence, murmur };
+speech::PcmAudio sounds(std::initializer_list<std::pair<Sound, std::int64_t>> parts) {
+  speech::PcmAudio audio;
+  for (const auto& [kind, end_us] : parts) {
+    for (auto i = static_cast<std::int64_t>(audio.samples.size()); i < sample_of(end_us); ++i) {
+      const double t = double(i) / kRate;
+      const double v = kind == Sound::vowel     ? vowel(i)
+                       : kind == Sound::silence ? 0.0
+                                                : 0.08 * std::sin(2 * std::numbers::pi * 250 * t) +
+                                                      0.004 * std::sin(2 * std::numbers::pi * 2500 * t);
+      audio.samples.push_back(static_cast<std::int16_t>(std::lround(v * 32767)));
+    }
+  }
+  return audio;
+}
+
+TEST(ClosureRefiner, a_short_pause_before_a_stop_is_taken_for_its_closure) {
+  // The recogniser heard a /p/'s silent closure (300 to 380 ms) as a pause and put
+  // the /p/ at its burst: the /p/ takes the pause over and starts at the closure.
+  const speech::PcmAudio audio = stop(300'000, 380'000, 700'000, Closure::silent);
+  LabeledUtterance phones = phones_of(
+      {{"AA", 0, 310'000, 1}, {"", 310'000, 370'000, 2}, {"P", 370'000, 390'000, 3}, {"AA", 390'000, 700'000, 4}});
+  const std::vector<speech::RefinedBoundary> refined = speech::refine_closures(audio, phones);
+  ASSERT_EQ(phones.intervals.size(), 3U) << "the pause is gone";
+  EXPECT_EQ(phones.intervals[1].label, "P");
+  EXPECT_NEAR(double(phones.intervals[1].start_us), 294e3, 2e3) << "the closure, its lead before the fall";
+  EXPECT_EQ(phones.intervals[0].end_us, phones.intervals[1].start_us);
+  ASSERT_FALSE(refined.empty());
+  EXPECT_EQ(refined[0].phone, 1U);
+  EXPECT_TRUE(refined[0].moved);
+  // A long pause (over longest_closure_pause_us) stays a pause.
+  phones = phones_of(
+      {{"AA", 0, 100'000, 1}, {"", 100'000, 370'000, 2}, {"P", 370'000, 390'000, 3}, {"AA", 390'000, 700'000, 4}});
+  speech::refine_closures(audio, phones);
+  EXPECT_EQ(phones.intervals.size(), 4U);
+}
+
+TEST(ClosureRefiner, a_pause_between_two_stops_gives_the_second_its_closure_at_the_last_fall) {
+  // /k/ closure 200 to 260 ms, its release 260 to 300 ms, then the /p/'s closure 300 to
+  // 380 ms: the pause the recogniser put over both ends where the /p/'s closure starts.
+  const speech::PcmAudio audio = sounds({{Sound::vowel, 200'000},
+                                         {Sound::silence, 260'000},
+                                         {Sound::vowel, 300'000},
+                                         {Sound::silence, 380'000},
+                                         {Sound::vowel, 700'000}});
+  LabeledUtterance phones = phones_of({{"AA", 0, 200'000, 1},
+                                       {"K", 200'000, 230'000, 2},
+                                       {"", 230'000, 370'000, 3},
+                                       {"P", 370'000, 400'000, 4},
+                                       {"AA", 400'000, 700'000, 5}});
+  speech::refine_closures(audio, phones);
+  ASSERT_EQ(phones.intervals.size(), 5U);
+  EXPECT_NEAR(double(phones.intervals[3].start_us), 294e3, 2e3);
+  EXPECT_EQ(phones.intervals[2].end_us, phones.intervals[3].start_us);
+  EXPECT_EQ(phones.intervals[2].start_us, 230'000) << "the /k/ keeps its place";
+}
+
+TEST(ClosureRefiner, an_m_after_a_pause_starts_where_its_murmur_does) {
+  const speech::PcmAudio audio = sounds({{Sound::silence, 200'000}, {Sound::murmur, 280'000}, {Sound::vowel, 600'000}});
+  LabeledUtterance phones = phones_of({{"", 0, 220'000, 1}, {"M", 220'000, 290'000, 2}, {"AA", 290'000, 600'000, 3}});
+  const std::vector<speech::RefinedBoundary> refined = speech::refine_closures(audio, phones);
+  ASSERT_FALSE(refined.empty());
+  EXPECT_TRUE(refined[0].moved);
+  EXPECT_NEAR(double(phones.intervals[1].start_us), 200e3, 2e3) << "no lead: nothing closes after a pause";
+  EXPECT_NEAR(double(phones.intervals[1].end_us), 280e3, 2e3);
 }
 
 TEST(ClosureRefiner, formant_band_levels_fall_in_a_closure) {

@@ -2,9 +2,18 @@
 // segment ends) and Festival's kal_diphone voice (its segment relation), each WAV
 // written to a file and read back with the phones the synthesiser reports. For the
 // accuracy tool (tests/bench/alignment_accuracy.cpp) and the alignment tests.
+//
+// espeak-ng's own phoneme events time a stop at its burst: the closure before it,
+// which espeak-ng writes as digital silence, is labelled as the end of the previous
+// phoneme. A face closes its lips where the sound stops, so for scoring closures
+// espeak_stops_from_their_closures moves each /p b/ (and /t d k g/) that follows such
+// a silence back to where the silence starts, measured on the samples: the truth of a
+// stop's start is then the acoustic closure, as in flite's and Festival's labels.
 #pragma once
 
+#include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -50,6 +59,36 @@ inline std::optional<Recording> festival_recording(const std::string& text, cons
   return run_recording("festival -b '(voice_kal_diphone)' '(set! u (SynthText \"" + quoted +
                            "\"))' '(utt.save.wave u \"" + wav.string() + "\")' '(utt.save.segs u \"-\")' 2>/dev/null",
                        wav, InputFormat::lab, "festival");
+}
+
+/// The stops of espeak-ng's phonemes (`espeak` phone set, as synthesize reports them for
+/// `audio`) moved to the start of the closure's silence before their burst: the run of
+/// samples of at most kClosureSilence in magnitude that ends within 5 ms of the stop's
+/// label, when it lasts 10 ms or more and starts after the previous phoneme does. Other
+/// phonemes, and stops with no such silence (a /b/ voiced through), keep their label.
+inline void espeak_stops_from_their_closures(const speech::PcmAudio& audio, LabeledUtterance& phonemes) {
+  constexpr int kClosureSilence = 32;  // -60 dBFS: espeak-ng writes closures as zeros
+  const auto sample_at = [&](std::int64_t us) { return us * audio.sample_rate_hz / 1'000'000; };
+  const auto is_stop = [](const std::string& label) {
+    return label == "p" || label == "b" || label == "t" || label == "d" || label == "k" || label == "g";
+  };
+  for (std::size_t i = 1; i < phonemes.intervals.size(); ++i) {
+    LabeledInterval& stop = phonemes.intervals[i];
+    LabeledInterval& previous = phonemes.intervals[i - 1];
+    if (!is_stop(stop.label)) continue;
+    const auto quiet = [&](std::int64_t k) {
+      return k >= 0 && k < static_cast<std::int64_t>(audio.samples.size()) &&
+             std::abs(int(audio.samples[static_cast<std::size_t>(k)])) <= kClosureSilence;
+    };
+    std::int64_t end = sample_at(stop.start_us);
+    const std::int64_t earliest_end = end - sample_at(5'000);
+    while (end > earliest_end && !quiet(end - 1)) --end;  // the burst may start a little before the label
+    std::int64_t begin = end;
+    while (begin > 0 && quiet(begin - 1)) --begin;
+    const std::int64_t begin_us = begin * 1'000'000 / audio.sample_rate_hz;
+    if (end - begin < sample_at(10'000) || begin_us <= previous.start_us) continue;
+    previous.end_us = stop.start_us = begin_us;
+  }
 }
 
 }  // namespace lipsync::testing

@@ -6,7 +6,7 @@ each writes its own phone timings, which are the truth. Both tools turn each WAV
 into Rhubarb's mouth shapes (A-H, X; TSV), once from the audio alone and once
 with the transcript:
 
-    lipsync render speech.wav [--text-file words.txt] --format rhubarb-tsv --extended-shapes GHX
+    lipsync render speech.wav [--text-file words.txt] --format rhubarb-tsv --extended-shapes GHX --fps 100
     rhubarb -f tsv [-d words.txt] speech.wav
 
 and each is scored at the middle of every reference phone of three classes:
@@ -18,6 +18,7 @@ with its transcript, best of three runs.
 
 Outside the build and CI; docs/input-formats.md quotes its output.
 Usage: tools/speech/compare_rhubarb.py --lipsync build/clients/cli/lipsync --rhubarb PATH [--sentences N]
+       [--misses] [--no-timing] [--lipsync-only] [--lipsync-args "ARGS"]
 """
 import argparse
 import os
@@ -102,8 +103,14 @@ def shape_at(shapes, t):
     return current
 
 
+LIPSYNC_ARGS = []
+
+
 def lipsync_shapes(binary, wav, text_file, tsv):
-    command = [binary, "render", wav, "--format", "rhubarb-tsv", "--extended-shapes", "GHX", "-o", tsv]
+    # --fps 100: Rhubarb's cues are on a 10 ms grid; lipsync's default 30 fps grid would put the
+    # shape of a 40 ms vowel on the frame after its middle.
+    command = [binary, "render", wav, "--format", "rhubarb-tsv", "--extended-shapes", "GHX", "--fps", "100", "-o", tsv]
+    command += LIPSYNC_ARGS
     if text_file:
         command[3:3] = ["--text-file", text_file]
     run(command)
@@ -125,11 +132,16 @@ def main():
     parser.add_argument("--sentences", type=int, default=10)
     parser.add_argument("--misses", action="store_true", help="print each miss: speaker, sentence, phone, time, shape shown")
     parser.add_argument("--no-timing", action="store_true", help="skip the LibriVox wall-time runs")
+    parser.add_argument("--lipsync-only", action="store_true", help="run lipsyncd only (for trying its settings)")
+    parser.add_argument("--lipsync-args", default="", help="more arguments for lipsync render (space-separated)")
     args = parser.parse_args()
+    LIPSYNC_ARGS.extend(args.lipsync_args.split())
     for tool in (args.lipsync, args.rhubarb):
         if not os.access(tool, os.X_OK):
             sys.exit(f"compare_rhubarb: {tool}: not an executable file")
     tools = {"lipsyncd": (args.lipsync, lipsync_shapes), "Rhubarb 1.14": (args.rhubarb, rhubarb_shapes)}
+    if args.lipsync_only:
+        del tools["Rhubarb 1.14"]
     speakers = {name: fn for name, fn in (("Festival", festival), ("flite", flite)) if shutil.which(name.lower())}
     work = tempfile.mkdtemp(prefix="compare_rhubarb-")
     # score[(tool, mode)][class] = [right, total]

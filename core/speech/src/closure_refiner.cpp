@@ -139,14 +139,97 @@ Step best_step(const LevelTrack& levels, std::int64_t aligned_us, std::int64_t f
   return best;
 }
 
-}  // namespace
-
-bool is_lip_phone(std::string_view arpabet) {
+std::string upper_letters(std::string_view arpabet) {
   std::string phone;
   for (const char c : arpabet) {
     if (std::isalpha(static_cast<unsigned char>(c)))
       phone += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
   }
+  return phone;
+}
+
+// /m f v/: phones whose sound (murmur, frication) is heard from their first moment.
+bool starts_with_sound(std::string_view arpabet) {
+  const std::string phone = upper_letters(arpabet);
+  return phone == "M" || phone == "F" || phone == "V";
+}
+
+bool is_stop(std::string_view arpabet) {
+  const std::string phone = upper_letters(arpabet);
+  return phone == "P" || phone == "B" || phone == "T" || phone == "D" || phone == "K" || phone == "G" ||
+         phone == "CH" || phone == "JH";
+}
+
+// A short pause before a /p b/: the stop's closure, heard as silence.
+bool is_stop_closure_pause(const LabeledInterval& pause, const LabeledInterval& stop,
+                           const ClosureRefinerOptions& options) {
+  const std::string phone = upper_letters(stop.label);
+  return pause.label.empty() && (phone == "P" || phone == "B") &&
+         pause.end_us - pause.start_us <= options.longest_closure_pause_us;
+}
+
+// The latest step (down when `falling`) of at least `min_db` within [from_us, to_us]:
+// the last one found walking back from to_us, at its peak.
+Step latest_step(const LevelTrack& levels, std::int64_t from_us, std::int64_t to_us, bool falling, double min_db) {
+  constexpr std::int64_t side = kStepWindowUs / kCandidateStepUs;
+  const std::int64_t first = std::max((from_us + kCandidateStepUs - 1) / kCandidateStepUs, side);
+  const std::int64_t last = std::min(to_us / kCandidateStepUs, levels.frames() - side);
+  const auto step_at = [&](std::int64_t k) {
+    const double before = levels.mean_db(k - side, k), after = levels.mean_db(k, k + side);
+    return falling ? before - after : after - before;
+  };
+  std::int64_t k = last;
+  while (k >= first && step_at(k) < min_db) --k;
+  if (k < first) return {};
+  while (k > first && step_at(k - 1) >= step_at(k)) --k;
+  return {k * kCandidateStepUs, step_at(k)};
+}
+
+// Where the fall found at `step` begins: the earliest time, walking back from it
+// without a gap, whose fall is still closure_onset_fraction of the step's. A closing
+// gesture lowers the level over 10 to 30 ms before the steepest fall (more slowly in
+// diphone speech than in a stop's digital silence), so the onset, not the steepest
+// point, is where the lips start to seal.
+std::int64_t fall_onset_us(const LevelTrack& levels, const Step& step, std::int64_t from_us,
+                           const ClosureRefinerOptions& options) {
+  constexpr std::int64_t side = kStepWindowUs / kCandidateStepUs;
+  const auto fall = [&](std::int64_t k) { return levels.mean_db(k - side, k) - levels.mean_db(k, k + side); };
+  const std::int64_t first = std::max((from_us + kCandidateStepUs - 1) / kCandidateStepUs, side);
+  std::int64_t k = step.at_us / kCandidateStepUs;
+  while (k - 1 >= first && fall(k - 1) >= options.closure_onset_fraction * step.db) --k;
+  return k * kCandidateStepUs;
+}
+
+// Moves the start of the lip phone intervals[i] (i > 0): after a pause to the rise of
+// its sound (/m f v/), otherwise to the closure, where the formant band's level falls.
+void refine_start(const LevelTrack& levels, std::vector<LabeledInterval>& intervals, std::size_t i,
+                  const ClosureRefinerOptions& options, std::vector<RefinedBoundary>& refined) {
+  LabeledInterval& previous = intervals[i - 1];
+  LabeledInterval& phone = intervals[i];
+  const std::int64_t aligned = phone.start_us;
+  const std::int64_t from = std::max(aligned - options.search_us, previous.start_us + options.min_phone_us);
+  const std::int64_t to = std::min(aligned + options.search_us, phone.end_us - options.min_phone_us);
+  if (previous.label.empty() && starts_with_sound(phone.label)) {
+    // After a pause there is no closing movement to hear: an /m f v/ starts where its
+    // sound does, at the level's steepest rise.
+    const Step step = best_step(levels, aligned, from, to, false, options);
+    const bool moved = step.db >= options.min_step_db;
+    if (moved) previous.end_us = phone.start_us = step.at_us;
+    refined.push_back({i, false, aligned, phone.start_us, std::max(0.0, step.db), moved});
+    return;
+  }
+  const Step step = best_step(levels, aligned, from, to, true, options);
+  const std::int64_t onset = fall_onset_us(levels, step, from, options);
+  const std::int64_t at = std::max(onset - options.closure_lead_us, previous.start_us + options.min_phone_us);
+  const bool moved = step.db >= options.min_step_db && at <= phone.end_us - options.min_phone_us;
+  if (moved) previous.end_us = phone.start_us = at;
+  refined.push_back({i, false, aligned, phone.start_us, std::max(0.0, step.db), moved});
+}
+
+}  // namespace
+
+bool is_lip_phone(std::string_view arpabet) {
+  const std::string phone = upper_letters(arpabet);
   return phone == "P" || phone == "B" || phone == "M" || phone == "F" || phone == "V";
 }
 
@@ -159,16 +242,28 @@ std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtter
   std::vector<LabeledInterval>& intervals = phones.intervals;
   for (std::size_t i = 0; i < intervals.size(); ++i) {
     if (!is_lip_phone(intervals[i].label)) continue;
-    if (i > 0) {  // the closure: the formant band's level falls
-      LabeledInterval& previous = intervals[i - 1];
+    const bool after_pause = i > 1 && is_stop_closure_pause(intervals[i - 1], intervals[i], options);
+    if (after_pause && is_stop(intervals[i - 2].label)) {
+      // A pause between two stops holds the first one's closure and release, then the
+      // second one's closure: that starts at the pause's last fall of the level.
+      LabeledInterval& pause = intervals[i - 1];
       const std::int64_t aligned = intervals[i].start_us;
-      const Step step =
-          best_step(levels, aligned, std::max(aligned - options.search_us, previous.start_us + options.min_phone_us),
-                    std::min(aligned + options.search_us, intervals[i].end_us - options.min_phone_us), true, options);
-      const std::int64_t at = std::max(step.at_us - options.closure_lead_us, previous.start_us + options.min_phone_us);
-      const bool moved = step.db >= options.min_step_db && at <= intervals[i].end_us - options.min_phone_us;
-      if (moved) previous.end_us = intervals[i].start_us = at;
-      refined.push_back({i, false, aligned, intervals[i].start_us, std::max(0.0, step.db), moved});
+      const Step step = latest_step(levels, pause.start_us + options.min_phone_us, aligned, true, options.min_step_db);
+      const std::int64_t onset = fall_onset_us(levels, step, pause.start_us + options.min_phone_us, options);
+      const std::int64_t at = std::max(onset - options.closure_lead_us, pause.start_us + options.min_phone_us);
+      const bool moved = step.db > 0 && at <= intervals[i].end_us - options.min_phone_us;
+      if (moved) pause.end_us = intervals[i].start_us = at;
+      refined.push_back({i, false, aligned, intervals[i].start_us, step.db, moved});
+    } else {
+      if (after_pause && !intervals[i - 2].label.empty()) {
+        // The recogniser heard the stop's silent closure as a pause: the closure starts
+        // where that silence does, so the stop takes it over and its start is refined
+        // from there.
+        intervals[i].start_us = intervals[i - 1].start_us;
+        intervals.erase(intervals.begin() + static_cast<std::ptrdiff_t>(i - 1));
+        --i;
+      }
+      if (i > 0) refine_start(levels, intervals, i, options, refined);
     }
     if (i + 1 < intervals.size()) {  // the release: the level rises again
       LabeledInterval& next = intervals[i + 1];

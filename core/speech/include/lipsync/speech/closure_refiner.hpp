@@ -15,9 +15,19 @@
 // and within `search_us` of its end the rise R(t) = level[t, t+10 ms) -
 // level[t-10 ms, t). The boundary moves to the largest step, less a small penalty
 // per ms of distance from the aligner's boundary, when that step reaches
-// `min_step_db`: the step in dB is the move's confidence. Where no step is that
-// clear the aligner's boundary stays. Neighbouring phones keep at least
-// `min_phone_us` and their order; the utterance still tiles the same span. Pure
+// `min_step_db`: the step in dB is the move's confidence. A release goes to the
+// steepest rise; a closure to where its fall begins (walking back from the steepest
+// fall while D(t) stays at least `closure_onset_fraction` of it) less
+// `closure_lead_us`, as the level starts to drop while the lips close. Where no step
+// is that clear the aligner's boundary stays. Pauses next to lip phones get three rules:
+// a /p b/ after a pause of at most `longest_closure_pause_us` had that silence as its
+// closure (the recogniser hears a silent closure as a pause and puts the stop at its
+// burst), so it takes the pause over and its start is refined from where the pause
+// started; when the phone before that pause is itself a stop, the pause holds that
+// stop's closure and release too, and the /p b/ starts at the pause's last fall of
+// the level instead; and an /m f v/ after a pause, with no closing movement to hear,
+// starts at the level's steepest rise (its sound's onset). Neighbouring phones keep
+// at least `min_phone_us` and their order; the utterance still tiles the same span. Pure
 // computation on the samples: the same audio and phones give the same result.
 #pragma once
 
@@ -37,11 +47,17 @@ struct ClosureRefinerOptions {
   double min_step_db = 10.0;
   /// How much a step loses per ms of distance from the aligner's boundary, dB/ms.
   double distance_penalty_db_per_ms = 0.3;
-  /// How far before the steepest fall of the level the closure is placed, µs: the
-  /// level starts to fall while the lips are still closing.
-  std::int64_t closure_lead_us = 8'000;
+  /// Where the fall of the level begins, as a share of the steepest fall: walking back
+  /// from the steepest fall, the closure's onset is the earliest point whose fall is
+  /// still this share of it.
+  double closure_onset_fraction = 0.4;
+  /// How far before that onset the closure is placed, µs: the level starts to fall
+  /// while the lips are still closing.
+  std::int64_t closure_lead_us = 3'000;
   /// How far after the steepest rise the release is placed, µs.
   std::int64_t release_lag_us = 0;
+  /// The longest pause before a /p b/ that is taken for the stop's silent closure, µs.
+  std::int64_t longest_closure_pause_us = 160'000;
   /// The shortest a phone may become, µs.
   std::int64_t min_phone_us = 10'000;
 };
