@@ -135,12 +135,21 @@ const viewer = {
   release() { this.held = null; },
   /// Where the face's outer lip contour and eye contours are on the page now (CSS pixels).
   contours() { return { lip: onPage(kOuterLip), eyes: kEyes.map(onPage) }; },
+  /// Per frame received: [t µs, the viseme the page shows for it (the server's event), the largest weight's].
+  visemes() {
+    const names = track.header ? track.header.visemeNames : [];
+    return track.frames.map((f) => [f.t, f.viseme === null ? null : names[f.viseme],
+      f.visemes.length ? names[f.visemes.indexOf(Math.max(...f.visemes))] : null]);
+  },
 };
 window.lipsyncViewer = viewer;
 
 // ---------------------------------------------------------------- the track as received
 
-const track = { header: null, frames: [], summary: null };
+// eventViseme: the viseme of the server's last VisemeEvent (null before the first), which each
+// frame keeps as `viseme`: the page shows the server's events, not its own reading of the weights
+// (they differ where the server holds a closure's viseme on its key frames).
+const track = { header: null, frames: [], summary: null, eventViseme: null };
 
 function addBatch(batch) {
   const h = track.header;
@@ -152,8 +161,11 @@ function addBatch(batch) {
       values: batch.values.slice(i * nChannels, (i + 1) * nChannels),
       arkit: batch.arkit.slice(i * nArkit, (i + 1) * nArkit),
       visemes: batch.visemeWeights.slice(i * nVisemes, (i + 1) * nVisemes),
+      viseme: null,
       mesh: null,
     };
+    for (const event of batch.visemeEvents) if (event.startUs === frame.t) track.eventViseme = event.viseme;
+    frame.viseme = track.eventViseme;
     if (nCoords && batch.meshPositions.length) {
       frame.mesh = Float32Array.from(batch.meshPositions.slice(i * nCoords, (i + 1) * nCoords));
     } else if (nCoords && batch.meshPositionsInt16) {
@@ -489,7 +501,10 @@ function showReadouts(frame) {
   elements["frame-time"].textContent = frame ? String(frame.t) + " µs" : "–";
   const h = track.header;
   let viseme = null;
-  if (frame && frame.visemes.length) {
+  if (frame && frame.viseme !== null) {
+    viseme = h.visemeNames[frame.viseme];  // the server's event
+  } else if (frame && frame.visemes.length) {
+    // Only before the first event (a follower that joined from now): the largest weight, as the server picks it.
     let best = 0;
     frame.visemes.forEach((w, i) => { if (w > frame.visemes[best]) best = i; });
     viseme = h.visemeNames[best];
@@ -576,6 +591,9 @@ async function loadAudio(source, name, { quietNotFound = false } = {}) {
       viewer.audioNote = name + " is not readable from this page (no CORS header?): played by the audio element, " +
                          "which needs a server with byte ranges";
       setStatus("audio: " + viewer.audioNote, true);
+      elementStartedAtZero = false;
+      elementTooLate = false;
+      audio.preload = "auto";  // loaded before the anchor, so that an unseekable file starts on time
       audio.src = source;
       return;
     }
@@ -743,13 +761,82 @@ function steer(nowUs) {
 // For a cross-origin URL the page may not read, the media element plays it (it needs a server with
 // byte ranges to seek). After a start or a seek: the position it aimed at; drift is measured again
 // only once the audio has moved past it (its pipeline runs again) and kSettleAfterStartMs more.
+// A file the element cannot seek (a server without byte ranges: `seekable` ends at 0) is never
+// seeked (each seek would restart it at 0): it is started from its beginning at the anchor's time
+// 0, which only a page opened before the utterance can do, and then trimmed by playback rate alone;
+// a page that comes later says on the page why it cannot play the sound in sync.
 let audioRestart = null;  // {fromS, runningSinceMs}
 let audioInBand = 0;      // consecutive measurements within kLockUs while not locked
 let audioLeadUs = 0;  // how far ahead of the anchor a seek aims (the pipeline's restart lag)
 let audioStarting = false;
+let elementStartedAtZero = false;  // an unseekable file was started from its beginning at the anchor
+let elementTooLate = false;        // ... or the page came too late for that (said once on the page)
+
+/// Whether the element can seek the file (its server answers byte ranges), once its metadata is known.
+function elementCanSeek() {
+  const ranges = audio.seekable;
+  return ranges.length > 0 && ranges.end(ranges.length - 1) > 0;
+}
+
+function explainUnseekable(text) {
+  if (viewer.audioNote === text) return;
+  viewer.audioNote = text;
+  setStatus("audio: " + text, true);
+}
+
+/// The unseekable element: started from 0 at the anchor's time 0 when the page was there before
+/// it, then steered by playback rate only; true when it handled this tick.
+function steerUnseekableElement(nowUs) {
+  if (!(audio.duration > 0) || elementCanSeek()) return false;
+  const name = viewer.audio;
+  if (elementTooLate) return true;
+  if (!elementStartedAtZero) {
+    if (nowUs < 0) return true;  // before the anchor: waits at 0, preloaded
+    if (nowUs > kSeekUnlockedUs) {
+      elementTooLate = true;
+      explainUnseekable(name + " cannot be played in sync: it is not readable from this page (no CORS header) and its " +
+                        "server answers no byte ranges, so it can only start from its beginning, and the " +
+                        "utterance began " + (nowUs / 1e6).toFixed(2) + " s ago. Open the page before the " +
+                        "utterance, serve the file with Access-Control-Allow-Origin, or attach it to the session " +
+                        "(lipsync stream --audio FILE.wav)");
+      viewer.audioPlaying = false;
+      return true;
+    }
+    elementStartedAtZero = true;
+    viewer.locked = false;
+    audioInBand = 0;
+    audio.playbackRate = 1;
+    audioRestart = { fromS: 0, runningSinceMs: null };
+    audio.play()
+      .catch((e) => { viewer.audioError = e.message; setStatus("audio: " + e.message + " (click the page to allow it)", true); });
+    explainUnseekable(name + " is not readable from this page (no CORS header) and its server answers no byte " +
+                      "ranges: played by the audio element from its beginning at the anchor, kept in time by its " +
+                      "playback rate only (it cannot be seeked)");
+    return true;
+  }
+  if (audio.paused || audio.ended || nowUs / 1e6 >= audio.duration) {
+    viewer.audioPlaying = false;
+    return true;
+  }
+  viewer.audioPlaying = true;
+  if (audioRestart) {
+    if (audio.currentTime <= audioRestart.fromS) return true;
+    audioRestart.runningSinceMs ??= performance.now();
+    if (performance.now() - audioRestart.runningSinceMs < kSettleAfterStartMs) return true;
+    audioRestart = null;
+  }
+  const drift = Math.round(audio.currentTime * 1e6 - nowUs);
+  viewer.drift = drift;
+  elements.drift.textContent = (drift / 1000).toFixed(1) + " ms";
+  viewer.driftSamples += 1;
+  audio.playbackRate = 1 - Math.max(-kMaxElementRateTrim, Math.min(kMaxElementRateTrim, (drift / 1e6) * kRateGainPerSecond));
+  noteLock(drift, nowUs);
+  return true;
+}
 
 function steerElement(nowUs) {
   if (viewer.held !== null || nowUs === null) return;
+  if (steerUnseekableElement(nowUs)) return;
   const duration = audio.duration;
   if (nowUs < 0 || !(duration > 0) || nowUs / 1e6 >= duration) {
     viewer.audioPlaying = false;
@@ -842,6 +929,7 @@ function onHeader(header) {
   setStatus("following " + header.session);
   track.header = header;
   track.frames = [];
+  track.eventViseme = null;
   track.summary = null;
   const anchor = header.mediaClock;
   if (anchor && anchor.clock === "unix" && anchor.utteranceZeroUs) {
