@@ -18,7 +18,8 @@
 // - The face. With the mesh output (the header carries a MeshTopology) the page draws the server's
 //   simulated vertices. Otherwise it poses the viewer's face (/face.json, data/face/
 //   viewer_face.json: the physics face fitted as ARKit blendshapes by tools/face/make_viewer_face)
-//   with the frame's ARKit weights: rest + Σ w_k Δ_k, with the lips closed at rest (restClosure).
+//   with the frame's ARKit weights: rest + Σ w_k Δ_k. In both modes the lips are closed at rest
+//   (restClosure: the physics face's rest, the canonical mesh's, has them 5.5 mm apart).
 //   Skin and lips are lit, the skin painted from landmark contours (lips, eyes, brows) in a
 //   texture laid on the rest pose; the mouth cavity, teeth and tongue are drawn in flat colours
 //   (kOpenMouthColours) so an open mouth can be measured on a screenshot.
@@ -72,10 +73,11 @@ const kUpperLidPoints = 9;
 const kBrows = [[70, 63, 105, 66, 107, 55, 65, 52, 53, 46], [300, 293, 334, 296, 336, 285, 295, 282, 283, 276]];
 const kPaintTexels = 512;   // the paint texture's side (3.4 texels per mm)
 const kIrisRadiusM = 0.0056, kPupilRadiusM = 0.0022;
-// The relaxed rest (blendshapes): the fitted face's lips are 5.5 mm apart at rest (its teeth
-// show). The page closes them with a displacement of the lips toward each other (kRestClosure*),
-// in full while the fitted gap is at most its rest value, fading out as the mouth opens further
-// (gone at kRestClosureFadeGaps times the rest gap), so that an /aa/ opens as fitted.
+// The relaxed rest (both modes): the physics face's lips are 5.5 mm apart at rest, in the server's
+// simulated mesh and in the fitted blendshapes (its teeth show). The page closes them with a
+// displacement of the lips toward each other (kRestClosure*), in full while the gap is at most its
+// rest value, fading out as the mouth opens further (gone at kRestClosureFadeGaps times the rest
+// gap), so that an /aa/ opens nearly as far and a closed /p b m/ stays as it is.
 const kRestClosureFadeGaps = 4;
 const kRestClosureLipHeightM = 0.008;  // moved in full within this of the lip line, fading to 0 at 3x
 const kUpperInnerLip = 13, kLowerInnerLip = 14;
@@ -221,7 +223,7 @@ function buildGeometry(rest, triangles, parts, shapes) {
     uv[2 * v + 1] = (box.max[1] - rest[3 * v + 1]) / (box.max[1] - box.min[1]);  // the texture's rows go down
   }
   return { rest, triangles: Uint16Array.from(triangles), parts, colours, lit, painted, uv, box, shapes, shapeIndex,
-           closure: shapes.length ? restClosure(rest, parts) : null,
+           closure: restClosure(rest, parts),
            positions: Float32Array.from(rest), normals: new Float32Array(rest.length) };
 }
 
@@ -338,13 +340,13 @@ function pose(frame) {
         for (let c = 0; c < shape.deltas.length; ++c) g.positions[c] += w * shape.deltas[c];
       });
     }
-    if (g.closure) {  // the relaxed rest: lips together while the fitted face holds them at most as far apart as at rest
-      const gap = g.positions[3 * kUpperInnerLip + 1] - g.positions[3 * kLowerInnerLip + 1], rest = g.closure.gapM;
-      const amount = gap <= rest ? Math.max(0, gap / rest)
-                                 : Math.max(0, (kRestClosureFadeGaps * rest - gap) / ((kRestClosureFadeGaps - 1) * rest));
-      const closure = g.closure.vector;
-      if (amount > 0) for (let c = 1; c < closure.length; c += 3) g.positions[c] += amount * closure[c];
-    }
+  }
+  if (g.closure.gapM > 0) {  // the relaxed rest: lips together while the face holds them at most as far apart as at rest
+    const gap = g.positions[3 * kUpperInnerLip + 1] - g.positions[3 * kLowerInnerLip + 1], rest = g.closure.gapM;
+    const amount = gap <= rest ? Math.max(0, gap / rest)
+                               : Math.max(0, (kRestClosureFadeGaps * rest - gap) / ((kRestClosureFadeGaps - 1) * rest));
+    const closure = g.closure.vector;
+    if (amount > 0) for (let c = 1; c < closure.length; c += 3) g.positions[c] += amount * closure[c];
   }
   viewer.mouthOpen = Math.round(
     (g.positions[3 * kUpperInnerLip + 1] - g.positions[3 * kLowerInnerLip + 1]) * 1e5) / 100;
@@ -998,7 +1000,10 @@ function connect(session) {
     if (message.summary) {
       track.summary = message.summary;
       viewer.ended = true;
-      setStatus(session + ": complete, " + message.summary.frames + " frames");
+      const complete = session + ": complete, " + message.summary.frames + " frames";
+      // Why the sound did not play in sync stays on the page.
+      if (elementTooLate) setStatus(complete + "; audio: " + viewer.audioNote, true);
+      else setStatus(complete);
     }
   };
   socket.onclose = (event) => {

@@ -530,10 +530,9 @@ class ViewerInChromium(unittest.TestCase):
             for eye in paint["eyes"]:
                 self.assertGreater(eye["whites"], 0.15 * eye["area"], state)
                 self.assertGreater(eye["dark"], 10, state)
-        if mode == "blendshapes":
-            # At rest the lips meet: no teeth, no cavity.
-            self.assertLess(at_rest["open"], 0.5, at_rest)
-            self.assertLess(at_rest["pixels"], 0.01 * at_rest["area"], at_rest)
+        # At rest the lips meet, in both modes: no teeth, no cavity.
+        self.assertLess(at_rest["open"], 0.5, at_rest)
+        self.assertLess(at_rest["pixels"], 0.01 * at_rest["area"], at_rest)
         self.assertEqual(closed["viseme"], "PP")
         self.assertEqual(opened["viseme"], "aa")
         self.assertLess(closed["pixels"], 0.01 * closed["area"], closed)
