@@ -14,6 +14,11 @@
 // --playout-delay after the stream starts, on the "unix" clock; by default
 // that is the lookahead's release delay on read speech (release_delay.hpp)
 // plus a margin, so that players on that clock get every frame in time.
+//
+// --audio FILE.wav attaches the utterance's sound to the session (AudioAttachment
+// pieces of kAudioPieceBytes, sent after the settings and before the first
+// phonemes): the session's viewers play it from lipsyncd (/audio?session=NAME)
+// with no second server.
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -27,6 +32,7 @@
 #include "files.hpp"
 #include "lipsync/error.hpp"
 #include "lipsync/release_delay.hpp"
+#include "lipsync/speech/audio.hpp"
 #include "network.hpp"
 #include "pipeline.hpp"
 #include "received_track_writer.hpp"
@@ -45,6 +51,9 @@ constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     {"chunk", 0, "N", "phonemes per message, 1 to 10000", "1"},
     kServerModelOption,
     kSessionOption,
+    {"audio", 0, "FILE.wav",
+     "attach the utterance's sound (a WAV file) to the session: its viewers play it from lipsyncd (needs --session)",
+     ""},
     {"playout-delay", 0, "MS",
      "media clock: utterance time 0 plays this long after the stream starts, 0 to 600000",
      "the lookahead's release delay on read speech + 250 (1780 at lookahead 7)"},
@@ -63,6 +72,9 @@ constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
 // On top of the lookahead's release delay: the network, scheduling and the
 // player's own margin (PlaybackBuffer::kDefaultReleaseMarginUs), ms.
 constexpr int kPlayoutMarginMs = 250;
+
+// --audio is sent in pieces of this size: well within lipsyncd's default message limit (4 MiB).
+constexpr std::size_t kAudioPieceBytes = 1024 * 1024;
 
 constexpr std::string_view kUsage = "lipsync stream INPUT [options]";
 constexpr std::string_view kDescription =
@@ -113,6 +125,12 @@ int run_stream(std::span<const std::string_view> args) {
   if (utterance.intervals.empty()) throw InputError(source, 0, "the utterance has no phonemes");
   std::vector<PhoneSet> candidates;
   settings.set_phone_set(choose_phone_set(phone_set_name, utterance, model, candidates).name());
+  std::string audio;
+  if (const auto audio_path = arguments.value("audio")) {
+    if (settings.session().empty()) throw UsageError("--audio needs --session: only a session keeps its audio");
+    audio = read_file(*audio_path);
+    (void)speech::wav_layout_and_duration_us(audio, *audio_path);  // a file lipsyncd would refuse fails here
+  }
 
   client::ClientOptions client_options = connection_options(arguments);
   client_options.stream_timeout = std::chrono::seconds(timeout_s);
@@ -128,6 +146,9 @@ int run_stream(std::span<const std::string_view> args) {
     std::lock_guard lock(received_mutex);
     received.add(message);
   });
+  for (std::size_t offset = 0; offset < audio.size(); offset += kAudioPieceBytes) {
+    if (!call->send_audio(audio.substr(offset, kAudioPieceBytes))) break;
+  }
   const auto& intervals = utterance.intervals;
   for (std::size_t first = 0; first < intervals.size(); first += static_cast<std::size_t>(chunk_size)) {
     const std::size_t last = std::min(intervals.size(), first + static_cast<std::size_t>(chunk_size));

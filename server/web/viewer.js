@@ -18,7 +18,8 @@
 // - The face. With the mesh output (the header carries a MeshTopology) the page draws the server's
 //   simulated vertices. Otherwise it poses the viewer's face (/face.json, data/face/
 //   viewer_face.json: the physics face fitted as ARKit blendshapes by tools/face/make_viewer_face)
-//   with the frame's ARKit weights: rest + Σ w_k Δ_k, with the lips closed at rest (restClosure).
+//   with the frame's ARKit weights: rest + Σ w_k Δ_k. In both modes the lips are closed at rest
+//   (restClosure: the physics face's rest, the canonical mesh's, has them 5.5 mm apart).
 //   Skin and lips are lit, the skin painted from landmark contours (lips, eyes, brows) in a
 //   texture laid on the rest pose; the mouth cavity, teeth and tongue are drawn in flat colours
 //   (kOpenMouthColours) so an open mouth can be measured on a screenshot.
@@ -72,10 +73,11 @@ const kUpperLidPoints = 9;
 const kBrows = [[70, 63, 105, 66, 107, 55, 65, 52, 53, 46], [300, 293, 334, 296, 336, 285, 295, 282, 283, 276]];
 const kPaintTexels = 512;   // the paint texture's side (3.4 texels per mm)
 const kIrisRadiusM = 0.0056, kPupilRadiusM = 0.0022;
-// The relaxed rest (blendshapes): the fitted face's lips are 5.5 mm apart at rest (its teeth
-// show). The page closes them with a displacement of the lips toward each other (kRestClosure*),
-// in full while the fitted gap is at most its rest value, fading out as the mouth opens further
-// (gone at kRestClosureFadeGaps times the rest gap), so that an /aa/ opens as fitted.
+// The relaxed rest (both modes): the physics face's lips are 5.5 mm apart at rest, in the server's
+// simulated mesh and in the fitted blendshapes (its teeth show). The page closes them with a
+// displacement of the lips toward each other (kRestClosure*), in full while the gap is at most its
+// rest value, fading out as the mouth opens further (gone at kRestClosureFadeGaps times the rest
+// gap), so that an /aa/ opens nearly as far and a closed /p b m/ stays as it is.
 const kRestClosureFadeGaps = 4;
 const kRestClosureLipHeightM = 0.008;  // moved in full within this of the lip line, fading to 0 at 3x
 const kUpperInnerLip = 13, kLowerInnerLip = 14;
@@ -135,12 +137,21 @@ const viewer = {
   release() { this.held = null; },
   /// Where the face's outer lip contour and eye contours are on the page now (CSS pixels).
   contours() { return { lip: onPage(kOuterLip), eyes: kEyes.map(onPage) }; },
+  /// Per frame received: [t µs, the viseme the page shows for it (the server's event), the largest weight's].
+  visemes() {
+    const names = track.header ? track.header.visemeNames : [];
+    return track.frames.map((f) => [f.t, f.viseme === null ? null : names[f.viseme],
+      f.visemes.length ? names[f.visemes.indexOf(Math.max(...f.visemes))] : null]);
+  },
 };
 window.lipsyncViewer = viewer;
 
 // ---------------------------------------------------------------- the track as received
 
-const track = { header: null, frames: [], summary: null };
+// eventViseme: the viseme of the server's last VisemeEvent (null before the first), which each
+// frame keeps as `viseme`: the page shows the server's events, not its own reading of the weights
+// (they differ where the server holds a closure's viseme on its key frames).
+const track = { header: null, frames: [], summary: null, eventViseme: null };
 
 function addBatch(batch) {
   const h = track.header;
@@ -152,8 +163,11 @@ function addBatch(batch) {
       values: batch.values.slice(i * nChannels, (i + 1) * nChannels),
       arkit: batch.arkit.slice(i * nArkit, (i + 1) * nArkit),
       visemes: batch.visemeWeights.slice(i * nVisemes, (i + 1) * nVisemes),
+      viseme: null,
       mesh: null,
     };
+    for (const event of batch.visemeEvents) if (event.startUs === frame.t) track.eventViseme = event.viseme;
+    frame.viseme = track.eventViseme;
     if (nCoords && batch.meshPositions.length) {
       frame.mesh = Float32Array.from(batch.meshPositions.slice(i * nCoords, (i + 1) * nCoords));
     } else if (nCoords && batch.meshPositionsInt16) {
@@ -209,7 +223,7 @@ function buildGeometry(rest, triangles, parts, shapes) {
     uv[2 * v + 1] = (box.max[1] - rest[3 * v + 1]) / (box.max[1] - box.min[1]);  // the texture's rows go down
   }
   return { rest, triangles: Uint16Array.from(triangles), parts, colours, lit, painted, uv, box, shapes, shapeIndex,
-           closure: shapes.length ? restClosure(rest, parts) : null,
+           closure: restClosure(rest, parts),
            positions: Float32Array.from(rest), normals: new Float32Array(rest.length) };
 }
 
@@ -326,13 +340,13 @@ function pose(frame) {
         for (let c = 0; c < shape.deltas.length; ++c) g.positions[c] += w * shape.deltas[c];
       });
     }
-    if (g.closure) {  // the relaxed rest: lips together while the fitted face holds them at most as far apart as at rest
-      const gap = g.positions[3 * kUpperInnerLip + 1] - g.positions[3 * kLowerInnerLip + 1], rest = g.closure.gapM;
-      const amount = gap <= rest ? Math.max(0, gap / rest)
-                                 : Math.max(0, (kRestClosureFadeGaps * rest - gap) / ((kRestClosureFadeGaps - 1) * rest));
-      const closure = g.closure.vector;
-      if (amount > 0) for (let c = 1; c < closure.length; c += 3) g.positions[c] += amount * closure[c];
-    }
+  }
+  if (g.closure.gapM > 0) {  // the relaxed rest: lips together while the face holds them at most as far apart as at rest
+    const gap = g.positions[3 * kUpperInnerLip + 1] - g.positions[3 * kLowerInnerLip + 1], rest = g.closure.gapM;
+    const amount = gap <= rest ? Math.max(0, gap / rest)
+                               : Math.max(0, (kRestClosureFadeGaps * rest - gap) / ((kRestClosureFadeGaps - 1) * rest));
+    const closure = g.closure.vector;
+    if (amount > 0) for (let c = 1; c < closure.length; c += 3) g.positions[c] += amount * closure[c];
   }
   viewer.mouthOpen = Math.round(
     (g.positions[3 * kUpperInnerLip + 1] - g.positions[3 * kLowerInnerLip + 1]) * 1e5) / 100;
@@ -489,7 +503,10 @@ function showReadouts(frame) {
   elements["frame-time"].textContent = frame ? String(frame.t) + " µs" : "–";
   const h = track.header;
   let viseme = null;
-  if (frame && frame.visemes.length) {
+  if (frame && frame.viseme !== null) {
+    viseme = h.visemeNames[frame.viseme];  // the server's event
+  } else if (frame && frame.visemes.length) {
+    // Only before the first event (a follower that joined from now): the largest weight, as the server picks it.
     let best = 0;
     frame.visemes.forEach((w, i) => { if (w > frame.visemes[best]) best = i; });
     viseme = h.visemeNames[best];
@@ -576,6 +593,9 @@ async function loadAudio(source, name, { quietNotFound = false } = {}) {
       viewer.audioNote = name + " is not readable from this page (no CORS header?): played by the audio element, " +
                          "which needs a server with byte ranges";
       setStatus("audio: " + viewer.audioNote, true);
+      elementStartedAtZero = false;
+      elementTooLate = false;
+      audio.preload = "auto";  // loaded before the anchor, so that an unseekable file starts on time
       audio.src = source;
       return;
     }
@@ -743,13 +763,82 @@ function steer(nowUs) {
 // For a cross-origin URL the page may not read, the media element plays it (it needs a server with
 // byte ranges to seek). After a start or a seek: the position it aimed at; drift is measured again
 // only once the audio has moved past it (its pipeline runs again) and kSettleAfterStartMs more.
+// A file the element cannot seek (a server without byte ranges: `seekable` ends at 0) is never
+// seeked (each seek would restart it at 0): it is started from its beginning at the anchor's time
+// 0, which only a page opened before the utterance can do, and then trimmed by playback rate alone;
+// a page that comes later says on the page why it cannot play the sound in sync.
 let audioRestart = null;  // {fromS, runningSinceMs}
 let audioInBand = 0;      // consecutive measurements within kLockUs while not locked
 let audioLeadUs = 0;  // how far ahead of the anchor a seek aims (the pipeline's restart lag)
 let audioStarting = false;
+let elementStartedAtZero = false;  // an unseekable file was started from its beginning at the anchor
+let elementTooLate = false;        // ... or the page came too late for that (said once on the page)
+
+/// Whether the element can seek the file (its server answers byte ranges), once its metadata is known.
+function elementCanSeek() {
+  const ranges = audio.seekable;
+  return ranges.length > 0 && ranges.end(ranges.length - 1) > 0;
+}
+
+function explainUnseekable(text) {
+  if (viewer.audioNote === text) return;
+  viewer.audioNote = text;
+  setStatus("audio: " + text, true);
+}
+
+/// The unseekable element: started from 0 at the anchor's time 0 when the page was there before
+/// it, then steered by playback rate only; true when it handled this tick.
+function steerUnseekableElement(nowUs) {
+  if (!(audio.duration > 0) || elementCanSeek()) return false;
+  const name = viewer.audio;
+  if (elementTooLate) return true;
+  if (!elementStartedAtZero) {
+    if (nowUs < 0) return true;  // before the anchor: waits at 0, preloaded
+    if (nowUs > kSeekUnlockedUs) {
+      elementTooLate = true;
+      explainUnseekable(name + " cannot be played in sync: it is not readable from this page (no CORS header) and its " +
+                        "server answers no byte ranges, so it can only start from its beginning, and the " +
+                        "utterance began " + (nowUs / 1e6).toFixed(2) + " s ago. Open the page before the " +
+                        "utterance, serve the file with Access-Control-Allow-Origin, or attach it to the session " +
+                        "(lipsync stream --audio FILE.wav)");
+      viewer.audioPlaying = false;
+      return true;
+    }
+    elementStartedAtZero = true;
+    viewer.locked = false;
+    audioInBand = 0;
+    audio.playbackRate = 1;
+    audioRestart = { fromS: 0, runningSinceMs: null };
+    audio.play()
+      .catch((e) => { viewer.audioError = e.message; setStatus("audio: " + e.message + " (click the page to allow it)", true); });
+    explainUnseekable(name + " is not readable from this page (no CORS header) and its server answers no byte " +
+                      "ranges: played by the audio element from its beginning at the anchor, kept in time by its " +
+                      "playback rate only (it cannot be seeked)");
+    return true;
+  }
+  if (audio.paused || audio.ended || nowUs / 1e6 >= audio.duration) {
+    viewer.audioPlaying = false;
+    return true;
+  }
+  viewer.audioPlaying = true;
+  if (audioRestart) {
+    if (audio.currentTime <= audioRestart.fromS) return true;
+    audioRestart.runningSinceMs ??= performance.now();
+    if (performance.now() - audioRestart.runningSinceMs < kSettleAfterStartMs) return true;
+    audioRestart = null;
+  }
+  const drift = Math.round(audio.currentTime * 1e6 - nowUs);
+  viewer.drift = drift;
+  elements.drift.textContent = (drift / 1000).toFixed(1) + " ms";
+  viewer.driftSamples += 1;
+  audio.playbackRate = 1 - Math.max(-kMaxElementRateTrim, Math.min(kMaxElementRateTrim, (drift / 1e6) * kRateGainPerSecond));
+  noteLock(drift, nowUs);
+  return true;
+}
 
 function steerElement(nowUs) {
   if (viewer.held !== null || nowUs === null) return;
+  if (steerUnseekableElement(nowUs)) return;
   const duration = audio.duration;
   if (nowUs < 0 || !(duration > 0) || nowUs / 1e6 >= duration) {
     viewer.audioPlaying = false;
@@ -842,6 +931,7 @@ function onHeader(header) {
   setStatus("following " + header.session);
   track.header = header;
   track.frames = [];
+  track.eventViseme = null;
   track.summary = null;
   const anchor = header.mediaClock;
   if (anchor && anchor.clock === "unix" && anchor.utteranceZeroUs) {
@@ -910,7 +1000,10 @@ function connect(session) {
     if (message.summary) {
       track.summary = message.summary;
       viewer.ended = true;
-      setStatus(session + ": complete, " + message.summary.frames + " frames");
+      const complete = session + ": complete, " + message.summary.frames + " frames";
+      // Why the sound did not play in sync stays on the page.
+      if (elementTooLate) setStatus(complete + "; audio: " + viewer.audioNote, true);
+      else setStatus(complete);
     }
   };
   socket.onclose = (event) => {

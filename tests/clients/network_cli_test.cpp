@@ -297,6 +297,24 @@ TEST_F(NetworkCliTest, a_rejected_stream_exits_1_with_the_servers_reason_and_lea
   EXPECT_THAT(fs::directory_iterator(dir_) == fs::directory_iterator(), true);
 }
 
+TEST_F(NetworkCliTest, stream_attaches_a_wav_to_its_session_and_refuses_one_without_a_session_or_not_a_wav) {
+  const std::string wav = (fs::path(LIPSYNC_TEST_DATA_DIR) / "speech" / "mono16.wav").string();
+  const RunResult attached = run({"stream", fixture("hello.json"), "--fast", "--session", "cli-with-sound", "--audio",
+                                  wav, "--server", server(), "-o", "with.json"});
+  EXPECT_EQ(attached.status, 0) << attached.err;
+  const RunResult plain = run({"stream", fixture("hello.json"), "--fast", "--server", server(), "-o", "without.json"});
+  EXPECT_EQ(plain.status, 0) << plain.err;
+  EXPECT_EQ(output("with.json"), output("without.json"));  // the frames do not depend on the sound
+
+  const RunResult no_session = run({"stream", fixture("hello.json"), "--fast", "--audio", wav, "--server", server()});
+  EXPECT_EQ(no_session.status, 2);
+  EXPECT_THAT(no_session.err, HasSubstr("--audio needs --session"));
+  const RunResult not_wav = run({"stream", fixture("hello.json"), "--fast", "--session", "cli-not-wav", "--audio",
+                                 fixture("hello.json"), "--server", server()});
+  EXPECT_EQ(not_wav.status, 1);
+  EXPECT_THAT(not_wav.err, HasSubstr("hello.json: not a WAV file"));
+}
+
 TEST_F(NetworkCliTest, network_failures_exit_1_and_usage_errors_exit_2) {
   const RunResult unknown_session = run({"subscribe", "no-such-session", "--server", server(), "-o", "out.json"});
   EXPECT_EQ(unknown_session.status, 1);

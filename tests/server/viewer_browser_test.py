@@ -27,7 +27,16 @@ and checks:
   * the same with the server's simulated mesh (mode "mesh");
   * phonemes pasted into the page's quick-try box start a session that the page then follows, and
     a sentence typed there and spoken (Speak) plays its voice from lipsyncd, locked;
-  * a URL the page may not read (no CORS header) falls back to the audio element and says so.
+  * a URL the page may not read (no CORS header) falls back to the audio element and says so; from
+    a server without byte ranges (the element cannot seek) it is never seeked: a page opened before
+    the utterance starts it from its beginning at the anchor, and a page opened after says on the
+    page why it cannot play it in sync;
+  * a producer that attaches the utterance's WAV to its session (AnimateRequest.audio, the Python
+    client's animate(audio=...)) gets it played from lipsyncd (/audio?session=NAME), locked, with
+    the page opened before the session and after;
+  * the viseme the page shows for each frame is the server's viseme event (not its own reading of
+    the weights), checked against a Subscribe of the same session, and at a /f/ key frame of
+    flite_fast_2 where the largest weight is PP the page shows the event's FF.
   * an AudioContext stalled for 150 ms while locked is rescheduled onto the anchor and locks again.
 
 Screenshots of the page (face, readouts, bars) are written to $LIPSYNC_VIEWER_SCREENSHOTS when it is set (the
@@ -57,6 +66,7 @@ import zlib
 import websocket  # python3-websocket
 
 from lipsync_client import Client
+from lipsync.v1 import lipsync_pb2
 
 LIPSYNCD = sys.argv[1] if len(sys.argv) > 1 else "build/server/lipsyncd"
 TEST_DATA = sys.argv[2] if len(sys.argv) > 2 else "tests/data"
@@ -256,6 +266,21 @@ class NoCorsHandler(http.server.SimpleHTTPRequestHandler):
         pass
 
 
+class NoCorsStreamHandler(NoCorsHandler):
+    """No CORS header, no byte ranges and no Content-Length (the body ends when the connection
+    closes, as a live or streaming server sends it): the audio element cannot seek it."""
+
+    protocol_version = "HTTP/1.0"
+
+    def do_GET(self):
+        with open(self.translate_path(self.path), "rb") as file:
+            data = file.read()
+        self.send_response(200)
+        self.send_header("Content-Type", "audio/wav")
+        self.end_headers()
+        self.wfile.write(data)
+
+
 class RangeHandler(QuietHandler):
     """The same with byte ranges (206 Partial Content), as most web servers."""
 
@@ -318,10 +343,13 @@ class ViewerInChromium(unittest.TestCase):
         with open(os.path.join(TEST_DATA, "closures", "flite_1.psdur")) as fixture:
             assert flite.stdout.split() == fixture.read().split(), "flite's timings differ from flite_1.psdur"
         cls.phonemes = parse_psdur(flite.stdout)
+        with open(f"{cls.workdir}/papa.wav", "rb") as wav:
+            cls.wav_bytes = wav.read()
         cls.audio_server = serve_directory(cls.workdir, QuietHandler)
         cls.range_server = serve_directory(cls.workdir, RangeHandler)
         cls.slow_server = serve_directory(cls.workdir, SlowHandler)
         cls.no_cors_server = serve_directory(cls.workdir, NoCorsHandler)
+        cls.no_cors_stream_server = serve_directory(cls.workdir, NoCorsStreamHandler)
         cls.lipsyncd, cls.grpc_address, cls.viewer_url = start_lipsyncd()
         cls.browser = DevTools(cls.workdir)
         cls.client = Client(cls.grpc_address)
@@ -343,7 +371,8 @@ class ViewerInChromium(unittest.TestCase):
         cls.browser.close()
         cls.lipsyncd.terminate()
         cls.lipsyncd.wait()
-        for server in (cls.audio_server, cls.range_server, cls.slow_server, cls.no_cors_server):
+        for server in (cls.audio_server, cls.range_server, cls.slow_server, cls.no_cors_server,
+                       cls.no_cors_stream_server):
             server.shutdown()
         shutil.rmtree(cls.workdir, ignore_errors=True)
 
@@ -390,7 +419,7 @@ class ViewerInChromium(unittest.TestCase):
         self.browser.call("Page.navigate", url=f"{self.viewer_url}/view?{query}")
 
     def follow_and_measure(self, session, audio_url=None, open_page="before", speak=False, page_script=None,
-                           **settings):
+                           join_at_us=-100_000, **settings):
         """The page follows `session` while a producer makes it, opened before the session starts
         (it waits) or after (it joins in the middle); samples the page's state every 50 ms."""
         if open_page == "before":
@@ -409,7 +438,7 @@ class ViewerInChromium(unittest.TestCase):
             producer, zero_us = self.produce(session, **settings)
         if open_page == "after":
             # Once the session runs and its utterance time 0 is near: the page joins a session in progress.
-            time.sleep(max(0.0, (zero_us - 100_000) / 1e6 - time.time()))
+            time.sleep(max(0.0, (zero_us + join_at_us) / 1e6 - time.time()))
             self.open_page(session, audio_url)
         samples, deadline = [], time.time() + 15
         while time.time() < deadline:
@@ -482,6 +511,7 @@ class ViewerInChromium(unittest.TestCase):
             print(f"{session}: {rate:.1f} pictures drawn per second over {playing[-1]['t'] - playing[0]['t']} us "
                   f"of utterance time", flush=True)
         self.check_audio(session, samples, viewer)
+        self.check_visemes(session)
         if not mouth:
             return viewer
         # "Papa": pau until 193 ms, /p/ to 242 ms (its closure is the first 60 %), /aa/ to 384 ms.
@@ -500,10 +530,9 @@ class ViewerInChromium(unittest.TestCase):
             for eye in paint["eyes"]:
                 self.assertGreater(eye["whites"], 0.15 * eye["area"], state)
                 self.assertGreater(eye["dark"], 10, state)
-        if mode == "blendshapes":
-            # At rest the lips meet: no teeth, no cavity.
-            self.assertLess(at_rest["open"], 0.5, at_rest)
-            self.assertLess(at_rest["pixels"], 0.01 * at_rest["area"], at_rest)
+        # At rest the lips meet, in both modes: no teeth, no cavity.
+        self.assertLess(at_rest["open"], 0.5, at_rest)
+        self.assertLess(at_rest["pixels"], 0.01 * at_rest["area"], at_rest)
         self.assertEqual(closed["viseme"], "PP")
         self.assertEqual(opened["viseme"], "aa")
         self.assertLess(closed["pixels"], 0.01 * closed["area"], closed)
@@ -511,6 +540,24 @@ class ViewerInChromium(unittest.TestCase):
         self.assertLess(closed["open"], 1.0)
         self.assertGreater(opened["open"], closed["open"] + 5.0)
         return viewer
+
+    def check_visemes(self, session):
+        """The viseme the page shows for each frame is the one of the server's last viseme event at or
+        before it (a Subscribe of the same session reads the events)."""
+        shown = json.loads(self.browser.evaluate("JSON.stringify(lipsyncViewer.visemes())"))
+        names, events = [], []
+        for message in self.client.stub.Subscribe(lipsync_pb2.SubscribeRequest(session=session), timeout=10):
+            if message.HasField("header"):
+                names = list(message.header.viseme_names)
+            elif message.HasField("frames"):
+                events += [(event.start_us, names[event.viseme]) for event in message.frames.viseme_events]
+        expected = []
+        for t, _, _ in shown:
+            expected.append([name for start, name in events if start <= t][-1])
+        self.assertEqual([v for _, v, _ in shown], expected)
+        differ = [(t, event, largest) for t, event, largest in shown if event != largest]
+        print(f"{session}: the page shows the server's {len(events)} viseme events over {len(shown)} frames; "
+              f"at {len(differ)} frames they differ from the largest weight: {differ}", flush=True)
 
     def check_audio(self, session, samples, viewer):
         drifts = [s["drift"] for s in samples if s.get("drift") is not None]
@@ -625,6 +672,89 @@ class ViewerInChromium(unittest.TestCase):
         after = [d for t, d in drifts if t > viewer["lockedAtUs"]]
         self.assertGreater(len(after), 3)
         self.assertLess(max(map(abs, after)), FRAME_US, after)
+
+    def element_drifts(self, session, viewer, samples):
+        drifts = [(s["t"], s["drift"]) for s in samples if s.get("drift") is not None]
+        print(f"{session}: audio path {viewer['audioPath']}, {viewer['resyncs']} seeks, first drift at "
+              f"{drifts[0][0] if drifts else None} us, locked at {viewer['lockedAtUs']} us, largest locked "
+              f"|drift| {viewer['maxAbsDrift']} us; note: {viewer['audioNote']}; drift series (t, us): {drifts}",
+              flush=True)
+        return drifts
+
+    def test_6b_audio_the_page_may_not_read_without_byte_ranges_plays_in_sync_on_a_page_opened_late(self):
+        # `python3 -m http.server` as it is (no CORS header, no byte ranges), the page opened 0.5 s into
+        # the utterance: the element, loaded whole (preload), seeks within it and locks.
+        samples, viewer, _ = self.follow_and_measure("papa-no-cors", self.audio_url(self.no_cors_server),
+                                                     open_page="after", join_at_us=500_000)
+        drifts = self.element_drifts("papa-no-cors", viewer, samples)
+        self.assertEqual(viewer["audioPath"], "element")
+        self.assertIsNotNone(viewer["lockedAtUs"], "the element never locked")
+        self.assertLess(viewer["lockedAtUs"] - drifts[0][0], 1_000_000, "not locked within 1 s of the first sound")
+        self.assertLess(viewer["maxAbsDrift"], 1.5 * FRAME_US)
+
+    def test_6c_unseekable_audio_starts_from_its_beginning_at_the_anchor_and_is_never_seeked(self):
+        samples, viewer, _ = self.follow_and_measure("papa-unseekable", self.audio_url(self.no_cors_stream_server))
+        drifts = self.element_drifts("papa-unseekable", viewer, samples)
+        self.assertEqual(viewer["audioPath"], "element")
+        self.assertIn("from its beginning at the anchor", viewer["audioNote"])
+        self.assertEqual(viewer["resyncs"], 0, "an unseekable file was seeked")
+        self.assertGreater(len(drifts), 10, "the audio did not play")
+        self.assertLess(drifts[0][0], 300_000, "the audio did not start at the anchor")
+        self.assertIsNotNone(viewer["lockedAtUs"], "the element never locked")
+        self.assertLess(viewer["maxAbsDrift"], 1.5 * FRAME_US)
+
+    def test_6d_unseekable_audio_on_a_page_opened_late_says_why_it_cannot_sync(self):
+        samples, viewer, _ = self.follow_and_measure("papa-unseekable-late", self.audio_url(self.no_cors_stream_server),
+                                                     open_page="after", join_at_us=500_000)
+        print(f"papa-unseekable-late: {viewer['audioNote']}", flush=True)
+        status = self.browser.evaluate("document.getElementById('status').textContent")
+        self.assertEqual(viewer["audioPath"], "element")
+        self.assertIn("cannot be played in sync", viewer["audioNote"])
+        self.assertIn("cannot be played in sync", status)
+        self.assertFalse(viewer["audioPlaying"])
+        self.assertIsNone(viewer["drift"])
+
+    def test_8_audio_attached_by_the_producer_plays_from_lipsyncd_on_a_page_opened_before(self):
+        viewer = self.check_session("papa-attached", "blendshapes", audio=self.wav_bytes, mouth=False)
+        self.assertEqual(viewer["audio"], "/audio?session=papa-attached")
+        self.assertAlmostEqual(viewer["audioDurationUs"], self.wav_duration_us(), delta=1000)
+
+    def test_9_audio_attached_by_the_producer_plays_from_lipsyncd_on_a_page_opened_after(self):
+        viewer = self.check_session("papa-attached-late", "blendshapes", open_page="after", audio=self.wav_bytes,
+                                    mouth=False)
+        self.assertEqual(viewer["audio"], "/audio?session=papa-attached-late")
+        self.assertGreater(viewer["audioStartedAtUs"], 0, "the page did not join the session in progress")
+
+    def test_10_the_page_shows_the_servers_viseme_event_where_the_largest_weight_is_another(self):
+        # flite's fast "...": at the /f/ key frame at 1.626 s the largest Oculus weight is PP, and the
+        # server's event (the closure's viseme) FF; the page shows FF.
+        with open(os.path.join(TEST_DATA, "closures", "flite_fast_2.psdur")) as fixture:
+            phonemes = parse_psdur(fixture.read())
+        for _ in self.client.animate([phonemes], phone_set="radio", session="fast-2", visemes="oculus", timeout=30):
+            pass
+        self.open_page("fast-2")
+        deadline = time.time() + 20
+        while not self.browser.evaluate("!!(window.lipsyncViewer && lipsyncViewer.ended)"):
+            self.assertLess(time.time(), deadline, "the page did not receive the session")
+            time.sleep(0.05)
+        self.check_visemes("fast-2")
+        key_frame_us = 1_626_000
+        shown = {t: (event, largest) for t, event, largest in
+                 json.loads(self.browser.evaluate("JSON.stringify(lipsyncViewer.visemes())"))}
+        self.assertEqual(shown[key_frame_us], ("FF", "PP"))
+        self.browser.evaluate(f"lipsyncViewer.hold({key_frame_us})")
+        deadline = time.time() + 10
+        while self.browser.evaluate("lipsyncViewer.frameTime") != key_frame_us:
+            self.assertLess(time.time(), deadline, "the page did not draw the held time")
+            time.sleep(0.02)
+        self.browser.evaluate("new Promise((done) => requestAnimationFrame(() => requestAnimationFrame(done)))")
+        self.assertEqual(self.browser.evaluate("lipsyncViewer.viseme"), "FF")
+        self.assertEqual(self.browser.evaluate("document.getElementById('viseme').textContent"), "FF")
+        self.browser.evaluate("lipsyncViewer.release()")
+
+    def wav_duration_us(self):
+        channels, _, rate, _, _, bits = struct.unpack("<HHIIHH", self.wav_bytes[20:36])
+        return (len(self.wav_bytes) - 44) * 8 // (channels * bits) * 1_000_000 // rate
 
     def test_5_a_speak_sessions_voice_plays_from_lipsyncd_in_sync(self):
         viewer = self.check_session("spoken", "blendshapes", speak=True, mouth=False)

@@ -356,6 +356,80 @@ TEST_F(ViewerTest, audio_is_404_naming_a_session_without_audio_or_unknown_and_40
   EXPECT_EQ(request(http::verb::post, "/audio?session=animated").status, 405u);
 }
 
+/// "Papa ..." with `wav` attached in pieces of `piece_bytes` (AudioAttachment) between the settings
+/// and the phonemes; `session` may be empty (a private stream).
+std::vector<v1::AnimateRequest> papa_with_audio(const std::string& session, const std::string& wav,
+                                                std::size_t piece_bytes) {
+  std::vector<v1::AnimateRequest> requests = whole(papa_settings(session), flite_papa(), 3);
+  std::vector<v1::AnimateRequest> pieces;
+  for (std::size_t offset = 0; offset < wav.size(); offset += piece_bytes) {
+    pieces.emplace_back().mutable_audio()->set_wav(wav.substr(offset, piece_bytes));
+  }
+  requests.insert(requests.begin() + 1, pieces.begin(), pieces.end());
+  return requests;
+}
+
+/// A 44.1 kHz stereo 16-bit WAV of `seconds` (a file as a TTS front-end might write it, not lipsyncd's own
+/// 16-bit mono): a canonical header and a ramp of samples.
+std::string stereo_wav(double seconds) {
+  const std::uint32_t rate = 44'100, frames = static_cast<std::uint32_t>(seconds * rate), data = frames * 4;
+  std::string wav = "RIFF....WAVEfmt ";
+  const auto put = [&wav](std::uint32_t value, int bytes) {
+    for (int i = 0; i < bytes; ++i) wav.push_back(static_cast<char>(value >> (8 * i) & 0xFF));
+  };
+  put(16, 4), put(1, 2), put(2, 2), put(rate, 4), put(rate * 4, 4), put(4, 2), put(16, 2);
+  wav += "data";
+  put(data, 4);
+  for (std::uint32_t i = 0; i < frames * 2; ++i) put(i * 37 % 65'536, 2);
+  const std::uint32_t riff = static_cast<std::uint32_t>(wav.size() - 8);
+  for (int i = 0; i < 4; ++i) wav[4 + i] = static_cast<char>(riff >> (8 * i) & 0xFF);
+  return wav;
+}
+
+TEST_F(ViewerTest, audio_attached_by_the_producer_is_served_byte_for_byte_as_the_file_it_sent) {
+  const std::string wav = stereo_wav(2.5);  // 441 KB: three pieces of 200 KB
+  const Received produced = animate(*stub_, papa_with_audio("papa-with-sound", wav, 200'000));
+  ASSERT_TRUE(produced.status.ok()) << produced.status.error_message();
+  const Received silent = animate(*stub_, whole(papa_settings("papa-without-sound"), flite_papa(), 3));
+  EXPECT_EQ(produced.frames.t_us, silent.frames.t_us);  // the frames are those of the phonemes alone
+  EXPECT_EQ(produced.frames.values, silent.frames.values);
+  const HttpReply reply = request(http::verb::get, "/audio?session=papa-with-sound");
+  ASSERT_EQ(reply.status, 200u) << reply.body;
+  EXPECT_EQ(reply.content_type, "audio/wav");
+  EXPECT_EQ(reply.body.size(), wav.size());
+  EXPECT_TRUE(reply.body == wav) << "the served WAV differs from the attached file";
+}
+
+TEST_F(ViewerTest, attached_audio_that_is_not_a_wav_is_invalid_argument_naming_audio_wav) {
+  const Received produced = animate(*stub_, papa_with_audio("papa-not-wav", "ID3\x04 an mp3, not a WAV", 100));
+  EXPECT_EQ(produced.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(produced.status.error_message(), ::testing::StartsWith("audio.wav: not a WAV file"));
+  EXPECT_TRUE(produced.frames.t_us.empty());  // refused before any frame
+  EXPECT_EQ(request(http::verb::get, "/audio?session=papa-not-wav").status, 404u);
+}
+
+TEST_F(ViewerTest, attached_audio_over_32_mib_is_resource_exhausted_naming_audio_wav) {
+  const std::string piece(3 * 1024 * 1024, '\0');  // within the 4 MiB message limit; 11 of them are 33 MiB
+  std::vector<v1::AnimateRequest> requests{settings_request(papa_settings("papa-too-loud"))};
+  for (int i = 0; i < 11; ++i) requests.emplace_back().mutable_audio()->set_wav(piece);
+  requests.push_back(end_request());
+  const Received produced = animate(*stub_, requests);
+  EXPECT_EQ(produced.status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_THAT(produced.status.error_message(), ::testing::StartsWith("audio.wav: the attached audio is over 33554432"));
+}
+
+TEST_F(ViewerTest, audio_without_a_session_or_after_the_phonemes_is_invalid_argument_naming_audio) {
+  Received produced = animate(*stub_, papa_with_audio("", stereo_wav(0.1), 100'000));
+  EXPECT_EQ(produced.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(produced.status.error_message(), ::testing::StartsWith("audio: attached to a stream without"));
+  std::vector<v1::AnimateRequest> late = whole(papa_settings("papa-late-sound"), flite_papa(), 3);
+  late.insert(late.end() - 1, v1::AnimateRequest());
+  late[late.size() - 2].mutable_audio()->set_wav(stereo_wav(0.1));
+  produced = animate(*stub_, late);
+  EXPECT_EQ(produced.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(produced.status.error_message(), ::testing::StartsWith("audio: sent after the first phonemes"));
+}
+
 TEST_F(ViewerTest, quick_try_with_speak_speaks_the_text_into_a_session_that_carries_its_voice) {
   const HttpReply reply = request(http::verb::post, "/sessions?session=said&speak=1", "Papa parked the car.");
   ASSERT_EQ(reply.status, 200u) << reply.body;

@@ -117,6 +117,12 @@ class AnimateReactor : public HandoffReactor<grpc::ClientBidiReactor<v1::Animate
     return enqueue(std::move(request), false);
   }
 
+  bool send_audio(std::string wav_piece) {
+    v1::AnimateRequest request;
+    *request.mutable_audio()->mutable_wav() = std::move(wav_piece);
+    return enqueue(std::move(request), false);
+  }
+
   void end() {
     v1::AnimateRequest request;
     request.mutable_end();
@@ -286,6 +292,7 @@ AnimateCall::~AnimateCall() {
 }
 
 bool AnimateCall::send(std::vector<v1::Phoneme> phonemes) { return reactor_->send(std::move(phonemes)); }
+bool AnimateCall::send_audio(std::string wav_piece) { return reactor_->send_audio(std::move(wav_piece)); }
 void AnimateCall::end() { reactor_->end(); }
 void AnimateCall::cancel() { reactor_->cancel(); }
 grpc::Status AnimateCall::wait() { return reactor_->wait(); }

@@ -78,6 +78,8 @@ VISEME_VOCABULARIES: Dict[str, int] = {
 
 DEFAULT_TIMEOUT_S = 60.0
 DEFAULT_CHUNK_SIZE = 16
+# Pieces of an attached audio file (animate(audio=...)): within lipsyncd's default message limit (4 MiB).
+AUDIO_PIECE_BYTES = 1024 * 1024
 
 
 @dataclasses.dataclass(frozen=True)
@@ -493,6 +495,7 @@ class Client:
         *,
         timeout: Optional[float] = None,
         chunk_size: int = DEFAULT_CHUNK_SIZE,
+        audio: Optional[bytes] = None,
         **settings: Any,
     ) -> FrameStream:
         """Streams one utterance (bidirectional Animate) and returns its FrameStream.
@@ -503,20 +506,31 @@ class Client:
         yields them: a generator fed by a streaming TTS front-end is read lazily,
         on gRPC's thread, while the frames come back. The end marker follows the
         last chunk.
+
+        `audio`, the bytes of the utterance's WAV file, is attached to the
+        session (`session=` is needed) before the first phonemes, in pieces of
+        AUDIO_PIECE_BYTES: the session's viewers play it from lipsyncd
+        (/audio?session=NAME).
         """
         if chunk_size < 1:
             raise ValueError("chunk_size must be at least 1")
         first_request = lipsync_pb2.AnimateRequest(settings=make_settings(**settings))
+        if audio is not None and not first_request.settings.session:
+            raise ValueError("audio needs session=: only a session keeps its audio")
         call = self.stub.Animate(
-            self._requests(first_request, phonemes, chunk_size),
+            self._requests(first_request, phonemes, chunk_size, audio or b""),
             timeout=self.timeout if timeout is None else timeout,
             metadata=session_metadata(first_request.settings.session),
         )
         return FrameStream(call)
 
     @staticmethod
-    def _requests(first: Any, source: Iterable[Any], chunk_size: int) -> Iterator[Any]:
+    def _requests(first: Any, source: Iterable[Any], chunk_size: int, audio: bytes = b"") -> Iterator[Any]:
         yield first
+        for offset in range(0, len(audio), AUDIO_PIECE_BYTES):
+            yield lipsync_pb2.AnimateRequest(
+                audio=lipsync_pb2.AudioAttachment(wav=audio[offset:offset + AUDIO_PIECE_BYTES])
+            )
         pending: List[Any] = []
         for item in source:
             if _is_phoneme(item):

@@ -22,6 +22,12 @@
 // (face_capacity.hpp: RESOURCE_EXHAUSTED beyond it) and ends with
 // DEADLINE_EXCEEDED if its face falls more than --mesh-max-lag-ms behind real
 // time.
+//
+// The producer may attach the utterance's sound to its session (AudioAttachment,
+// between the settings and the first phonemes, in pieces): the pieces are
+// gathered, checked as one WAV file when the first phonemes (or `end`) arrive,
+// and kept by the session before any of its frames are published, so that the
+// browser viewer serves it (/audio?session=NAME) as it serves a Speak session's.
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -34,8 +40,10 @@
 #include <vector>
 
 #include "call_log.hpp"
+#include "lipsync/error.hpp"
 #include "lipsync/excerpt.hpp"
 #include "lipsync/renderer.hpp"
+#include "lipsync/speech/audio.hpp"
 #include "lipsync/tsan_handoff.hpp"
 #include "rpc/outbox.hpp"
 #include "rpc/phoneme_input.hpp"
@@ -55,6 +63,9 @@ constexpr std::size_t kReadPauseFrames = 4096;
 constexpr std::size_t kReadResumeFrames = 1024;
 // Frames the track of released frames has room for from the start.
 constexpr std::size_t kTypicalReleaseFrames = 16;
+// The most audio a producer may attach to its session (AudioAttachment, all pieces): about 3 minutes
+// of 48 kHz stereo 16-bit sound, kept as long as the session.
+constexpr std::size_t kMaxAttachedAudioBytes = 32 * 1024 * 1024;
 
 class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::AnimateRequest, v1::TrackMessage>>,
                              public OutboxTarget,
@@ -179,8 +190,15 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
         if (!request.has_settings()) return invalid("first message must be settings");
         return start(request.settings());
       case Phase::streaming:
-        if (request.has_phonemes()) return add_phonemes(request.phonemes());
-        if (request.has_end()) return end();
+        if (request.has_audio()) return attach_audio(request.audio());
+        if (request.has_phonemes()) {
+          if (auto status = keep_attached_audio(); !status.ok()) return status;
+          return add_phonemes(request.phonemes());
+        }
+        if (request.has_end()) {
+          if (auto status = keep_attached_audio(); !status.ok()) return status;
+          return end();
+        }
         if (request.has_settings()) return invalid("settings sent twice: only the first message may be settings");
         return invalid("empty AnimateRequest after " + std::to_string(phonemes()) + " phonemes");
       case Phase::ended:
@@ -192,6 +210,44 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
         return invalid("message received after `end` (the utterance had " + std::to_string(phonemes()) + " phonemes)");
     }
     return grpc::Status::OK;
+  }
+
+  /// Gathers one piece of the attached audio file (AudioAttachment.wav).
+  grpc::Status attach_audio(const v1::AudioAttachment& audio) {
+    if (!current_session()) {
+      return invalid("audio: attached to a stream without settings.session: only a session keeps its audio");
+    }
+    if (audio_kept_ || phonemes() > 0) {
+      return invalid("audio: sent after the first phonemes: attach the audio between the settings and them");
+    }
+    if (attached_audio_.size() + audio.wav().size() > kMaxAttachedAudioBytes) {
+      return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                          "audio.wav: the attached audio is over " + std::to_string(kMaxAttachedAudioBytes) +
+                              " bytes (32 MiB) with this piece of " + std::to_string(audio.wav().size()) + " bytes");
+    }
+    attached_audio_ += audio.wav();
+    return grpc::Status();
+  }
+
+  /// Once, when the first phonemes or `end` arrive: the gathered audio, checked as a WAV file,
+  /// becomes the session's (before any frame is published).
+  grpc::Status keep_attached_audio() {
+    if (audio_kept_) return grpc::Status();
+    audio_kept_ = true;
+    if (attached_audio_.empty()) return grpc::Status();
+    try {
+      const auto [layout, duration_us] = speech::wav_layout_and_duration_us(attached_audio_, "audio.wav");
+      log_.line(spdlog::level::debug, "audio attached",
+                std::to_string(attached_audio_.size()) + " bytes, " + std::to_string(duration_us) + " us at " +
+                    std::to_string(layout.sample_rate_hz) + " Hz");
+    } catch (const InputError& error) {
+      return invalid("audio.wav: " + error.message());
+    }
+    if (auto session = current_session()) {
+      session->set_audio_wav(std::make_shared<const std::string>(std::move(attached_audio_)));
+    }
+    attached_audio_ = std::string();
+    return grpc::Status();
   }
 
   grpc::Status start(const v1::AnimationSettings& settings) {
@@ -381,6 +437,8 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
   StreamEncoder encoder_;
   std::atomic<bool> stopped_ = false;  // failed, cancelled or done: queued face work is skipped
   std::vector<Segment> segments_;
+  std::string attached_audio_;  // AudioAttachment pieces gathered so far
+  bool audio_kept_ = false;     // the first phonemes or `end` came: no more audio
   Track track_;
   std::atomic<std::uint64_t> frames_sent_ = 0;
   std::atomic<std::size_t> frames_in_lane_ = 0;

@@ -131,8 +131,9 @@ Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(con
       if (!wav) {
         return grpc::Status(grpc::StatusCode::NOT_FOUND,
                             "session '" + session +
-                                "' has no audio: only a session made by Speak keeps its sound "
-                                "(give the page ?audio=URL for the others)");
+                                "' has no audio: a session keeps its sound when made by Speak or when its producer "
+                                "attached it (AnimateRequest.audio, `lipsync stream --audio FILE.wav`); give the "
+                                "page ?audio=URL for the others");
       }
       return grpc::Status::OK;
     };

@@ -163,6 +163,10 @@ class AnimateCall {
   /// Queues a chunk of phonemes. Returns false once the stream has ended (the
   /// server closed it: wait() says why).
   bool send(std::vector<v1::Phoneme> phonemes);
+  /// Queues a piece of the utterance's WAV file for the session's viewers (AudioAttachment:
+  /// the pieces in order, each within the server's message limit, before the first phonemes).
+  /// Returns false once the stream has ended.
+  bool send_audio(std::string wav_piece);
   /// Queues the end marker and closes the sending side.
   void end();
   /// Asks the server to drop the stream (it ends with CANCELLED).
