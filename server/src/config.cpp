@@ -112,6 +112,11 @@ const std::vector<Option>& options() {
        [](const ServerConfig& c) {
          return c.transport_memory_bytes ? std::to_string(*c.transport_memory_bytes) : std::string("unset");
        }},
+      {"--max-session-audio-bytes", "BYTES",
+       "the sound all sessions keep together for the viewer's /audio (Speak's voice, attached WAVs); "
+       "an attachment beyond it is RESOURCE_EXHAUSTED",
+       [](ServerConfig& c, const Setting& s) { c.max_session_audio_bytes = parse_count(s, 0); },
+       [](const ServerConfig& c) { return std::to_string(c.max_session_audio_bytes); }},
       {"--replay-frames", "N", "frames a session keeps for subscribers that start from the beginning",
        [](ServerConfig& c, const Setting& s) { c.replay_frames = parse_count(s, 0); },
        [](const ServerConfig& c) { return std::to_string(c.replay_frames); }},

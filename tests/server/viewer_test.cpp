@@ -75,8 +75,13 @@ class ViewerTest : public LiveServerTest {
  protected:
   void SetUp() override {
     ServerConfig config;
-    config.http_listen = "127.0.0.1:0";
     config.session_retention_ms = 60'000;
+    start_viewer(config);
+  }
+
+  /// Starts lipsyncd with `config` and its viewer on a free port.
+  void start_viewer(ServerConfig config) {
+    config.http_listen = "127.0.0.1:0";
     start(config);
     const std::string address = server_->http_address();
     http_host_ = address.substr(0, address.rfind(':'));
@@ -398,6 +403,41 @@ TEST_F(ViewerTest, audio_attached_by_the_producer_is_served_byte_for_byte_as_the
   EXPECT_EQ(reply.content_type, "audio/wav");
   EXPECT_EQ(reply.body.size(), wav.size());
   EXPECT_TRUE(reply.body == wav) << "the served WAV differs from the attached file";
+}
+
+// A server whose sessions may keep 1 MB of sound together, for 300 ms after they end.
+class SessionAudioBudgetTest : public ViewerTest {
+ protected:
+  void SetUp() override {
+    ServerConfig config;
+    config.session_retention_ms = 300;
+    config.max_session_audio_bytes = 1'000'000;
+    start_viewer(config);
+  }
+};
+
+TEST_F(SessionAudioBudgetTest, SessionsKeepTheirSoundWithinTheServersBudgetAndGiveItBackWhenTheyExpire) {
+  const std::string wav = stereo_wav(2.5);  // 441 KB: two fit in 1 MB, a third does not
+  for (const std::string name : {"first-voice", "second-voice"}) {
+    const Received produced = animate(*stub_, papa_with_audio(name, wav, 200'000));
+    ASSERT_TRUE(produced.status.ok()) << name << ": " << produced.status.error_message();
+  }
+  const Received refused = animate(*stub_, papa_with_audio("third-voice", wav, 200'000));
+  EXPECT_EQ(refused.status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_THAT(refused.status.error_message(),
+              ::testing::StartsWith("audio.wav: the sessions' audio would be over the server's 1000000 bytes "
+                                    "(--max-session-audio-bytes)"));
+  EXPECT_TRUE(refused.frames.t_us.empty());
+  EXPECT_EQ(request(http::verb::get, "/audio?session=first-voice").body, wav);  // the others keep theirs
+  // Once the two sessions have expired, their sound is given back and a new session keeps its own.
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  Received again;
+  for (int attempt = 0; attempt < 20; ++attempt) {
+    again = animate(*stub_, papa_with_audio("fourth-voice-" + std::to_string(attempt), wav, 200'000));
+    if (again.status.ok()) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ASSERT_TRUE(again.status.ok()) << again.status.error_message();
 }
 
 TEST_F(ViewerTest, attached_audio_that_is_not_a_wav_is_invalid_argument_naming_audio_wav) {

@@ -159,6 +159,7 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
     if (admitted_) service_.admission().release_stream();
     stopped_ = true;
     if (mesh_weight_milli_ > 0) service_.face_capacity().release(mesh_weight_milli_);
+    if (audio_reserved_bytes_ > 0) service_.audio_budget().release(audio_reserved_bytes_);
     if (lane_) {
       lane_->retire([this] { delete this; });  // after the face jobs still queued
     } else {
@@ -225,6 +226,15 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
                           "audio.wav: the attached audio is over " + std::to_string(kMaxAttachedAudioBytes) +
                               " bytes (32 MiB) with this piece of " + std::to_string(audio.wav().size()) + " bytes");
     }
+    if (!service_.audio_budget().try_reserve(audio.wav().size())) {
+      const AudioBudget& budget = service_.audio_budget();
+      return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                          "audio.wav: the sessions' audio would be over the server's " +
+                              std::to_string(budget.limit_bytes()) + " bytes (--max-session-audio-bytes) with this " +
+                              "piece of " + std::to_string(audio.wav().size()) + " bytes (" +
+                              std::to_string(budget.held_bytes()) + " held now): try again when sessions expire");
+    }
+    audio_reserved_bytes_ += audio.wav().size();
     attached_audio_ += audio.wav();
     return grpc::Status();
   }
@@ -244,7 +254,8 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
       return invalid("audio.wav: " + error.message());
     }
     if (auto session = current_session()) {
-      session->set_audio_wav(std::make_shared<const std::string>(std::move(attached_audio_)));
+      session->set_audio_wav(service_.audio_budget().keep(std::move(attached_audio_)));
+      audio_reserved_bytes_ = 0;  // the kept string gives them back
     }
     attached_audio_ = std::string();
     return grpc::Status();
@@ -437,8 +448,9 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
   StreamEncoder encoder_;
   std::atomic<bool> stopped_ = false;  // failed, cancelled or done: queued face work is skipped
   std::vector<Segment> segments_;
-  std::string attached_audio_;  // AudioAttachment pieces gathered so far
-  bool audio_kept_ = false;     // the first phonemes or `end` came: no more audio
+  std::string attached_audio_;            // AudioAttachment pieces gathered so far
+  std::size_t audio_reserved_bytes_ = 0;  // of the server's audio budget, for attached_audio_ until kept
+  bool audio_kept_ = false;               // the first phonemes or `end` came: no more audio
   Track track_;
   std::atomic<std::uint64_t> frames_sent_ = 0;
   std::atomic<std::size_t> frames_in_lane_ = 0;

@@ -41,6 +41,7 @@ LipSyncService::LipSyncService(const ServerConfig& config, const ModelCatalog& c
       routing_(config.replica_name, config.listen),
       tenants_(config.api_keys),
       face_capacity_(config.max_mesh_streams_per_face_thread, face_thread_count(config)),
+      audio_budget_(std::make_shared<AudioBudget>(config.max_session_audio_bytes)),
       face_workers_(face_thread_count(config), face_priority(config.face_priority)) {
   register_gauges();
 }

@@ -12,6 +12,7 @@
 #include "lipsync/server/config.hpp"
 #include "metrics.hpp"
 #include "rpc/speech_thread.hpp"
+#include "sessions/audio_budget.hpp"
 #include "sessions/live_streams.hpp"
 #include "sessions/session.hpp"
 #include "sessions/session_routing.hpp"
@@ -66,6 +67,8 @@ class LipSyncService final : public v1::LipSync::WithRawCallbackMethod_Subscribe
   Tenants& tenants() { return tenants_; }
   /// How much mesh work is admitted (--max-mesh-streams-per-face-thread).
   FaceCapacity& face_capacity() { return face_capacity_; }
+  /// The sound sessions keep for /audio, all together (--max-session-audio-bytes).
+  AudioBudget& audio_budget() { return *audio_budget_; }
 
  private:
   void register_gauges();
@@ -80,6 +83,8 @@ class LipSyncService final : public v1::LipSync::WithRawCallbackMethod_Subscribe
   Tenants tenants_;
   FaceLibrary faces_;
   FaceCapacity face_capacity_;
+  // Shared with the audio strings it counts, which may outlive the service in a session.
+  std::shared_ptr<AudioBudget> audio_budget_;
   // After what its jobs use, so that it is joined before they go.
   SpeechThread speech_thread_;
   LiveStreams live_streams_;

@@ -272,7 +272,14 @@ class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::Sp
     if (session_) {  // the viewer plays it (GET /audio?session=NAME), before the first frames are published
       std::ostringstream wav;
       speech::write_wav(wav, audio_);
-      session_->set_audio_wav(std::make_shared<const std::string>(std::move(wav).str()));
+      std::string bytes = std::move(wav).str();
+      if (service_.audio_budget().try_reserve(bytes.size())) {
+        session_->set_audio_wav(service_.audio_budget().keep(std::move(bytes)));
+      } else {  // the call goes on (the caller gets its sound in the responses); only /audio lacks it
+        log_.line(spdlog::level::warn, "audio not kept",
+                  std::to_string(bytes.size()) + " bytes would be over --max-session-audio-bytes " +
+                      std::to_string(service_.audio_budget().limit_bytes()));
+      }
     }
 
     v1::SpeakHeader& header = *responses_.emplace_back().mutable_header();

@@ -49,6 +49,8 @@ struct ServerConfig {
   /// 0 = unbounded; unset = sized from max_message_bytes and the calls in progress
   /// (server/src/transport/transport_quota.hpp: a message over the limit then costs about 20 MB at idle).
   std::optional<std::size_t> transport_memory_bytes;
+  /// The sound all sessions keep for /audio together (Speak's voice, producers' attached WAVs).
+  std::size_t max_session_audio_bytes = std::size_t{256} * 1024 * 1024;
 
   // Sessions and fan-out.
   std::size_t replay_frames = 1'800;            ///< frames a session keeps for late joiners (1 min at 30 fps)
