@@ -185,6 +185,23 @@ CONSONANTS = {
     "ipa_ʕ": ("consonant", "Arabic ʿayn", "pharyngeal", "approximant", "voiced", {}),
 }
 
+# Labialisation (ʷ: kʷ, ɡʷ in MFA's English, Igbo, Caucasian and Salishan languages): a consonant with
+# its lips rounded as a secondary articulation. Every consonant whose lips are otherwise free (not a
+# bilabial, labiodental or labial-velar, nor already rounded like /r/) has a labialised partner
+# `ipa_<name>ʷ`: its own features plus "labialised", which the rules below turn into rounded lips.
+def labialised_name(name):
+    return (name if name.startswith("ipa_") else "ipa_" + name) + "ʷ"
+
+
+for _name, (_cls, _example, _place, _manner, _voicing, _extra) in list(CONSONANTS.items()):
+    if _cls != "consonant" or _place in ("bilabial", "labiodental", "labial-velar") or "rounding" in _extra:
+        continue
+    if _name == "q":
+        continue  # the glottal stop (ʔ): ipa_qʷ is the uvular's; ʔʷ falls back to ʔ
+    CONSONANTS[labialised_name(_name)] = (_cls, _example + ", with rounded lips (ʷ)", _place, _manner, _voicing,
+                                          dict(_extra, labialised=True, plain=_name))
+LABIALISED = {CONSONANTS[n][5]["plain"]: n for n in CONSONANTS if CONSONANTS[n][5].get("labialised")}
+
 INVENTORY = ["sil"] + [v for v in VOWELS if not v.startswith("ipa_")] + ["pcl", "bcl", "m", "f", "v", "p", "b"] + [
     "t", "d", "k", "g", "ch", "jh", "th", "dh", "s", "z", "sh", "zh", "hh", "n", "ng", "l", "r", "w",
     "y", "dx", "q"]
@@ -373,6 +390,15 @@ def consonant_targets(name):
         rnd = ROUNDNESS[extra["rounding"]]
         set_group(t, SPHINCTER, 0.9 * rnd)
         t["mentalis"] = 0.25 * rnd
+    if extra.get("labialised"):
+        # Labialised consonants (kʷ) round the lips as a rounded consonant does (/r/: "rounded"), on top
+        # of their own place; rounded lips do not spread.
+        rnd = ROUNDNESS["rounded"]
+        for ch in SPHINCTER:
+            t[ch] = max(t.get(ch, 0.0), 0.9 * rnd)
+        t["mentalis"] = max(t.get("mentalis", 0.0), 0.25 * rnd)
+        for ch in SPREAD + SMILE:
+            t.pop(ch, None)
     return t
 
 
@@ -523,6 +549,11 @@ def dominance_of(name):
     elif place == "glottal":
         # /hh/ and the glottal stop are weak: they take the shape of their neighbours.
         put(CHANNEL_NAMES, alpha=0.2)
+    if extra.get("labialised"):
+        # Labialisation: the rounding channels dominate as a rounded vowel's do (α 1 + rounding), with
+        # the vowel's slow, anticipated rise, and the spreading channels give way to them.
+        put(ROUNDING, alpha=1.0 + ROUNDNESS["rounded"], theta_plus_per_s=12.0, theta_minus_per_s=22.0)
+        put(SPREAD + SMILE, alpha=min(dom[SPREAD[0]]["alpha"], 0.5))
     return dom
 
 
@@ -662,6 +693,8 @@ NOTES = {
     "ipa_ħ": "pharyngeal fricative: tongue root back, jaw a little open; weak like /hh/",
     "ipa_ʕ": "pharyngeal approximant: tongue root back, jaw a little open; weak like /hh/",
 }
+for _plain, _labialised in LABIALISED.items():
+    NOTES[_labialised] = NOTES[_plain] + "; labialised: the lips rounded as for /r/, anticipated"
 
 
 def features_of(name):
@@ -682,7 +715,7 @@ def features_of(name):
         return f
     _, example, place, manner, voicing, extra = CONSONANTS[name]
     f = {"example": example, "place": place, "manner": manner, "voicing": voicing}
-    for key in ("sibilant", "rhotic", "rounding"):
+    for key in ("sibilant", "rhotic", "rounding", "labialised"):
         if key in extra:
             f[key] = extra[key]
     return f
@@ -984,6 +1017,7 @@ IPA_CHART = ("p b t d ʈ ɖ c ɟ k ɡ q ɢ ʔ m ɱ n ɳ ɲ ŋ ɴ ʙ r ʀ ⱱ ɾ 
 # Marks removed only when a label is not in the table as written (the fallback, docs/languages.md):
 # length, tones and phonation, articulatory details that do not change the mouth.
 IPA_FALLBACK_IGNORE = ("ːˤˀᵝⁿˡ˞"  # long, pharyngealised, glottalised, compressed, nasal/lateral release, rhotic
+                       "ʷ"  # labialised, where the table has no labialised partner (pʷ, mʷ, fʷ: the lips close anyway)
                        "-#.[`^;:!/\""  # the marks of espeak-ng mnemonics it prints for phonemes without IPA (y-)
                        "˥˦˧˨˩"  # tone letters
                        "\u0300\u0301\u0302\u0304\u030b\u030c\u030f"  # tone diacritics
@@ -1000,11 +1034,13 @@ IPA_PHONEME_SUBSTITUTES = {
     "ipa_ɸ": "f", "ipa_β": "v", "ipa_ʙ": "b", "ipa_r": "r", "ipa_q": "k", "ipa_ʁ": "r", "ipa_ħ": "hh",
     "ipa_ʕ": "hh",
 }
+# A labialised consonant stands in as its plain partner (as ʷ was removed before it had one).
+IPA_PHONEME_SUBSTITUTES.update({l: IPA_PHONEME_SUBSTITUTES.get(p, p) for p, l in LABIALISED.items()})
 # Diacritics and marks removed before lookup. Length (ː) is not among them.
 IPA_IGNORE = ("ˈˌˑ"           # stress marks, half-long
               "\u0361\u035c\u200d"  # tie bars; the zero-width joiner of espeak-ng --ipa=2
               "\u0329\u030d\u032f"  # syllabic below/above, non-syllabic (n̩ -> n, ɫ̩ -> ɫ)
-              "ʰʷˠʼ"          # aspiration, labialisation, velarisation, ejective (pʰ -> p, kʷ -> k)
+              "ʰˠʼ"           # aspiration, velarisation, ejective (pʰ -> p); labialisation kʷ is a phoneme
               "\u032a\u0303\u031a\u0325\u030a\u031d\u031e\u031f\u0320\u0318\u0319\u0306")
 # dental (t̪), nasalised (ɑ̃, ɾ̃), unreleased, voiceless, raised/lowered/advanced/retracted, ATR, extra-short
 
@@ -1022,6 +1058,12 @@ def ipa_phones():
     rows += IPA_OTHER_VOWELS
     rows += IPA_CONSONANTS
     rows += IPA_LANGUAGE_ROWS
+    # Labialised consonants (kʷ, ɡʷ, tʷ...): the consonant's labialised partner, with rounded lips.
+    for label, target, note in IPA_CONSONANTS:
+        if len(label) == 1 and target in LABIALISED:
+            rows.append((label + "ʷ", LABIALISED[target], "labialised: the consonant with rounded lips"))
+            # long (geminate): the fallback would remove ʷ with ː
+            rows.append((label + "ʷː", LABIALISED[target], "long labialised: as the labialised consonant"))
     # MFA palatalises consonants before front vowels (bʲ, tʲ, mʲ...): the consonant.
     for label, target, note in IPA_CONSONANTS:
         if len(label) == 1 and label not in ("ʲ", "j", "ʔ", "h", "ɦ", "ç") and target != "sil":
@@ -1151,8 +1193,9 @@ PHONE_SETS = [
         "description": (
             "IPA as espeak-ng prints it for its voices (--ipa, and phoneme events with "
             "espeakINITIALIZE_PHONEME_IPA) and as the Montreal Forced Aligner's IPA models write it, with every "
-            "symbol of the IPA chart. Stress marks, tie bars, syllabic marks and articulatory diacritics (ʰ ʷ, "
-            "dental, nasal) are removed before lookup; length (ː) is kept. A label not in the table falls back: "
+            "symbol of the IPA chart. Stress marks, tie bars, syllabic marks and articulatory diacritics (ʰ, "
+            "dental, nasal) are removed before lookup; length (ː) is kept; a labialised consonant (kʷ) is a "
+            "phoneme with rounded lips. A label not in the table falls back: "
             "length, tone and other marks are removed, and a label made of several symbols (an affricate, a "
             "diphthong) is the phoneme of its first symbol, a glide or glottal onset passed over "
             "(docs/languages.md)."),
@@ -1163,10 +1206,11 @@ PHONE_SETS = [
                   "dictionary phone sets; every symbol of the IPA chart; espeak-ng 1.51's phoneme events in "
                   "all its voices (measured; docs/languages.md)",
         "normalisation": "case-sensitive; removed before lookup: stress ˈ ˌ, half-long ˑ, tie bars U+0361 U+035C, "
-                         "zero-width joiner U+200D, syllabic U+0329 U+030D, non-syllabic U+032F, ʰ ʷ ˠ ʼ, and the "
+                         "zero-width joiner U+200D, syllabic U+0329 U+030D, non-syllabic U+032F, ʰ ˠ ʼ, and the "
                          "diacritics dental U+032A, nasal U+0303, unreleased U+031A, voiceless U+0325 U+030A, "
                          "raised/lowered/advanced/retracted U+031D U+031E U+031F U+0320, ATR U+0318 U+0319, "
-                         "extra-short U+0306. Length ː is significant.",
+                         "extra-short U+0306. Length ː and labialisation ʷ are significant (ʷ is removed in the fallback "
+                         "where the consonant has no labialised partner: pʷ, mʷ, fʷ).",
     },
     {
         "name": "espeak",
@@ -1376,6 +1420,8 @@ def feature_summary(name):
         parts += [k for k in ("sibilant", "rhotic") if f.get(k)]
         if "rounding" in f:
             parts.append(f["rounding"])
+        if f.get("labialised"):
+            parts.append("labialised")
         return " ".join(parts)
     if f.get("diphthong"):
         q = lambda v: "%s %s %s" % (v["height"], v["backness"], v["rounding"])

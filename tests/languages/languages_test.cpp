@@ -443,6 +443,65 @@ TEST(Targets, bilabial_fricatives_and_trill_bring_the_lips_near_but_only_closure
   }
 }
 
+/// ARKit mouthPucker + mouthFunnel at the middle of the consonant of "<vowel> <label> <vowel>"
+/// (120 ms vowels, an 80 ms consonant, pauses around) rendered through the ipa phone set.
+double rounding_at_consonant(std::string_view label, std::string_view vowel) {
+  LabeledUtterance utterance;
+  utterance.phone_set = "ipa";
+  const std::pair<std::string_view, std::int64_t> phones[] = {
+      {"", 200'000}, {vowel, 120'000}, {label, 80'000}, {vowel, 120'000}, {"", 200'000}};
+  std::int64_t t_us = 0;
+  for (const auto& [phone, duration_us] : phones) {
+    utterance.intervals.push_back(LabeledInterval{std::string(phone), t_us, t_us + duration_us, 0});
+    t_us += duration_us;
+  }
+  const std::vector<Segment> segments = build_segments(utterance, model(), phone_set("ipa"));
+  const Track track = render_track(model(), segments);
+  const std::int64_t middle_us = 200'000 + 120'000 + 40'000;
+  std::size_t frame = 0;
+  while (frame + 1 < track.t_us.size() && track.t_us[frame] < middle_us) ++frame;
+  std::vector<float> shapes(kArkitNames.size());
+  model().retarget_to_arkit(track.frame_values(frame), shapes);
+  return shapes[arkit("mouthPucker")] + shapes[arkit("mouthFunnel")];
+}
+
+TEST(Labialisation, LabialisedConsonantsRoundTheLipsMoreThanTheirPlainPartners) {
+  // ʷ acts through the features: kʷ is /k/ with the lips rounded as for /r/, so between spread /i/
+  // and open /a/ alike the lips pucker and funnel more at kʷ than at k (render path, ARKit).
+  for (const char* vowel : {"i", "a"}) {
+    for (const char* plain : {"k", "ɡ", "t", "d", "s", "x", "n", "q", "ʁ"}) {
+      const std::string labialised = std::string(plain) + "ʷ";
+      const double rounded = rounding_at_consonant(labialised, vowel);
+      const double spread = rounding_at_consonant(plain, vowel);
+      EXPECT_GT(rounded, spread + 0.1) << "/" << vowel << " " << labialised << " " << vowel << "/: " << rounded
+                                       << " against " << spread << " at /" << plain << "/";
+    }
+  }
+  std::printf(
+      "[ measured ] mouthPucker + mouthFunnel: /i kʷ i/ %.3f against /i k i/ %.3f; /a kʷ a/ %.3f against "
+      "/a k a/ %.3f\n",
+      rounding_at_consonant("kʷ", "i"), rounding_at_consonant("k", "i"), rounding_at_consonant("kʷ", "a"),
+      rounding_at_consonant("k", "a"));
+}
+
+TEST(Labialisation, LabialisedLabialsKeepTheirClosureAndPlainConsonantsTheirPhoneme) {
+  // A labial with ʷ (pʷ, mʷ, fʷ) has no partner of its own: the fallback drops ʷ and it is the
+  // closure it was. The plain consonants keep their English phonemes.
+  const PhoneSet& ipa = phone_set("ipa");
+  for (const char* label : {"pʷ", "bʷ", "mʷ", "fʷ", "vʷ"}) {
+    const std::string plain(label, std::string_view(label).size() - std::string_view("ʷ").size());
+    ASSERT_TRUE(ipa.lookup(label)) << label;
+    EXPECT_EQ(*ipa.lookup(label), *ipa.lookup(plain)) << label;
+  }
+  for (const char* label : {"k", "ɡ", "t", "s"}) {
+    EXPECT_EQ(model().phoneme(*ipa.lookup(label)).name.find("ipa_"), std::string::npos) << label;
+    EXPECT_EQ(model().phoneme(*ipa.lookup(std::string(label) + "ʷ")).name,
+              "ipa_" + std::string(label == std::string_view("ɡ") ? "g" : label) + "ʷ")
+        << label;
+  }
+  EXPECT_EQ(*ipa.lookup("kʷː"), *ipa.lookup("kʷ"));  // length falls back to the labialised consonant
+}
+
 TEST(LanguageCorpus, front_rounded_vowels_get_a_rounded_viseme_and_their_partners_a_spread_one) {
   // Oculus has no front rounded viseme: /y ø/ fall on RR (slightly rounded lips over a nearly closed
   // jaw, the viseme of /r er/) or on ou/oh, never on the spread ih/E that /i e/ get.

@@ -1,11 +1,14 @@
 // Recorded speech in other languages: `lipsync align/render X.wav --voice V` aligns against
 // espeak-ng's rendering of the transcript (lipsync/speech/dtw_aligner.hpp), checked on real
-// Festival recordings in Italian, Czech and Catalan (tests/data/recorded_languages, made by
+// Festival recordings in Italian, Czech, Catalan and Hindi (tests/data/recorded_languages, made by
 // tools/speech/measure_language_alignment.py --corpus), whose own segment times are the truth.
 //
 // - Boundaries: median error ≤ 30 ms, 95th percentile ≤ 100 ms, bilabial closures within
 //   30 ms ≥ 80 % (the goals of docs/languages.md), over the boundaries the regenerate script
-//   matched between Festival's segments and espeak-ng's phonemes (NAME.truth.tsv).
+//   matched between Festival's segments and espeak-ng's phonemes (NAME.truth.tsv); and, so that
+//   a regression fails, no worse than this corpus measures today with some margin (median
+//   ≤ 15 ms, p95 ≤ 60 ms, bilabials ≥ 88 %). A stop after a pause starts at its closure, not
+//   at its burst.
 // - Through the render path the aligned phonemes render with the lips sealed at every bilabial
 //   key frame, and `lipsync render X.wav --text-file F --voice V` works.
 // - Bad inputs (empty transcript, silence, noise, a transcript far too long for the audio, an
@@ -15,6 +18,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -33,7 +37,7 @@ namespace {
 using ::testing::HasSubstr;
 
 const std::filesystem::path kCorpus = std::filesystem::path(LIPSYNC_TEST_DATA_DIR) / "recorded_languages";
-constexpr const char* kItems[] = {"it_3", "cs_1", "ca_1"};
+constexpr const char* kItems[] = {"it_3", "cs_1", "ca_1", "cs_2", "hi_3"};
 
 const ArticulationModel& model() { return ArticulationModel::builtin(); }
 
@@ -77,17 +81,25 @@ speech::Alignment align(const CorpusItem& item) {
 
 double percentile(std::vector<double> values, double q) {
   std::sort(values.begin(), values.end());
-  return values[std::min(values.size() - 1, static_cast<std::size_t>(q * double(values.size() - 1) + 0.5))];
+  return values[std::min(values.size() - 1, static_cast<std::size_t>(std::lround(q * double(values.size() - 1))))];
 }
 
-TEST(RecordedLanguages, boundaries_on_festival_recordings_meet_the_goals) {
-  std::vector<double> boundary_errors_ms, bilabial_errors_ms;
+// The errors of the corpus's scored boundaries, ms.
+struct CorpusErrors {
+  std::vector<double> boundaries_ms, bilabials_ms;
+  std::vector<std::string> stops_after_pauses;  ///< "NAME: LABEL error ms", one per bilabial stop after a pause
+  std::vector<double> stops_after_pauses_ms;
+};
+
+CorpusErrors measure_corpus() {
+  CorpusErrors errors;
   for (const char* name : kItems) {
     const CorpusItem item = load(name);
     const speech::Alignment alignment = align(item);
     EXPECT_EQ(alignment.phones.phone_set, "ipa") << name;
     const auto& phones = alignment.phones.intervals;
-    ASSERT_FALSE(phones.empty()) << name;
+    EXPECT_FALSE(phones.empty()) << name;
+    if (phones.empty()) continue;
     EXPECT_EQ(phones.front().start_us, 0) << name;
     EXPECT_EQ(phones.back().end_us, item.audio.duration_us()) << name;
     std::istringstream truth(read_file(kCorpus / (std::string(name) + ".truth.tsv")));
@@ -100,26 +112,56 @@ TEST(RecordedLanguages, boundaries_on_festival_recordings_meet_the_goals) {
       std::size_t index = 0;
       int kind = 0;
       fields >> festival_label >> festival_start_s >> index >> aligned_label >> kind;
-      ASSERT_LT(index, phones.size()) << name << ": " << line;
+      EXPECT_LT(index, phones.size()) << name << ": " << line;
+      if (index >= phones.size()) continue;
       // espeak-ng's phonemes for the transcript are those the truth was matched to.
-      ASSERT_EQ(phones[index].label, aligned_label) << name << ": phone " << index;
+      EXPECT_EQ(phones[index].label, aligned_label) << name << ": phone " << index;
       const double error_ms = std::abs(double(phones[index].start_us) / 1000.0 - 1000.0 * festival_start_s);
-      if (kind & 1) boundary_errors_ms.push_back(error_ms);
-      if (kind & 2) bilabial_errors_ms.push_back(error_ms);
+      if (kind & 1) errors.boundaries_ms.push_back(error_ms);
+      if (kind & 2) errors.bilabials_ms.push_back(error_ms);
+      const bool stop = aligned_label == "p" || aligned_label == "b";
+      if ((kind & 2) && stop && index > 0 && phones[index - 1].label.empty()) {
+        errors.stops_after_pauses_ms.push_back(error_ms);
+        errors.stops_after_pauses.push_back(std::string(name) + ": " + aligned_label + " " +
+                                            std::to_string(std::lround(error_ms)) + " ms");
+      }
     }
   }
-  ASSERT_GE(boundary_errors_ms.size(), 100U);
-  ASSERT_GE(bilabial_errors_ms.size(), 20U);
-  const double median_ms = percentile(boundary_errors_ms, 0.5);
-  const double p95_ms = percentile(boundary_errors_ms, 0.95);
-  const auto close = std::count_if(bilabial_errors_ms.begin(), bilabial_errors_ms.end(),
-                                   [](double error_ms) { return error_ms <= 30.0; });
-  const double bilabial_share = double(close) / double(bilabial_errors_ms.size());
-  std::printf("[ measured ] %zu boundaries: median %.1f ms, p95 %.1f ms; bilabial closures within 30 ms: %td of %zu\n",
-              boundary_errors_ms.size(), median_ms, p95_ms, close, bilabial_errors_ms.size());
+  return errors;
+}
+
+std::size_t count_within_30_ms(const std::vector<double>& errors_ms) {
+  return static_cast<std::size_t>(
+      std::count_if(errors_ms.begin(), errors_ms.end(), [](double error_ms) { return error_ms <= 30.0; }));
+}
+
+TEST(RecordedLanguages, boundaries_on_festival_recordings_meet_the_goals) {
+  const CorpusErrors errors = measure_corpus();
+  ASSERT_GE(errors.boundaries_ms.size(), 150U);
+  ASSERT_GE(errors.bilabials_ms.size(), 30U);
+  const double median_ms = percentile(errors.boundaries_ms, 0.5);
+  const double p95_ms = percentile(errors.boundaries_ms, 0.95);
+  const std::size_t close = count_within_30_ms(errors.bilabials_ms);
+  const double bilabial_share = double(close) / double(errors.bilabials_ms.size());
+  std::printf("[ measured ] %zu boundaries: median %.1f ms, p95 %.1f ms; bilabial closures within 30 ms: %zu of %zu\n",
+              errors.boundaries_ms.size(), median_ms, p95_ms, close, errors.bilabials_ms.size());
   EXPECT_LE(median_ms, 30.0);
   EXPECT_LE(p95_ms, 100.0);
   EXPECT_GE(bilabial_share, 0.8);
+  // Today's figures with a margin: a change that loses ground fails here.
+  EXPECT_LE(median_ms, 15.0);
+  EXPECT_LE(p95_ms, 60.0);
+  EXPECT_GE(bilabial_share, 0.88);
+}
+
+TEST(RecordedLanguages, StopsAfterAPauseStartAtTheirClosure) {
+  // Both audios start such a stop at its burst (its closure is as silent as the pause); the aligner
+  // gives it a closure before the burst, so the lips close before the sound starts.
+  const CorpusErrors errors = measure_corpus();
+  ASSERT_GE(errors.stops_after_pauses_ms.size(), 2U);
+  for (std::size_t k = 0; k < errors.stops_after_pauses_ms.size(); ++k) {
+    EXPECT_LE(errors.stops_after_pauses_ms[k], 30.0) << errors.stops_after_pauses[k];
+  }
 }
 
 TEST(RecordedLanguages, aligned_bilabials_render_with_the_lips_sealed) {
@@ -220,7 +262,7 @@ TEST_F(RecordedLanguagesCli, bad_inputs_are_errors_naming_the_file_and_what_is_w
   const std::string wav = (kCorpus / "it_3.wav").string();
   std::mt19937 random(28);
   std::normal_distribution<double> noise(0.0, 3000.0);
-  std::vector<std::int16_t> samples(16000 * 4);
+  std::vector<std::int16_t> samples(std::size_t{16000} * 4);
   for (auto& sample : samples) sample = static_cast<std::int16_t>(noise(random));
   write_wav("noise.wav", samples);
   write_wav("silence.wav", std::vector<std::int16_t>(32000, 0));

@@ -1,12 +1,15 @@
 #!/bin/sh
 # Regenerates the alignment accuracy table of docs/languages.md ("Recorded speech in other
 # languages"): Festival's Italian, Catalan, Finnish, Czech, Russian, Hindi and English voices,
-# four sentences each, aligned by `lipsync align --voice` (and PocketSphinx for English).
+# four sentences each, aligned by `lipsync align --voice` (and PocketSphinx for English); then
+# the same for two held-out sentences per voice, which no setting was chosen on.
 # Needs festival and festvox-italp16k festvox-ca-ona-hts festvox-suopuhe-lj festvox-czech-dita
-# festvox-ru festvox-hi-nsk festvox-kallpc16k; about 10 s.
+# festvox-ru festvox-hi-nsk festvox-kallpc16k; about 30 s.
 #   tools/speech/measure_language_alignment.sh [build/clients/cli/lipsync]
 set -eu
 lipsync=${1:-build/clients/cli/lipsync}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 python3 "$(dirname "$0")/measure_language_alignment.py" "$lipsync" "$work" --markdown
+echo
+python3 "$(dirname "$0")/measure_language_alignment.py" "$lipsync" "$work" --markdown --held-out

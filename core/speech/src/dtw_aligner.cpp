@@ -26,6 +26,10 @@ constexpr std::int64_t kSynthesisPaddingUs = 300'000;
 constexpr std::int64_t kStopClosureSearchUs = 150'000;
 // The smallest fall of the formant band's level taken as a stop's closure, dB.
 constexpr double kStopClosureStepDb = 10.0;
+// A stop after a pause has no fall of the level to mark its closure, in either audio (both
+// start it at the burst): its closure is taken to last this long, a typical closure of a stop
+// that begins an utterance (longer than espeak-ng's closures between vowels), µs.
+constexpr std::int64_t kClosureAfterPauseUs = 80'000;
 // The recording may be this many times longer or shorter than the synthesis.
 constexpr double kMostDurationRatio = 4.0;
 
@@ -109,31 +113,48 @@ bool starts_with_closure(const std::string& label) {
   return label.starts_with("ɟ") || label.starts_with("ʈ") || label.starts_with("ɖ");
 }
 
+// The steepest fall of the formant band's level (`level_db`, 10 ms windows every ms) within
+// [earliest_ms, start_ms − 5 ms] larger than kStopClosureStepDb: a stop's closure before its
+// burst at start_ms; −1 when there is none.
+std::int64_t closure_before_ms(const std::vector<double>& level_db, std::int64_t start_ms, std::int64_t earliest_ms) {
+  double best_fall_db = kStopClosureStepDb;
+  std::int64_t best_ms = -1;
+  for (std::int64_t t = std::max<std::int64_t>(earliest_ms, 10);
+       t <= start_ms - 5 && t < static_cast<std::int64_t>(level_db.size()); ++t) {
+    const double fall = level_db[t - 10] - level_db[t];
+    if (fall > best_fall_db) {
+      best_fall_db = fall;
+      best_ms = t;
+    }
+  }
+  return best_ms;
+}
+
 // espeak-ng starts a stop's phoneme event at its burst, the closure's silence still counted in
 // the phoneme before. Each stop's start moves back to the steepest fall of the formant band's
 // level within kStopClosureSearchUs before it (the closure), when the fall is clear, so that
 // what is carried to the recording is where the stop begins, as in a recording's labels.
 void move_stop_starts_to_closures(const PcmAudio& audio, LabeledUtterance& phones) {
+  std::vector<LabeledInterval>& intervals = phones.intervals;
   const std::vector<double> level_db = formant_band_levels_db(audio, 10'000, 1'000);  // window [t, t+10 ms)
   if (level_db.size() < 20) return;
-  std::vector<LabeledInterval>& intervals = phones.intervals;
   for (std::size_t k = 1; k < intervals.size(); ++k) {
     if (!starts_with_closure(intervals[k].label)) continue;
     const std::int64_t start_ms = intervals[k].start_us / 1000;
-    const std::int64_t earliest_ms =
-        std::max<std::int64_t>({10, start_ms - kStopClosureSearchUs / 1000, intervals[k - 1].start_us / 1000 + 10});
-    double best_fall_db = kStopClosureStepDb;
-    std::int64_t best_ms = -1;
-    for (std::int64_t t = earliest_ms; t <= start_ms - 5 && t < static_cast<std::int64_t>(level_db.size()); ++t) {
-      const double fall = level_db[t - 10] - level_db[t];
-      if (fall > best_fall_db) {
-        best_fall_db = fall;
-        best_ms = t;
-      }
-    }
+    const std::int64_t best_ms = closure_before_ms(
+        level_db, start_ms, std::max(start_ms - kStopClosureSearchUs / 1000, intervals[k - 1].start_us / 1000 + 10));
     if (best_ms < 0) continue;
     intervals[k].start_us = best_ms * 1000;
     intervals[k - 1].end_us = best_ms * 1000;
+  }
+}
+
+// A stop after a pause starts, in both audios, at its burst: the closure is silent, like the pause.
+// Its start moves back into the pause by kClosureAfterPauseUs (the pause keeps kMinPhoneUs at least).
+void open_closures_after_pauses(std::vector<std::int64_t>& bounds, const std::vector<LabeledInterval>& phones) {
+  for (std::size_t k = 1; k < phones.size(); ++k) {
+    if (!phones[k - 1].label.empty() || !starts_with_closure(phones[k].label)) continue;
+    bounds[k] = std::max(bounds[k] - kClosureAfterPauseUs, bounds[k - 1] + kMinPhoneUs);
   }
 }
 
@@ -360,6 +381,7 @@ Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view sour
   for (std::size_t k = 1; k < count; ++k) bounds[k] = carry_time_us(path, spoken_phones[k].start_us);
   for (std::size_t k = 1; k < count; ++k) bounds[k] = std::max(bounds[k], bounds[k - 1] + kMinPhoneUs);
   for (std::size_t k = count; k-- > 1;) bounds[k] = std::min(bounds[k], bounds[k + 1] - kMinPhoneUs);
+  open_closures_after_pauses(bounds, spoken_phones);
   for (std::size_t k = 0; k < count; ++k) {
     LabeledInterval interval = spoken_phones[k];
     interval.start_us = bounds[k];

@@ -14,7 +14,9 @@
 // espeak-ng reports a stop at its burst, so before the warp the lip phones' starts
 // are moved to the closures in espeak-ng's own audio (closure_refiner.hpp), and
 // after it the lip phones' boundaries move to the recording's energy steps, as
-// with PocketSphinx.
+// with PocketSphinx. A stop after a pause shows no closure in either audio (it is
+// as silent as the pause): it arrives at the recording's burst and starts 80 ms
+// before it.
 //
 // Bounds: the path is searched in a band around the line from the start of
 // speech in one audio to the start in the other, and from end to end (leading
