@@ -53,37 +53,24 @@ void reload(const std::vector<std::string>& args, lipsync::server::ServerConfig&
   }
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  using namespace lipsync::server;
-  const std::vector<std::string> args(argv + 1, argv + argc);
-  if (args.size() == 1 && args[0] == "--hash-key") {
-    std::string key;
-    std::getline(std::cin, key);
-    if (key.empty()) {
-      std::cerr << "lipsyncd: --hash-key: no key on standard input (echo -n KEY | lipsyncd --hash-key)\n";
-      return 2;
-    }
-    std::cout << sha256_hex(key) << "\n";
-    return 0;
-  }
-  CommandLine command_line;
-  try {
-    command_line = parse_command_line(args, process_environment());
-  } catch (const ConfigError& error) {
-    std::cerr << "lipsyncd: " << error.what() << "\n";
+/// `lipsyncd --hash-key`: the SHA-256 of the API key on standard input, the form the key file holds.
+int print_key_hash() {
+  std::string key;
+  std::getline(std::cin, key);
+  if (key.empty()) {
+    std::cerr << "lipsyncd: --hash-key: no key on standard input (echo -n KEY | lipsyncd --hash-key)\n";
     return 2;
   }
-  if (command_line.help) {
-    std::cout << help_text();
-    return 0;
-  }
-  ServerConfig config = command_line.config;
+  std::cout << lipsync::server::sha256_hex(key) << "\n";
+  return 0;
+}
+
+/// spdlog's logger on stderr at the configured level, with gRPC core's own messages (a failed TLS
+/// handshake, for one) through it too, so that with --log-format json every line on stderr is one
+/// JSON object; gRPC's verbosity (GRPC_VERBOSITY, errors by default) still decides which of them
+/// are written.
+void start_logging(const lipsync::server::ServerConfig& config) {
   spdlog::set_default_logger(spdlog::stderr_color_mt("lipsyncd"));
-  // gRPC core's own messages (a failed TLS handshake, for one) go through the same logger, so
-  // that with --log-format json every line on stderr is one JSON object; gRPC's verbosity
-  // (GRPC_VERBOSITY, errors by default) still decides which of them are written.
   gpr_set_log_function([](gpr_log_func_args* entry) {
     const spdlog::level::level_enum level = entry->severity == GPR_LOG_SEVERITY_ERROR  ? spdlog::level::err
                                             : entry->severity == GPR_LOG_SEVERITY_INFO ? spdlog::level::info
@@ -91,7 +78,11 @@ int main(int argc, char** argv) {
     spdlog::log(level, "grpc: {} ({}:{})", entry->message, entry->file, entry->line);
   });
   spdlog::set_level(spdlog::level::from_str(config.log_level));
+}
 
+/// The process-wide settings a long-running server wants: the priority the face threads get back
+/// at shutdown, memory given back after a burst, abseil's deadlock detection off.
+void tune_process() {
   // Lets the shutdown give the face threads their normal priority back (face_workers.hpp):
   // the soft RLIMIT_NICE as high as the hard limit allows.
   if (rlimit nice{}; ::getrlimit(RLIMIT_NICE, &nice) == 0 && nice.rlim_cur < nice.rlim_max) {
@@ -111,13 +102,73 @@ int main(int argc, char** argv) {
   // (GraphCycles), about 4 % of the server's instructions per frame (docs/performance.md,
   // "What makes the server cheap"). A debugging aid for abseil's users, not a defence: lipsyncd turns it off.
   absl::SetMutexDeadlockDetectionMode(absl::OnDeadlockCycle::kIgnore);
+}
 
+/// SIGTERM, SIGINT and SIGHUP blocked in this thread and every thread it starts, for sigwait.
+sigset_t block_signals() {
   sigset_t signals;
   sigemptyset(&signals);
   sigaddset(&signals, SIGTERM);
   sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGHUP);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  return signals;
+}
+
+/// The addresses the server listens on, on stdout (for whoever started it) and in the log.
+void announce(const lipsync::server::Server& server, const lipsync::server::ServerConfig& config) {
+  std::cout << "lipsyncd listening on " << server.address() << std::endl;
+  if (const std::string viewer = server.http_address(); !viewer.empty()) {
+    std::cout << "lipsyncd viewer on http://" << viewer << "/view" << std::endl;
+    spdlog::info("browser viewer on http://{}/view", viewer);
+  }
+  if (!config.metrics_listen.empty()) std::cout << "lipsyncd metrics on " << server.metrics_address() << std::endl;
+  spdlog::info("listening on {}", server.address());
+}
+
+/// Reloads on SIGHUP until SIGTERM or SIGINT, then drains and exits 0.
+[[noreturn]] void serve_until_stopped(const std::vector<std::string>& args, lipsync::server::ServerConfig& config,
+                                      lipsync::server::Server& server, const sigset_t& signals) {
+  int signal_number = 0;
+  while (sigwait(&signals, &signal_number) == 0 && signal_number == SIGHUP) {
+    reload(args, config);
+    server.reload_credentials();
+  }
+  spdlog::info("{} received: draining for up to {} ms ({} streams open)",
+               signal_number == SIGTERM ? "SIGTERM" : "SIGINT", config.drain_deadline_ms, server.active_streams());
+  server.drain_for_exit(std::chrono::milliseconds(config.drain_deadline_ms));
+  spdlog::info("stopped");
+  // Every call has ended and the connections had their grace: exit now, without
+  // destroying the server. Its destructor would wait for gRPC's teardown and join the
+  // face threads, which on a busy machine wait for time slices (face threads at
+  // SCHED_IDLE for seconds, if drain_for_exit could not raise their priority): exactly
+  // what a server shutting down under load must not wait for.
+  spdlog::default_logger()->flush();
+  std::cout.flush();
+  std::_Exit(0);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace lipsync::server;
+  const std::vector<std::string> args(argv + 1, argv + argc);
+  if (args.size() == 1 && args[0] == "--hash-key") return print_key_hash();
+  CommandLine command_line;
+  try {
+    command_line = parse_command_line(args, process_environment());
+  } catch (const ConfigError& error) {
+    std::cerr << "lipsyncd: " << error.what() << "\n";
+    return 2;
+  }
+  if (command_line.help) {
+    std::cout << help_text();
+    return 0;
+  }
+  ServerConfig config = command_line.config;
+  start_logging(config);
+  tune_process();
+  const sigset_t signals = block_signals();
 
   std::unique_ptr<Server> server;
   try {
@@ -129,29 +180,6 @@ int main(int argc, char** argv) {
     std::cerr << "lipsyncd: " << error.what() << "\n";
     return 1;
   }
-  std::cout << "lipsyncd listening on " << server->address() << std::endl;
-  if (const std::string viewer = server->http_address(); !viewer.empty()) {
-    std::cout << "lipsyncd viewer on http://" << viewer << "/view" << std::endl;
-    spdlog::info("browser viewer on http://{}/view", viewer);
-  }
-  if (!config.metrics_listen.empty()) std::cout << "lipsyncd metrics on " << server->metrics_address() << std::endl;
-  spdlog::info("listening on {}", server->address());
-
-  int signal_number = 0;
-  while (sigwait(&signals, &signal_number) == 0 && signal_number == SIGHUP) {
-    reload(args, config);
-    server->reload_credentials();
-  }
-  spdlog::info("{} received: draining for up to {} ms ({} streams open)",
-               signal_number == SIGTERM ? "SIGTERM" : "SIGINT", config.drain_deadline_ms, server->active_streams());
-  server->drain_for_exit(std::chrono::milliseconds(config.drain_deadline_ms));
-  spdlog::info("stopped");
-  // Every call has ended and the connections had their grace: exit now, without
-  // destroying the server. Its destructor would wait for gRPC's teardown and join the
-  // face threads, which on a busy machine wait for time slices (face threads at
-  // SCHED_IDLE for seconds, if drain_for_exit could not raise their priority): exactly
-  // what a server shutting down under load must not wait for.
-  spdlog::default_logger()->flush();
-  std::cout.flush();
-  std::_Exit(0);
+  announce(*server, config);
+  serve_until_stopped(args, config, *server, signals);
 }

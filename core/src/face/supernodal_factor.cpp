@@ -9,19 +9,23 @@ namespace lipsync::face::detail {
 
 namespace {
 
+// The substitutions' inner kernels, declared `inline` (as they were implicitly when they were
+// members defined in a class): GCC gives a function not declared inline a smaller inlining budget,
+// and `dot` would then stay a call per row of both substitutions.
+
 // Four consecutive values (unaligned) and one of them in all lanes (shufps).
-Float4 load4(const float* p) {
+inline Float4 load4(const float* p) {
   Float4 v;
   std::memcpy(&v, p, sizeof v);
   return v;
 }
 template <int lane>
-Float4 splat(Float4 v) {
+inline Float4 splat(Float4 v) {
   return Float4{v[lane], v[lane], v[lane], v[lane]};
 }
 
 // Σ o[c] · zs[c], c < w.
-Float4 dot(const float* o, const Float4* zs, int w) {
+inline Float4 dot(const float* o, const Float4* zs, int w) {
   Float4 a = {0, 0, 0, 0}, b = {0, 0, 0, 0};
   int c = 0;
   for (; c + 4 <= w; c += 4) {

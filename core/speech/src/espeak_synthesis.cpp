@@ -1,0 +1,163 @@
+// espeak-ng synthesis with phoneme events, in this process (espeak_synthesis.hpp).
+//
+// espeak-ng reports each phoneme as an espeakEVENT_PHONEME event carrying its name and the sample
+// at which it starts; the synthesis callback collects the samples and those events. A phoneme
+// ends where the next one starts, the last one where the audio ends, so the intervals tile the
+// audio exactly, on its own sample clock. Zero-length events (stress changes) are dropped. With
+// IPA names, a language switch ("(en)" inside a Greek text) becomes silence, and a lone length
+// mark or combining diacritic extends the phoneme before it instead of starting one.
+#include "espeak_synthesis.hpp"
+
+#include <espeak-ng/espeak_ng.h>
+#include <espeak-ng/speak_lib.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "espeak_voices.hpp"
+#include "lipsync/error.hpp"
+
+namespace lipsync::speech::detail {
+namespace {
+
+// espeak-ng's globals, in a worker process only: one initialisation per process.
+int espeak_rate_hz = 0;  // 0 until initialised
+
+struct PhonemeStart {
+  std::string name;
+  std::int64_t sample;
+};
+
+// What the callback collects during one espeak_Synth call.
+struct Collector {
+  std::vector<std::int16_t> samples;
+  std::vector<PhonemeStart> phonemes;
+};
+Collector* active_collector = nullptr;  // set during espeak_Synth
+
+int collect(short* wav, int sample_count, espeak_EVENT* events) {
+  Collector* collector = active_collector;
+  if (collector == nullptr) return 0;
+  if (wav != nullptr && sample_count > 0) collector->samples.insert(collector->samples.end(), wav, wav + sample_count);
+  for (espeak_EVENT* event = events; event->type != espeakEVENT_LIST_TERMINATED; ++event) {
+    if (event->type == espeakEVENT_PHONEME) {
+      // `sample` is the event's position in the output, in samples (espeak-ng's
+      // MarkerEvent); `audio_position` is the same in whole milliseconds.
+      const std::string name(event->id.string, strnlen(event->id.string, sizeof event->id.string));
+      collector->phonemes.push_back({name, event->sample});
+    }
+  }
+  return 0;  // continue synthesis
+}
+
+/// espeak-ng's IPA names mark a switch to another language's phonemes ("(en)" inside a Greek
+/// text) as a phoneme of its own: silence, as its mnemonic _^_ is in the 'espeak' set.
+bool is_language_switch(std::string_view name) { return name.size() >= 3 && name.front() == '(' && name.back() == ')'; }
+
+/// A length mark or a combining diacritic that espeak-ng's IPA names give as a phoneme of its own
+/// (lv, ltg, kok: "ː"; bpy: U+0303): it lengthens or colours the phoneme before it, so it extends
+/// that phoneme's interval instead of starting one.
+bool is_lone_mark(std::string_view name) {
+  if (name == "ː" || name == "ˑ") return true;
+  if (name.empty() || name.size() % 2 != 0) return false;
+  for (std::size_t i = 0; i < name.size(); i += 2) {  // U+0300..U+036F: CC 80..BF, CD 80..AF
+    const auto lead = static_cast<unsigned char>(name[i]);
+    const auto next = static_cast<unsigned char>(name[i + 1]);
+    if (!((lead == 0xCC && next >= 0x80 && next <= 0xBF) || (lead == 0xCD && next >= 0x80 && next <= 0xAF))) {
+      return false;
+    }
+  }
+  return true;
+}
+
+void initialise_once(bool ipa) {
+  if (espeak_rate_hz > 0) return;
+  const int rate = espeak_Initialize(
+      AUDIO_OUTPUT_SYNCHRONOUS, 0, nullptr,
+      espeakINITIALIZE_PHONEME_EVENTS | espeakINITIALIZE_DONT_EXIT | (ipa ? espeakINITIALIZE_PHONEME_IPA : 0));
+  if (rate <= 0) {
+    throw InputError(std::string(kEspeakSource), 0,
+                     "cannot initialise espeak-ng (is espeak-ng-data installed? 'apt-get install espeak-ng-data')");
+  }
+  espeak_SetSynthCallback(collect);
+  espeak_rate_hz = rate;
+}
+
+/// Selects `voice_name` for the next synthesis: a voice name or file, else a language ("en-gb",
+/// "fr-fr": the Language column of espeak-ng --voices, which espeak_SetVoiceByName alone refuses)
+/// resolved to its voice file, keeping a variant after '+'.
+void select_voice(const std::string& voice_name) {
+  bool found = espeak_SetVoiceByName(voice_name.c_str()) == EE_OK;
+  if (const Voice* voice = found ? nullptr : find_voice(voice_name)) {
+    const std::size_t plus = voice_name.find('+');
+    const std::string variant = plus == std::string::npos ? "" : voice_name.substr(plus);
+    found = espeak_SetVoiceByName((voice->identifier + variant).c_str()) == EE_OK;
+  }
+  if (!found) {
+    throw InputError(std::string(kEspeakSource), 0, "unknown voice '" + voice_name + "' (see 'espeak-ng --voices')");
+  }
+}
+
+/// The collected phoneme starts as intervals that tile [0, the audio's end], in µs.
+LabeledUtterance phoneme_intervals(const Collector& collector, bool english) {
+  LabeledUtterance phonemes;
+  phonemes.source = std::string(kEspeakSource);
+  phonemes.phone_set = english ? "espeak" : "ipa";
+  const auto total = static_cast<std::int64_t>(collector.samples.size());
+  const auto to_us = [&](std::int64_t sample) { return sample * 1'000'000 / espeak_rate_hz; };
+  std::int64_t previous_start = 0;
+  for (std::size_t i = 0; i < collector.phonemes.size(); ++i) {
+    const std::int64_t start = std::clamp<std::int64_t>(collector.phonemes[i].sample, previous_start, total);
+    const std::int64_t end = i + 1 < collector.phonemes.size()
+                                 ? std::clamp<std::int64_t>(collector.phonemes[i + 1].sample, start, total)
+                                 : total;
+    previous_start = start;
+    if (end <= start) continue;  // a zero-length event (espeak marks some stress changes this way)
+    const std::string& name = collector.phonemes[i].name;
+    if (!english && is_lone_mark(name) && !phonemes.intervals.empty()) {
+      phonemes.intervals.back().end_us = to_us(end);
+      continue;
+    }
+    phonemes.intervals.push_back({!english && is_language_switch(name) ? std::string() : name, to_us(start), to_us(end),
+                                  static_cast<int>(i) + 1});
+  }
+  if (phonemes.intervals.empty()) {
+    throw InputError(std::string(kEspeakSource), 0, "espeak-ng produced no phonemes for the text");
+  }
+  // The first phoneme starts at sample 0 and the phonemes tile the audio.
+  if (phonemes.intervals.front().start_us > 0) {
+    phonemes.intervals.insert(phonemes.intervals.begin(), {"", 0, phonemes.intervals.front().start_us, 0});
+  }
+  return phonemes;
+}
+
+}  // namespace
+
+Synthesis synthesize_with_espeak(std::string_view text, const SynthesisOptions& options) {
+  const bool english = speaks_english(options.voice);
+  initialise_once(!english);
+  select_voice(options.voice);
+  espeak_SetParameter(espeakRATE, options.words_per_minute, 0);
+
+  Collector collector;
+  const std::string text_z(text);  // espeak_Synth reads up to a terminating zero
+  active_collector = &collector;
+  const espeak_ERROR status =
+      espeak_Synth(text_z.c_str(), text_z.size() + 1, 0, POS_CHARACTER, 0, espeakCHARS_UTF8, nullptr, nullptr);
+  espeak_Synchronize();
+  active_collector = nullptr;
+  if (status != EE_OK) {
+    throw InputError(std::string(kEspeakSource), 0, "synthesis failed (espeak error " + std::to_string(status) + ")");
+  }
+
+  Synthesis result;
+  result.phonemes = phoneme_intervals(collector, english);
+  result.audio.sample_rate_hz = espeak_rate_hz;
+  result.audio.samples = std::move(collector.samples);
+  return result;
+}
+
+}  // namespace lipsync::speech::detail
