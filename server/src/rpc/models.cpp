@@ -26,16 +26,26 @@ void describe(const ModelEntry& entry, v1::ModelInfo& info) {
 
 }  // namespace
 
-grpc::ServerUnaryReactor* LipSyncService::ListModels(grpc::CallbackServerContext* context, const v1::ListModelsRequest*,
-                                                     v1::ListModelsResponse* response) {
+UnaryCall* LipSyncService::start_model_query(const char* method, grpc::CallbackServerContext& context) {
   handoff_acquire(this);     // the service as built before the server started (tsan_handoff.hpp)
   admission_.count_query();  // the drain waits for the call's end, its access line and metrics included
-  auto* call = new UnaryCall(
-      "ListModels", *context, [this](const grpc::Status&) { admission_.release_query(); }, &metrics_);
+  return new UnaryCall(
+      method, context, [this](const grpc::Status&) { admission_.release_query(); }, &metrics_);
+}
+
+grpc::Status LipSyncService::authenticate_model_query(const char* method, grpc::CallbackServerContext& context,
+                                                      UnaryCall& call) {
+  Caller caller;
+  if (auto status = tenants_.authenticate(context, method, caller); !status.ok()) return status;
+  call.set_tenant(caller.tenant());
+  return grpc::Status::OK;
+}
+
+grpc::ServerUnaryReactor* LipSyncService::ListModels(grpc::CallbackServerContext* context, const v1::ListModelsRequest*,
+                                                     v1::ListModelsResponse* response) {
+  auto* call = start_model_query("ListModels", *context);
   call->run([&] {
-    Caller caller;
-    if (auto status = tenants_.authenticate(*context, "ListModels", caller); !status.ok()) return status;
-    call->set_tenant(caller.tenant());
+    if (auto status = authenticate_model_query("ListModels", *context, *call); !status.ok()) return status;
     for (const auto& entry : catalog_.entries()) describe(*entry, *response->add_models());
     return grpc::Status::OK;
   });
@@ -44,14 +54,9 @@ grpc::ServerUnaryReactor* LipSyncService::ListModels(grpc::CallbackServerContext
 
 grpc::ServerUnaryReactor* LipSyncService::GetModel(grpc::CallbackServerContext* context,
                                                    const v1::GetModelRequest* request, v1::ModelInfo* response) {
-  handoff_acquire(this);     // the service as built before the server started (tsan_handoff.hpp)
-  admission_.count_query();  // the drain waits for the call's end, its access line and metrics included
-  auto* call = new UnaryCall(
-      "GetModel", *context, [this](const grpc::Status&) { admission_.release_query(); }, &metrics_);
+  auto* call = start_model_query("GetModel", *context);
   call->run([&] {
-    Caller caller;
-    if (auto status = tenants_.authenticate(*context, "GetModel", caller); !status.ok()) return status;
-    call->set_tenant(caller.tenant());
+    if (auto status = authenticate_model_query("GetModel", *context, *call); !status.ok()) return status;
     const ModelEntry* entry = catalog_.find(request->name());
     if (!entry) {
       return grpc::Status(grpc::StatusCode::NOT_FOUND,

@@ -29,6 +29,8 @@ namespace lipsync::server {
 
 // Subscribe is a raw method: its reactor writes the bytes a session serialised
 // once for all its subscribers (outbox.hpp); the request is parsed in subscribe.cpp.
+class UnaryCall;
+
 class LipSyncService final : public v1::LipSync::WithRawCallbackMethod_Subscribe<v1::LipSync::CallbackService> {
  public:
   LipSyncService(const ServerConfig& config, const ModelCatalog& catalog);
@@ -72,6 +74,10 @@ class LipSyncService final : public v1::LipSync::WithRawCallbackMethod_Subscribe
 
  private:
   void register_gauges();
+  /// ListModels and GetModel: counted as calls in progress (never refused) until their end.
+  UnaryCall* start_model_query(const char* method, grpc::CallbackServerContext& context);
+  /// The caller's API key checked for `method`, its tenant set on `call`.
+  grpc::Status authenticate_model_query(const char* method, grpc::CallbackServerContext& context, UnaryCall& call);
 
   const ServerConfig& config_;
   const ModelCatalog& catalog_;
