@@ -51,15 +51,17 @@ using testing::Recording;
 void report(const std::string& name, const testing::BoundaryScore& score, double seconds_audio, double seconds_cpu) {
   std::printf(
       "%-30s boundaries %4zu  median %5.1f ms  p95 %6.1f ms  (signed median %+5.1f ms)  matched %5.1f %%  bilabials "
-      "%2d/%2d within 20 ms (%5.1f %%, median %5.1f ms, p95 %5.1f ms)  closed at middle %2d/%2d (%5.1f %%)  %.2fx real "
-      "time\n",
+      "%2d/%2d within 20 ms (%5.1f %%, median %5.1f ms, p95 %5.1f ms)  closed at middle %2d/%2d (%5.1f %%)  false "
+      "closures "
+      "%2d/%3d  %.2fx real time\n",
       name.c_str(), score.errors_ms.size(), testing::quantile(score.errors_ms, 0.5),
       testing::quantile(score.errors_ms, 0.95), testing::quantile(score.signed_errors_ms, 0.5),
       100.0 * score.matched_phonemes / std::max(1, score.reference_phonemes), score.bilabials_within_20ms,
       score.bilabials, 100.0 * score.bilabials_within_20ms / std::max(1, score.bilabials),
       testing::quantile(score.bilabial_errors_ms, 0.5), testing::quantile(score.bilabial_errors_ms, 0.95),
       score.bilabials_closed_at_middle, score.bilabials,
-      100.0 * score.bilabials_closed_at_middle / std::max(1, score.bilabials), seconds_cpu / seconds_audio);
+      100.0 * score.bilabials_closed_at_middle / std::max(1, score.bilabials), score.false_closures,
+      score.other_phonemes, seconds_cpu / seconds_audio);
 }
 
 }  // namespace

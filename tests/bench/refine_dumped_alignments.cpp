@@ -149,11 +149,12 @@ int main(int argc, char** argv) {
       }
       std::printf(
           "%-10s %-4s raw %2d/%2d  refined %2d/%2d within 20 ms (median %5.1f ms, p95 %5.1f ms)  closed at middle "
-          "%2d/%2d  boundaries median %5.1f p95 %5.1f\n",
+          "%2d/%2d  false closures %2d/%3d  boundaries median %5.1f p95 %5.1f\n",
           source.c_str(), mode.c_str(), raw_score.bilabials_within_20ms, raw_score.bilabials,
           score.bilabials_within_20ms, score.bilabials, testing::quantile(score.bilabial_errors_ms, 0.5),
           testing::quantile(score.bilabial_errors_ms, 0.95), score.bilabials_closed_at_middle, score.bilabials,
-          testing::quantile(score.errors_ms, 0.5), testing::quantile(score.errors_ms, 0.95));
+          score.false_closures, score.other_phonemes, testing::quantile(score.errors_ms, 0.5),
+          testing::quantile(score.errors_ms, 0.95));
     }
   }
   return 0;

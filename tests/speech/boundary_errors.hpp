@@ -12,7 +12,9 @@
 // closure (/p b m/) of the reference is "found" when it is matched to the same
 // phoneme starting within 20 ms. Independently of the matching, a reference
 // bilabial is "shown closed" when the alignment has a /p b m/ at the middle of
-// the reference closure (what a viewer sees there, whatever the phone names).
+// the reference closure (what a viewer sees there, whatever the phone names), and any
+// other reference phoneme (silence aside) shows a "false closure" when the alignment
+// has a /p b m/ at its middle.
 #pragma once
 
 #include <algorithm>
@@ -42,6 +44,8 @@ struct BoundaryScore {
   int bilabials_within_20ms = 0;
   std::vector<double> bilabial_errors_ms;  ///< start error of each matched reference /p b m/
   int bilabials_closed_at_middle = 0;      ///< reference /p b m/ whose middle the alignment labels /p b m/
+  int other_phonemes = 0;                  ///< reference phonemes neither /p b m/ nor silence
+  int false_closures = 0;                  ///< of those, the ones whose middle the alignment labels /p b m/
 };
 
 struct MappedPhoneme {
@@ -82,11 +86,15 @@ inline void score_alignment(const LabeledUtterance& reference, const PhoneSet& r
     return name == "p" || name == "b" || name == "m";
   };
   for (const LabeledInterval& interval : reference.intervals) {
-    if (!is_bilabial(reference_set.lookup(interval.label).value_or(-1))) continue;
+    const int phoneme = reference_set.lookup(interval.label).value_or(-1);
+    if (phoneme < 0 || phoneme == silence) continue;
+    const bool bilabial = is_bilabial(phoneme);
+    score.other_phonemes += bilabial ? 0 : 1;
     const std::int64_t middle_us = (interval.start_us + interval.end_us) / 2;
     for (const LabeledInterval& at : aligned.intervals) {
       if (at.start_us <= middle_us && middle_us < at.end_us) {
-        score.bilabials_closed_at_middle += is_bilabial(aligned_set.lookup(at.label).value_or(-1)) ? 1 : 0;
+        const int shown = is_bilabial(aligned_set.lookup(at.label).value_or(-1)) ? 1 : 0;
+        (bilabial ? score.bilabials_closed_at_middle : score.false_closures) += shown;
         break;
       }
     }
