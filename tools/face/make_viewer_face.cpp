@@ -140,27 +140,27 @@ nlohmann::json fit(const Samples& samples, const face::FaceMesh& mesh) {
     for (const auto& w : samples.arkit) peak = std::max(peak, w[k]);
     if (peak > kMinActiveWeight) active.push_back(k);
   }
-  const auto K = static_cast<Eigen::Index>(active.size());
-  Eigen::MatrixXd X(static_cast<Eigen::Index>(frames), K),
-      Y(static_cast<Eigen::Index>(frames), static_cast<Eigen::Index>(coords));
+  const auto shape_count = static_cast<Eigen::Index>(active.size());
+  Eigen::MatrixXd weights(static_cast<Eigen::Index>(frames), shape_count),
+      offsets(static_cast<Eigen::Index>(frames), static_cast<Eigen::Index>(coords));
   for (std::size_t f = 0; f < frames; ++f) {
     const double s = std::sqrt(samples.weight[f]);
-    for (Eigen::Index k = 0; k < K; ++k)
-      X(static_cast<Eigen::Index>(f), k) = s * samples.arkit[f][active[static_cast<std::size_t>(k)]];
+    for (Eigen::Index k = 0; k < shape_count; ++k)
+      weights(static_cast<Eigen::Index>(f), k) = s * samples.arkit[f][active[static_cast<std::size_t>(k)]];
     for (std::size_t c = 0; c < coords; ++c)
-      Y(static_cast<Eigen::Index>(f), static_cast<Eigen::Index>(c)) = s * samples.delta[f][c];
+      offsets(static_cast<Eigen::Index>(f), static_cast<Eigen::Index>(c)) = s * samples.delta[f][c];
   }
-  Eigen::MatrixXd normal = X.transpose() * X;
+  Eigen::MatrixXd normal = weights.transpose() * weights;
   normal.diagonal().array() += kRidge;
-  const Eigen::MatrixXd deltas = normal.ldlt().solve(X.transpose() * Y);  // K × 3V
+  const Eigen::MatrixXd deltas = normal.ldlt().solve(weights.transpose() * offsets);  // shape_count × 3V
 
   // Quantise as stored, then measure the error of what the viewer will draw.
   Eigen::MatrixXd stored = (deltas * 1e6).array().round() / 1e6;
   double squared = 0, worst = 0, closure_gap_sum = 0, closure_gap_max = 0, solver_gap_sum = 0;
   std::size_t closure_frames = 0;
   for (std::size_t f = 0; f < frames; ++f) {
-    Eigen::RowVectorXd w(K);
-    for (Eigen::Index k = 0; k < K; ++k) w(k) = samples.arkit[f][active[static_cast<std::size_t>(k)]];
+    Eigen::RowVectorXd w(shape_count);
+    for (Eigen::Index k = 0; k < shape_count; ++k) w(k) = samples.arkit[f][active[static_cast<std::size_t>(k)]];
     const Eigen::RowVectorXd posed = w * stored;
     for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
       double e2 = 0;
@@ -188,7 +188,7 @@ nlohmann::json fit(const Samples& samples, const face::FaceMesh& mesh) {
   const auto mm = [](double m) { return std::round(m * 1e5) / 100.0; };  // 0.01 mm
 
   nlohmann::json shapes = nlohmann::json::array();
-  for (Eigen::Index k = 0; k < K; ++k) {
+  for (Eigen::Index k = 0; k < shape_count; ++k) {
     std::vector<long> um(coords);
     for (std::size_t c = 0; c < coords; ++c) um[c] = std::lround(deltas(k, static_cast<Eigen::Index>(c)) * 1e6);
     shapes.push_back({{"name", std::string(kArkitNames[active[static_cast<std::size_t>(k)]])}, {"deltas_um", um}});

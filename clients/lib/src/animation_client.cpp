@@ -16,7 +16,7 @@ using detail::protocol_error;
 using detail::throw_unless_ok;
 
 AnimationClient::AnimationClient(std::string address, ClientOptions options)
-    : address_(std::move(address)), options_(options) {
+    : address_(std::move(address)), options_(std::move(options)) {
   grpc::ChannelArguments arguments;
   arguments.SetMaxReceiveMessageSize(256 * 1024 * 1024);
   // Each client gets its own connection, so that a load test can spread its streams.

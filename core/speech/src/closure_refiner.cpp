@@ -123,14 +123,14 @@ struct Step {
 // distance from `aligned_us`.
 Step best_step(const LevelTrack& levels, std::int64_t aligned_us, std::int64_t from_us, std::int64_t to_us,
                bool falling, const ClosureRefinerOptions& options) {
-  constexpr std::int64_t side = kStepWindowUs / kCandidateStepUs;
-  const std::int64_t first = std::max((from_us + kCandidateStepUs - 1) / kCandidateStepUs, side);
-  const std::int64_t last = std::min(to_us / kCandidateStepUs, levels.frames() - side);
+  constexpr std::int64_t kSide = kStepWindowUs / kCandidateStepUs;
+  const std::int64_t first = std::max((from_us + kCandidateStepUs - 1) / kCandidateStepUs, kSide);
+  const std::int64_t last = std::min(to_us / kCandidateStepUs, levels.frames() - kSide);
   Step best;
   double best_score = -1e300;
   for (std::int64_t k = first; k <= last; ++k) {
-    const double before = levels.mean_db(k - side, k);
-    const double after = levels.mean_db(k, k + side);
+    const double before = levels.mean_db(k - kSide, k);
+    const double after = levels.mean_db(k, k + kSide);
     const double step = falling ? before - after : after - before;
     const std::int64_t t = k * kCandidateStepUs;
     const double score = step - options.distance_penalty_db_per_ms * double(std::abs(t - aligned_us)) / 1000.0;
@@ -171,11 +171,11 @@ bool is_stop_closure_pause(const LabeledInterval& pause, const LabeledInterval& 
 // The latest step (down when `falling`) of at least `min_db` within [from_us, to_us]:
 // the last one found walking back from to_us, at its peak.
 Step latest_step(const LevelTrack& levels, std::int64_t from_us, std::int64_t to_us, bool falling, double min_db) {
-  constexpr std::int64_t side = kStepWindowUs / kCandidateStepUs;
-  const std::int64_t first = std::max((from_us + kCandidateStepUs - 1) / kCandidateStepUs, side);
-  const std::int64_t last = std::min(to_us / kCandidateStepUs, levels.frames() - side);
+  constexpr std::int64_t kSide = kStepWindowUs / kCandidateStepUs;
+  const std::int64_t first = std::max((from_us + kCandidateStepUs - 1) / kCandidateStepUs, kSide);
+  const std::int64_t last = std::min(to_us / kCandidateStepUs, levels.frames() - kSide);
   const auto step_at = [&](std::int64_t k) {
-    const double before = levels.mean_db(k - side, k), after = levels.mean_db(k, k + side);
+    const double before = levels.mean_db(k - kSide, k), after = levels.mean_db(k, k + kSide);
     return falling ? before - after : after - before;
   };
   std::int64_t k = last;
@@ -192,9 +192,9 @@ Step latest_step(const LevelTrack& levels, std::int64_t from_us, std::int64_t to
 // point, is where the lips start to seal.
 std::int64_t fall_onset_us(const LevelTrack& levels, const Step& step, std::int64_t from_us,
                            const ClosureRefinerOptions& options) {
-  constexpr std::int64_t side = kStepWindowUs / kCandidateStepUs;
-  const auto fall = [&](std::int64_t k) { return levels.mean_db(k - side, k) - levels.mean_db(k, k + side); };
-  const std::int64_t first = std::max((from_us + kCandidateStepUs - 1) / kCandidateStepUs, side);
+  constexpr std::int64_t kSide = kStepWindowUs / kCandidateStepUs;
+  const auto fall = [&](std::int64_t k) { return levels.mean_db(k - kSide, k) - levels.mean_db(k, k + kSide); };
+  const std::int64_t first = std::max((from_us + kCandidateStepUs - 1) / kCandidateStepUs, kSide);
   std::int64_t k = step.at_us / kCandidateStepUs;
   while (k - 1 >= first && fall(k - 1) >= options.closure_onset_fraction * step.db) --k;
   return k * kCandidateStepUs;

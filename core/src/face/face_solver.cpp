@@ -448,6 +448,7 @@ struct FaceSolver::Impl {
     }
     auto mapped = [&](const std::vector<std::uint32_t>& ids) {
       std::vector<std::uint32_t> out;
+      out.reserve(ids.size());
       for (const auto id : ids) out.push_back(internal_index[id]);
       return out;
     };
