@@ -90,7 +90,7 @@ std::string describe(const RunResult& result) {
 // ---------------------------------------------------------------------------
 // Help and version
 
-TEST_F(CliTest, help_lists_every_command) {
+TEST_F(CliTest, HelpListsEveryCommand) {
   const RunResult result = run({"--help"});
   ASSERT_EQ(result.status, 0) << describe(result);
   for (const char* command : {"render", "demo", "model", "phone-sets"}) {
@@ -98,14 +98,14 @@ TEST_F(CliTest, help_lists_every_command) {
   }
 }
 
-TEST_F(CliTest, no_command_is_a_usage_error) {
+TEST_F(CliTest, NoCommandIsAUsageError) {
   EXPECT_EQ(run({}).status, 2);
   const RunResult result = run({"frobnicate"});
   EXPECT_EQ(result.status, 2);
   EXPECT_EQ(result.err, "lipsync: error: unknown command 'frobnicate' (see 'lipsync --help')\n");
 }
 
-TEST_F(CliTest, version_prints_one_line) {
+TEST_F(CliTest, VersionPrintsOneLine) {
   const RunResult result = run({"--version"});
   EXPECT_EQ(result.status, 0);
   EXPECT_THAT(result.out, StartsWith("lipsync "));
@@ -133,7 +133,7 @@ std::map<std::string, std::string> help_entries(const std::string& help) {
   return entries;
 }
 
-TEST_F(CliTest, render_help_documents_every_option_with_its_default) {
+TEST_F(CliTest, RenderHelpDocumentsEveryOptionWithItsDefault) {
   const RunResult result = run({"render", "--help"});
   ASSERT_EQ(result.status, 0) << describe(result);
   EXPECT_THAT(result.out, StartsWith("Usage: lipsync render INPUT [options]\n"));
@@ -161,7 +161,7 @@ TEST_F(CliTest, render_help_documents_every_option_with_its_default) {
   EXPECT_THAT(line_of["--output FILE"], HasSubstr("-o, --output FILE"));
 }
 
-TEST_F(CliTest, help_quotes_the_ranges_and_defaults_that_the_checks_enforce) {
+TEST_F(CliTest, HelpQuotesTheRangesAndDefaultsThatTheChecksEnforce) {
   const auto range = [](const IntSetting& setting) {
     return std::to_string(setting.min) + " to " + std::to_string(setting.max);
   };
@@ -197,7 +197,7 @@ TEST_F(CliTest, help_quotes_the_ranges_and_defaults_that_the_checks_enforce) {
   EXPECT_THAT(help_entries(play_help.out)["--rate N"], HasSubstr(range(kFpsSetting)));
 }
 
-TEST_F(CliTest, every_command_has_help) {
+TEST_F(CliTest, EveryCommandHasHelp) {
   for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{
            {"demo", "--help"}, {"model", "--help"}, {"model", "dump", "--help"}, {"phone-sets", "-h"}}) {
     const RunResult result = run(args);
@@ -207,7 +207,7 @@ TEST_F(CliTest, every_command_has_help) {
   }
 }
 
-TEST_F(CliTest, help_and_errors_list_exactly_the_formats_the_core_names) {
+TEST_F(CliTest, HelpAndErrorsListExactlyTheFormatsTheCoreNames) {
   std::vector<std::string_view> render_formats;
   for (const auto& entry : kTrackFormats) render_formats.push_back(entry.name);
   for (const auto& entry : kVisemeFormats) render_formats.push_back(entry.name);
@@ -233,7 +233,7 @@ TEST_F(CliTest, help_and_errors_list_exactly_the_formats_the_core_names) {
 // ---------------------------------------------------------------------------
 // demo
 
-TEST_F(CliTest, demo_writes_the_file_and_prints_the_path) {
+TEST_F(CliTest, DemoWritesTheFileAndPrintsThePath) {
   const RunResult result = run({"demo"});
   ASSERT_EQ(result.status, 0) << describe(result);
   EXPECT_EQ(directory_listing(dir_), std::vector<std::string>{"lipsync-demo.json"});
@@ -251,7 +251,7 @@ TEST_F(CliTest, demo_writes_the_file_and_prints_the_path) {
   EXPECT_THAT(result.out, HasSubstr("1.960000 s"));
 }
 
-TEST_F(CliTest, demo_follows_format_and_output) {
+TEST_F(CliTest, DemoFollowsFormatAndOutput) {
   RunResult result = run({"demo", "--format", "arkit-csv", "--fps", "60"});
   ASSERT_EQ(result.status, 0) << describe(result);
   EXPECT_EQ(directory_listing(dir_), std::vector<std::string>{"lipsync-demo.arkit.csv"});
@@ -266,7 +266,7 @@ TEST_F(CliTest, demo_follows_format_and_output) {
 // ---------------------------------------------------------------------------
 // render
 
-TEST_F(CliTest, render_json_has_the_grid_frames) {
+TEST_F(CliTest, RenderJsonHasTheGridFrames) {
   // hello.json ends at 1.238 s: grid frames at round(i·10⁶/fps) < 1.238 s.
   for (const auto& [fps, expected] : std::vector<std::pair<int, std::size_t>>{{30, 38}, {60, 75}, {24, 30}}) {
     const RunResult result = run({"render", fixture("hello.json"), "--fixed-rate", "--fps", std::to_string(fps)});
@@ -285,7 +285,7 @@ TEST_F(CliTest, render_json_has_the_grid_frames) {
   }
 }
 
-TEST_F(CliTest, render_adds_key_frames_at_closures) {
+TEST_F(CliTest, RenderAddsKeyFramesAtClosures) {
   const RunResult result = run({"render", fixture("bump_map.json")});
   ASSERT_EQ(result.status, 0) << describe(result);
   const auto track = nlohmann::json::parse(result.out);
@@ -300,7 +300,7 @@ TEST_F(CliTest, render_adds_key_frames_at_closures) {
   EXPECT_TRUE(kinds.count("closure_end"));
 }
 
-TEST_F(CliTest, render_to_file_equals_stdout_and_reads_stdin) {
+TEST_F(CliTest, RenderToFileEqualsStdoutAndReadsStdin) {
   const RunResult to_stdout = run({"render", fixture("bump_map.lab"), "--format", "csv"});
   ASSERT_EQ(to_stdout.status, 0) << describe(to_stdout);
   const RunResult to_file = run({"render", fixture("bump_map.lab"), "--format=csv", "-o", "track.csv"});
@@ -314,7 +314,7 @@ TEST_F(CliTest, render_to_file_equals_stdout_and_reads_stdin) {
   EXPECT_EQ(from_stdin.out, to_stdout.out);
 }
 
-TEST_F(CliTest, every_input_format_renders_the_same_utterance) {
+TEST_F(CliTest, EveryInputFormatRendersTheSameUtterance) {
   // "bump the map" with the same timings in five formats and four phone sets
   // (arpabet, radio, sampa; TextGrid detected): the same model phonemes, so the
   // same bytes. The TIMIT file differs on purpose (explicit closure labels).
@@ -334,7 +334,7 @@ TEST_F(CliTest, every_input_format_renders_the_same_utterance) {
   EXPECT_THAT(timit.out, StartsWith("t,t_us,kind,"));
 }
 
-TEST_F(CliTest, incremental_output_is_byte_identical_to_offline) {
+TEST_F(CliTest, IncrementalOutputIsByteIdenticalToOffline) {
   const std::vector<std::string> inputs = {"hello.json",   "bump_map.json", "bump_map.psdur",   "bump_map.lab",
                                            "bump_map.PHN", "bump_map.pho",  "bump_map.TextGrid"};
   const std::vector<std::vector<std::string>> option_sets = {
@@ -395,7 +395,7 @@ std::vector<RhubarbCueRead> read_rhubarb_tsv(const std::string& text) {
   return cues;
 }
 
-TEST_F(CliTest, rhubarb_tsv_and_json_read_back_as_rhubarb_documents_them) {
+TEST_F(CliTest, RhubarbTsvAndJsonReadBackAsRhubarbDocumentsThem) {
   for (const char* input : {"festival_2.lab", "flite_4.psdur"}) {
     const std::string path = (fs::path(LIPSYNC_TEST_DATA_DIR) / "closures" / input).string();
     const RunResult tsv = run({"render", path, "--format", "rhubarb-tsv"});
@@ -433,7 +433,7 @@ TEST_F(CliTest, rhubarb_tsv_and_json_read_back_as_rhubarb_documents_them) {
   }
 }
 
-TEST_F(CliTest, rhubarb_without_extended_shapes_uses_the_six_basic_ones) {
+TEST_F(CliTest, RhubarbWithoutExtendedShapesUsesTheSixBasicOnes) {
   const std::string path = (fs::path(LIPSYNC_TEST_DATA_DIR) / "closures" / "festival_3.lab").string();
   const RunResult full = run({"render", path, "--format", "rhubarb-tsv"});
   const RunResult basic = run({"render", path, "--format", "rhubarb-tsv", "--extended-shapes", ""});
@@ -454,7 +454,7 @@ TEST_F(CliTest, rhubarb_without_extended_shapes_uses_the_six_basic_ones) {
   EXPECT_THAT(not_rhubarb.err, HasSubstr("--extended-shapes needs --format rhubarb-tsv or rhubarb-json"));
 }
 
-TEST_F(CliTest, viseme_formats_stream_equals_batch_byte_for_byte) {
+TEST_F(CliTest, VisemeFormatsStreamEqualsBatchByteForByte) {
   for (const char* input : {"festival_5.lab"}) {
     const std::string path = (fs::path(LIPSYNC_TEST_DATA_DIR) / "closures" / input).string();
     for (const char* format : {"visemes-oculus", "visemes-azure", "visemes-polly", "rhubarb-tsv", "rhubarb-json"}) {
@@ -473,7 +473,7 @@ TEST_F(CliTest, viseme_formats_stream_equals_batch_byte_for_byte) {
   }
 }
 
-TEST_F(CliTest, oculus_and_azure_visemes_carry_weights_per_frame_and_exact_event_times) {
+TEST_F(CliTest, OculusAndAzureVisemesCarryWeightsPerFrameAndExactEventTimes) {
   const std::string path = (fs::path(LIPSYNC_TEST_DATA_DIR) / "closures" / "flite_1.psdur").string();
   const RunResult azure = run({"render", path, "--format", "visemes-azure"});
   ASSERT_EQ(azure.status, 0) << describe(azure);
@@ -513,7 +513,7 @@ TEST_F(CliTest, oculus_and_azure_visemes_carry_weights_per_frame_and_exact_event
   EXPECT_GT(marks, 10U);
 }
 
-TEST_F(CliTest, phone_set_can_be_forced) {
+TEST_F(CliTest, PhoneSetCanBeForced) {
   // bump_map.json declares arpabet; forcing radio makes its upper-case stressed
   // labels unknown (radio has no "AH1"), which proves the option is used.
   const RunResult forced = run({"render", fixture("bump_map.json"), "--phone-set", "radio"});
@@ -532,7 +532,7 @@ struct ErrorCase {
   std::vector<std::string> message_parts;
 };
 
-TEST_F(CliTest, errors_name_the_culprit_and_leave_no_file) {
+TEST_F(CliTest, ErrorsNameTheCulpritAndLeaveNoFile) {
   const std::vector<ErrorCase> cases = {
       {{"render", fixture("unknown_label.json")}, 1, {"unknown_label.json:3", "'XQ'", "arpabet"}},
       {{"render", fixture("overlap.json")}, 1, {"overlap.json:2", "0.250000"}},
@@ -576,7 +576,7 @@ TEST_F(CliTest, errors_name_the_culprit_and_leave_no_file) {
   }
 }
 
-TEST_F(CliTest, a_failed_render_keeps_the_previous_output) {
+TEST_F(CliTest, AFailedRenderKeepsThePreviousOutput) {
   write_text(dir_ / "out.json", "previous track");
   const RunResult result = run({"render", fixture("overlap.json"), "-o", "out.json"});
   EXPECT_EQ(result.status, 1);
@@ -589,7 +589,7 @@ TEST_F(CliTest, a_failed_render_keeps_the_previous_output) {
   EXPECT_TRUE(nlohmann::json::accept(read_text(dir_ / "out.json")));
 }
 
-TEST_F(CliTest, unwritable_output_is_an_error_naming_it) {
+TEST_F(CliTest, UnwritableOutputIsAnErrorNamingIt) {
   const RunResult missing_dir = run({"render", fixture("hello.json"), "-o", "no/such/dir/out.json"});
   EXPECT_EQ(missing_dir.status, 1);
   EXPECT_THAT(missing_dir.err, HasSubstr("'no/such/dir/out.json'"));
@@ -604,7 +604,7 @@ TEST_F(CliTest, unwritable_output_is_an_error_naming_it) {
 // ---------------------------------------------------------------------------
 // model dump, phone-sets
 
-TEST_F(CliTest, model_dump_reloads) {
+TEST_F(CliTest, ModelDumpReloads) {
   const RunResult result = run({"model", "dump"});
   ASSERT_EQ(result.status, 0) << describe(result);
   const ArticulationModel model = ArticulationModel::from_json(result.out, "dump");
@@ -622,7 +622,7 @@ TEST_F(CliTest, model_dump_reloads) {
   EXPECT_EQ(render.out, builtin.out);
 }
 
-TEST_F(CliTest, model_errors) {
+TEST_F(CliTest, ModelErrors) {
   EXPECT_EQ(run({"model"}).status, 2);
   EXPECT_EQ(run({"model", "show"}).status, 2);
   const RunResult bad = run({"model", "dump", "--model", fixture("bad_model.json")});
@@ -631,7 +631,7 @@ TEST_F(CliTest, model_errors) {
   EXPECT_TRUE(bad.out.empty());
 }
 
-TEST_F(CliTest, phone_sets_lists_every_builtin_set) {
+TEST_F(CliTest, PhoneSetsListsEveryBuiltinSet) {
   const RunResult result = run({"phone-sets"});
   ASSERT_EQ(result.status, 0) << describe(result);
   // One entry per set: "name  description", the description wrapped onto

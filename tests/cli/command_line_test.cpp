@@ -33,27 +33,27 @@ ArgumentError error_of(std::vector<std::string> args) {
   return {ArgumentError::Kind::unknown_option, "", "", "", ""};
 }
 
-TEST(CommandLine, joined_tables_keep_the_shared_group_first) {
+TEST(CommandLine, JoinedTablesKeepTheSharedGroupFirst) {
   ASSERT_EQ(kOptions.size(), 5u);
   EXPECT_EQ(kOptions[0].name, "server");
   EXPECT_EQ(kOptions[1].name, "tls");
   EXPECT_EQ(kOptions[2].name, "fps");
 }
 
-TEST(CommandLine, equals_form_and_separate_value_give_the_same_value) {
+TEST(CommandLine, EqualsFormAndSeparateValueGiveTheSameValue) {
   EXPECT_EQ(parse({"--fps=25"}).value("fps"), "25");
   EXPECT_EQ(parse({"--fps", "25"}).value("fps"), "25");
   EXPECT_EQ(parse({"-o", "out.json"}).value("output"), "out.json");
   EXPECT_EQ(parse({"--output=a=b"}).value("output"), "a=b");
 }
 
-TEST(CommandLine, an_empty_equals_value_is_empty_and_does_not_take_the_next_word) {
+TEST(CommandLine, AnEmptyEqualsValueIsEmptyAndDoesNotTakeTheNextWord) {
   const ParsedArguments parsed = parse({"--server=", "input.json"});
   EXPECT_EQ(parsed.value("server"), "");
   EXPECT_THAT(parsed.positional(), ElementsAre("input.json"));
 }
 
-TEST(CommandLine, flags_positionals_and_absent_options) {
+TEST(CommandLine, FlagsPositionalsAndAbsentOptions) {
   const ParsedArguments parsed = parse({"input.json", "--tls", "-", "-3"});
   EXPECT_TRUE(parsed.flag("tls"));
   EXPECT_FALSE(parsed.flag("server"));
@@ -64,20 +64,20 @@ TEST(CommandLine, flags_positionals_and_absent_options) {
   EXPECT_TRUE(parse({"x", "--help"}).help());
 }
 
-TEST(CommandLine, double_dash_ends_the_options) {
+TEST(CommandLine, DoubleDashEndsTheOptions) {
   const ParsedArguments parsed = parse({"--fps", "24", "--", "--tls", "--frobnicate", "-o"});
   EXPECT_EQ(parsed.value("fps"), "24");
   EXPECT_FALSE(parsed.flag("tls"));
   EXPECT_THAT(parsed.positional(), ElementsAre("--tls", "--frobnicate", "-o"));
 }
 
-TEST(CommandLine, a_repeated_option_keeps_every_value_in_order_and_the_last_wins) {
+TEST(CommandLine, ARepeatedOptionKeepsEveryValueInOrderAndTheLastWins) {
   const ParsedArguments parsed = parse({"--model", "a=a.json", "--fps", "1", "--model=b=b.json", "--fps", "2"});
   EXPECT_THAT(parsed.values("model"), ElementsAre("a=a.json", "b=b.json"));
   EXPECT_EQ(parsed.value("fps"), "2");
 }
 
-TEST(CommandLine, an_unknown_option_names_the_word_as_written) {
+TEST(CommandLine, AnUnknownOptionNamesTheWordAsWritten) {
   for (const std::string word : {"--frobnicate", "--frobnicate=3", "-x"}) {
     const ArgumentError error = error_of({"input.json", word, "value"});
     EXPECT_EQ(error.kind(), ArgumentError::Kind::unknown_option) << word;
@@ -85,7 +85,7 @@ TEST(CommandLine, an_unknown_option_names_the_word_as_written) {
   }
 }
 
-TEST(CommandLine, a_missing_value_at_the_end_names_the_option_and_its_value_name) {
+TEST(CommandLine, AMissingValueAtTheEndNamesTheOptionAndItsValueName) {
   const ArgumentError error = error_of({"input.json", "--fps"});
   EXPECT_EQ(error.kind(), ArgumentError::Kind::missing_value);
   EXPECT_EQ(error.option(), "--fps");
@@ -93,7 +93,7 @@ TEST(CommandLine, a_missing_value_at_the_end_names_the_option_and_its_value_name
   EXPECT_EQ(error_of({"-o"}).value_name(), "FILE");
 }
 
-TEST(CommandLine, an_option_where_a_value_belongs_is_a_missing_value) {
+TEST(CommandLine, AnOptionWhereAValueBelongsIsAMissingValue) {
   for (const auto& args : std::vector<std::vector<std::string>>{{"--server", "--tls"}, {"--server", "-o", "x"}}) {
     const ArgumentError error = error_of(args);
     EXPECT_EQ(error.kind(), ArgumentError::Kind::missing_value) << args[1];
@@ -102,14 +102,14 @@ TEST(CommandLine, an_option_where_a_value_belongs_is_a_missing_value) {
   }
 }
 
-TEST(CommandLine, a_flag_given_a_value_names_the_flag_and_the_value) {
+TEST(CommandLine, AFlagGivenAValueNamesTheFlagAndTheValue) {
   const ArgumentError error = error_of({"--fps", "30", "--tls=yes"});
   EXPECT_EQ(error.kind(), ArgumentError::Kind::unexpected_value);
   EXPECT_EQ(error.option(), "--tls");
   EXPECT_EQ(error.value(), "yes");
 }
 
-TEST(CommandLine, whole_numbers_are_read_strictly) {
+TEST(CommandLine, WholeNumbersAreReadStrictly) {
   EXPECT_EQ(read_whole_number("-42").status, WholeNumber::Status::ok);
   EXPECT_EQ(read_whole_number("-42").value, -42);
   for (const std::string_view text : {"", "30x", " 30", "+3", "2.5", "0x10"}) {

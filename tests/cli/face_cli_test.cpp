@@ -87,7 +87,7 @@ class FaceCliTest : public ::testing::Test {
 
 const std::string kInput = (kFixtures / "bump_map.lab").string();
 
-TEST_F(FaceCliTest, mesh_writes_a_glb_and_nothing_else) {
+TEST_F(FaceCliTest, MeshWritesAGlbAndNothingElse) {
   const RunResult result = run({"render", kInput, "--mesh", "face.glb", "--mesh-subdivision", "0"});
   ASSERT_EQ(result.status, 0) << result.err;
   EXPECT_EQ(result.out, "");  // no track on stdout unless -o is given
@@ -103,13 +103,13 @@ TEST_F(FaceCliTest, mesh_writes_a_glb_and_nothing_else) {
   EXPECT_EQ(json["animations"][0]["samplers"][0]["interpolation"], "LINEAR");
 }
 
-TEST_F(FaceCliTest, mesh_with_a_track_file_writes_both) {
+TEST_F(FaceCliTest, MeshWithATrackFileWritesBoth) {
   const RunResult result = run({"render", kInput, "--mesh", "face.glb", "--mesh-subdivision=0", "-o", "track.json"});
   ASSERT_EQ(result.status, 0) << result.err;
   EXPECT_EQ(listing(), (std::vector<std::string>{"face.glb", "track.json"}));
 }
 
-TEST_F(FaceCliTest, bad_options_leave_no_file) {
+TEST_F(FaceCliTest, BadOptionsLeaveNoFile) {
   for (const std::vector<std::string>& args :
        {std::vector<std::string>{"render", kInput, "--mesh", "face.glb", "--mesh-subdivision", "3"},
         std::vector<std::string>{"render", kInput, "--audio", "x.wav"},
@@ -121,7 +121,7 @@ TEST_F(FaceCliTest, bad_options_leave_no_file) {
   }
 }
 
-TEST_F(FaceCliTest, missing_ffmpeg_is_a_clear_error_and_leaves_no_file) {
+TEST_F(FaceCliTest, MissingFfmpegIsAClearErrorAndLeavesNoFile) {
   const RunResult result = run({"render", kInput, "--video", "face.mp4"}, (capture_ / "empty-path").string());
   EXPECT_NE(result.status, 0);
   EXPECT_THAT(result.err, HasSubstr("ffmpeg was not found"));
@@ -146,7 +146,7 @@ ProbedVideo probe_video(const fs::path& file, const fs::path& capture) {
 
 // Audio longer than the phonemes: the track and the video are extended to cover it, and
 // the video ends within one frame after the audio.
-TEST_F(FaceCliTest, video_with_longer_audio_covers_the_audio) {
+TEST_F(FaceCliTest, VideoWithLongerAudioCoversTheAudio) {
   if (!find_program("ffmpeg") || !find_program("ffprobe")) GTEST_SKIP() << "ffmpeg/ffprobe not installed";
   write_wav(dir_ / "speech.wav", 1.2);
   const RunResult result =
@@ -170,7 +170,7 @@ TEST_F(FaceCliTest, video_with_longer_audio_covers_the_audio) {
 }
 
 // Audio shorter than the phonemes: the video has the track's frames, as without audio.
-TEST_F(FaceCliTest, video_with_shorter_audio_has_the_track_duration_and_frame_count) {
+TEST_F(FaceCliTest, VideoWithShorterAudioHasTheTrackDurationAndFrameCount) {
   if (!find_program("ffmpeg") || !find_program("ffprobe")) GTEST_SKIP() << "ffmpeg/ffprobe not installed";
   write_wav(dir_ / "speech.wav", 0.5);
   const RunResult result =
@@ -187,7 +187,7 @@ TEST_F(FaceCliTest, video_with_shorter_audio_has_the_track_duration_and_frame_co
   EXPECT_NEAR(std::stod(probed.video["duration"].get<std::string>()), frames / 30.0, 0.05);
 }
 
-TEST_F(FaceCliTest, still_writes_one_png) {
+TEST_F(FaceCliTest, StillWritesOnePng) {
   if (!find_program("ffmpeg")) GTEST_SKIP() << "ffmpeg not installed";
   const RunResult result =
       run({"render", kInput, "--still", "face.png", "--still-at", "0.3", "--mesh-subdivision", "0"});

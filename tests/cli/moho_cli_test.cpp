@@ -66,7 +66,7 @@ std::string core_switch_data(const std::string& name, int track_fps, int moho_fp
   return out.str();
 }
 
-TEST_F(MohoCliTest, render_writes_the_cores_switch_data_at_24_fps_by_default) {
+TEST_F(MohoCliTest, RenderWritesTheCoresSwitchDataAt24FpsByDefault) {
   for (const char* input : {"flite_2.psdur", "festival_4.lab"}) {
     const auto result = run({"render", closure_file(input), "--format", "moho-dat", "--phone-set", "radio"});
     ASSERT_EQ(result.status, 0) << result.err;
@@ -81,7 +81,7 @@ TEST_F(MohoCliTest, render_writes_the_cores_switch_data_at_24_fps_by_default) {
   }
 }
 
-TEST_F(MohoCliTest, moho_dat_is_the_same_incremental_and_in_a_file) {
+TEST_F(MohoCliTest, MohoDatIsTheSameIncrementalAndInAFile) {
   const std::string input = closure_file("festival_5.lab");
   const auto offline = run({"render", input, "--format", "moho-dat"});
   const auto incremental = run({"render", input, "--format", "moho-dat", "--incremental"});
@@ -93,7 +93,7 @@ TEST_F(MohoCliTest, moho_dat_is_the_same_incremental_and_in_a_file) {
   EXPECT_EQ(testing::read_text(dir_ / "mouth.dat"), offline.out);
 }
 
-TEST_F(MohoCliTest, bad_moho_options_exit_2_naming_the_option) {
+TEST_F(MohoCliTest, BadMohoOptionsExit2NamingTheOption) {
   const std::string input = closure_file("flite_1.psdur");
   for (const char* fps : {"0", "1001", "24.5", "x"}) {
     const auto result = run({"render", input, "--format", "moho-dat", "--moho-fps", fps});

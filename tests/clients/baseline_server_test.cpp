@@ -108,7 +108,7 @@ PerUtterance per_utterance(const nlohmann::json& report) {
           report["batches"]["producers"].get<double>() / utterances};
 }
 
-TEST_F(BaselineServerTest, sends_as_many_frames_and_batches_per_utterance_as_lipsyncd) {
+TEST_F(BaselineServerTest, SendsAsManyFramesAndBatchesPerUtteranceAsLipsyncd) {
   const std::vector<std::string> load = {"--fast", "--producers", "4", "--duration", "2", "--seed", "7"};
   const PerUtterance lipsyncd = per_utterance(loadtest(*lipsyncd_address_, load));
   std::vector<std::string> unverified = load;
@@ -126,7 +126,7 @@ TEST_F(BaselineServerTest, sends_as_many_frames_and_batches_per_utterance_as_lip
       << "batches per utterance: baseline " << baseline.batches << ", lipsyncd " << lipsyncd.batches;
 }
 
-TEST_F(BaselineServerTest, every_subscriber_receives_exactly_what_its_producer_receives) {
+TEST_F(BaselineServerTest, EverySubscriberReceivesExactlyWhatItsProducerReceives) {
   const nlohmann::json report = loadtest(
       *baseline_address_, {"--producers", "20", "--subscribers-per-session", "1", "--duration", "2", "--no-verify"});
   EXPECT_TRUE(report["errors"].empty()) << report.dump();
@@ -186,7 +186,7 @@ Subscription subscribe(v1::LipSync::Stub& stub, const std::string& session) {
   return {reader->Finish().error_code(), messages};
 }
 
-TEST_F(BaselineServerTest, keeps_an_ended_session_for_the_retention_and_then_forgets_it) {
+TEST_F(BaselineServerTest, KeepsAnEndedSessionForTheRetentionAndThenForgetsIt) {
   auto stub = baseline_stub();
   const std::size_t sent = produce(*stub, "kept", 20);
   // Header, batches, summary: 20 phonemes of 100 ms at 30 fps release frames in several batches.
@@ -209,7 +209,7 @@ TEST_F(BaselineServerTest, keeps_an_ended_session_for_the_retention_and_then_for
   EXPECT_EQ(subscribe(*stub, "next").code, grpc::StatusCode::OK);
 }
 
-TEST_F(BaselineServerTest, a_name_opened_again_is_not_forgotten_with_its_earlier_session) {
+TEST_F(BaselineServerTest, ANameOpenedAgainIsNotForgottenWithItsEarlierSession) {
   auto stub = baseline_stub();
   produce(*stub, "again", 2);
   std::this_thread::sleep_for(kRetention / 2);
@@ -237,7 +237,7 @@ std::chrono::duration<double> cpu_time(pid_t pid) {
                                        static_cast<double>(::sysconf(_SC_CLK_TCK)));
 }
 
-TEST_F(BaselineServerTest, spends_its_busy_time_per_frame_and_sends_the_same_messages) {
+TEST_F(BaselineServerTest, SpendsItsBusyTimePerFrameAndSendsTheSameMessages) {
   // 1 ms per frame: 60 phonemes of 100 ms are 180 frames at 30 fps, 180 ms of spinning.
   ChildProcess busy({GRPC_BASELINE_SERVER_BINARY, "--listen", "127.0.0.1:0", "--busy-ns-per-frame", "1000000"}, *dir_,
                     *dir_ / "busy.out", *dir_ / "busy.err");
@@ -259,7 +259,7 @@ TEST_F(BaselineServerTest, spends_its_busy_time_per_frame_and_sends_the_same_mes
   EXPECT_GE(spent.count(), 0.045) << "CPU spent on 180 frames with 1 ms of work each";
 }
 
-TEST(BaselineServerOptions, a_bad_value_exits_2_and_names_the_option) {
+TEST(BaselineServerOptions, ABadValueExits2AndNamesTheOption) {
   const fs::path dir = make_temp_dir("baseline-options-test-");
   for (const std::vector<std::string>& args :
        std::vector<std::vector<std::string>>{{"--busy-ns-per-frame", "-1"},

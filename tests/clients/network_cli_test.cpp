@@ -216,7 +216,7 @@ ChildProcess* NetworkCliTest::server_ = nullptr;
 fs::path* NetworkCliTest::server_dir_ = nullptr;
 std::string* NetworkCliTest::address_ = nullptr;
 
-TEST_F(NetworkCliTest, stream_equals_render_byte_for_byte_in_every_format) {
+TEST_F(NetworkCliTest, StreamEqualsRenderByteForByteInEveryFormat) {
   for (const std::string format : {"json", "csv", "arkit-csv"}) {
     for (const std::string input : {"hello.json", "bump_map.TextGrid"}) {
       const RunResult rendered = run({"render", fixture(input), "--format", format, "-o", "render.out"});
@@ -229,7 +229,7 @@ TEST_F(NetworkCliTest, stream_equals_render_byte_for_byte_in_every_format) {
   }
 }
 
-TEST_F(NetworkCliTest, realtime_stream_in_chunks_equals_render) {
+TEST_F(NetworkCliTest, RealtimeStreamInChunksEqualsRender) {
   ASSERT_EQ(run({"render", fixture("hello.json"), "-o", "render.json"}).status, 0);
   const RunResult streamed =
       run({"stream", fixture("hello.json"), "--realtime", "--chunk", "3", "--server", server(), "-o", "stream.json"});
@@ -237,7 +237,7 @@ TEST_F(NetworkCliTest, realtime_stream_in_chunks_equals_render) {
   EXPECT_EQ(output("stream.json"), output("render.json"));
 }
 
-TEST_F(NetworkCliTest, subscriber_receives_the_frames_of_a_realtime_stream) {
+TEST_F(NetworkCliTest, SubscriberReceivesTheFramesOfARealtimeStream) {
   ASSERT_EQ(run({"render", fixture("hello.json"), "-o", "render.json"}).status, 0);
   auto producer =
       start({"stream", fixture("hello.json"), "--session", "subscribe-test", "--server", server(), "-o", "stream.json"},
@@ -250,7 +250,7 @@ TEST_F(NetworkCliTest, subscriber_receives_the_frames_of_a_realtime_stream) {
   EXPECT_EQ(output("stream.json"), output("render.json"));
 }
 
-TEST_F(NetworkCliTest, play_prints_a_line_per_update_until_the_session_ends) {
+TEST_F(NetworkCliTest, PlayPrintsALinePerUpdateUntilTheSessionEnds) {
   auto producer = start({"stream", fixture("hello.json"), "--session", "play-test", "--playout-delay", "300",
                          "--server", server(), "-o", "stream.json"},
                         "producer");
@@ -262,7 +262,7 @@ TEST_F(NetworkCliTest, play_prints_a_line_per_update_until_the_session_ends) {
   EXPECT_GT(std::count(played.out.begin(), played.out.end(), '\n'), 10);
 }
 
-TEST_F(NetworkCliTest, play_of_real_speech_streamed_in_real_time_has_no_late_frame_at_the_defaults) {
+TEST_F(NetworkCliTest, PlayOfRealSpeechStreamedInRealTimeHasNoLateFrameAtTheDefaults) {
   const PlaySummary summary = play_real_speech_without_late_frames("flite_1.psdur", "play-real-speech", {});
   // The producer's default delay covers the lookahead: played on its media clock, no offset.
   EXPECT_EQ(summary.playout_offset_ms, 0) << summary.out;
@@ -271,14 +271,14 @@ TEST_F(NetworkCliTest, play_of_real_speech_streamed_in_real_time_has_no_late_fra
   EXPECT_LE(summary.max_release_lag_ms, summary.release_delay_ms) << summary.out;
 }
 
-TEST_F(NetworkCliTest, play_delays_itself_when_the_producers_playout_delay_is_shorter_than_the_release_delay) {
+TEST_F(NetworkCliTest, PlayDelaysItselfWhenTheProducersPlayoutDelayIsShorterThanTheReleaseDelay) {
   const PlaySummary summary =
       play_real_speech_without_late_frames("flite_2.psdur", "play-short-delay", {"--playout-delay", "200"});
   // 200 ms cannot cover a wait of over a second: the player adds the difference.
   EXPECT_GT(summary.playout_offset_ms, summary.release_delay_ms - 200) << summary.out;
 }
 
-TEST_F(NetworkCliTest, play_stops_after_the_requested_number_of_updates) {
+TEST_F(NetworkCliTest, PlayStopsAfterTheRequestedNumberOfUpdates) {
   auto producer = start(
       {"stream", fixture("hello.json"), "--session", "play-frames-test", "--server", server(), "-o", "stream.json"},
       "producer");
@@ -289,7 +289,7 @@ TEST_F(NetworkCliTest, play_stops_after_the_requested_number_of_updates) {
   EXPECT_EQ(std::count(played.out.begin(), played.out.end(), '\n'), 4) << played.out;
 }
 
-TEST_F(NetworkCliTest, a_rejected_stream_exits_1_with_the_servers_reason_and_leaves_no_file) {
+TEST_F(NetworkCliTest, ARejectedStreamExits1WithTheServersReasonAndLeavesNoFile) {
   const RunResult streamed =
       run({"stream", fixture("unknown_label.json"), "--fast", "--server", server(), "-o", "out.json"});
   EXPECT_EQ(streamed.status, 1);
@@ -297,7 +297,7 @@ TEST_F(NetworkCliTest, a_rejected_stream_exits_1_with_the_servers_reason_and_lea
   EXPECT_THAT(fs::directory_iterator(dir_) == fs::directory_iterator(), true);
 }
 
-TEST_F(NetworkCliTest, stream_attaches_a_wav_to_its_session_and_refuses_one_without_a_session_or_not_a_wav) {
+TEST_F(NetworkCliTest, StreamAttachesAWavToItsSessionAndRefusesOneWithoutASessionOrNotAWav) {
   const std::string wav = (fs::path(LIPSYNC_TEST_DATA_DIR) / "speech" / "mono16.wav").string();
   const RunResult attached = run({"stream", fixture("hello.json"), "--fast", "--session", "cli-with-sound", "--audio",
                                   wav, "--server", server(), "-o", "with.json"});
@@ -315,7 +315,7 @@ TEST_F(NetworkCliTest, stream_attaches_a_wav_to_its_session_and_refuses_one_with
   EXPECT_THAT(not_wav.err, HasSubstr("hello.json: not a WAV file"));
 }
 
-TEST_F(NetworkCliTest, network_failures_exit_1_and_usage_errors_exit_2) {
+TEST_F(NetworkCliTest, NetworkFailuresExit1AndUsageErrorsExit2) {
   const RunResult unknown_session = run({"subscribe", "no-such-session", "--server", server(), "-o", "out.json"});
   EXPECT_EQ(unknown_session.status, 1);
   EXPECT_THAT(unknown_session.err, HasSubstr("NOT_FOUND"));
@@ -327,7 +327,7 @@ TEST_F(NetworkCliTest, network_failures_exit_1_and_usage_errors_exit_2) {
   EXPECT_THAT(remote.err, HasSubstr("loopback"));
 }
 
-TEST_F(NetworkCliTest, every_network_command_has_help_with_the_server_option) {
+TEST_F(NetworkCliTest, EveryNetworkCommandHasHelpWithTheServerOption) {
   for (const std::string command : {"stream", "subscribe", "play", "loadtest", "server-models", "health"}) {
     const RunResult result = run({command, "--help"});
     EXPECT_EQ(result.status, 0) << command;
@@ -337,7 +337,7 @@ TEST_F(NetworkCliTest, every_network_command_has_help_with_the_server_option) {
 }
 
 // The connection group (network.hpp, kConnectionOptions) is declared once and joined into each command.
-TEST_F(NetworkCliTest, every_network_command_takes_the_whole_connection_group) {
+TEST_F(NetworkCliTest, EveryNetworkCommandTakesTheWholeConnectionGroup) {
   for (const std::string command : {"stream", "speak", "subscribe", "play", "loadtest", "server-models", "health"}) {
     const RunResult help = run({command, "--help"});
     for (const std::string option :
@@ -351,7 +351,7 @@ TEST_F(NetworkCliTest, every_network_command_takes_the_whole_connection_group) {
 }
 
 // 200 producers in real time, each followed by one subscriber, for 10 s.
-TEST_F(NetworkCliTest, loadtest_200_realtime_streams_deliver_every_frame_without_errors) {
+TEST_F(NetworkCliTest, Loadtest200RealtimeStreamsDeliverEveryFrameWithoutErrors) {
   const RunResult report = run({"loadtest", "--server", server(), "--producers", "200", "--subscribers-per-session",
                                 "1", "--duration", "10", "--phonemes-per-utterance", "20", "--json"});
   ASSERT_EQ(report.status, 0) << report.out << report.err;
@@ -371,7 +371,7 @@ TEST_F(NetworkCliTest, loadtest_200_realtime_streams_deliver_every_frame_without
   std::cout << report.out;
 }
 
-TEST_F(NetworkCliTest, loadtest_fast_mode_reports_throughput) {
+TEST_F(NetworkCliTest, LoadtestFastModeReportsThroughput) {
   const RunResult report = run({"loadtest", "--server", server(), "--producers", "8", "--duration", "2", "--fast"});
   ASSERT_EQ(report.status, 0) << report.out << report.err;
   EXPECT_THAT(report.out, HasSubstr("result: every frame arrived"));
@@ -380,7 +380,7 @@ TEST_F(NetworkCliTest, loadtest_fast_mode_reports_throughput) {
 
 // The same load through the client library (gRPC's C++ client), which --client grpc keeps
 // available (and the default with TLS): both clients must see the same frames.
-TEST_F(NetworkCliTest, loadtest_through_the_grpc_client_library_delivers_every_frame_too) {
+TEST_F(NetworkCliTest, LoadtestThroughTheGrpcClientLibraryDeliversEveryFrameToo) {
   const RunResult report = run({"loadtest", "--server", server(), "--client", "grpc", "--producers", "20",
                                 "--subscribers-per-session", "1", "--duration", "2", "--json"});
   ASSERT_EQ(report.status, 0) << report.out << report.err;
@@ -393,7 +393,7 @@ TEST_F(NetworkCliTest, loadtest_through_the_grpc_client_library_delivers_every_f
 // The generator's own HTTP/2 client carries the API key and the gRPC status of a refusal:
 // against a lipsyncd with --api-keys, no key gets every utterance refused (counted by code,
 // exit 1), the right key gets every frame, to producers and subscribers.
-TEST_F(NetworkCliTest, loadtest_h2_client_sends_the_api_key_and_counts_refusals_by_status_code) {
+TEST_F(NetworkCliTest, LoadtestH2ClientSendsTheApiKeyAndCountsRefusalsByStatusCode) {
   testing::write_text(dir_ / "key", "loadtest-key");
   const RunResult hashed = testing::run_program({LIPSYNCD_BINARY, "--hash-key"}, dir_, capture_,
                                                 {.stdin_file = dir_ / "key", .path_env = std::nullopt});
@@ -427,7 +427,7 @@ TEST_F(NetworkCliTest, loadtest_h2_client_sends_the_api_key_and_counts_refusals_
 
 // --timeout and --wait are declared once per command (range and default): the range the help
 // states is the one the check enforces, at both ends.
-TEST_F(NetworkCliTest, every_timeout_and_wait_refuses_exactly_outside_the_range_its_help_states) {
+TEST_F(NetworkCliTest, EveryTimeoutAndWaitRefusesExactlyOutsideTheRangeItsHelpStates) {
   const std::regex ranged(R"(--(timeout|wait) S\s+[^\n]*?(\d+) to (\d+) \(default: (\d+)\))");
   int checked = 0;
   for (const std::string command : {"stream", "speak", "subscribe", "play", "server-models", "health"}) {
@@ -455,7 +455,7 @@ TEST_F(NetworkCliTest, every_timeout_and_wait_refuses_exactly_outside_the_range_
   EXPECT_EQ(checked, 7);  // --timeout of all but play, --wait of subscribe and play
 }
 
-TEST_F(NetworkCliTest, loadtest_client_choice_is_checked) {
+TEST_F(NetworkCliTest, LoadtestClientChoiceIsChecked) {
   const RunResult unknown = run({"loadtest", "--server", server(), "--client", "http3"});
   EXPECT_EQ(unknown.status, 2);
   EXPECT_THAT(unknown.err, HasSubstr("--client: unknown client 'http3' (choose h2 or grpc)"));
@@ -466,7 +466,7 @@ TEST_F(NetworkCliTest, loadtest_client_choice_is_checked) {
 
 // A port that answers, but not with HTTP/2 (here: an HTTP/1.1 reply, as a TLS or web server
 // would give something else than HTTP/2 settings): exit 1 naming the address and the likely cause.
-TEST_F(NetworkCliTest, loadtest_h2_client_against_a_server_that_is_not_plaintext_http2_says_so) {
+TEST_F(NetworkCliTest, LoadtestH2ClientAgainstAServerThatIsNotPlaintextHttp2SaysSo) {
   const int listener = ::socket(AF_INET, SOCK_STREAM, 0);
   ASSERT_GE(listener, 0);
   sockaddr_in bound{};
@@ -494,7 +494,7 @@ TEST_F(NetworkCliTest, loadtest_h2_client_against_a_server_that_is_not_plaintext
 
 // --- the server's models ------------------------------------------------------------
 
-TEST_F(NetworkCliTest, server_models_lists_every_model_the_server_loaded_for_a_reader) {
+TEST_F(NetworkCliTest, ServerModelsListsEveryModelTheServerLoadedForAReader) {
   const RunResult listed = run({"server-models", "--server", server()});
   ASSERT_EQ(listed.status, 0) << listed.err;
   EXPECT_THAT(listed.out, HasSubstr("model default (default)\n"));
@@ -507,7 +507,7 @@ TEST_F(NetworkCliTest, server_models_lists_every_model_the_server_loaded_for_a_r
   EXPECT_THAT(listed.out, ::testing::ContainsRegex("phonemes \\([0-9]+\\): aa "));
 }
 
-TEST_F(NetworkCliTest, server_models_json_describes_each_model_for_scripts) {
+TEST_F(NetworkCliTest, ServerModelsJsonDescribesEachModelForScripts) {
   const RunResult listed = run({"server-models", "--server", server(), "--json"});
   ASSERT_EQ(listed.status, 0) << listed.err;
   const auto list = nlohmann::json::parse(listed.out);
@@ -533,14 +533,14 @@ TEST_F(NetworkCliTest, server_models_json_describes_each_model_for_scripts) {
   EXPECT_THAT(model["phonemes"], ::testing::Contains("sil"));
 }
 
-TEST_F(NetworkCliTest, server_models_of_an_unknown_name_exits_1_with_the_servers_not_found) {
+TEST_F(NetworkCliTest, ServerModelsOfAnUnknownNameExits1WithTheServersNotFound) {
   const RunResult result = run({"server-models", "no-such-model", "--server", server()});
   EXPECT_EQ(result.status, 1);
   EXPECT_THAT(result.err, HasSubstr("NOT_FOUND: no model named 'no-such-model'"));
   EXPECT_THAT(result.out, IsEmpty());
 }
 
-TEST_F(NetworkCliTest, server_models_without_a_server_exits_1_saying_it_cannot_be_reached) {
+TEST_F(NetworkCliTest, ServerModelsWithoutAServerExits1SayingItCannotBeReached) {
   const std::string nowhere = "127.0.0.1:" + std::to_string(unused_port());
   const RunResult result = run({"server-models", "--server", nowhere, "--timeout", "1"});
   EXPECT_EQ(result.status, 1);
@@ -548,7 +548,7 @@ TEST_F(NetworkCliTest, server_models_without_a_server_exits_1_saying_it_cannot_b
   EXPECT_THAT(result.err, HasSubstr("is lipsyncd running there?"));
 }
 
-TEST_F(NetworkCliTest, health_prints_serving_and_exits_0_and_exits_1_when_no_server_answers) {
+TEST_F(NetworkCliTest, HealthPrintsServingAndExits0AndExits1WhenNoServerAnswers) {
   const RunResult serving = run({"health", "--server", server()});
   EXPECT_EQ(serving.status, 0) << serving.err;
   EXPECT_EQ(serving.out, "SERVING\n");
@@ -559,7 +559,7 @@ TEST_F(NetworkCliTest, health_prints_serving_and_exits_0_and_exits_1_when_no_ser
   EXPECT_THAT(down.out, IsEmpty());
 }
 
-TEST_F(NetworkCliTest, server_models_usage_errors_exit_2_naming_the_mistake) {
+TEST_F(NetworkCliTest, ServerModelsUsageErrorsExit2NamingTheMistake) {
   const RunResult two = run({"server-models", "a", "b", "--server", server()});
   EXPECT_EQ(two.status, 2);
   EXPECT_THAT(two.err, HasSubstr("at most one model NAME"));
@@ -573,7 +573,7 @@ TEST_F(NetworkCliTest, server_models_usage_errors_exit_2_naming_the_mistake) {
 
 // --- frames named after the server's model ------------------------------------------------
 
-TEST_F(NetworkCliTest, stream_writes_the_channel_names_of_the_servers_model) {
+TEST_F(NetworkCliTest, StreamWritesTheChannelNamesOfTheServersModel) {
   for (const std::string format : {"json", "csv", "arkit-csv"}) {
     const RunResult rendered = run({"render", fixture("hello.json"), "--format", format, "-o", "render.out"});
     ASSERT_EQ(rendered.status, 0) << rendered.err;
@@ -587,7 +587,7 @@ TEST_F(NetworkCliTest, stream_writes_the_channel_names_of_the_servers_model) {
   }
 }
 
-TEST_F(NetworkCliTest, subscribe_writes_the_channel_names_of_the_sessions_model) {
+TEST_F(NetworkCliTest, SubscribeWritesTheChannelNamesOfTheSessionsModel) {
   ASSERT_EQ(run({"render", fixture("hello.json"), "-o", "render.json"}).status, 0);
   auto producer = start({"stream", fixture("hello.json"), "--server-model", "renamed", "--session", "renamed-session",
                          "--format", "csv", "--server", server(), "-o", "stream.csv"},
@@ -612,7 +612,7 @@ TEST_F(NetworkCliTest, subscribe_writes_the_channel_names_of_the_sessions_model)
   EXPECT_THAT(arkit.err, HasSubstr("no ARKit weights and its model 'renamed' is not the built-in one"));
 }
 
-TEST_F(NetworkCliTest, stream_with_an_unknown_server_model_exits_1_naming_it) {
+TEST_F(NetworkCliTest, StreamWithAnUnknownServerModelExits1NamingIt) {
   const RunResult result = run({"stream", fixture("hello.json"), "--fast", "--server-model", "no-such-model",
                                 "--server", server(), "-o", "out.json"});
   EXPECT_EQ(result.status, 1);
@@ -622,7 +622,7 @@ TEST_F(NetworkCliTest, stream_with_an_unknown_server_model_exits_1_naming_it) {
 
 // --- the load test with the mesh output ----------------------------------------------------------
 
-TEST_F(NetworkCliTest, loadtest_with_a_mesh_share_reports_mesh_frames_apart_without_errors) {
+TEST_F(NetworkCliTest, LoadtestWithAMeshShareReportsMeshFramesApartWithoutErrors) {
   const RunResult report = run({"loadtest", "--server", server(), "--producers", "4", "--mesh-share", "0.5",
                                 "--mesh-subdivision", "0", "--fast", "--duration", "2", "--json"});
   ASSERT_EQ(report.status, 0) << report.out << report.err;
@@ -642,7 +642,7 @@ TEST_F(NetworkCliTest, loadtest_with_a_mesh_share_reports_mesh_frames_apart_with
             mesh["frames"]["producers"].get<int>() + no_mesh["frames"]["producers"].get<int>());
 }
 
-TEST_F(NetworkCliTest, loadtest_mesh_options_out_of_range_are_usage_errors) {
+TEST_F(NetworkCliTest, LoadtestMeshOptionsOutOfRangeAreUsageErrors) {
   const RunResult share = run({"loadtest", "--server", server(), "--mesh-share", "1.5"});
   EXPECT_EQ(share.status, 2);
   EXPECT_THAT(share.err, HasSubstr("--mesh-share: '1.5' is out of range"));

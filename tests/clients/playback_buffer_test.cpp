@@ -32,7 +32,7 @@ PlaybackBuffer two_channel_ramp() {
   return buffer;
 }
 
-TEST(PlaybackBuffer, interpolates_linearly_between_the_frames_around_the_time) {
+TEST(PlaybackBuffer, InterpolatesLinearlyBetweenTheFramesAroundTheTime) {
   PlaybackBuffer buffer = two_channel_ramp();
   EXPECT_THAT(sample_values(buffer, 0), ElementsAre(FloatEq(0.0F), FloatEq(1.0F)));
   EXPECT_THAT(sample_values(buffer, 25), ElementsAre(FloatEq(0.25F), FloatEq(0.75F)));
@@ -44,7 +44,7 @@ TEST(PlaybackBuffer, interpolates_linearly_between_the_frames_around_the_time) {
   EXPECT_EQ(sample.lead_us, 0);
 }
 
-TEST(PlaybackBuffer, holds_the_first_frame_before_it) {
+TEST(PlaybackBuffer, HoldsTheFirstFrameBeforeIt) {
   PlaybackBuffer buffer(1);
   buffer.push(1000, std::array{0.5F});
   PlaybackSample sample;
@@ -53,7 +53,7 @@ TEST(PlaybackBuffer, holds_the_first_frame_before_it) {
   EXPECT_EQ(buffer.stats().underruns, 0U);
 }
 
-TEST(PlaybackBuffer, leaves_the_output_alone_with_no_frames) {
+TEST(PlaybackBuffer, LeavesTheOutputAloneWithNoFrames) {
   PlaybackBuffer buffer(1);
   PlaybackSample sample;
   EXPECT_THAT(sample_values(buffer, 10, &sample), ElementsAre(FloatEq(-1.0F)));
@@ -61,7 +61,7 @@ TEST(PlaybackBuffer, leaves_the_output_alone_with_no_frames) {
   EXPECT_EQ(buffer.stats().underruns, 0U);
 }
 
-TEST(PlaybackBuffer, sample_uses_the_media_clock_anchor) {
+TEST(PlaybackBuffer, SampleUsesTheMediaClockAnchor) {
   PlaybackBuffer buffer = two_channel_ramp();
   buffer.anchor(1'000'000);
   std::vector<float> out(2);
@@ -71,7 +71,7 @@ TEST(PlaybackBuffer, sample_uses_the_media_clock_anchor) {
   EXPECT_EQ(sample.lead_us, 250);
 }
 
-TEST(PlaybackBuffer, underrun_holds_the_newest_frame_and_is_counted) {
+TEST(PlaybackBuffer, UnderrunHoldsTheNewestFrameAndIsCounted) {
   PlaybackBuffer buffer = two_channel_ramp();
   PlaybackSample sample;
   EXPECT_THAT(sample_values(buffer, 450, &sample), ElementsAre(FloatEq(3.0F), FloatEq(0.0F)));
@@ -87,7 +87,7 @@ TEST(PlaybackBuffer, underrun_holds_the_newest_frame_and_is_counted) {
   EXPECT_EQ(sample.state, SampleState::playing);
 }
 
-TEST(PlaybackBuffer, past_the_end_of_a_finished_stream_is_not_an_underrun) {
+TEST(PlaybackBuffer, PastTheEndOfAFinishedStreamIsNotAnUnderrun) {
   PlaybackBuffer buffer = two_channel_ramp();
   buffer.finish();
   PlaybackSample sample;
@@ -96,7 +96,7 @@ TEST(PlaybackBuffer, past_the_end_of_a_finished_stream_is_not_an_underrun) {
   EXPECT_EQ(buffer.stats().underruns, 0U);
 }
 
-TEST(PlaybackBuffer, drift_reports_the_lead_of_the_newest_frame_and_arrival_lateness) {
+TEST(PlaybackBuffer, DriftReportsTheLeadOfTheNewestFrameAndArrivalLateness) {
   PlaybackBuffer buffer(1);
   buffer.anchor(10'000);
   buffer.push(0, std::array{0.0F}, 9'000);      // 1 ms early
@@ -111,7 +111,7 @@ TEST(PlaybackBuffer, drift_reports_the_lead_of_the_newest_frame_and_arrival_late
   EXPECT_EQ(buffer.stats().min_lead_us, 100);
 }
 
-TEST(PlaybackBuffer, never_goes_backwards) {
+TEST(PlaybackBuffer, NeverGoesBackwards) {
   PlaybackBuffer buffer = two_channel_ramp();
   sample_values(buffer, 200);
   PlaybackSample sample;
@@ -123,7 +123,7 @@ TEST(PlaybackBuffer, never_goes_backwards) {
   EXPECT_FALSE(sample.clamped);
 }
 
-TEST(PlaybackBuffer, rejects_frames_that_do_not_move_forward_or_have_the_wrong_size) {
+TEST(PlaybackBuffer, RejectsFramesThatDoNotMoveForwardOrHaveTheWrongSize) {
   PlaybackBuffer buffer(2);
   EXPECT_TRUE(buffer.push(100, std::array{0.0F, 0.0F}));
   EXPECT_FALSE(buffer.push(100, std::array{0.0F, 0.0F}));
@@ -133,7 +133,7 @@ TEST(PlaybackBuffer, rejects_frames_that_do_not_move_forward_or_have_the_wrong_s
   EXPECT_EQ(buffer.stats().frames_rejected, 3U);
 }
 
-TEST(PlaybackBuffer, keeps_only_the_frame_before_the_last_sample_and_those_after) {
+TEST(PlaybackBuffer, KeepsOnlyTheFrameBeforeTheLastSampleAndThoseAfter) {
   PlaybackBuffer buffer(1);
   for (int i = 0; i < 100; ++i) buffer.push(i * 1000, std::array{static_cast<float>(i)});
   EXPECT_EQ(buffer.held_frames(), 100U);
@@ -143,7 +143,7 @@ TEST(PlaybackBuffer, keeps_only_the_frame_before_the_last_sample_and_those_after
   EXPECT_EQ(buffer.held_frames(), 1U);
 }
 
-TEST(PlaybackBuffer, capacity_bounds_memory_when_nobody_samples) {
+TEST(PlaybackBuffer, CapacityBoundsMemoryWhenNobodySamples) {
   PlaybackBuffer buffer(3, 16);
   for (int i = 0; i < 1000; ++i) buffer.push(i, std::array{0.0F, 1.0F, 2.0F});
   EXPECT_EQ(buffer.held_frames(), 16U);
@@ -154,7 +154,7 @@ TEST(PlaybackBuffer, capacity_bounds_memory_when_nobody_samples) {
 // Property: random frame timelines sampled on a jittery, occasionally
 // backwards clock stay within the range of the frames around the sample,
 // never go backwards, and hold memory to what is still ahead.
-TEST(PlaybackBuffer, random_streams_interpolate_within_neighbours_and_stay_bounded) {
+TEST(PlaybackBuffer, RandomStreamsInterpolateWithinNeighboursAndStayBounded) {
   std::mt19937_64 random(7);
   std::uniform_int_distribution<std::int64_t> step_us(1, 40'000);
   std::uniform_real_distribution<float> value(-1.0F, 1.0F);
@@ -204,7 +204,7 @@ PlaybackBuffer released_stream(std::int64_t anchor_us = kAnchorUs) {
   return buffer;
 }
 
-TEST(PlaybackBuffer, plays_late_enough_for_the_servers_release_delay_before_any_frame_is_late) {
+TEST(PlaybackBuffer, PlaysLateEnoughForTheServersReleaseDelayBeforeAnyFrameIsLate) {
   PlaybackBuffer buffer = released_stream();
   // The first batch left 1.2 s after the input reached its frame (lag): with the
   // 1 s anchor it would be 0.2 s late, and later frames up to 0.5 s late.
@@ -220,7 +220,7 @@ TEST(PlaybackBuffer, plays_late_enough_for_the_servers_release_delay_before_any_
   EXPECT_EQ(buffer.stats().underruns, 0U);
 }
 
-TEST(PlaybackBuffer, keeps_the_media_clock_when_the_producers_delay_covers_the_release_delay) {
+TEST(PlaybackBuffer, KeepsTheMediaClockWhenTheProducersDelayCoversTheReleaseDelay) {
   PlaybackBuffer buffer = released_stream(kReleaseDelayUs + 2 * kMarginUs);
   buffer.note_batch(0, 1'200'000, 1'201'000);
   EXPECT_EQ(buffer.playout_offset_us(), 0);
@@ -229,7 +229,7 @@ TEST(PlaybackBuffer, keeps_the_media_clock_when_the_producers_delay_covers_the_r
   EXPECT_EQ(buffer.sample(kReleaseDelayUs + 2 * kMarginUs, out).utterance_us, 0);
 }
 
-TEST(PlaybackBuffer, a_lag_beyond_the_release_delay_raises_the_offset_for_the_frames_after_it) {
+TEST(PlaybackBuffer, ALagBeyondTheReleaseDelayRaisesTheOffsetForTheFramesAfterIt) {
   PlaybackBuffer buffer = released_stream();
   buffer.note_batch(0, 500'000, 500'000);
   const std::int64_t before = buffer.playout_offset_us();
@@ -240,7 +240,7 @@ TEST(PlaybackBuffer, a_lag_beyond_the_release_delay_raises_the_offset_for_the_fr
   EXPECT_EQ(buffer.stats().max_release_lag_us, 2'000'000);
 }
 
-TEST(PlaybackBuffer, a_replayed_batch_does_not_hold_the_offset_once_a_live_one_arrives) {
+TEST(PlaybackBuffer, AReplayedBatchDoesNotHoldTheOffsetOnceALiveOneArrives) {
   PlaybackBuffer buffer = released_stream();
   // A late joiner: the first batches are replayed 5 s after they were released.
   buffer.note_batch(0, 1'000'000, 6'000'000);
@@ -250,7 +250,7 @@ TEST(PlaybackBuffer, a_replayed_batch_does_not_hold_the_offset_once_a_live_one_a
   EXPECT_EQ(buffer.playout_offset_us(), kReleaseDelayUs + kMarginUs - kAnchorUs);
 }
 
-TEST(PlaybackBuffer, samples_before_the_first_frame_do_not_hold_back_a_later_playout_offset) {
+TEST(PlaybackBuffer, SamplesBeforeTheFirstFrameDoNotHoldBackALaterPlayoutOffset) {
   PlaybackBuffer buffer = released_stream();
   std::array<float, 1> out{};
   // The player ticks before anything arrived: the media clock is already at 0.4 s.
@@ -264,7 +264,7 @@ TEST(PlaybackBuffer, samples_before_the_first_frame_do_not_hold_back_a_later_pla
   EXPECT_EQ(buffer.stats().underruns, 0U);
 }
 
-TEST(PlaybackBuffer, without_a_release_delay_from_the_server_the_offset_stays_zero) {
+TEST(PlaybackBuffer, WithoutAReleaseDelayFromTheServerTheOffsetStaysZero) {
   PlaybackBuffer buffer(1);
   buffer.anchor(kAnchorUs);
   buffer.note_batch(0, 1'200'000, 1'200'000);

@@ -25,7 +25,7 @@ std::string error_of(const RenderSettings& settings, const SettingNames& names =
   return "";
 }
 
-TEST(RenderPlan, unset_settings_take_the_engine_defaults) {
+TEST(RenderPlan, UnsetSettingsTakeTheEngineDefaults) {
   const RenderPlan plan = resolve_render_plan({});
   EXPECT_EQ(plan.render.fps, 30);
   EXPECT_FALSE(plan.render.fixed_rate);
@@ -38,7 +38,7 @@ TEST(RenderPlan, unset_settings_take_the_engine_defaults) {
   EXPECT_EQ(plan.segments.closure_fraction, SegmentOptions{}.closure_fraction);
 }
 
-TEST(RenderPlan, given_settings_pass_through_unchanged) {
+TEST(RenderPlan, GivenSettingsPassThroughUnchanged) {
   const RenderPlan plan = resolve_render_plan(
       {.fps = 240, .fixed_rate = true, .lookahead = 0, .closure_fraction = 0.95, .mesh_subdivision = 2});
   EXPECT_EQ(plan.render.fps, 240);
@@ -48,7 +48,7 @@ TEST(RenderPlan, given_settings_pass_through_unchanged) {
   EXPECT_EQ(plan.mesh_subdivision, 2);
 }
 
-TEST(RenderPlan, fps_is_1_to_240) {
+TEST(RenderPlan, FpsIs1To240) {
   EXPECT_EQ(error_of({.fps = 1}), "");
   EXPECT_EQ(error_of({.fps = 240}), "");
   EXPECT_EQ(error_of({.fps = 0}), "fps: '0' is out of range (1 to 240, default 30)");
@@ -56,14 +56,14 @@ TEST(RenderPlan, fps_is_1_to_240) {
   EXPECT_EQ(error_of({.fps = -3}), "fps: '-3' is out of range (1 to 240, default 30)");
 }
 
-TEST(RenderPlan, lookahead_is_0_to_7) {
+TEST(RenderPlan, LookaheadIs0To7) {
   EXPECT_EQ(error_of({.lookahead = 0}), "");
   EXPECT_EQ(error_of({.lookahead = 7}), "");
   EXPECT_EQ(error_of({.lookahead = 8}), "lookahead: '8' is out of range (0 to 7, default 7)");
   EXPECT_EQ(error_of({.lookahead = -1}), "lookahead: '-1' is out of range (0 to 7, default 7)");
 }
 
-TEST(RenderPlan, closure_fraction_lies_strictly_between_0_and_1) {
+TEST(RenderPlan, ClosureFractionLiesStrictlyBetween0And1) {
   EXPECT_EQ(error_of({.closure_fraction = 0.001}), "");
   EXPECT_EQ(error_of({.closure_fraction = 0.999}), "");
   const std::string range = " is out of range (strictly between 0 and 1, default 0.6)";
@@ -75,14 +75,14 @@ TEST(RenderPlan, closure_fraction_lies_strictly_between_0_and_1) {
             "closure_fraction: 'nan'" + range);
 }
 
-TEST(RenderPlan, mesh_subdivision_is_0_to_2) {
+TEST(RenderPlan, MeshSubdivisionIs0To2) {
   EXPECT_EQ(error_of({.mesh_subdivision = 0}), "");
   EXPECT_EQ(error_of({.mesh_subdivision = 2}), "");
   EXPECT_EQ(error_of({.mesh_subdivision = 3}), "mesh_subdivision: '3' is out of range (0 to 2, default 1)");
   EXPECT_EQ(error_of({.mesh_subdivision = -1}), "mesh_subdivision: '-1' is out of range (0 to 2, default 1)");
 }
 
-TEST(RenderPlan, errors_name_the_field_as_the_caller_spells_it) {
+TEST(RenderPlan, ErrorsNameTheFieldAsTheCallerSpellsIt) {
   const SettingNames wire = {.fps = "settings.fps",
                              .lookahead = "settings.lookahead",
                              .closure_fraction = "settings.closure_fraction",
@@ -99,12 +99,12 @@ TEST(RenderPlan, errors_name_the_field_as_the_caller_spells_it) {
   }
 }
 
-TEST(RenderPlan, the_first_bad_field_is_reported) {
+TEST(RenderPlan, TheFirstBadFieldIsReported) {
   EXPECT_THAT(error_of({.fps = 0, .lookahead = 8}), ::testing::StartsWith("fps:"));
   EXPECT_THAT(error_of({.lookahead = 8, .closure_fraction = 2.0}), ::testing::StartsWith("lookahead:"));
 }
 
-TEST(RenderPlan, engine_constructors_reject_what_the_plan_rejects_with_the_same_text) {
+TEST(RenderPlan, EngineConstructorsRejectWhatThePlanRejectsWithTheSameText) {
   EXPECT_THROW(FrameScheduler(test_model(), {.fps = 241}), SettingError);
   EXPECT_THROW(StreamingRenderer(test_model(), {.lookahead = 8}), SettingError);
   EXPECT_THROW(face::build_face_mesh(face::FaceAsset::builtin(), 3), SettingError);

@@ -88,7 +88,7 @@ Glb parse_glb(const std::string& bytes) {
   return glb;
 }
 
-TEST(FaceAnimation, sample_track_interpolates_and_holds_the_ends) {
+TEST(FaceAnimation, SampleTrackInterpolatesAndHoldsTheEnds) {
   Track track;
   track.channel_count = 1;
   track.t_us = {100, 300};
@@ -103,7 +103,7 @@ TEST(FaceAnimation, sample_track_interpolates_and_holds_the_ends) {
   EXPECT_EQ(v, 3.0F);
 }
 
-TEST(FaceAnimation, simulates_a_uniform_grid_to_the_end_of_the_track) {
+TEST(FaceAnimation, SimulatesAUniformGridToTheEndOfTheTrack) {
   const Track track = held_track({"sil", "aa", "m"}, 300'000);
   const FaceAnimation animation = simulate_face_animation(level0(), FaceRig::builtin(), track, 30);
   ASSERT_EQ(animation.frame_count(), 28U);  // 0 .. 900 ms at 30 frames/s
@@ -116,7 +116,7 @@ TEST(FaceAnimation, simulates_a_uniform_grid_to_the_end_of_the_track) {
   EXPECT_LT(gap(27), 0.002);
 }
 
-TEST(FaceGlb, has_consistent_accessors_views_and_bounds) {
+TEST(FaceGlb, HasConsistentAccessorsViewsAndBounds) {
   const Track track = held_track({"sil", "aa", "uw", "m", "sil"}, 250'000);
   const FaceAnimation animation = simulate_face_animation(level0(), FaceRig::builtin(), track, 30);
   std::ostringstream out;
@@ -194,7 +194,7 @@ TEST(FaceGlb, has_consistent_accessors_views_and_bounds) {
   EXPECT_LT(worst, 0.00011);
 }
 
-TEST(FaceGlb, tolerance_zero_keeps_every_frame) {
+TEST(FaceGlb, ToleranceZeroKeepsEveryFrame) {
   const FaceAnimation animation =
       simulate_face_animation(level0(), FaceRig::builtin(), held_track({"sil", "aa"}, 100'000), 30);
   std::ostringstream out;
@@ -203,7 +203,7 @@ TEST(FaceGlb, tolerance_zero_keeps_every_frame) {
   EXPECT_EQ(write_face_glb(out, level0(), animation, options).key_frames, animation.frame_count());
 }
 
-TEST(FaceRaster, draws_a_face_and_an_open_mouth_shows_the_dark_cavity) {
+TEST(FaceRaster, DrawsAFaceAndAnOpenMouthShowsTheDarkCavity) {
   const FaceMesh& mesh = level0();
   const FaceAnimation animation =
       simulate_face_animation(mesh, FaceRig::builtin(), held_track({"sil", "aa"}, 400'000), 30);

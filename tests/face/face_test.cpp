@@ -60,7 +60,7 @@ const FaceMesh& level1() {
   return mesh;
 }
 
-TEST(FaceAsset, has_the_canonical_mesh_counts_and_a_20_vertex_mouth) {
+TEST(FaceAsset, HasTheCanonicalMeshCountsAndA20VertexMouth) {
   const FaceAsset& asset = FaceAsset::builtin();
   EXPECT_EQ(asset.positions_cm.size(), 468U);
   EXPECT_EQ(asset.triangles.size(), 898U);
@@ -73,7 +73,7 @@ TEST(FaceAsset, has_the_canonical_mesh_counts_and_a_20_vertex_mouth) {
   EXPECT_NEAR(distance(asset.positions_cm[13], asset.positions_cm[14]), 0.57, 0.03);
 }
 
-TEST(FaceMesh, opening_leaves_880_skin_triangles_and_a_20_vertex_boundary) {
+TEST(FaceMesh, OpeningLeaves880SkinTrianglesAndA20VertexBoundary) {
   const FaceMesh mesh = build_face_mesh(FaceAsset::builtin(), 0);
   const auto skin = std::count_if(mesh.triangles.begin(), mesh.triangles.end(),
                                   [&](const auto& t) { return t[0] < 468 && t[1] < 468 && t[2] < 468; });
@@ -97,7 +97,7 @@ TEST(FaceMesh, opening_leaves_880_skin_triangles_and_a_20_vertex_boundary) {
       }
 }
 
-TEST(FaceMesh, subdivision_of_the_opened_canonical_mesh_gives_1790_and_6990_vertices) {
+TEST(FaceMesh, SubdivisionOfTheOpenedCanonicalMeshGives1790And6990Vertices) {
   // With the mouth's 18 and the eyes' 14 + 14 filling triangles removed (the published counts);
   // lipsyncd keeps the eye fills as closed lids.
   constexpr std::array<std::uint32_t, 32> kEyeLoops = {33,  7,   163, 144, 145, 153, 154, 155, 133, 173, 157,
@@ -124,7 +124,7 @@ TEST(FaceMesh, subdivision_of_the_opened_canonical_mesh_gives_1790_and_6990_vert
   EXPECT_EQ(twice.triangles.size(), opened.size() * 16);
 }
 
-TEST(FaceMesh, levels_keep_landmarks_and_lip_lines) {
+TEST(FaceMesh, LevelsKeepLandmarksAndLipLines) {
   for (int level = 0; level <= 2; ++level) {
     const FaceMesh mesh = build_face_mesh(FaceAsset::builtin(), level);
     for (std::uint32_t id = 0; id < 468; ++id)
@@ -139,7 +139,7 @@ TEST(FaceMesh, levels_keep_landmarks_and_lip_lines) {
   EXPECT_THROW(build_face_mesh(FaceAsset::builtin(), 3), std::invalid_argument);
 }
 
-TEST(FaceRig, builtin_rig_has_exactly_the_model_muscles) {
+TEST(FaceRig, BuiltinRigHasExactlyTheModelMuscles) {
   const FaceRig& rig = FaceRig::builtin();
   std::vector<std::string> muscles, channels;
   for (const auto& m : rig.muscles()) muscles.push_back(m.name);
@@ -160,7 +160,7 @@ std::string rig_error(const std::function<void(nlohmann::json&)>& edit) {
   return "no error";
 }
 
-TEST(FaceRig, errors_name_the_muscle_and_the_field) {
+TEST(FaceRig, ErrorsNameTheMuscleAndTheField) {
   EXPECT_THAT(rig_error([](auto& d) { d["muscles"].erase(10); }),
               testing::HasSubstr("muscle 'mentalis': channel of model 'default' has no muscle"));
   EXPECT_THAT(rig_error([](auto& d) { d["muscles"][0]["name"] = "buccinator"; }),
@@ -190,13 +190,13 @@ TEST(FaceRig, errors_name_the_muscle_and_the_field) {
 
 // Found by fuzz_face_rig_from_json: a number too large for a double made nlohmann::json throw
 // out_of_range, which escaped as a non-InputError and terminated the program.
-TEST(FaceRig, a_number_that_overflows_is_an_input_error_not_a_crash) {
+TEST(FaceRig, ANumberThatOverflowsIsAnInputErrorNotACrash) {
   const std::string overflowing = R"({"format": "lipsync-face-rig", "jaw": 22222222222222222222E2222222222})";
   EXPECT_THROW(FaceRig::from_json(overflowing, "rig.json", ArticulationModel::builtin()), InputError);
   EXPECT_THROW(FaceAsset::from_json(R"({"format": 1E999999})", "asset.json"), InputError);
 }
 
-TEST(FaceSolver, rest_is_an_equilibrium) {
+TEST(FaceSolver, RestIsAnEquilibrium) {
   FaceSolver solver(level1(), FaceRig::builtin());
   hold(solver, std::vector<float>(ArticulationModel::builtin().channel_count(), 0.0F));
   double drift = 0;
@@ -209,7 +209,7 @@ TEST(FaceSolver, rest_is_an_equilibrium) {
   EXPECT_NEAR(lip_gap_m(solver), 0.0055, 0.001);
 }
 
-TEST(FaceSolver, lips_touch_for_bilabial_closures) {
+TEST(FaceSolver, LipsTouchForBilabialClosures) {
   FaceSolver solver(level1(), FaceRig::builtin());
   for (const char* phoneme : {"pcl", "bcl", "m"}) {
     solver.reset();
@@ -222,7 +222,7 @@ TEST(FaceSolver, lips_touch_for_bilabial_closures) {
   }
 }
 
-TEST(FaceSolver, rounded_vowels_round_and_protrude_the_lips_with_an_opening) {
+TEST(FaceSolver, RoundedVowelsRoundAndProtrudeTheLipsWithAnOpening) {
   // The orbicularis oris of /uw/ /w/ /ow/ (c = 0.55 to 0.9) is stronger than that of /p b m/
   // (c = 0.35 to 0.45); its closure saturates (rig.json "closure_saturation"), so the stronger
   // contraction purses and protrudes the lips instead of sealing them.
@@ -249,7 +249,7 @@ TEST(FaceSolver, rounded_vowels_round_and_protrude_the_lips_with_an_opening) {
   }
 }
 
-TEST(FaceSolver, lower_lip_reaches_the_upper_teeth_for_labiodentals) {
+TEST(FaceSolver, LowerLipReachesTheUpperTeethForLabiodentals) {
   FaceSolver solver(level1(), FaceRig::builtin());
   const double at_rest = lower_lip_to_upper_teeth_m(solver);
   for (const char* phoneme : {"f", "v"}) {
@@ -263,7 +263,7 @@ TEST(FaceSolver, lower_lip_reaches_the_upper_teeth_for_labiodentals) {
   EXPECT_GT(at_rest, 0.002);
 }
 
-TEST(FaceSolver, open_vowels_open_the_mouth_at_least_as_far_as_the_jaw_implies) {
+TEST(FaceSolver, OpenVowelsOpenTheMouthAtLeastAsFarAsTheJawImplies) {
   const FaceMesh& mesh = level1();
   const FaceRig& rig = FaceRig::builtin();
   FaceSolver solver(mesh, rig);
@@ -286,7 +286,7 @@ TEST(FaceSolver, open_vowels_open_the_mouth_at_least_as_far_as_the_jaw_implies) 
   }
 }
 
-TEST(FaceSolver, is_deterministic) {
+TEST(FaceSolver, IsDeterministic) {
   auto run = [] {
     FaceSolver solver(level1(), FaceRig::builtin());
     for (const char* phoneme : {"m", "aa", "f", "iy", "uw", "sil"}) hold(solver, targets_of(phoneme), 0.25);
@@ -310,7 +310,7 @@ double max_distance(const FaceMesh& mesh, std::span<const Vec3> a, std::span<con
   return d;
 }
 
-TEST(FaceSolver, a_long_interval_is_stepped_as_whole_frames) {
+TEST(FaceSolver, ALongIntervalIsSteppedAsWholeFrames) {
   // dt = 3/30 s is three substeps of 1/30 s: the same as three 30 frames/s frames, bit for bit.
   const FaceMesh mesh = build_face_mesh(FaceAsset::builtin(), 0);
   FaceSolver once(mesh, FaceRig::builtin()), frames(mesh, FaceRig::builtin());
@@ -320,7 +320,7 @@ TEST(FaceSolver, a_long_interval_is_stepped_as_whole_frames) {
   EXPECT_EQ(fnv1a(once.positions()), fnv1a(frames.positions()));
 }
 
-TEST(FaceSolver, a_key_frame_interval_is_simulated_for_its_own_length) {
+TEST(FaceSolver, AKeyFrameIntervalIsSimulatedForItsOwnLength) {
   // A closure key frame 5 ms after a grid frame is one implicit-Euler step of 5 ms, not of a whole
   // frame: converged (200 iterations), it is the step of a solver factored for 5 ms.
   const FaceMesh mesh = build_face_mesh(FaceAsset::builtin(), 0);
@@ -345,7 +345,7 @@ TEST(FaceSolver, a_key_frame_interval_is_simulated_for_its_own_length) {
   EXPECT_EQ(max_distance(mesh, frame_factor.positions(), now), 0.0);
 }
 
-TEST(FaceSolver, short_substeps_converge_to_the_same_pose) {
+TEST(FaceSolver, ShortSubstepsConvergeToTheSamePose) {
   // Substeps shorter than the factor's 1/30 s use the exact mass term with a relaxed correction;
   // held targets reach the same pose as with whole frames. Skin without contact agrees to
   // micrometres; where the post-step contacts act (inner lips on the teeth, pressed lips) the
@@ -362,7 +362,7 @@ TEST(FaceSolver, short_substeps_converge_to_the_same_pose) {
   }
 }
 
-TEST(FaceSolver, five_iterations_stay_close_to_a_converged_reference) {
+TEST(FaceSolver, FiveIterationsStayCloseToAConvergedReference) {
   // A real track (30 frames/s with closure key frames) at level 0, against 200 iterations and
   // substeps of at most 1/120 s. docs/face.md quotes the level-1 figures.
   const auto& model = ArticulationModel::builtin();
@@ -395,7 +395,7 @@ TEST(FaceSolver, five_iterations_stay_close_to_a_converged_reference) {
   EXPECT_LT(worst_frame, 0.0002);
 }
 
-TEST(FaceSolver, ten_minutes_of_random_speech_stay_bounded_and_return_to_rest) {
+TEST(FaceSolver, TenMinutesOfRandomSpeechStayBoundedAndReturnToRest) {
   // Level 0 with a 30 frames/s step to keep the suite fast; the other tests use level 1.
   const FaceMesh mesh = build_face_mesh(FaceAsset::builtin(), 0);
   FaceSolverParams params;

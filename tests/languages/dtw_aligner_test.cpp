@@ -42,7 +42,7 @@ FeatureFrames stretched(const FeatureFrames& frames, int factor) {
   return result;
 }
 
-TEST(AcousticFeatures, one_frame_every_10_ms_with_every_dimension_of_mean_zero) {
+TEST(AcousticFeatures, OneFrameEvery10MsWithEveryDimensionOfMeanZero) {
   const PcmAudio audio = varied_tones(2.0, 0.3);
   const FeatureFrames frames = mfcc_features(audio);
   EXPECT_EQ(frames.dimensions, 26);
@@ -55,14 +55,14 @@ TEST(AcousticFeatures, one_frame_every_10_ms_with_every_dimension_of_mean_zero) 
   EXPECT_EQ(mfcc_features(PcmAudio{kFeatureRateHz, std::vector<std::int16_t>(399, 0)}).size(), 0U);
 }
 
-TEST(AcousticFeatures, speech_is_found_between_the_pauses) {
+TEST(AcousticFeatures, SpeechIsFoundBetweenThePauses) {
   const FeatureFrames frames = mfcc_features(varied_tones(2.0, 0.3));
   const auto [first, last] = speech_frames(frames);
   EXPECT_NEAR(double(first), 28.0, 3.0);  // the first window reaching into the tone, 300 ms − 25 ms
   EXPECT_NEAR(double(last), 230.0, 3.0);  // the last window starting within it, 2.3 s
 }
 
-TEST(DtwWarp, a_sequence_warped_to_itself_stays_on_the_diagonal) {
+TEST(DtwWarp, ASequenceWarpedToItselfStaysOnTheDiagonal) {
   const FeatureFrames frames = mfcc_features(varied_tones(2.0, 0.3));
   const WarpPath path = warp(frames, frames, 50, speech_frames(frames), speech_frames(frames));
   ASSERT_EQ(path.first.size(), frames.size());
@@ -75,7 +75,7 @@ TEST(DtwWarp, a_sequence_warped_to_itself_stays_on_the_diagonal) {
   EXPECT_EQ(carry_time_us(path, 123'456), 123'456);
 }
 
-TEST(DtwWarp, boundaries_carried_across_a_uniform_stretch_double_their_times) {
+TEST(DtwWarp, BoundariesCarriedAcrossAUniformStretchDoubleTheirTimes) {
   const FeatureFrames frames = mfcc_features(varied_tones(2.0, 0.3));
   const FeatureFrames twice = stretched(frames, 2);
   const WarpPath path = warp(frames, twice, 500, speech_frames(frames), speech_frames(twice));
@@ -85,7 +85,7 @@ TEST(DtwWarp, boundaries_carried_across_a_uniform_stretch_double_their_times) {
   }
 }
 
-TEST(DtwWarp, a_narrow_band_still_reaches_the_far_corner) {
+TEST(DtwWarp, ANarrowBandStillReachesTheFarCorner) {
   const FeatureFrames frames = mfcc_features(varied_tones(1.0, 0.1));
   const FeatureFrames thrice = stretched(frames, 3);
   const WarpPath path = warp(frames, thrice, 1, {0, frames.size() - 1}, {0, thrice.size() - 1});

@@ -107,7 +107,7 @@ Track render_speech(const speech::Synthesis& speech, std::vector<Segment>& segme
   return render_track(model(), segments);
 }
 
-TEST(EspeakVoices, every_voice_speaks_the_digits_and_every_phoneme_it_names_renders) {
+TEST(EspeakVoices, EveryVoiceSpeaksTheDigitsAndEveryPhonemeItNamesRenders) {
   const std::vector<speech::Voice> voices = speech::list_voices();
   ASSERT_GE(voices.size(), 131U) << "espeak-ng-data lists fewer voices than Debian 12's";
   // Voices whose language has no rules for reading digits (espeak-ng 1.51 says nothing for them):
@@ -155,7 +155,7 @@ TEST(EspeakVoices, every_voice_speaks_the_digits_and_every_phoneme_it_names_rend
   EXPECT_GE(ipa_voices, voices.size() - 8);  // all but the English voices
 }
 
-TEST(EspeakVoices, a_language_name_from_the_voice_list_selects_its_voice) {
+TEST(EspeakVoices, ALanguageNameFromTheVoiceListSelectsItsVoice) {
   // `espeak-ng --voices` lists "en-gb" and "fr-fr" as languages; espeak_SetVoiceByName alone refuses them.
   for (const char* name : {"en-gb", "fr-fr", "de", "German", "gmw/de", "de+m2"}) {
     speech::SynthesisOptions options;
@@ -205,7 +205,7 @@ constexpr Sentence kSentences[] = {
     {"ko", "안녕하세요, 반갑습니다."},
 };
 
-TEST(EspeakSentences, twenty_two_languages_render_with_lips_sealed_at_every_bilabial_key_frame) {
+TEST(EspeakSentences, TwentyTwoLanguagesRenderWithLipsSealedAtEveryBilabialKeyFrame) {
   Closures tally;
   for (const Sentence& sentence : kSentences) {
     SCOPED_TRACE(sentence.voice);
@@ -312,12 +312,12 @@ double mean(const std::vector<const Measured*>& centres, Field field) {
   return centres.empty() ? 0.0 : sum / static_cast<double>(centres.size());
 }
 
-TEST(LanguageCorpus, is_read_as_ipa_without_a_phone_set_flag) {
+TEST(LanguageCorpus, IsReadAsIpaWithoutAPhoneSetFlag) {
   ASSERT_GE(corpus().size(), 8U);
   for (const CorpusFile& file : corpus()) EXPECT_EQ(file.phone_set, "ipa") << file.name;
 }
 
-TEST(LanguageCorpus, lips_are_sealed_at_every_bilabial_key_frame) {
+TEST(LanguageCorpus, LipsAreSealedAtEveryBilabialKeyFrame) {
   Closures tally;
   for (const CorpusFile& file : corpus()) check_closures(file.name, file.segments, file.track, tally);
   std::printf(
@@ -327,7 +327,7 @@ TEST(LanguageCorpus, lips_are_sealed_at_every_bilabial_key_frame) {
   EXPECT_GE(tally.bilabial, 30U);
 }
 
-TEST(LanguageCorpus, front_rounded_vowels_pucker_more_than_their_unrounded_partners) {
+TEST(LanguageCorpus, FrontRoundedVowelsPuckerMoreThanTheirUnroundedPartners) {
   const auto pucker = [](const Measured& m) { return m.pucker; };
   const std::pair<std::string_view, std::string_view> partners[] = {
       {"ipa_y", "iy"}, {"ipa_ʏ", "ih"}, {"ipa_ø", "ey"}, {"ipa_œ", "eh"}};
@@ -349,7 +349,7 @@ TEST(LanguageCorpus, front_rounded_vowels_pucker_more_than_their_unrounded_partn
   EXPECT_GE(compared, 3U);
 }
 
-TEST(LanguageCorpus, open_vowels_open_the_jaw_wider_than_close_ones) {
+TEST(LanguageCorpus, OpenVowelsOpenTheJawWiderThanCloseOnes) {
   const auto jaw = [](const Measured& m) { return m.jaw_open; };
   const auto open = centres_of({"ae", "aa", "ah"});
   const auto close = centres_of({"iy", "uw", "ipa_y", "ipa_ɯ"});
@@ -378,7 +378,7 @@ std::pair<std::string, bool> oral_partner(const std::string& label) {
   return {base, nasal};
 }
 
-TEST(LanguageCorpus, nasal_vowels_open_like_their_oral_partners) {
+TEST(LanguageCorpus, NasalVowelsOpenLikeTheirOralPartners) {
   // French ɔ̃ ɛ̃ œ̃ ɑ̃, Portuguese ɐ̃ ũ: the mouth of the oral vowel (the lowered velum is not seen).
   // Compared within one file (one language, one voice's timing), where the oral partner occurs.
   std::size_t compared = 0;
@@ -406,7 +406,7 @@ TEST(LanguageCorpus, nasal_vowels_open_like_their_oral_partners) {
   EXPECT_GE(compared, 3U);
 }
 
-TEST(LanguageCorpus, bilabial_fricatives_bring_the_lips_near_without_sealing_them) {
+TEST(LanguageCorpus, BilabialFricativesBringTheLipsNearWithoutSealingThem) {
   const auto fricatives = centres_of({"ipa_β", "ipa_ɸ"});
   ASSERT_GE(fricatives.size(), 4U);
   const auto gap = [](const Measured& m) { return m.lip_gap; };
@@ -419,7 +419,7 @@ TEST(LanguageCorpus, bilabial_fricatives_bring_the_lips_near_without_sealing_the
   }
 }
 
-TEST(Targets, bilabial_fricatives_and_trill_bring_the_lips_near_but_only_closures_seal_them) {
+TEST(Targets, BilabialFricativesAndTrillBringTheLipsNearButOnlyClosuresSealThem) {
   // At their targets, in ARKit: /ɸ β ʙ/ leave a gap (jawOpen − mouthClose) a fraction of an open
   // vowel's, /m/ none; /ɱ ʋ ⱱ/ are the labiodental closures of /f v/ (key frames, lower lip on the teeth).
   const PhoneSet& ipa = phone_set("ipa");
@@ -502,7 +502,7 @@ TEST(Labialisation, LabialisedLabialsKeepTheirClosureAndPlainConsonantsTheirPhon
   EXPECT_EQ(*ipa.lookup("kʷː"), *ipa.lookup("kʷ"));  // length falls back to the labialised consonant
 }
 
-TEST(LanguageCorpus, front_rounded_vowels_get_a_rounded_viseme_and_their_partners_a_spread_one) {
+TEST(LanguageCorpus, FrontRoundedVowelsGetARoundedVisemeAndTheirPartnersASpreadOne) {
   // Oculus has no front rounded viseme: /y ø/ fall on RR (slightly rounded lips over a nearly closed
   // jaw, the viseme of /r er/) or on ou/oh, never on the spread ih/E that /i e/ get.
   const auto share = [](const std::vector<const Measured*>& centres, std::initializer_list<std::string_view> visemes) {
@@ -523,7 +523,7 @@ TEST(LanguageCorpus, front_rounded_vowels_get_a_rounded_viseme_and_their_partner
   EXPECT_GE(share(unrounded, {"ih", "E"}), 0.75);
 }
 
-TEST(LanguageCorpus, on_the_simulated_face_closures_seal_and_rounding_narrows_the_mouth) {
+TEST(LanguageCorpus, OnTheSimulatedFaceClosuresSealAndRoundingNarrowsTheMouth) {
   // The physics face stepped through each track as lipsyncd's mesh stream does (subdivision 1):
   // lips sealed (gap <= 0.5 mm) at every bilabial key frame and the lower lip on the upper teeth
   // (<= 1 mm) at every labiodental one, as tests/face/face_closure_test.cpp measures English; the
@@ -618,7 +618,7 @@ class LanguagesCli : public ::testing::Test {
   std::filesystem::path dir_, capture_;
 };
 
-TEST_F(LanguagesCli, mfa_ipa_textgrids_render_with_and_without_the_phone_set_flag) {
+TEST_F(LanguagesCli, MfaIpaTextgridsRenderWithAndWithoutThePhoneSetFlag) {
   for (const char* name :
        {"mfa_english.TextGrid", "mfa_german.TextGrid", "mfa_french.TextGrid", "mfa_spanish.TextGrid"}) {
     SCOPED_TRACE(name);
@@ -631,7 +631,7 @@ TEST_F(LanguagesCli, mfa_ipa_textgrids_render_with_and_without_the_phone_set_fla
   }
 }
 
-TEST_F(LanguagesCli, an_unknown_symbol_is_an_error_naming_it_its_file_and_line) {
+TEST_F(LanguagesCli, AnUnknownSymbolIsAnErrorNamingItItsFileAndLine) {
   const std::string text = read_file(std::string(LIPSYNC_TEST_DATA_DIR) + "/languages/mfa_german.TextGrid");
   std::string bad = text;
   const std::size_t at = bad.find("text = \"ʏ\"");
@@ -652,7 +652,7 @@ TEST_F(LanguagesCli, an_unknown_symbol_is_an_error_naming_it_its_file_and_line) 
   }
 }
 
-TEST_F(LanguagesCli, say_speaks_german) {
+TEST_F(LanguagesCli, SaySpeaksGerman) {
   const auto result = run({"say", "Guten Morgen, wie geht es Ihnen?", "--voice", "de", "-o", "de.json"});
   ASSERT_EQ(result.status, 0) << result.err;
   EXPECT_THAT(read_file(dir_ / "de.json"), HasSubstr("\"frames\""));

@@ -135,7 +135,7 @@ std::size_t count_within_30_ms(const std::vector<double>& errors_ms) {
       std::count_if(errors_ms.begin(), errors_ms.end(), [](double error_ms) { return error_ms <= 30.0; }));
 }
 
-TEST(RecordedLanguages, boundaries_on_festival_recordings_meet_the_goals) {
+TEST(RecordedLanguages, BoundariesOnFestivalRecordingsMeetTheGoals) {
   const CorpusErrors errors = measure_corpus();
   ASSERT_GE(errors.boundaries_ms.size(), 150U);
   ASSERT_GE(errors.bilabials_ms.size(), 30U);
@@ -164,7 +164,7 @@ TEST(RecordedLanguages, StopsAfterAPauseStartAtTheirClosure) {
   }
 }
 
-TEST(RecordedLanguages, aligned_bilabials_render_with_the_lips_sealed) {
+TEST(RecordedLanguages, AlignedBilabialsRenderWithTheLipsSealed) {
   std::size_t bilabial_frames = 0;
   for (const char* name : kItems) {
     const CorpusItem item = load(name);
@@ -190,7 +190,7 @@ TEST(RecordedLanguages, aligned_bilabials_render_with_the_lips_sealed) {
   EXPECT_GE(bilabial_frames, 20U);
 }
 
-TEST(RecordedLanguages, the_warp_follows_a_recording_spoken_slower_than_espeak_ng) {
+TEST(RecordedLanguages, TheWarpFollowsARecordingSpokenSlowerThanEspeakNg) {
   // The same Italian words from espeak-ng at 120 words per minute, aligned against its own
   // rendering at the default 175: a warp of 1.5x, every boundary known exactly.
   speech::SynthesisOptions slow;
@@ -243,7 +243,7 @@ class RecordedLanguagesCli : public ::testing::Test {
   std::filesystem::path dir_, capture_;
 };
 
-TEST_F(RecordedLanguagesCli, align_and_render_take_a_voice) {
+TEST_F(RecordedLanguagesCli, AlignAndRenderTakeAVoice) {
   const std::string wav = (kCorpus / "it_3.wav").string();
   const CorpusItem item = load("it_3");
   testing::write_text(dir_ / "words.txt", item.transcript);
@@ -258,7 +258,7 @@ TEST_F(RecordedLanguagesCli, align_and_render_take_a_voice) {
   EXPECT_FALSE(testing::read_text(dir_ / "it.csv").empty());
 }
 
-TEST_F(RecordedLanguagesCli, bad_inputs_are_errors_naming_the_file_and_what_is_wrong) {
+TEST_F(RecordedLanguagesCli, BadInputsAreErrorsNamingTheFileAndWhatIsWrong) {
   const std::string wav = (kCorpus / "it_3.wav").string();
   std::mt19937 random(28);
   std::normal_distribution<double> noise(0.0, 3000.0);

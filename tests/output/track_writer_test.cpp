@@ -96,7 +96,7 @@ const Track& sample_track() {
   return track;
 }
 
-TEST(TrackFormatNames, round_trip) {
+TEST(TrackFormatNames, RoundTrip) {
   for (auto format : {TrackFormat::json, TrackFormat::csv, TrackFormat::arkit_csv}) {
     EXPECT_EQ(track_format_from_string(to_string(format)), format);
   }
@@ -105,7 +105,7 @@ TEST(TrackFormatNames, round_trip) {
   EXPECT_EQ(track_format_from_string("JSON"), std::nullopt);
 }
 
-TEST(JsonWriter, parses_and_every_field_matches) {
+TEST(JsonWriter, ParsesAndEveryFieldMatches) {
   const Track& track = sample_track();
   const auto doc = nlohmann::json::parse(write(track, TrackFormat::json));
 
@@ -141,7 +141,7 @@ TEST(JsonWriter, parses_and_every_field_matches) {
   EXPECT_EQ(static_cast<float>(doc["frames"][1]["arkit"][17].get<double>()), 0.1F) << "jawOpen follows jaw_rotation";
 }
 
-TEST(JsonWriter, times_are_exact_to_the_microsecond) {
+TEST(JsonWriter, TimesAreExactToTheMicrosecond) {
   const Track track = make_track({
       {1, FrameKind::uniform, {0, 0, 0}},
       {33'333, FrameKind::uniform, {0, 0, 0}},
@@ -157,12 +157,12 @@ TEST(JsonWriter, times_are_exact_to_the_microsecond) {
   EXPECT_EQ(doc["frames"][2]["t_us"].get<std::int64_t>(), 3'600'000'001);
 }
 
-TEST(JsonWriter, floats_use_the_shortest_round_trip_text) {
+TEST(JsonWriter, FloatsUseTheShortestRoundTripText) {
   const Track track = make_track({{0, FrameKind::uniform, {0.1F, 1.0F / 3.0F, -0.0F}}});
   EXPECT_THAT(write(track, TrackFormat::json), HasSubstr(R"("values":[0.1,0.33333334,-0],)"));
 }
 
-TEST(JsonWriter, one_frame_per_line) {
+TEST(JsonWriter, OneFramePerLine) {
   const std::vector<std::string> lines = split(write(sample_track(), TrackFormat::json), '\n');
   ASSERT_EQ(lines.size(), 5 + sample_track().frame_count());
   EXPECT_EQ(lines[0], R"({"format":"lipsync-track","version":1,"model":"tiny \"test\" model","fps":30,)");
@@ -177,13 +177,13 @@ TEST(JsonWriter, one_frame_per_line) {
   EXPECT_EQ(lines.back(), "]}");
 }
 
-TEST(JsonWriter, empty_track_is_valid) {
+TEST(JsonWriter, EmptyTrackIsValid) {
   const auto doc = nlohmann::json::parse(write(make_track({}), TrackFormat::json));
   EXPECT_TRUE(doc["frames"].is_array());
   EXPECT_TRUE(doc["frames"].empty());
 }
 
-TEST(JsonWriter, long_track_survives_buffer_flushes) {
+TEST(JsonWriter, LongTrackSurvivesBufferFlushes) {
   std::vector<Frame> frames;
   for (int i = 0; i < 5000; ++i) {
     const float v = static_cast<float>(i) / 4999.0F;
@@ -199,7 +199,7 @@ TEST(JsonWriter, long_track_survives_buffer_flushes) {
   EXPECT_THAT(parsed, ElementsAreArray(track.values));
 }
 
-TEST(CsvWriter, header_and_rows) {
+TEST(CsvWriter, HeaderAndRows) {
   EXPECT_EQ(write(sample_track(), TrackFormat::csv),
             "t,t_us,kind,jaw_rotation,lip_side,tongue_tip\n"
             "0.000000,0,uniform,0,0,0\n"
@@ -208,7 +208,7 @@ TEST(CsvWriter, header_and_rows) {
             "0.066667,66667,short_segment,1,0.6666667,-1\n");
 }
 
-TEST(CsvWriter, quotes_channel_names_that_need_it) {
+TEST(CsvWriter, QuotesChannelNamesThatNeedIt) {
   std::string json(kTinyModel);
   json.replace(json.find("lip_side\", \"kind"), 8, "lip,\\\"side\\\"");
   json.replace(json.find("\"lip_side\": 0.5"), 10, "\"lip,\\\"side\\\"\"");
@@ -230,14 +230,14 @@ constexpr std::string_view kLiveLinkFaceHeader =
     "CheekSquintRight,NoseSneerLeft,NoseSneerRight,TongueOut,HeadYaw,HeadPitch,HeadRoll,LeftEyeYaw,"
     "LeftEyePitch,LeftEyeRoll,RightEyeYaw,RightEyePitch,RightEyeRoll";
 
-TEST(LiveLinkFaceCsv, header_matches_unreal_exactly) {
+TEST(LiveLinkFaceCsv, HeaderMatchesUnrealExactly) {
   const std::vector<std::string> lines = split(write(make_track({}), TrackFormat::arkit_csv), '\n');
   ASSERT_EQ(lines.size(), 1U);
   EXPECT_EQ(lines[0], kLiveLinkFaceHeader);
   EXPECT_EQ(split(lines[0], ',').size(), 63U);
 }
 
-TEST(LiveLinkFaceCsv, rows_have_count_61_and_zero_rotations) {
+TEST(LiveLinkFaceCsv, RowsHaveCount61AndZeroRotations) {
   const std::vector<std::string> lines = split(write(sample_track(), TrackFormat::arkit_csv), '\n');
   ASSERT_EQ(lines.size(), 1 + sample_track().frame_count());
   for (std::size_t i = 1; i < lines.size(); ++i) {
@@ -249,7 +249,7 @@ TEST(LiveLinkFaceCsv, rows_have_count_61_and_zero_rotations) {
   }
 }
 
-TEST(LiveLinkFaceCsv, values_are_routed_by_name) {
+TEST(LiveLinkFaceCsv, ValuesAreRoutedByName) {
   const Track track = make_track({{0, FrameKind::uniform, {0.25F, 0.5F, 0.75F}}});
   const std::vector<std::string> lines = split(write(track, TrackFormat::arkit_csv), '\n');
   ASSERT_EQ(lines.size(), 2U);
@@ -268,7 +268,7 @@ TEST(LiveLinkFaceCsv, values_are_routed_by_name) {
   }
 }
 
-TEST(LiveLinkFaceCsv, every_arkit_shape_lands_in_its_own_column) {
+TEST(LiveLinkFaceCsv, EveryArkitShapeLandsInItsOwnColumn) {
   // One model per shape would be slow to write; instead drive all 52 shapes with
   // distinct weights of one channel and compare by name. mouthClose gets a weight below jawOpen's:
   // the retargeting caps it at jawOpen (model.hpp).
@@ -305,7 +305,7 @@ std::string timecode(std::int64_t t_us, int fps) {
   return split(lines.at(1), ',').at(0);
 }
 
-TEST(LiveLinkFaceCsv, timecode_counts_frames_within_the_second) {
+TEST(LiveLinkFaceCsv, TimecodeCountsFramesWithinTheSecond) {
   EXPECT_EQ(timecode(0, 30), "00:00:00:00.000");
   EXPECT_EQ(timecode(1'500'000, 30), "00:00:01:15.000");
   EXPECT_EQ(timecode(33'333, 30), "00:00:00:01.000") << "grid time rounded to the µs";
@@ -319,7 +319,7 @@ TEST(LiveLinkFaceCsv, timecode_counts_frames_within_the_second) {
   EXPECT_EQ(timecode(4'167, 240), "00:00:00:01.000");
 }
 
-TEST(WriteTrack, rejects_a_track_of_another_model) {
+TEST(WriteTrack, RejectsATrackOfAnotherModel) {
   Track track = make_track({{0, FrameKind::uniform, {0, 0, 0}}});
   track.channel_count = 2;
   track.values.resize(2);
@@ -327,7 +327,7 @@ TEST(WriteTrack, rejects_a_track_of_another_model) {
   EXPECT_THROW(write_track(track, tiny_model(), TrackFormat::json, out), std::invalid_argument);
 }
 
-TEST(WriteTrack, rejects_a_track_whose_arrays_disagree) {
+TEST(WriteTrack, RejectsATrackWhoseArraysDisagree) {
   Track track = make_track({{0, FrameKind::uniform, {0, 0, 0}}});
   track.kinds.clear();
   std::ostringstream out;
@@ -374,7 +374,7 @@ std::string write(const NamedTrackView& view, TrackFormat format) {
   return out.str();
 }
 
-TEST(NamedTrackWriter, names_and_weights_as_data_write_the_bytes_of_the_model_writer) {
+TEST(NamedTrackWriter, NamesAndWeightsAsDataWriteTheBytesOfTheModelWriter) {
   for (const ArticulationModel* model : {&ArticulationModel::builtin(), &tiny_model()}) {
     // Long enough for several 64 KiB flushes in every format.
     const Track track = random_track(*model, 3000);
@@ -393,7 +393,7 @@ TEST(NamedTrackWriter, names_and_weights_as_data_write_the_bytes_of_the_model_wr
   }
 }
 
-TEST(NamedTrackWriter, custom_names_appear_in_the_header_and_columns) {
+TEST(NamedTrackWriter, CustomNamesAppearInTheHeaderAndColumns) {
   const Track track = make_track({
       {0, FrameKind::uniform, {0.25F, 0.5F, 0.75F}},
       {40'000, FrameKind::closure_start, {1.0F, 0.0F, -1.0F}},
@@ -437,7 +437,7 @@ TEST(NamedTrackWriter, custom_names_appear_in_the_header_and_columns) {
   }
 }
 
-TEST(NamedTrackWriter, without_arkit_weights_json_has_empty_arrays_and_arkit_csv_refuses) {
+TEST(NamedTrackWriter, WithoutArkitWeightsJsonHasEmptyArraysAndArkitCsvRefuses) {
   const Track track = make_track({{0, FrameKind::uniform, {0.25F, 0.5F, 0.75F}}});
   const std::vector<std::string_view> channels = {"a", "b", "c"};
   const NamedTrackView view{.model = "m", .channel_names = channels, .track = track};
@@ -448,7 +448,7 @@ TEST(NamedTrackWriter, without_arkit_weights_json_has_empty_arrays_and_arkit_csv
   EXPECT_THROW(write_track(view, TrackFormat::arkit_csv, out), std::invalid_argument);
 }
 
-TEST(NamedTrackWriter, rejects_names_or_weights_that_do_not_fit_the_track) {
+TEST(NamedTrackWriter, RejectsNamesOrWeightsThatDoNotFitTheTrack) {
   const Track track = make_track({{0, FrameKind::uniform, {0.25F, 0.5F, 0.75F}}});
   const std::vector<std::string_view> two_channels = {"a", "b"};
   const std::vector<std::string_view> three_channels = {"a", "b", "c"};

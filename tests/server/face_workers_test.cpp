@@ -22,7 +22,7 @@ namespace {
 using namespace std::chrono_literals;
 
 /// Each lane's jobs record their number; jobs sleep a little so that lanes overlap.
-TEST(FaceLane, runs_its_jobs_in_order_and_one_at_a_time_while_lanes_share_the_threads) {
+TEST(FaceLane, RunsItsJobsInOrderAndOneAtATimeWhileLanesShareTheThreads) {
   constexpr int kLanes = 6;
   constexpr int kJobs = 200;
   std::vector<std::vector<int>> seen(kLanes);
@@ -57,7 +57,7 @@ TEST(FaceLane, runs_its_jobs_in_order_and_one_at_a_time_while_lanes_share_the_th
   EXPECT_GT(most_lanes_at_once.load(), 1);
 }
 
-TEST(FaceLane, retire_runs_after_every_job_queued_before_it_and_may_destroy_the_lane) {
+TEST(FaceLane, RetireRunsAfterEveryJobQueuedBeforeItAndMayDestroyTheLane) {
   FaceWorkers workers(2, FaceWorkers::Priority::normal);
   std::mutex mutex;
   std::vector<int> order;
@@ -118,7 +118,7 @@ std::vector<ThreadPriority> priorities_of(FaceWorkers::Priority priority, std::s
   return seen;
 }
 
-TEST(FaceWorkers, every_thread_runs_at_the_asked_priority) {
+TEST(FaceWorkers, EveryThreadRunsAtTheAskedPriority) {
   const int normal_nice = getpriority(PRIO_PROCESS, 0);
   using ::testing::Each;
   EXPECT_THAT(priorities_of(FaceWorkers::Priority::idle, 3), Each(ThreadPriority{SCHED_IDLE, normal_nice}));

@@ -75,7 +75,7 @@ class SpeakTest : public LiveServerTest {
   }
 };
 
-TEST_F(SpeakTest, frames_equal_the_offline_render_of_the_phonemes_espeak_reports) {
+TEST_F(SpeakTest, FramesEqualTheOfflineRenderOfThePhonemesEspeakReports) {
   const ArticulationModel& model = ArticulationModel::builtin();
   const PhoneSet espeak = *PhoneSet::builtin("espeak", model);
   for (const char* text : kSentences) {
@@ -103,7 +103,7 @@ TEST_F(SpeakTest, frames_equal_the_offline_render_of_the_phonemes_espeak_reports
   }
 }
 
-TEST_F(SpeakTest, other_languages_speak_through_the_ipa_phone_set_and_equal_their_offline_render) {
+TEST_F(SpeakTest, OtherLanguagesSpeakThroughTheIpaPhoneSetAndEqualTheirOfflineRender) {
   // Non-English voices name their phonemes in IPA (docs/languages.md); Speak renders them with the
   // ipa set, and asking for espeak's mnemonics with such a voice is refused naming the right set.
   const ArticulationModel& model = ArticulationModel::builtin();
@@ -129,7 +129,7 @@ TEST_F(SpeakTest, other_languages_speak_through_the_ipa_phone_set_and_equal_thei
   }
 }
 
-TEST_F(SpeakTest, every_espeak_voice_speaks) {
+TEST_F(SpeakTest, EveryEspeakVoiceSpeaks) {
   // Every voice espeak-ng has, by its file name, through Speak: audio and frames come back.
   std::size_t spoken_voices = 0;
   for (const speech::Voice& voice : speech::list_voices()) {
@@ -146,7 +146,7 @@ TEST_F(SpeakTest, every_espeak_voice_speaks) {
   EXPECT_GE(spoken_voices, 131U);
 }
 
-TEST_F(SpeakTest, audio_equals_the_samples_espeak_gives_and_is_described_by_the_header) {
+TEST_F(SpeakTest, AudioEqualsTheSamplesEspeakGivesAndIsDescribedByTheHeader) {
   const speech::Synthesis local = spoken_locally(kSentences[0], 30);
   const client::SpokenTrack spoken = speak(speak_request(kSentences[0]));
   EXPECT_EQ(spoken.header.sample_rate_hz(), static_cast<std::uint32_t>(local.audio.sample_rate_hz));
@@ -161,7 +161,7 @@ TEST_F(SpeakTest, audio_equals_the_samples_espeak_gives_and_is_described_by_the_
   EXPECT_EQ(spoken.summary->sample_count(), local.audio.samples.size());
 }
 
-TEST_F(SpeakTest, last_frame_is_at_or_after_the_end_of_the_audio_and_within_one_frame_step) {
+TEST_F(SpeakTest, LastFrameIsAtOrAfterTheEndOfTheAudioAndWithinOneFrameStep) {
   for (const std::uint32_t fps : {24U, 30U, 60U}) {
     SCOPED_TRACE("fps " + std::to_string(fps));
     v1::SpeakRequest request = speak_request(kSentences[1]);
@@ -175,7 +175,7 @@ TEST_F(SpeakTest, last_frame_is_at_or_after_the_end_of_the_audio_and_within_one_
   }
 }
 
-TEST_F(SpeakTest, audio_chunks_continue_each_other_and_come_before_the_frames_they_sound_under) {
+TEST_F(SpeakTest, AudioChunksContinueEachOtherAndComeBeforeTheFramesTheySoundUnder) {
   const SpeakStream stream = speak_raw(*stub_, speak_request(kSentences[1]));
   ASSERT_TRUE(stream.status.ok()) << stream.status.error_message();
   ASSERT_TRUE(stream.messages.front().has_header());
@@ -197,7 +197,7 @@ TEST_F(SpeakTest, audio_chunks_continue_each_other_and_come_before_the_frames_th
   EXPECT_EQ(samples, header.sample_count());
 }
 
-TEST_F(SpeakTest, a_subscriber_of_the_session_gets_the_same_frames) {
+TEST_F(SpeakTest, ASubscriberOfTheSessionGetsTheSameFrames) {
   v1::SpeakRequest request = speak_request(kSentences[1], "speaker");
   request.mutable_settings()->mutable_media_clock()->set_clock("unix");
   request.mutable_settings()->mutable_media_clock()->set_utterance_zero_us(1'700'000'000'000'000);
@@ -235,7 +235,7 @@ struct BadRequest {
   const char* detail;  // and says this
 };
 
-TEST_F(SpeakTest, bad_requests_are_refused_naming_the_field) {
+TEST_F(SpeakTest, BadRequestsAreRefusedNamingTheField) {
   std::vector<BadRequest> cases;
   cases.push_back({"empty text", speak_request(""), "text:", "empty"});
   cases.push_back({"white space only", speak_request(" \n\t"), "text:", "empty"});
@@ -264,7 +264,7 @@ TEST_F(SpeakTest, bad_requests_are_refused_naming_the_field) {
   EXPECT_TRUE(speak_raw(*stub_, speak_request("Hello.")).status.ok());
 }
 
-TEST_F(SpeakTest, a_session_name_in_use_is_already_exists_and_an_unknown_voice_aborts_its_subscribers) {
+TEST_F(SpeakTest, ASessionNameInUseIsAlreadyExistsAndAnUnknownVoiceAbortsItsSubscribers) {
   Producer producer(*stub_, session_settings("taken"));
   const SpeakStream taken = speak_raw(*stub_, speak_request("Hello.", "taken"));
   EXPECT_EQ(taken.status.error_code(), grpc::StatusCode::ALREADY_EXISTS) << taken.status.error_message();
@@ -278,7 +278,7 @@ TEST_F(SpeakTest, a_session_name_in_use_is_already_exists_and_an_unknown_voice_a
   EXPECT_THAT(subscribed.status.error_message(), HasSubstr("no-such-voice"));
 }
 
-TEST_F(SpeakTest, a_full_server_refuses_with_resource_exhausted) {
+TEST_F(SpeakTest, AFullServerRefusesWithResourceExhausted) {
   ServerConfig config;
   config.max_streams = 1;
   start(config);
@@ -288,7 +288,7 @@ TEST_F(SpeakTest, a_full_server_refuses_with_resource_exhausted) {
   EXPECT_THAT(refused.status.error_message(), HasSubstr("--max-streams"));
 }
 
-TEST_F(SpeakTest, calls_speaking_or_waiting_for_the_synthesiser_at_the_drain_deadline_get_aborted) {
+TEST_F(SpeakTest, CallsSpeakingOrWaitingForTheSynthesiserAtTheDrainDeadlineGetAborted) {
   ServerConfig config;
   config.metrics_listen = "127.0.0.1:0";
   start(config);
@@ -321,7 +321,7 @@ TEST_F(SpeakTest, calls_speaking_or_waiting_for_the_synthesiser_at_the_drain_dea
   }
 }
 
-TEST_F(SpeakTest, lipsync_speak_writes_what_lipsync_say_writes) {
+TEST_F(SpeakTest, LipsyncSpeakWritesWhatLipsyncSayWrites) {
   namespace fs = std::filesystem;
   const fs::path dir = testing::make_temp_dir("lipsync-speak-test-");
   const auto run = [&](std::vector<std::string> args) {

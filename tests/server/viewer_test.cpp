@@ -190,7 +190,7 @@ class ViewerTest : public LiveServerTest {
   std::string http_host_, http_port_;
 };
 
-TEST_F(ViewerTest, websocket_follower_receives_the_same_messages_as_a_grpc_subscriber) {
+TEST_F(ViewerTest, WebsocketFollowerReceivesTheSameMessagesAsAGrpcSubscriber) {
   produce_papa("papa");
   const SubscribedBytes subscribed = subscribe_bytes(*stub_, "papa");
   ASSERT_TRUE(subscribed.status.ok()) << subscribed.status.error_message();
@@ -212,7 +212,7 @@ TEST_F(ViewerTest, websocket_follower_receives_the_same_messages_as_a_grpc_subsc
   EXPECT_TRUE(last.has_summary());
 }
 
-TEST_F(ViewerTest, websocket_follower_of_a_live_session_gets_frames_as_they_are_produced) {
+TEST_F(ViewerTest, WebsocketFollowerOfALiveSessionGetsFramesAsTheyAreProduced) {
   grpc::ClientContext context;
   auto producer = open_session(context, "live");
   WebSocketReply reply;
@@ -239,7 +239,7 @@ TEST_F(ViewerTest, websocket_follower_of_a_live_session_gets_frames_as_they_are_
   EXPECT_EQ(reply.close.code, websocket::close_code::normal);
 }
 
-TEST_F(ViewerTest, unknown_session_closes_the_websocket_with_not_found_naming_the_session) {
+TEST_F(ViewerTest, UnknownSessionClosesTheWebsocketWithNotFoundNamingTheSession) {
   const WebSocketReply reply = follow("/ws?session=nobody-here");
   EXPECT_TRUE(reply.binary.empty());
   ASSERT_EQ(reply.text.size(), 1u);
@@ -251,7 +251,7 @@ TEST_F(ViewerTest, unknown_session_closes_the_websocket_with_not_found_naming_th
   EXPECT_LE(reply.close.reason.size(), 123u);
 }
 
-TEST_F(ViewerTest, websocket_without_a_session_or_with_a_bad_start_is_invalid_argument) {
+TEST_F(ViewerTest, WebsocketWithoutASessionOrWithABadStartIsInvalidArgument) {
   WebSocketReply reply = follow("/ws");
   EXPECT_EQ(reply.close.code, 4000 + grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(std::string(reply.close.reason.c_str()), ::testing::HasSubstr("session=NAME"));
@@ -260,7 +260,7 @@ TEST_F(ViewerTest, websocket_without_a_session_or_with_a_bad_start_is_invalid_ar
   EXPECT_THAT(std::string(reply.close.reason.c_str()), ::testing::HasSubstr("'yesterday'"));
 }
 
-TEST_F(ViewerTest, unknown_path_is_404_naming_it_and_ws_without_upgrade_is_426) {
+TEST_F(ViewerTest, UnknownPathIs404NamingItAndWsWithoutUpgradeIs426) {
   const HttpReply missing = request(http::verb::get, "/no/such/thing");
   EXPECT_EQ(missing.status, 404u);
   EXPECT_THAT(missing.body, ::testing::HasSubstr("/no/such/thing"));
@@ -269,7 +269,7 @@ TEST_F(ViewerTest, unknown_path_is_404_naming_it_and_ws_without_upgrade_is_426) 
   EXPECT_EQ(request(http::verb::get, "/sessions").status, 405u);
 }
 
-TEST_F(ViewerTest, page_scripts_and_face_are_served_from_the_binary) {
+TEST_F(ViewerTest, PageScriptsAndFaceAreServedFromTheBinary) {
   const HttpReply page = request(http::verb::get, "/view?session=demo&audio=speech.wav");
   EXPECT_EQ(page.status, 200u);
   EXPECT_THAT(page.content_type, ::testing::StartsWith("text/html"));
@@ -287,7 +287,7 @@ TEST_F(ViewerTest, page_scripts_and_face_are_served_from_the_binary) {
   EXPECT_FALSE(json["blendshapes"].empty());
 }
 
-TEST_F(ViewerTest, quick_try_animates_pasted_text_as_a_session_equal_to_a_render) {
+TEST_F(ViewerTest, QuickTryAnimatesPastedTextAsASessionEqualToARender) {
   const std::string text = read_fixture("closures/flite_1.psdur");
   const HttpReply reply = request(http::verb::post, "/sessions?session=pasted&fps=60", text);
   ASSERT_EQ(reply.status, 200u) << reply.body;
@@ -315,7 +315,7 @@ TEST_F(ViewerTest, quick_try_animates_pasted_text_as_a_session_equal_to_a_render
   EXPECT_THAT(followed.frames.values, ::testing::ElementsAreArray(rendered.frames().values()));
 }
 
-TEST_F(ViewerTest, quick_try_reports_bad_text_bad_parameters_and_taken_names) {
+TEST_F(ViewerTest, QuickTryReportsBadTextBadParametersAndTakenNames) {
   HttpReply reply = request(http::verb::post, "/sessions?session=bad", "pau:0.1 p:0.05 aa:0.3\n");
   EXPECT_EQ(reply.status, 400u);
   EXPECT_THAT(nlohmann::json::parse(reply.body)["message"].get<std::string>(), ::testing::StartsWith("pasted text:"));
@@ -335,7 +335,7 @@ TEST_F(ViewerTest, quick_try_reports_bad_text_bad_parameters_and_taken_names) {
   context.TryCancel();
 }
 
-TEST_F(ViewerTest, audio_serves_a_speak_sessions_own_voice_as_the_wav_speak_sent) {
+TEST_F(ViewerTest, AudioServesASpeakSessionsOwnVoiceAsTheWavSpeakSent) {
   const std::string expected = speak_wav("Papa parked the car.", "spoken");
   ASSERT_GT(expected.size(), 44u + 2 * 8000);  // a header and over a quarter of a second at 16 kHz or more
   const HttpReply reply = request(http::verb::get, "/audio?session=spoken");
@@ -344,7 +344,7 @@ TEST_F(ViewerTest, audio_serves_a_speak_sessions_own_voice_as_the_wav_speak_sent
   EXPECT_EQ(reply.body, expected);  // byte for byte: the samples Speak streamed, as a WAV
 }
 
-TEST_F(ViewerTest, audio_is_404_naming_a_session_without_audio_or_unknown_and_400_without_a_name) {
+TEST_F(ViewerTest, AudioIs404NamingASessionWithoutAudioOrUnknownAnd400WithoutAName) {
   produce_papa("animated");
   HttpReply reply = request(http::verb::get, "/audio?session=animated");
   EXPECT_EQ(reply.status, 404u);
@@ -391,7 +391,7 @@ std::string stereo_wav(double seconds) {
   return wav;
 }
 
-TEST_F(ViewerTest, audio_attached_by_the_producer_is_served_byte_for_byte_as_the_file_it_sent) {
+TEST_F(ViewerTest, AudioAttachedByTheProducerIsServedByteForByteAsTheFileItSent) {
   const std::string wav = stereo_wav(2.5);  // 441 KB: three pieces of 200 KB
   const Received produced = animate(*stub_, papa_with_audio("papa-with-sound", wav, 200'000));
   ASSERT_TRUE(produced.status.ok()) << produced.status.error_message();
@@ -440,7 +440,7 @@ TEST_F(SessionAudioBudgetTest, SessionsKeepTheirSoundWithinTheServersBudgetAndGi
   ASSERT_TRUE(again.status.ok()) << again.status.error_message();
 }
 
-TEST_F(ViewerTest, attached_audio_that_is_not_a_wav_is_invalid_argument_naming_audio_wav) {
+TEST_F(ViewerTest, AttachedAudioThatIsNotAWavIsInvalidArgumentNamingAudioWav) {
   const Received produced = animate(*stub_, papa_with_audio("papa-not-wav", "ID3\x04 an mp3, not a WAV", 100));
   EXPECT_EQ(produced.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(produced.status.error_message(), ::testing::StartsWith("audio.wav: not a WAV file"));
@@ -448,7 +448,7 @@ TEST_F(ViewerTest, attached_audio_that_is_not_a_wav_is_invalid_argument_naming_a
   EXPECT_EQ(request(http::verb::get, "/audio?session=papa-not-wav").status, 404u);
 }
 
-TEST_F(ViewerTest, attached_audio_over_32_mib_is_resource_exhausted_naming_audio_wav) {
+TEST_F(ViewerTest, AttachedAudioOver32MibIsResourceExhaustedNamingAudioWav) {
   const std::string piece(3 * 1024 * 1024, '\0');  // within the 4 MiB message limit; 11 of them are 33 MiB
   std::vector<v1::AnimateRequest> requests{settings_request(papa_settings("papa-too-loud"))};
   for (int i = 0; i < 11; ++i) requests.emplace_back().mutable_audio()->set_wav(piece);
@@ -458,7 +458,7 @@ TEST_F(ViewerTest, attached_audio_over_32_mib_is_resource_exhausted_naming_audio
   EXPECT_THAT(produced.status.error_message(), ::testing::StartsWith("audio.wav: the attached audio is over 33554432"));
 }
 
-TEST_F(ViewerTest, audio_without_a_session_or_after_the_phonemes_is_invalid_argument_naming_audio) {
+TEST_F(ViewerTest, AudioWithoutASessionOrAfterThePhonemesIsInvalidArgumentNamingAudio) {
   Received produced = animate(*stub_, papa_with_audio("", stereo_wav(0.1), 100'000));
   EXPECT_EQ(produced.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(produced.status.error_message(), ::testing::StartsWith("audio: attached to a stream without"));
@@ -470,7 +470,7 @@ TEST_F(ViewerTest, audio_without_a_session_or_after_the_phonemes_is_invalid_argu
   EXPECT_THAT(produced.status.error_message(), ::testing::StartsWith("audio: sent after the first phonemes"));
 }
 
-TEST_F(ViewerTest, quick_try_with_speak_speaks_the_text_into_a_session_that_carries_its_voice) {
+TEST_F(ViewerTest, QuickTryWithSpeakSpeaksTheTextIntoASessionThatCarriesItsVoice) {
   const HttpReply reply = request(http::verb::post, "/sessions?session=said&speak=1", "Papa parked the car.");
   ASSERT_EQ(reply.status, 200u) << reply.body;
   const auto answer = nlohmann::json::parse(reply.body);
@@ -523,7 +523,7 @@ class ViewerWithKeysTest : public ViewerTest {
   std::filesystem::path key_file_ = lipsync::testing::make_temp_dir("lipsync-viewer-keys-") / "keys.json";
 };
 
-TEST_F(ViewerWithKeysTest, audio_needs_a_key_that_may_subscribe_and_finds_only_its_tenants_sessions) {
+TEST_F(ViewerWithKeysTest, AudioNeedsAKeyThatMaySubscribeAndFindsOnlyItsTenantsSessions) {
   const std::string expected = speak_wav("Bob bought maps.", "spoken", "key-a");
   EXPECT_EQ(request(http::verb::get, "/audio?session=spoken").status, 401u);
   EXPECT_EQ(request(http::verb::get, "/audio?session=spoken&key=key-a-animate").status, 403u);
@@ -536,7 +536,7 @@ TEST_F(ViewerWithKeysTest, audio_needs_a_key_that_may_subscribe_and_finds_only_i
   EXPECT_EQ(reply.body, expected);
 }
 
-TEST_F(ViewerTest, follower_hears_aborted_when_the_producer_goes_away) {
+TEST_F(ViewerTest, FollowerHearsAbortedWhenTheProducerGoesAway) {
   grpc::ClientContext context;
   auto producer = open_session(context, "waiting");
   WebSocketReply reply;
@@ -553,7 +553,7 @@ TEST_F(ViewerTest, follower_hears_aborted_when_the_producer_goes_away) {
   EXPECT_THAT(std::string(reply.close.reason.c_str()), ::testing::HasSubstr("producer"));
 }
 
-TEST_F(ViewerTest, shutdown_ends_a_waiting_follower_with_going_away) {
+TEST_F(ViewerTest, ShutdownEndsAWaitingFollowerWithGoingAway) {
   grpc::ClientContext context;
   auto producer = open_session(context, "waiting");
   WebSocketReply reply;
@@ -566,7 +566,7 @@ TEST_F(ViewerTest, shutdown_ends_a_waiting_follower_with_going_away) {
   EXPECT_THAT(std::string(reply.close.reason.c_str()), ::testing::HasSubstr("shutting down"));
 }
 
-TEST(ViewerConfig, http_listen_is_off_by_default_and_read_from_flag_and_environment) {
+TEST(ViewerConfig, HttpListenIsOffByDefaultAndReadFromFlagAndEnvironment) {
   EXPECT_EQ(parse_command_line({}).config.http_listen, "");
   EXPECT_EQ(parse_command_line({"--http-listen", "127.0.0.1:8080"}).config.http_listen, "127.0.0.1:8080");
   const Environment environment = [](const std::string& name) -> std::optional<std::string> {

@@ -49,7 +49,7 @@ speech::AlignmentOptions with_text(const char* text = kText) {
   return options;
 }
 
-TEST(BadAudio, loud_noise_does_not_match_a_transcript_and_gives_no_bilabials_without_one) {
+TEST(BadAudio, LoudNoiseDoesNotMatchATranscriptAndGivesNoBilabialsWithoutOne) {
   speech::PcmAudio noise;
   std::mt19937 generator(29);
   std::normal_distribution<double> gauss(0, 3000);
@@ -73,7 +73,7 @@ speech::PcmAudio amplified(int gain) {
   return clipped;
 }
 
-TEST(BadAudio, clipped_speech_aligns_with_a_note) {
+TEST(BadAudio, ClippedSpeechAlignsWithANote) {
   const speech::PcmAudio clipped = amplified(8);
   const speech::Alignment aligned = speech::align_speech(clipped, "loud.wav", with_text());
   EXPECT_THAT(words_of(aligned), ::testing::ElementsAre("papa", "parked", "the", "car"));
@@ -83,13 +83,13 @@ TEST(BadAudio, clipped_speech_aligns_with_a_note) {
                            [](const std::string& note) { return note.find("clipped") != std::string::npos; }));
 }
 
-TEST(BadAudio, speech_clipped_beyond_recognition_is_refused_saying_so) {
+TEST(BadAudio, SpeechClippedBeyondRecognitionIsRefusedSayingSo) {
   EXPECT_THAT(error_of([&] { speech::align_speech(amplified(40), "blown.wav", with_text()); }),
               ::testing::AllOf(HasSubstr("blown.wav: the transcript does not match the audio"),
                                HasSubstr("of the samples are clipped at full scale, which drowns its quiet parts")));
 }
 
-TEST(BadAudio, telephone_speech_at_8_khz_aligns_and_its_closures_are_refined) {
+TEST(BadAudio, TelephoneSpeechAt8KhzAlignsAndItsClosuresAreRefined) {
   const speech::PcmAudio telephone = speech::resample(papa().audio, 8000);
   const speech::Alignment aligned = speech::align_speech(telephone, "phone.wav", with_text());
   EXPECT_THAT(words_of(aligned), ::testing::ElementsAre("papa", "parked", "the", "car"));
@@ -99,7 +99,7 @@ TEST(BadAudio, telephone_speech_at_8_khz_aligns_and_its_closures_are_refined) {
   EXPECT_GE(moved, 3) << "the three /p/ closures of 'Papa parked' are plain in the band up to 3.5 kHz";
 }
 
-TEST(BadAudio, a_transcript_of_other_words_is_refused_naming_the_file) {
+TEST(BadAudio, ATranscriptOfOtherWordsIsRefusedNamingTheFile) {
   EXPECT_THAT(error_of([&] { speech::align_speech(papa().audio, "papa.wav", with_text("Seven fish swim slowly.")); }),
               HasSubstr("papa.wav: the transcript does not match the audio"));
 }

@@ -64,7 +64,7 @@ LabeledUtterance phones_of(std::vector<LabeledInterval> intervals) {
   return utterance;
 }
 
-TEST(ClosureRefiner, stop_closure_and_release_move_to_the_energy_steps) {
+TEST(ClosureRefiner, StopClosureAndReleaseMoveToTheEnergySteps) {
   for (const auto& [kind, label] : {std::pair{Closure::silent, "P"}, {Closure::voiced, "B"}, {Closure::nasal, "M"}}) {
     const speech::PcmAudio audio = stop(300'000, 380'000, 700'000, kind);
     LabeledUtterance phones =
@@ -85,7 +85,7 @@ TEST(ClosureRefiner, stop_closure_and_release_move_to_the_energy_steps) {
   }
 }
 
-TEST(ClosureRefiner, the_closure_is_placed_its_lead_before_the_onset_of_the_fall) {
+TEST(ClosureRefiner, TheClosureIsPlacedItsLeadBeforeTheOnsetOfTheFall) {
   // A step at 300 ms into digital silence: the fall of the 10 ms means is still 40 % of
   // its peak (the default onset fraction) 3 ms before the step; the lead is 3 ms more.
   const speech::PcmAudio audio = stop(300'000, 380'000, 700'000, Closure::silent);
@@ -96,7 +96,7 @@ TEST(ClosureRefiner, the_closure_is_placed_its_lead_before_the_onset_of_the_fall
   EXPECT_NEAR(double(phones.intervals[1].end_us), 380e3, 2e3);
 }
 
-TEST(ClosureRefiner, boundaries_stay_where_the_signal_shows_no_step) {
+TEST(ClosureRefiner, BoundariesStayWhereTheSignalShowsNoStep) {
   speech::PcmAudio audio;
   for (std::int64_t i = 0; i < sample_of(600'000); ++i)
     audio.samples.push_back(static_cast<std::int16_t>(std::lround(vowel(i) * 32767)));
@@ -112,7 +112,7 @@ TEST(ClosureRefiner, boundaries_stay_where_the_signal_shows_no_step) {
   EXPECT_EQ(phones.intervals[1].end_us, 280'000);
 }
 
-TEST(ClosureRefiner, only_lip_phones_move_and_only_within_the_search_window) {
+TEST(ClosureRefiner, OnlyLipPhonesMoveAndOnlyWithinTheSearchWindow) {
   const speech::PcmAudio audio = stop(300'000, 380'000, 700'000, Closure::silent);
   // /t/ on the same closure: not a lip phone, so untouched.
   LabeledUtterance phones = phones_of({{"AA", 0, 320'000, 1}, {"T", 320'000, 360'000, 2}, {"AA", 360'000, 700'000, 3}});
@@ -129,7 +129,7 @@ TEST(ClosureRefiner, only_lip_phones_move_and_only_within_the_search_window) {
   EXPECT_FALSE(speech::is_lip_phone("") || speech::is_lip_phone("TH") || speech::is_lip_phone("AA"));
 }
 
-TEST(ClosureRefiner, phones_keep_their_order_and_minimum_length) {
+TEST(ClosureRefiner, PhonesKeepTheirOrderAndMinimumLength) {
   const speech::PcmAudio audio = stop(300'000, 380'000, 700'000, Closure::silent);
   // A /p/ of 20 ms squeezed between short neighbours: nothing may collapse or cross.
   LabeledUtterance phones = phones_of({{"", 0, 290'000, 1},
@@ -164,7 +164,7 @@ speech::PcmAudio sounds(std::initializer_list<std::pair<Sound, std::int64_t>> pa
   return audio;
 }
 
-TEST(ClosureRefiner, a_short_pause_before_a_stop_is_taken_for_its_closure) {
+TEST(ClosureRefiner, AShortPauseBeforeAStopIsTakenForItsClosure) {
   // The recogniser heard a /p/'s silent closure (300 to 380 ms) as a pause and put
   // the /p/ at its burst: the /p/ takes the pause over and starts at the closure.
   const speech::PcmAudio audio = stop(300'000, 380'000, 700'000, Closure::silent);
@@ -185,7 +185,7 @@ TEST(ClosureRefiner, a_short_pause_before_a_stop_is_taken_for_its_closure) {
   EXPECT_EQ(phones.intervals.size(), 4U);
 }
 
-TEST(ClosureRefiner, a_pause_between_two_stops_gives_the_second_its_closure_at_the_last_fall) {
+TEST(ClosureRefiner, APauseBetweenTwoStopsGivesTheSecondItsClosureAtTheLastFall) {
   // /k/ closure 200 to 260 ms, its release 260 to 300 ms, then the /p/'s closure 300 to
   // 380 ms: the pause the recogniser put over both ends where the /p/'s closure starts.
   const speech::PcmAudio audio = sounds({{Sound::vowel, 200'000},
@@ -205,7 +205,7 @@ TEST(ClosureRefiner, a_pause_between_two_stops_gives_the_second_its_closure_at_t
   EXPECT_EQ(phones.intervals[2].start_us, 230'000) << "the /k/ keeps its place";
 }
 
-TEST(ClosureRefiner, an_m_after_a_pause_starts_where_its_murmur_does) {
+TEST(ClosureRefiner, AnMAfterAPauseStartsWhereItsMurmurDoes) {
   const speech::PcmAudio audio = sounds({{Sound::silence, 200'000}, {Sound::murmur, 280'000}, {Sound::vowel, 600'000}});
   LabeledUtterance phones = phones_of({{"", 0, 220'000, 1}, {"M", 220'000, 290'000, 2}, {"AA", 290'000, 600'000, 3}});
   const std::vector<speech::RefinedBoundary> refined = speech::refine_closures(audio, phones);
@@ -215,7 +215,7 @@ TEST(ClosureRefiner, an_m_after_a_pause_starts_where_its_murmur_does) {
   EXPECT_NEAR(double(phones.intervals[1].end_us), 280e3, 2e3);
 }
 
-TEST(ClosureRefiner, formant_band_levels_fall_in_a_closure) {
+TEST(ClosureRefiner, FormantBandLevelsFallInAClosure) {
   const speech::PcmAudio audio = stop(300'000, 380'000, 700'000, Closure::voiced);
   const std::vector<double> levels = speech::formant_band_levels_db(audio, 10'000, 10'000);
   ASSERT_EQ(levels.size(), 70U);

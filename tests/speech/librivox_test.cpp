@@ -53,7 +53,7 @@ std::size_t arkit(std::string_view name) {
   return static_cast<std::size_t>(std::find(kArkitNames.begin(), kArkitNames.end(), name) - kArkitNames.begin());
 }
 
-TEST(LibriVox, every_bilabial_gets_a_sealed_key_frame_inside_a_quiet_stretch_of_the_signal) {
+TEST(LibriVox, EveryBilabialGetsASealedKeyFrameInsideAQuietStretchOfTheSignal) {
   if (::access(kDir, R_OK) != 0) GTEST_SKIP() << kDir << " missing (apt-get install pocketsphinx-testdata)";
   const std::vector<Recording> recordings = librivox();
   ASSERT_EQ(recordings.size(), 5U);

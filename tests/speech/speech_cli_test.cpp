@@ -59,7 +59,7 @@ class SpeechCliTest : public ::testing::Test {
 
 bool have_ffprobe() { return ::access("/usr/bin/ffprobe", X_OK) == 0 && ::access("/usr/bin/ffmpeg", X_OK) == 0; }
 
-TEST_F(SpeechCliTest, say_writes_the_speech_and_a_track_that_covers_it) {
+TEST_F(SpeechCliTest, SayWritesTheSpeechAndATrackThatCoversIt) {
   const RunResult result = run({"say", "Papa parked the car.", "-o", "track.json", "--wav", "speech.wav"});
   ASSERT_EQ(result.status, 0) << result.err;
   EXPECT_EQ(listing(), (std::vector<std::string>{"speech.wav", "track.json"}));
@@ -71,7 +71,7 @@ TEST_F(SpeechCliTest, say_writes_the_speech_and_a_track_that_covers_it) {
   EXPECT_LE(last_us, audio_us + 1'000'000 / 30 + 1);
 }
 
-TEST_F(SpeechCliTest, say_video_has_audio_and_video_of_equal_length) {
+TEST_F(SpeechCliTest, SayVideoHasAudioAndVideoOfEqualLength) {
   if (!have_ffprobe()) GTEST_SKIP() << "ffmpeg/ffprobe not installed";
   const RunResult result = run({"say", "Papa parked the car.", "--video", "face.mp4", "--mesh-subdivision", "0"});
   ASSERT_EQ(result.status, 0) << result.err;
@@ -91,7 +91,7 @@ TEST_F(SpeechCliTest, say_video_has_audio_and_video_of_equal_length) {
   EXPECT_NEAR(*video_s, *audio_s, 1.0 / 30);
 }
 
-TEST_F(SpeechCliTest, align_writes_a_textgrid_that_render_reads_back) {
+TEST_F(SpeechCliTest, AlignWritesATextgridThatRenderReadsBack) {
   ASSERT_EQ(run({"say", "Papa parked the car.", "--wav", "speech.wav", "-o", "say.json"}).status, 0);
   const RunResult aligned = run({"align", "speech.wav", "--text", "Papa parked the car.", "-o", "speech.TextGrid"});
   ASSERT_EQ(aligned.status, 0) << aligned.err;
@@ -118,7 +118,7 @@ TEST_F(SpeechCliTest, align_writes_a_textgrid_that_render_reads_back) {
   EXPECT_GE(from_wav.back()["t_us"].get<std::int64_t>(), wav_duration_us("speech.wav"));
 }
 
-TEST_F(SpeechCliTest, bad_input_exits_1_naming_the_file) {
+TEST_F(SpeechCliTest, BadInputExits1NamingTheFile) {
   testing::write_text(dir_ / "notes.wav", "these are not samples");
   RunResult result = run({"align", "notes.wav", "-o", "out.TextGrid"});
   EXPECT_EQ(result.status, 1);
@@ -132,7 +132,7 @@ TEST_F(SpeechCliTest, bad_input_exits_1_naming_the_file) {
   EXPECT_EQ(listing(), std::vector<std::string>{"notes.wav"});
 }
 
-TEST_F(SpeechCliTest, a_ten_minute_recording_is_refused_quickly_naming_the_file) {
+TEST_F(SpeechCliTest, ATenMinuteRecordingIsRefusedQuicklyNamingTheFile) {
   // 600 s of a 16 kHz tone (19 MB, written here): refused before any decoding, in bounded time.
   speech::PcmAudio audio;
   audio.samples.resize(std::size_t(600) * 16000);
@@ -153,7 +153,7 @@ TEST_F(SpeechCliTest, a_ten_minute_recording_is_refused_quickly_naming_the_file)
   EXPECT_EQ(listing(), std::vector<std::string>{"long.wav"});
 }
 
-TEST_F(SpeechCliTest, bad_command_lines_exit_2) {
+TEST_F(SpeechCliTest, BadCommandLinesExit2) {
   const std::vector<std::vector<std::string>> commands = {
       {"say"},
       {"say", "a", "b"},
@@ -172,7 +172,7 @@ TEST_F(SpeechCliTest, bad_command_lines_exit_2) {
   EXPECT_TRUE(listing().empty());
 }
 
-TEST_F(SpeechCliTest, help_documents_say_and_align) {
+TEST_F(SpeechCliTest, HelpDocumentsSayAndAlign) {
   RunResult result = run({"say", "--help"});
   ASSERT_EQ(result.status, 0);
   EXPECT_THAT(result.out, HasSubstr("Usage: lipsync say TEXT [options]"));
@@ -196,7 +196,7 @@ std::string rhubarb_shape_at(const std::string& tsv, double t_s) {
   return shape;
 }
 
-TEST_F(SpeechCliTest, rhubarb_shapes_of_recorded_speech_close_every_bilabial_and_open_the_open_vowels) {
+TEST_F(SpeechCliTest, RhubarbShapesOfRecordedSpeechCloseEveryBilabialAndOpenTheOpenVowels) {
   // docs/input-formats.md, "Side by side with Rhubarb Lip Sync 1.14": the first ten
   // Harvard sentences spoken by flite and Festival (their own phone timings are the
   // truth), rendered as Rhubarb shapes at Rhubarb's 10 ms resolution (--fps 100) with

@@ -92,7 +92,7 @@ std::string error_of(Call call) {
   return "(no error)";
 }
 
-TEST(Synthesis, phonemes_tile_the_audio_and_render_to_a_track_that_covers_it) {
+TEST(Synthesis, PhonemesTileTheAudioAndRenderToATrackThatCoversIt) {
   const ArticulationModel& model = ArticulationModel::builtin();
   const PhoneSet espeak = *PhoneSet::builtin("espeak", model);
   for (const char* text : {"Papa parked the car.", "Speech synchronization.", "Where were you, Bob? Mum waved.",
@@ -120,14 +120,14 @@ TEST(Synthesis, phonemes_tile_the_audio_and_render_to_a_track_that_covers_it) {
   }
 }
 
-TEST(Synthesis, bilabials_are_where_the_text_has_them) {
+TEST(Synthesis, BilabialsAreWhereTheTextHasThem) {
   const speech::Synthesis speech = speech::synthesize("Papa parked the car.");
   std::vector<std::string> labels;
   for (const LabeledInterval& phoneme : speech.phonemes.intervals) labels.push_back(phoneme.label);
   EXPECT_EQ(std::count(labels.begin(), labels.end(), "p"), 3);
 }
 
-TEST(Synthesis, the_same_text_gives_the_same_speech_whatever_the_process_spoke_before) {
+TEST(Synthesis, TheSameTextGivesTheSameSpeechWhateverTheProcessSpokeBefore) {
   // espeak-ng's wave generator carries state from one utterance to the next; each
   // synthesis runs in a fresh child process, so a long-running caller (lipsyncd) gets
   // what `lipsync say` gets.
@@ -143,7 +143,7 @@ TEST(Synthesis, the_same_text_gives_the_same_speech_whatever_the_process_spoke_b
   }
 }
 
-TEST(Synthesis, unknown_voice_and_empty_text_are_errors) {
+TEST(Synthesis, UnknownVoiceAndEmptyTextAreErrors) {
   speech::SynthesisOptions options;
   options.voice = "no-such-voice";
   EXPECT_THAT(error_of([&] { speech::synthesize("Hello.", options); }), HasSubstr("unknown voice 'no-such-voice'"));
@@ -152,7 +152,7 @@ TEST(Synthesis, unknown_voice_and_empty_text_are_errors) {
   EXPECT_FALSE(speech::synthesize("Hello.").phonemes.intervals.empty());
 }
 
-TEST(Wav, written_audio_reads_back_unchanged) {
+TEST(Wav, WrittenAudioReadsBackUnchanged) {
   speech::PcmAudio audio;
   audio.sample_rate_hz = 16000;
   for (int i = 0; i < 1000; ++i) audio.samples.push_back(static_cast<std::int16_t>(i * 37 - 18000));
@@ -164,7 +164,7 @@ TEST(Wav, written_audio_reads_back_unchanged) {
   EXPECT_TRUE(decoded.notes.empty());
 }
 
-TEST(Wav, other_layouts_are_converted_to_mono_16_bit_with_a_note) {
+TEST(Wav, OtherLayoutsAreConvertedToMono16BitWithANote) {
   struct Layout {
     int rate, channels, bits;
     bool floating;
@@ -193,7 +193,7 @@ TEST(Wav, other_layouts_are_converted_to_mono_16_bit_with_a_note) {
   }
 }
 
-TEST(Wav, resampling_removes_what_16_khz_cannot_hold) {
+TEST(Wav, ResamplingRemovesWhat16KhzCannotHold) {
   // A 7 kHz tone passes; a 10 kHz tone (above 8 kHz Nyquist) would alias to 6 kHz: it must vanish.
   for (const auto& [hz, kept] : {std::pair{7000.0, true}, std::pair{10000.0, false}}) {
     // clang 14 (the ASan build) cannot capture a structured binding in a lambda: capture a copy.
@@ -209,7 +209,7 @@ TEST(Wav, resampling_removes_what_16_khz_cannot_hold) {
   }
 }
 
-TEST(Wav, bad_files_are_refused_naming_the_file_and_what_was_found) {
+TEST(Wav, BadFilesAreRefusedNamingTheFileAndWhatWasFound) {
   EXPECT_EQ(error_of([] { speech::decode_wav("ID3\x03 an mp3 file", "song.mp3"); }),
             "song.mp3: not a WAV file (expected a RIFF/WAVE header, found 'ID3\x03')");
   EXPECT_EQ(error_of([] { speech::decode_wav("RIFF", "short.wav"); }),
@@ -223,7 +223,7 @@ TEST(Wav, bad_files_are_refused_naming_the_file_and_what_was_found) {
   EXPECT_EQ(error_of([&] { speech::decode_wav(no_data, "n.wav"); }), "n.wav: WAV file has no 'data' chunk");
 }
 
-TEST(Alignment, synthetic_speech_aligns_within_the_reported_error) {
+TEST(Alignment, SyntheticSpeechAlignsWithinTheReportedError) {
   // The figures of docs/input-formats.md, "Speech in": espeak-ng speech of the ten
   // sentences, force-aligned, against espeak-ng's own phoneme boundaries, its stops
   // moved back from their bursts to their closures' silence (the acoustic closure,
@@ -251,7 +251,7 @@ TEST(Alignment, synthetic_speech_aligns_within_the_reported_error) {
   EXPECT_LE(testing::quantile(score.bilabial_errors_ms, 0.5), 10.0);
 }
 
-TEST(Alignment, refined_bilabial_closures_of_flite_and_festival_speech_start_within_20_ms) {
+TEST(Alignment, RefinedBilabialClosuresOfFliteAndFestivalSpeechStartWithin20Ms) {
   // docs/input-formats.md, "Closures refined from the signal": the ten sentences spoken by
   // flite (slt) and Festival (kal_diphone), force-aligned, scored as the recogniser left
   // them and after refine_closures (the same decode). Refined: 15/15 on both (raw 13/15
@@ -329,7 +329,7 @@ TEST(Alignment, WithoutATranscriptBilabialsShowClosedAtLeastAsOftenAsMeasured) {
   std::filesystem::remove(wav);
 }
 
-TEST(Alignment, words_and_phones_follow_the_transcript) {
+TEST(Alignment, WordsAndPhonesFollowTheTranscript) {
   const speech::Synthesis speech = speech::synthesize("Papa parked the car.");
   speech::AlignmentOptions options;
   options.transcript = "Papa parked the car.";
@@ -346,7 +346,7 @@ TEST(Alignment, words_and_phones_follow_the_transcript) {
   EXPECT_EQ(aligned.phones.intervals.back().end_us, speech::resample(speech.audio, 16000).duration_us());
 }
 
-TEST(Alignment, without_a_transcript_phones_are_recognised) {
+TEST(Alignment, WithoutATranscriptPhonesAreRecognised) {
   const speech::Synthesis speech = speech::synthesize("Papa parked the car.");
   const speech::Alignment recognised = speech::align_speech(speech.audio, "papa.wav", {});
   EXPECT_TRUE(recognised.words.empty());
@@ -355,7 +355,7 @@ TEST(Alignment, without_a_transcript_phones_are_recognised) {
   EXPECT_GE(spoken, 5);
 }
 
-TEST(Alignment, silence_only_is_an_error) {
+TEST(Alignment, SilenceOnlyIsAnError) {
   speech::PcmAudio silence;
   silence.samples.assign(32000, 0);
   EXPECT_EQ(error_of([&] { speech::align_speech(silence, "quiet.wav", {}); }),
@@ -365,7 +365,7 @@ TEST(Alignment, silence_only_is_an_error) {
   EXPECT_THAT(error_of([&] { speech::align_speech(silence, "hiss.wav", {}); }), HasSubstr("no speech found"));
 }
 
-TEST(Alignment, ten_minutes_of_audio_are_refused_at_once) {
+TEST(Alignment, TenMinutesOfAudioAreRefusedAtOnce) {
   speech::PcmAudio long_audio;
   long_audio.samples.resize(std::size_t(600) * 16000);
   for (std::size_t i = 0; i < long_audio.samples.size(); ++i)
@@ -376,7 +376,7 @@ TEST(Alignment, ten_minutes_of_audio_are_refused_at_once) {
   EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(1));
 }
 
-TEST(Alignment, a_transcript_that_does_not_fit_is_an_error) {
+TEST(Alignment, ATranscriptThatDoesNotFitIsAnError) {
   const speech::Synthesis speech = speech::synthesize("Papa parked the car.");
   speech::AlignmentOptions options;
   options.transcript = "The quick brown fox jumps over the lazy dog near the river bank today and tomorrow";
@@ -387,7 +387,7 @@ TEST(Alignment, a_transcript_that_does_not_fit_is_an_error) {
               HasSubstr("papa.wav: the transcript does not match the audio (its 1 word fit only by leaving"));
 }
 
-TEST(Alignment, a_word_missing_from_the_dictionary_is_named) {
+TEST(Alignment, AWordMissingFromTheDictionaryIsNamed) {
   const speech::Synthesis speech = speech::synthesize("Papa parked the car.");
   speech::AlignmentOptions options;
   options.transcript = "Papa parked the xyzzyq.";
@@ -396,12 +396,12 @@ TEST(Alignment, a_word_missing_from_the_dictionary_is_named) {
             "abbreviations out as words)");
 }
 
-TEST(Alignment, transcript_words_drop_punctuation_and_quotes) {
+TEST(Alignment, TranscriptWordsDropPunctuationAndQuotes) {
   EXPECT_THAT(speech::transcript_words("\"It's 'easy', Bob!\" --well..."),
               ::testing::ElementsAre("it's", "easy", "bob", "well"));
 }
 
-TEST(Alignment, the_textgrid_reads_back_as_the_alignment) {
+TEST(Alignment, TheTextgridReadsBackAsTheAlignment) {
   const speech::Synthesis speech = speech::synthesize("Papa parked the car.");
   speech::AlignmentOptions options;
   options.transcript = "Papa parked the car.";
