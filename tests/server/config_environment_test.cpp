@@ -53,6 +53,7 @@ const std::map<std::string, std::string> kValues = {
     {"--log-format", "json"},
     {"--metrics-listen", "127.0.0.1:9464"},
     {"--transport-memory-bytes", "1048576"},
+    {"--max-session-audio-bytes", "1048577"},
 };
 
 std::vector<std::string> flags_in_help() {

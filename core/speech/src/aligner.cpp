@@ -14,6 +14,7 @@
 #include <memory>
 #include <sstream>
 
+#include "alignable_audio.hpp"
 #include "lipsync/error.hpp"
 
 namespace lipsync::speech {
@@ -28,8 +29,6 @@ constexpr std::int64_t kFrameUs = 10'000;  // PocketSphinx's frame step (-frate 
 constexpr std::int64_t kBoundaryOffsetUs = 7'800;
 // The grammar's pause between words (PocketSphinx's silence phone).
 constexpr const char* kPauseWord = "pause_";
-// Audio whose loudest 20 ms stays below this level holds no speech to align.
-constexpr double kSilenceDbfs = -50.0;
 // Samples this close to full scale count as clipped; above this share of them a note says so.
 constexpr std::int16_t kClippedLevel = 32700;
 constexpr double kMostClippedShare = 0.001;
@@ -70,20 +69,6 @@ Decoder make_decoder(const AlignmentOptions& options, const std::string& source,
   cmd_ln_free_r(config);  // the decoder keeps its own reference
   if (!decoder) throw InputError(source, 0, "cannot load the PocketSphinx model from " + options.model_dir);
   return decoder;
-}
-
-// Level of each 20 ms window of `audio`, dBFS (-200 for digital silence).
-std::vector<double> window_levels_dbfs(const PcmAudio& audio) {
-  const std::size_t window = static_cast<std::size_t>(audio.sample_rate_hz / 50);
-  std::vector<double> levels;
-  for (std::size_t start = 0; start < audio.samples.size(); start += window) {
-    const std::size_t end = std::min(audio.samples.size(), start + window);
-    double energy = 0;
-    for (std::size_t i = start; i < end; ++i) energy += double(audio.samples[i]) * audio.samples[i];
-    energy /= double(end - start);
-    levels.push_back(energy > 0 ? 10 * std::log10(energy / (32768.0 * 32768.0)) : -200.0);
-  }
-  return levels;
 }
 
 // Share of the loud windows (within kLoudDb of the loudest) that the alignment labels as
@@ -201,28 +186,9 @@ Alignment align_speech(const PcmAudio& input, std::string_view source_view, cons
   Alignment result;
   result.phones.source = source;
   result.phones.phone_set = "arpabet";
-  const double duration_s = double(input.samples.size()) / input.sample_rate_hz;
-  if (duration_s > options.max_duration_s) {
-    char text[160];
-    std::snprintf(text, sizeof text,
-                  "%.1f s of audio is longer than the %.0f s an alignment accepts; split it at pauses", duration_s,
-                  options.max_duration_s);
-    throw InputError(source, 0, text);
-  }
-  if (input.sample_rate_hz < 8000) {
-    throw InputError(source, 0,
-                     "sample rate " + std::to_string(input.sample_rate_hz) +
-                         " Hz is too low for speech recognition (16000 Hz wanted, 8000 Hz at least)");
-  }
-  if (duration_s < 0.1) throw InputError(source, 0, "the audio is too short to align (under 0.1 s)");
-  const std::vector<double> levels = window_levels_dbfs(input);
+  const std::vector<double> levels =
+      detail::check_alignable_audio(input, source, options.max_duration_s, "speech recognition");
   const double loudest = *std::max_element(levels.begin(), levels.end());
-  if (loudest < kSilenceDbfs) {
-    char text[160];
-    std::snprintf(text, sizeof text, "no speech found: the audio is silent (its loudest 20 ms is at %.0f dBFS)",
-                  loudest);
-    throw InputError(source, 0, text);
-  }
   const auto clipped = std::count_if(input.samples.begin(), input.samples.end(),
                                      [](std::int16_t s) { return s >= kClippedLevel || s <= -kClippedLevel; });
   const double clipped_share = double(clipped) / double(input.samples.size());

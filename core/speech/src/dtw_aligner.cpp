@@ -8,13 +8,12 @@
 #include <cstdio>
 #include <limits>
 
+#include "alignable_audio.hpp"
 #include "lipsync/error.hpp"
 
 namespace lipsync::speech {
 namespace {
 
-// Audio whose loudest 20 ms stays below this level holds no speech to align.
-constexpr double kSilenceDbfs = -50.0;
 // Frames this far below the loudest are taken as pause when finding where speech starts and ends.
 constexpr double kSpeechRangeDb = 35.0;
 // The shortest a carried phoneme may become, µs.
@@ -58,20 +57,6 @@ double centre_column(std::size_t i, const std::size_t (&rows)[4], const std::siz
     }
   }
   return static_cast<double>(columns[3]);
-}
-
-// Level of each 20 ms window, dBFS: the loudest says whether there is speech at all.
-double loudest_window_dbfs(const PcmAudio& audio) {
-  const std::size_t window = std::max<std::size_t>(1, static_cast<std::size_t>(audio.sample_rate_hz / 50));
-  double loudest = -200.0;
-  for (std::size_t start = 0; start < audio.samples.size(); start += window) {
-    const std::size_t end = std::min(audio.samples.size(), start + window);
-    double sum = 0.0;
-    for (std::size_t i = start; i < end; ++i) sum += double(audio.samples[i]) * audio.samples[i];
-    const double mean = sum / double(end - start) / (32768.0 * 32768.0);
-    if (mean > 0) loudest = std::max(loudest, 10.0 * std::log10(mean));
-  }
-  return loudest;
 }
 
 bool has_word_character(std::string_view text) {
@@ -283,26 +268,7 @@ Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view sour
   if (!has_word_character(options.transcript)) {
     throw InputError(source, 0, "the transcript is empty: alignment with --voice " + voice + " needs the words spoken");
   }
-  const double duration_s = double(input.samples.size()) / input.sample_rate_hz;
-  char text[400];
-  if (duration_s > options.max_duration_s) {
-    std::snprintf(text, sizeof text,
-                  "%.1f s of audio is longer than the %.0f s an alignment accepts; split it at pauses", duration_s,
-                  options.max_duration_s);
-    throw InputError(source, 0, text);
-  }
-  if (input.sample_rate_hz < 8000) {
-    throw InputError(source, 0,
-                     "sample rate " + std::to_string(input.sample_rate_hz) +
-                         " Hz is too low for alignment (16000 Hz wanted, 8000 Hz at least)");
-  }
-  if (duration_s < 0.1) throw InputError(source, 0, "the audio is too short to align (under 0.1 s)");
-  const double loudest = loudest_window_dbfs(input);
-  if (loudest < kSilenceDbfs) {
-    std::snprintf(text, sizeof text, "no speech found: the audio is silent (its loudest 20 ms is at %.0f dBFS)",
-                  loudest);
-    throw InputError(source, 0, text);
-  }
+  detail::check_alignable_audio(input, source, options.max_duration_s, "alignment");
 
   Synthesis synthesis;
   try {
@@ -313,6 +279,8 @@ Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view sour
   if (synthesis.phonemes.intervals.empty()) {
     throw InputError(source, 0, "espeak-ng voice '" + voice + "' spoke no phonemes for the transcript");
   }
+  char text[400];
+  const double duration_s = double(input.samples.size()) / input.sample_rate_hz;
   const double synthesis_s = double(synthesis.audio.samples.size()) / synthesis.audio.sample_rate_hz;
   if (duration_s > kMostDurationRatio * synthesis_s || synthesis_s > kMostDurationRatio * duration_s) {
     std::snprintf(text, sizeof text,
