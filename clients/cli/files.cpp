@@ -38,13 +38,13 @@ extern "C" void remove_temp_and_die(int signal_number) {
 }
 
 void install_signal_handlers() {
-  static const bool installed = [] {
+  static const bool kInstalled = [] {
     for (const int signal_number : {SIGINT, SIGTERM, SIGHUP}) {
       if (std::signal(signal_number, remove_temp_and_die) == SIG_IGN) std::signal(signal_number, SIG_IGN);
     }
     return true;
   }();
-  (void)installed;
+  (void)kInstalled;
 }
 
 }  // namespace

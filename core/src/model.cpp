@@ -387,8 +387,8 @@ ArticulationModel ArticulationModel::from_json(std::string_view json_text, std::
 }
 
 const ArticulationModel& ArticulationModel::builtin() {
-  static const ArticulationModel model = from_json(embedded::default_model_json(), "built-in model");
-  return model;
+  static const ArticulationModel kModel = from_json(embedded::default_model_json(), "built-in kModel");
+  return kModel;
 }
 
 std::string_view ArticulationModel::builtin_json() { return embedded::default_model_json(); }

@@ -60,18 +60,18 @@ PhoneSet PhoneSet::from_json(std::string_view json_text, std::string_view source
   const auto fail = [&](const std::string& message) { throw InputError(source, 0, message); };
   if (!root.is_object()) fail("a phone set must be a JSON object");
   for (const auto& [key, value] : root.items()) {
-    static const std::vector<std::string> known = {"format",
-                                                   "version",
-                                                   "name",
-                                                   "description",
-                                                   "case_sensitive",
-                                                   "ignore_characters",
-                                                   "phones",
-                                                   "fallback_ignore_characters",
-                                                   "fallback_split",
-                                                   "fallback_skip",
-                                                   "phoneme_substitutes"};
-    if (std::find(known.begin(), known.end(), key) == known.end()) fail("unknown field '" + key + "'");
+    static const std::vector<std::string> kKnown = {"format",
+                                                    "version",
+                                                    "name",
+                                                    "description",
+                                                    "case_sensitive",
+                                                    "ignore_characters",
+                                                    "phones",
+                                                    "fallback_ignore_characters",
+                                                    "fallback_split",
+                                                    "fallback_skip",
+                                                    "phoneme_substitutes"};
+    if (std::find(kKnown.begin(), kKnown.end(), key) == kKnown.end()) fail("unknown field '" + key + "'");
   }
   // Types are checked before values are read: json::value() throws a type_error, not an
   // InputError, for a field of another type ("format": true).

@@ -74,7 +74,7 @@ struct Option {
 };
 
 const std::vector<Option>& options() {
-  static const std::vector<Option> table = {
+  static const std::vector<Option> kTable = {
       {"--listen", "HOST:PORT", "address to listen on; port 0 picks a free port",
        [](ServerConfig& c, const Setting& s) { c.listen = parse_host_port(s); },
        [](const ServerConfig& c) { return c.listen; }},
@@ -130,8 +130,8 @@ const std::vector<Option>& options() {
       {"--face-priority", "PRIORITY",
        "scheduling of the face threads: idle (only CPU time nothing else wants), low (nice 10) or normal",
        [](ServerConfig& c, const Setting& s) {
-         static const std::vector<std::string> priorities = {"idle", "low", "normal"};
-         if (std::find(priorities.begin(), priorities.end(), s.value) == priorities.end()) {
+         static const std::vector<std::string> kPriorities = {"idle", "low", "normal"};
+         if (std::find(kPriorities.begin(), kPriorities.end(), s.value) == kPriorities.end()) {
            throw ConfigError(s.name + ": unknown priority '" + s.value + "' (idle, low or normal)");
          }
          c.face_priority = s.value;
@@ -156,8 +156,8 @@ const std::vector<Option>& options() {
        [](const ServerConfig& c) { return std::to_string(c.session_retention_ms); }},
       {"--log-level", "LEVEL", "trace, debug, info, warn, error or off",
        [](ServerConfig& c, const Setting& s) {
-         static const std::vector<std::string> levels = {"trace", "debug", "info", "warn", "error", "off"};
-         if (std::find(levels.begin(), levels.end(), s.value) == levels.end()) {
+         static const std::vector<std::string> kLevels = {"trace", "debug", "info", "warn", "error", "off"};
+         if (std::find(kLevels.begin(), kLevels.end(), s.value) == kLevels.end()) {
            throw ConfigError(s.name + ": unknown level '" + s.value + "' (trace, debug, info, warn, error or off)");
          }
          c.log_level = s.value;
@@ -196,7 +196,7 @@ const std::vector<Option>& options() {
        [](ServerConfig& c, const Setting& s) { c.api_keys = s.value; },
        [](const ServerConfig&) { return std::string("none: open to every caller"); }},
   };
-  return table;
+  return kTable;
 }
 
 const Option* find_option(std::string_view flag) {
@@ -272,7 +272,7 @@ std::vector<Setting> read_environment(const Environment& environment, std::vecto
 /// The flags of `args` taken apart (lipsync::options, CLI11), every value as written;
 /// ConfigError for an unknown flag, a stray word or a missing value.
 options::ParsedArguments parse_flags(const std::vector<std::string>& args) {
-  static const std::vector<options::OptionSpec> specs = [] {
+  static const std::vector<options::OptionSpec> kSpecs = [] {
     std::vector<options::OptionSpec> table = {{"config", 0, "FILE", "", ""}};
     for (const Option& option : options()) {
       table.push_back({std::string_view(option.flag).substr(2), 0, option.value_hint, option.help, ""});
@@ -280,7 +280,7 @@ options::ParsedArguments parse_flags(const std::vector<std::string>& args) {
     return table;
   }();
   try {
-    options::ParsedArguments parsed = options::parse_arguments(args, specs);
+    options::ParsedArguments parsed = options::parse_arguments(args, kSpecs);
     if (!parsed.positional().empty() && !parsed.help()) {
       throw ConfigError(parsed.positional().front() + ": unknown flag (see --help)");
     }

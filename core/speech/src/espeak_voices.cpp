@@ -33,7 +33,7 @@ std::string lower_ascii(std::string_view text) {
 }  // namespace
 
 const std::vector<Voice>& voice_list() {
-  static const std::vector<Voice> voices = [] {
+  static const std::vector<Voice> kVoices = [] {
     std::vector<Voice> out;
     espeak_ng_InitializePath(nullptr);
     const espeak_VOICE** listed = espeak_ListVoices(nullptr);
@@ -50,7 +50,7 @@ const std::vector<Voice>& voice_list() {
     }
     return out;
   }();
-  return voices;
+  return kVoices;
 }
 
 const Voice* find_voice(std::string_view name) {

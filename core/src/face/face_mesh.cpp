@@ -361,8 +361,8 @@ FaceAsset FaceAsset::from_json(std::string_view json_text, std::string_view sour
 }
 
 const FaceAsset& FaceAsset::builtin() {
-  static const FaceAsset asset = from_json(embedded::canonical_face_json(), "data/face/canonical_face.json");
-  return asset;
+  static const FaceAsset kAsset = from_json(embedded::canonical_face_json(), "data/face/canonical_face.json");
+  return kAsset;
 }
 
 Subdivision subdivide(std::span<const std::array<std::uint32_t, 3>> triangles, std::uint32_t vertex_count) {

@@ -168,8 +168,8 @@ FaceRig FaceRig::from_json(std::string_view json_text, std::string_view source, 
 std::string_view FaceRig::builtin_json() { return embedded::face_rig_json(); }
 
 const FaceRig& FaceRig::builtin() {
-  static const FaceRig rig = from_json(builtin_json(), "data/face/rig.json", ArticulationModel::builtin());
-  return rig;
+  static const FaceRig kRig = from_json(builtin_json(), "data/face/kRig.json", ArticulationModel::builtin());
+  return kRig;
 }
 
 }  // namespace lipsync::face
