@@ -11,6 +11,7 @@
 #include <chrono>
 #include <random>
 
+#include "../support/input_error_text.hpp"
 #include "lipsync/error.hpp"
 #include "lipsync/speech/aligner.hpp"
 #include "lipsync/speech/synthesizer.hpp"
@@ -22,15 +23,7 @@ using ::testing::HasSubstr;
 
 constexpr const char* kText = "Papa parked the car.";
 
-template <typename Call>
-std::string error_of(Call call) {
-  try {
-    call();
-  } catch (const InputError& error) {
-    return error.what();
-  }
-  return "(no error)";
-}
+using testing::error_of;
 
 std::vector<std::string> words_of(const speech::Alignment& alignment) {
   std::vector<std::string> words;

@@ -13,6 +13,7 @@
 #include <optional>
 #include <sstream>
 
+#include "../support/input_error_text.hpp"
 #include "boundary_errors.hpp"
 #include "lipsync/error.hpp"
 #include "lipsync/formats.hpp"
@@ -82,15 +83,7 @@ double measured_hz(const speech::PcmAudio& audio) {
   return crossings * double(audio.sample_rate_hz) / double(audio.samples.size());
 }
 
-template <typename Call>
-std::string error_of(Call call) {
-  try {
-    call();
-  } catch (const InputError& error) {
-    return error.what();
-  }
-  return "(no error)";
-}
+using testing::error_of;
 
 TEST(Synthesis, PhonemesTileTheAudioAndRenderToATrackThatCoversIt) {
   const ArticulationModel& model = ArticulationModel::builtin();

@@ -22,24 +22,18 @@ Usage: tools/speech/compare_rhubarb.py --lipsync build/clients/cli/lipsync --rhu
 """
 import argparse
 import os
+import re
 import shutil
 import subprocess
 import sys
 import tempfile
 import time
 
-HARVARD = [
-    "The birch canoe slid on the smooth planks.",
-    "Glue the sheet to the dark blue background.",
-    "It's easy to tell the depth of a well.",
-    "These days a chicken leg is a rare dish.",
-    "Rice is often served in round bowls.",
-    "The juice of lemons makes fine punch.",
-    "The box was thrown beside the parked truck.",
-    "The hogs were fed chopped corn and garbage.",
-    "Four hours of steady work faced us.",
-    "A large size in stockings is hard to sell.",
-]
+# The first ten Harvard sentences, from the list the speech tests speak (one list for both).
+HARVARD_FILE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "tests", "support",
+                            "harvard_sentences.hpp")
+with open(HARVARD_FILE, encoding="utf-8") as harvard_file:
+    HARVARD = re.findall(r'^\s*"(.*)",$', harvard_file.read(), re.M)[:10]
 CLASSES = {  # reference phone (Festival's radio set) -> the shapes that show it
     "closure (A)": ({"p", "b", "m", "em"}, {"A"}),
     "/f v/ (G)": ({"f", "v"}, {"G"}),
