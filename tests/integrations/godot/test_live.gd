@@ -108,7 +108,11 @@ func _idle(_delta):
 	var shown = {}
 	for name in ["jawOpen", "mouthClose", "mouthFunnel", "mouthPucker", "mouthRollLower"]:
 		shown[name] = face.get("blend_shapes/" + name)
-	samples.append([_unix_now_us(), player.last_time_us, player.frame_times_us.size(), shown, player.current_time_us()])
+	# The player's clock now, between two readings of the unix clock (a busy machine may pause the
+	# script between two calls: CI saw 3.3 ms between the reads when they were taken one after the other).
+	var unix_before_us = _unix_now_us()
+	var player_now_us = player.current_time_us()
+	samples.append([unix_before_us, player.last_time_us, player.frame_times_us.size(), shown, player_now_us, _unix_now_us()])
 	if audio_start == null and audio.playing:
 		audio_start = [player.current_time_us(), LipsyncPlayer.audio_clock_us(audio)]
 	var last_t = int(expected["frames"][expected["frames"].size() - 1]["t_us"])
@@ -175,7 +179,10 @@ func _verify():
 		# The sample was taken after the frame shown; the anchor's time then was at most one frame later.
 		var anchor_t = sample[0] - zero
 		clock_error = max(clock_error, abs(anchor_t - t))
-		anchor_error = max(anchor_error, abs(anchor_t - sample[4]))
+		# Outside [before, after] of the two unix readings, each read in whole ms (so up to 1 ms early,
+		# like the player's own offset).
+		var anchor_after_t = sample[5] - zero
+		anchor_error = max(anchor_error, max(anchor_t - 1000 - sample[4], sample[4] - (anchor_after_t + 1000)))
 		if t < 0 or t > int(frames[frames.size() - 1]["t_us"]):
 			continue
 		if had < frames.size() and t > player.frame_times_us[had - 1]:
@@ -189,14 +196,14 @@ func _verify():
 			if t >= hold[0] and t <= hold[1]:
 				in_closure += 1
 				_check(sample[3]["mouthClose"] >= sample[3]["jawOpen"] - 0.02, "live at %d us, inside the /p b m/ hold %s: jawOpen %f, mouthClose %f" % [t, str(hold), sample[3]["jawOpen"], sample[3]["mouthClose"]])
-	_check(anchor_error <= 2000, "the player's clock is the anchor's utterance time: largest difference %d us (the unix clock is read in ms)" % anchor_error)
+	_check(anchor_error <= 1000, "the player's clock is the anchor's utterance time: %d us outside the two unix readings around it (each read in ms)" % anchor_error)
 	# A sanity bound only: the gap is one frame of Godot's main loop, which a loaded machine stretches.
 	_check(clock_error <= 250000, "the face followed the anchor: largest gap %d us" % clock_error)
 	_check(weight_error <= TOLERANCE, "the face showed the track's weights at its time (largest difference %s)" % weight_error)
 	_check(inside >= 30, "frames shown during the utterance: %d" % inside)
 	_check(open >= 3, "frames with the mouth open: %d" % open)
 	_check(in_closure >= 3, "frames inside /p b m/ holds: %d" % in_closure)
-	print("ok: live: followed after %d tries; %d frames received = offline; %d frames shown during the utterance (%d open, %d inside /p b m/ holds, all sealed); the player's clock within %d us of the anchor, the face shown at most %d us behind it (one frame); weights exact to %s" % [player.live_retries + 1, player.frame_times_us.size(), inside, open, in_closure, anchor_error, clock_error, weight_error])
+	print("ok: live: followed after %d tries; %d frames received = offline; %d frames shown during the utterance (%d open, %d inside /p b m/ holds, all sealed); the player's clock at most %d us outside the two unix readings around it, the face shown at most %d us behind it (one frame); weights exact to %s" % [player.live_retries + 1, player.frame_times_us.size(), inside, open, in_closure, anchor_error, clock_error, weight_error])
 
 
 # [start µs, end µs] of each /p b m/ hold of the expected track: a closure_start followed by a
