@@ -54,12 +54,13 @@ InputFormat parse_input_format_option(std::string_view text) {
                    std::string(kNameList<kInputFormats, ListStyle::choice>.view()) + ")");
 }
 
-RenderPlan parse_render_plan(const Arguments& arguments) {
+RenderPlan parse_render_plan(const Arguments& arguments, std::optional<std::int64_t> fps_when_not_given) {
   static constexpr SettingNames kOptionNames = {.fps = "--fps",
                                                 .lookahead = "--lookahead",
                                                 .closure_fraction = "--closure-fraction",
                                                 .mesh_subdivision = "--mesh-subdivision"};
   RenderSettings settings;
+  settings.fps = fps_when_not_given;
   if (const auto text = arguments.value("fps")) settings.fps = parse_whole_option("fps", *text);
   if (const auto text = arguments.value("lookahead")) settings.lookahead = parse_whole_option("lookahead", *text);
   settings.fixed_rate = arguments.flag("fixed-rate");

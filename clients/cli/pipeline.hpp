@@ -53,6 +53,11 @@ inline constexpr OptionSpec kExtendedShapesOption = {
 inline constexpr OptionSpec kFpsOption = {"fps", 0, "N",
                                           kRangedHelp<"frames per second of the uniform grid", kFpsSetting>.view(),
                                           kDefaultText<kFpsSetting>.view()};
+/// --fps of the commands that write the rhubarb formats, which default to Rhubarb's 10 ms cues.
+inline constexpr OptionSpec kFpsOrRhubarbCuesOption = {
+    "fps", 0, "N", kFpsOption.help,
+    kJoinedText<kDefaultText<kFpsSetting>, "; ", kDefaultText<IntSetting{1, 240, kRhubarbCueFps}>,
+                " for the rhubarb formats, Rhubarb's 10 ms cues">.view()};
 inline constexpr OptionSpec kPhoneSetOption = {
     "phone-set", 0, "NAME", "phone set of the labels (see 'lipsync phone-sets'), or auto to detect it",
     "the set the file declares, else auto"};
@@ -103,9 +108,9 @@ const PhoneSet& choose_phone_set(const std::optional<std::string>& requested, co
 
 /// The render settings a command was given (--fps, --lookahead, --fixed-rate,
 /// --closure-fraction, --mesh-subdivision: those in its table; the others keep
-/// their defaults), resolved and range-checked by the core's render plan.
-/// UsageError naming the option and the value otherwise.
-RenderPlan parse_render_plan(const Arguments& arguments);
+/// their defaults, the frame rate `fps_when_not_given` if set), resolved and range-checked by the
+/// core's render plan. UsageError naming the option and the value otherwise.
+RenderPlan parse_render_plan(const Arguments& arguments, std::optional<std::int64_t> fps_when_not_given = std::nullopt);
 
 struct TrackRequest {
   SegmentOptions segments;

@@ -46,7 +46,7 @@ constexpr OptionSpec kOptions[] = {
     kRenderFormatOption,
     kExtendedShapesOption,
     kMohoFpsOption,
-    kFpsOption,
+    kFpsOrRhubarbCuesOption,
     kModelOption,
     kPhoneSetOption,
     kInputFormatOption,
@@ -233,7 +233,10 @@ OutputRequest parse_output_request(const Arguments& arguments) {
     out.visemes.rhubarb_shapes = *shapes;
   }
   TrackRequest& request = out.track;
-  const RenderPlan plan = parse_render_plan(arguments);
+  // Rhubarb writes its cues on a 10 ms grid; its formats follow it unless --fps says otherwise.
+  const bool rhubarb_cues = out.format.visemes && out.visemes.vocabulary == VisemeVocabulary::rhubarb;
+  const RenderPlan plan =
+      parse_render_plan(arguments, rhubarb_cues ? std::optional<std::int64_t>(kRhubarbCueFps) : std::nullopt);
   request.render = plan.render;
   request.segments = plan.segments;
   request.incremental = arguments.flag("incremental");

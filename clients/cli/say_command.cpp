@@ -26,7 +26,7 @@ constexpr OptionSpec kOptions[] = {
     kRenderFormatOption,
     kExtendedShapesOption,
     kMohoFpsOption,
-    kFpsOption,
+    kFpsOrRhubarbCuesOption,
     {"wav", 0, "FILE", "also write the speech to FILE (16-bit mono PCM WAV at espeak-ng's 22050 Hz)", "no WAV"},
     kVoiceOption,
     kRateOption,

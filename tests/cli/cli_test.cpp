@@ -174,7 +174,7 @@ TEST_F(CliTest, HelpQuotesTheRangesAndDefaultsThatTheChecksEnforce) {
     IntSetting setting;
   };
   for (const Expected& expected : std::vector<Expected>{
-           {{"render"}, "--fps N", kFpsSetting},
+           {{"stream"}, "--fps N", kFpsSetting},  // render's: RhubarbFormatsDefaultToRhubarbs…
            {{"render"}, "--lookahead N", kLookaheadSetting},
            {{"render"}, "--mesh-subdivision N", kMeshSubdivisionSetting},
            {{"stream"}, "--lookahead N", kLookaheadSetting},
@@ -431,6 +431,24 @@ TEST_F(CliTest, RhubarbTsvAndJsonReadBackAsRhubarbDocumentsThem) {
     // The bilabials of real speech show as closed mouths.
     EXPECT_NE(tsv.out.find("\tA\n"), std::string::npos) << input;
   }
+}
+
+TEST_F(CliTest, RhubarbFormatsDefaultToRhubarbsTenMillisecondCuesAndTheOthersTo30Fps) {
+  const std::string path = (fs::path(LIPSYNC_TEST_DATA_DIR) / "closures" / "flite_4.psdur").string();
+  for (const char* format : {"rhubarb-tsv", "rhubarb-json"}) {
+    const RunResult by_default = run({"render", path, "--format", format});
+    const RunResult at_100 = run({"render", path, "--format", format, "--fps", "100"});
+    const RunResult at_30 = run({"render", path, "--format", format, "--fps", "30"});
+    ASSERT_EQ(by_default.status, 0) << describe(by_default);
+    EXPECT_EQ(by_default.out, at_100.out) << format;
+    EXPECT_NE(by_default.out, at_30.out) << format << ": --fps must still choose the grid";
+  }
+  const RunResult oculus = run({"render", path, "--format", "visemes-oculus"});
+  ASSERT_EQ(oculus.status, 0) << describe(oculus);
+  EXPECT_EQ(nlohmann::json::parse(oculus.out).at("fps"), 30);
+  const RunResult help = run({"render", "--help"});
+  EXPECT_THAT(help.out, HasSubstr("(default: " + std::to_string(kFpsSetting.default_value) + "; " +
+                                  std::to_string(kRhubarbCueFps) + " for the rhubarb formats"));
 }
 
 TEST_F(CliTest, RhubarbWithoutExtendedShapesUsesTheSixBasicOnes) {

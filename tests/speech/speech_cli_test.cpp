@@ -218,8 +218,9 @@ TEST_F(SpeechCliTest, RhubarbShapesOfRecordedSpeechCloseEveryBilabialAndOpenTheO
             festival ? testing::festival_recording(sentence, wav) : testing::flite_recording(sentence, wav);
         ASSERT_TRUE(recording) << sentence;
         testing::write_text(dir_ / "words.txt", std::string(sentence) + "\n");
-        std::vector<std::string> args{"render", "speech.wav", "--format", "rhubarb-tsv", "--extended-shapes",
-                                      "GHX",    "--fps",      "100",      "-o",          "shapes.tsv"};
+        // At the rhubarb formats' default frame rate (100: Rhubarb's 10 ms cues).
+        std::vector<std::string> args{"render", "speech.wav", "--format",  "rhubarb-tsv", "--extended-shapes",
+                                      "GHX",    "-o",         "shapes.tsv"};
         if (with_transcript) args.insert(args.end(), {"--text-file", "words.txt"});
         const RunResult result = run(args);
         ASSERT_EQ(result.status, 0) << result.err;

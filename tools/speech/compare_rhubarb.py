@@ -6,7 +6,7 @@ each writes its own phone timings, which are the truth. Both tools turn each WAV
 into Rhubarb's mouth shapes (A-H, X; TSV), once from the audio alone and once
 with the transcript:
 
-    lipsync render speech.wav [--text-file words.txt] --format rhubarb-tsv --extended-shapes GHX --fps 100
+    lipsync render speech.wav [--text-file words.txt] --format rhubarb-tsv --extended-shapes GHX
     rhubarb -f tsv [-d words.txt] speech.wav
 
 and each is scored at the middle of every reference phone of three classes:
@@ -101,9 +101,8 @@ LIPSYNC_ARGS = []
 
 
 def lipsync_shapes(binary, wav, text_file, tsv):
-    # --fps 100: Rhubarb's cues are on a 10 ms grid; lipsync's default 30 fps grid would put the
-    # shape of a 40 ms vowel on the frame after its middle.
-    command = [binary, "render", wav, "--format", "rhubarb-tsv", "--extended-shapes", "GHX", "--fps", "100", "-o", tsv]
+    # At the rhubarb formats' default frame rate: 100, Rhubarb's 10 ms cues.
+    command = [binary, "render", wav, "--format", "rhubarb-tsv", "--extended-shapes", "GHX", "-o", tsv]
     command += LIPSYNC_ARGS
     if text_file:
         command[3:3] = ["--text-file", text_file]

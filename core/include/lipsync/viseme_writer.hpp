@@ -44,6 +44,11 @@ struct RhubarbCue {
   bool operator==(const RhubarbCue&) const = default;
 };
 
+/// The frame rate the rhubarb formats are rendered at when the caller names none: Rhubarb's own
+/// cue resolution (10 ms). At the tracks' usual 30 fps a 40 ms vowel between consonants often shows
+/// its open shape only on the frame after its middle (docs/output-formats.md, `rhubarb-tsv`).
+inline constexpr int kRhubarbCueFps = 100;
+
 /// Rhubarb's cues from viseme events (of a rhubarb classifier): each event's start rounded to the
 /// nearest centisecond (half up); when two events round to the same centisecond the later one wins;
 /// equal neighbours merge; cues at or after the end (`end_us` truncated to a centisecond, as Rhubarb
