@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "../support/child_process.hpp"
+#include "../support/lipsync_cli_test.hpp"
 #include "lipsync/formats.hpp"
 #include "lipsync/model.hpp"
 #include "lipsync/moho_writer.hpp"
@@ -43,44 +44,9 @@ using testing::write_text;
 
 const fs::path kFixtures = fs::path(LIPSYNC_TEST_DATA_DIR) / "cli";
 
-/// Runs lipsync with `args` in `cwd`; stdin from `stdin_file` (or /dev/null);
-/// stdout and stderr go through files in `capture`.
-RunResult run_lipsync(const std::vector<std::string>& args, const fs::path& cwd, const fs::path& capture,
-                      const std::optional<fs::path>& stdin_file) {
-  std::vector<std::string> argv = {LIPSYNC_CLI_BINARY};
-  argv.insert(argv.end(), args.begin(), args.end());
-  testing::RunOptions options;
-  options.stdin_file = stdin_file;
-  return run_program(std::move(argv), cwd, capture, options);
-}
-
-std::vector<std::string> directory_listing(const fs::path& directory) {
-  std::vector<std::string> names;
-  for (const auto& entry : fs::directory_iterator(directory)) names.push_back(entry.path().filename().string());
-  std::sort(names.begin(), names.end());
-  return names;
-}
-
 std::string fixture(std::string_view name) { return (kFixtures / name).string(); }
 
-class CliTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = make_temp_dir("lipsync-cli-test-");
-    capture_ = make_temp_dir("lipsync-cli-capture-");
-  }
-  void TearDown() override {
-    fs::remove_all(dir_);
-    fs::remove_all(capture_);
-  }
-
-  RunResult run(const std::vector<std::string>& args, const std::optional<fs::path>& stdin_file = std::nullopt) {
-    return run_lipsync(args, dir_, capture_, stdin_file);
-  }
-
-  fs::path dir_;      // the working directory of the command: must hold only what it wrote
-  fs::path capture_;  // stdout and stderr files
-};
+class CliTest : public testing::LipsyncCliTest {};
 
 std::string describe(const RunResult& result) {
   return "exit " + std::to_string(result.status) + "\n--- stderr:\n" + result.err + "--- stdout (start):\n" +
@@ -236,7 +202,7 @@ TEST_F(CliTest, HelpAndErrorsListExactlyTheFormatsTheCoreNames) {
 TEST_F(CliTest, DemoWritesTheFileAndPrintsThePath) {
   const RunResult result = run({"demo"});
   ASSERT_EQ(result.status, 0) << describe(result);
-  EXPECT_EQ(directory_listing(dir_), std::vector<std::string>{"lipsync-demo.json"});
+  EXPECT_EQ(listing(), std::vector<std::string>{"lipsync-demo.json"});
   const fs::path written = fs::canonical(dir_ / "lipsync-demo.json");
   EXPECT_THAT(result.out, HasSubstr(written.string()));
   EXPECT_EQ(std::count(result.out.begin(), result.out.end(), '\n'), 1) << result.out;
@@ -254,7 +220,7 @@ TEST_F(CliTest, DemoWritesTheFileAndPrintsThePath) {
 TEST_F(CliTest, DemoFollowsFormatAndOutput) {
   RunResult result = run({"demo", "--format", "arkit-csv", "--fps", "60"});
   ASSERT_EQ(result.status, 0) << describe(result);
-  EXPECT_EQ(directory_listing(dir_), std::vector<std::string>{"lipsync-demo.arkit.csv"});
+  EXPECT_EQ(listing(), std::vector<std::string>{"lipsync-demo.arkit.csv"});
   EXPECT_THAT(read_text(dir_ / "lipsync-demo.arkit.csv"), StartsWith("Timecode,BlendShapeCount,EyeBlinkLeft,"));
 
   result = run({"demo", "-o", "-"});
@@ -306,10 +272,10 @@ TEST_F(CliTest, RenderToFileEqualsStdoutAndReadsStdin) {
   const RunResult to_file = run({"render", fixture("bump_map.lab"), "--format=csv", "-o", "track.csv"});
   ASSERT_EQ(to_file.status, 0) << describe(to_file);
   EXPECT_TRUE(to_file.out.empty());
-  EXPECT_EQ(directory_listing(dir_), std::vector<std::string>{"track.csv"});
+  EXPECT_EQ(listing(), std::vector<std::string>{"track.csv"});
   EXPECT_EQ(read_text(dir_ / "track.csv"), to_stdout.out);
 
-  const RunResult from_stdin = run({"render", "-", "--format", "csv"}, kFixtures / "bump_map.lab");
+  const RunResult from_stdin = run({"render", "-", "--format", "csv"}, {.stdin_file = kFixtures / "bump_map.lab"});
   ASSERT_EQ(from_stdin.status, 0) << describe(from_stdin);
   EXPECT_EQ(from_stdin.out, to_stdout.out);
 }
@@ -590,7 +556,7 @@ TEST_F(CliTest, ErrorsNameTheCulpritAndLeaveNoFile) {
     EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << label << "\n" << result.err;
     for (const std::string& part : error_case.message_parts) EXPECT_THAT(result.err, HasSubstr(part)) << label;
     EXPECT_TRUE(result.out.empty()) << label;
-    EXPECT_TRUE(directory_listing(dir_).empty()) << label << ": left a file behind";
+    EXPECT_TRUE(listing().empty()) << label << ": left a file behind";
   }
 }
 
@@ -598,12 +564,12 @@ TEST_F(CliTest, AFailedRenderKeepsThePreviousOutput) {
   write_text(dir_ / "out.json", "previous track");
   const RunResult result = run({"render", fixture("overlap.json"), "-o", "out.json"});
   EXPECT_EQ(result.status, 1);
-  EXPECT_EQ(directory_listing(dir_), std::vector<std::string>{"out.json"});
+  EXPECT_EQ(listing(), std::vector<std::string>{"out.json"});
   EXPECT_EQ(read_text(dir_ / "out.json"), "previous track");
 
   const RunResult success = run({"render", fixture("hello.json"), "-o", "out.json"});
   ASSERT_EQ(success.status, 0) << describe(success);
-  EXPECT_EQ(directory_listing(dir_), std::vector<std::string>{"out.json"});
+  EXPECT_EQ(listing(), std::vector<std::string>{"out.json"});
   EXPECT_TRUE(nlohmann::json::accept(read_text(dir_ / "out.json")));
 }
 
@@ -615,8 +581,8 @@ TEST_F(CliTest, UnwritableOutputIsAnErrorNamingIt) {
   const RunResult is_dir = run({"render", fixture("hello.json"), "-o", "sub"});
   EXPECT_EQ(is_dir.status, 1);
   EXPECT_THAT(is_dir.err, HasSubstr("'sub'"));
-  EXPECT_EQ(directory_listing(dir_), std::vector<std::string>{"sub"});
-  EXPECT_TRUE(directory_listing(dir_ / "sub").empty());
+  EXPECT_EQ(listing(), std::vector<std::string>{"sub"});
+  EXPECT_TRUE(listing(dir_ / "sub").empty());
 }
 
 // ---------------------------------------------------------------------------

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "../support/child_process.hpp"
+#include "../support/lipsync_cli_test.hpp"
 
 namespace lipsync {
 namespace {
@@ -60,30 +61,7 @@ void write_wav(const fs::path& path, double seconds) {
     u16(static_cast<std::uint16_t>(static_cast<std::int16_t>(8000 * std::sin(2 * M_PI * 220 * k / rate))));
 }
 
-class FaceCliTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = make_temp_dir("lipsync-face-cli-test-");
-    capture_ = make_temp_dir("lipsync-face-cli-capture-");
-  }
-  void TearDown() override {
-    fs::remove_all(dir_);
-    fs::remove_all(capture_);
-  }
-  RunResult run(std::vector<std::string> args, const std::optional<std::string>& path_env = std::nullopt) {
-    args.insert(args.begin(), LIPSYNC_CLI_BINARY);
-    RunOptions options;
-    options.path_env = path_env;
-    return run_program(std::move(args), dir_, capture_, options);
-  }
-  std::vector<std::string> listing() const {
-    std::vector<std::string> names;
-    for (const auto& entry : fs::directory_iterator(dir_)) names.push_back(entry.path().filename().string());
-    std::sort(names.begin(), names.end());
-    return names;
-  }
-  fs::path dir_, capture_;
-};
+class FaceCliTest : public testing::LipsyncCliTest {};
 
 const std::string kInput = (kFixtures / "bump_map.lab").string();
 
@@ -122,7 +100,8 @@ TEST_F(FaceCliTest, BadOptionsLeaveNoFile) {
 }
 
 TEST_F(FaceCliTest, MissingFfmpegIsAClearErrorAndLeavesNoFile) {
-  const RunResult result = run({"render", kInput, "--video", "face.mp4"}, (capture_ / "empty-path").string());
+  const RunResult result = run({"render", kInput, "--video", "face.mp4"},
+                               {.stdin_file = std::nullopt, .path_env = (capture_ / "empty-path").string()});
   EXPECT_NE(result.status, 0);
   EXPECT_THAT(result.err, HasSubstr("ffmpeg was not found"));
   EXPECT_TRUE(listing().empty());

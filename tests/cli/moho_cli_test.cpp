@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "../support/child_process.hpp"
+#include "../support/lipsync_cli_test.hpp"
 #include "lipsync/formats.hpp"
 #include "lipsync/moho_writer.hpp"
 #include "lipsync/phone_set.hpp"
@@ -24,22 +25,7 @@ namespace {
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 
-class MohoCliTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = testing::make_temp_dir("lipsync-moho-cli-");
-    capture_ = testing::make_temp_dir("lipsync-moho-capture-");
-  }
-  void TearDown() override {
-    fs::remove_all(dir_);
-    fs::remove_all(capture_);
-  }
-  testing::RunResult run(std::vector<std::string> args) {
-    args.insert(args.begin(), LIPSYNC_CLI_BINARY);
-    return testing::run_program(std::move(args), dir_, capture_);
-  }
-  fs::path dir_, capture_;
-};
+class MohoCliTest : public testing::LipsyncCliTest {};
 
 std::string closure_file(const std::string& name) {
   return (fs::path(LIPSYNC_TEST_DATA_DIR) / "closures" / name).string();

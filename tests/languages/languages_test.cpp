@@ -27,6 +27,7 @@
 #include "../support/child_process.hpp"
 #include "../support/closure_frames.hpp"
 #include "../support/lip_measures.hpp"
+#include "../support/lipsync_cli_test.hpp"
 #include "lipsync/error.hpp"
 #include "lipsync/face/face_mesh.hpp"
 #include "lipsync/face/face_rig.hpp"
@@ -601,22 +602,7 @@ TEST(LanguageCorpus, OnTheSimulatedFaceClosuresSealAndRoundingNarrowsTheMouth) {
 
 // --- MFA TextGrids and the command line ------------------------------------------------------
 
-class LanguagesCli : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = testing::make_temp_dir("lipsync-languages-test-");
-    capture_ = testing::make_temp_dir("lipsync-languages-capture-");
-  }
-  void TearDown() override {
-    std::filesystem::remove_all(dir_);
-    std::filesystem::remove_all(capture_);
-  }
-  testing::RunResult run(std::vector<std::string> args) {
-    args.insert(args.begin(), LIPSYNC_CLI_BINARY);
-    return testing::run_program(std::move(args), dir_, capture_);
-  }
-  std::filesystem::path dir_, capture_;
-};
+class LanguagesCli : public testing::LipsyncCliTest {};
 
 TEST_F(LanguagesCli, MfaIpaTextgridsRenderWithAndWithoutThePhoneSetFlag) {
   for (const char* name :

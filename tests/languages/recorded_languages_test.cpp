@@ -27,6 +27,7 @@
 
 #include "../support/child_process.hpp"
 #include "../support/closure_frames.hpp"
+#include "../support/lipsync_cli_test.hpp"
 #include "lipsync/renderer.hpp"
 #include "lipsync/segment.hpp"
 #include "lipsync/speech/dtw_aligner.hpp"
@@ -222,25 +223,12 @@ TEST(RecordedLanguages, TheWarpFollowsARecordingSpokenSlowerThanEspeakNg) {
 
 // --- the command line ------------------------------------------------------------------------
 
-class RecordedLanguagesCli : public ::testing::Test {
+class RecordedLanguagesCli : public testing::LipsyncCliTest {
  protected:
-  void SetUp() override {
-    dir_ = testing::make_temp_dir("lipsync-recorded-languages-");
-    capture_ = testing::make_temp_dir("lipsync-recorded-languages-capture-");
-  }
-  void TearDown() override {
-    std::filesystem::remove_all(dir_);
-    std::filesystem::remove_all(capture_);
-  }
-  testing::RunResult run(std::vector<std::string> args) {
-    args.insert(args.begin(), LIPSYNC_CLI_BINARY);
-    return testing::run_program(std::move(args), dir_, capture_);
-  }
   void write_wav(const std::string& name, const std::vector<std::int16_t>& samples) {
     std::ofstream out(dir_ / name, std::ios::binary);
     speech::write_wav(out, speech::PcmAudio{16000, samples});
   }
-  std::filesystem::path dir_, capture_;
 };
 
 TEST_F(RecordedLanguagesCli, AlignAndRenderTakeAVoice) {

@@ -20,6 +20,7 @@
 
 #include "../support/child_process.hpp"
 #include "../support/harvard_sentences.hpp"
+#include "../support/lipsync_cli_test.hpp"
 #include "lipsync/speech/audio.hpp"
 #include "tts_recordings.hpp"
 
@@ -30,31 +31,12 @@ namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 using testing::RunResult;
 
-class SpeechCliTest : public ::testing::Test {
+class SpeechCliTest : public testing::LipsyncCliTest {
  protected:
-  void SetUp() override {
-    dir_ = testing::make_temp_dir("lipsync-speech-cli-test-");
-    capture_ = testing::make_temp_dir("lipsync-speech-cli-capture-");
-  }
-  void TearDown() override {
-    fs::remove_all(dir_);
-    fs::remove_all(capture_);
-  }
-  RunResult run(std::vector<std::string> args) {
-    args.insert(args.begin(), LIPSYNC_CLI_BINARY);
-    return testing::run_program(std::move(args), dir_, capture_);
-  }
-  std::vector<std::string> listing() const {
-    std::vector<std::string> names;
-    for (const auto& entry : fs::directory_iterator(dir_)) names.push_back(entry.path().filename().string());
-    std::sort(names.begin(), names.end());
-    return names;
-  }
   std::int64_t wav_duration_us(const std::string& name) const {
     const std::string bytes = testing::read_text(dir_ / name);
     return speech::wav_layout_and_duration_us(bytes, name).second;
   }
-  fs::path dir_, capture_;
 };
 
 bool have_ffprobe() { return ::access("/usr/bin/ffprobe", X_OK) == 0 && ::access("/usr/bin/ffmpeg", X_OK) == 0; }
