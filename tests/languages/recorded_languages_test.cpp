@@ -7,7 +7,8 @@
 //   30 ms ≥ 80 % (the goals of docs/languages.md), over the boundaries the regenerate script
 //   matched between Festival's segments and espeak-ng's phonemes (NAME.truth.tsv); and, so that
 //   a regression fails, no worse than this corpus measures today with some margin (median
-//   ≤ 15 ms, p95 ≤ 60 ms, bilabials ≥ 88 %). A stop after a pause starts at its closure, not
+//   ≤ 15 ms, p95 ≤ 60 ms, bilabials ≥ 95 %: 33 of 34, one of them a Catalan /b/ that espeak-ng says
+//   as /β/ and whose start the recording's closure moves). A stop after a pause starts at its closure, not
 //   at its burst.
 // - Through the render path the aligned phonemes render with the lips sealed at every bilabial
 //   key frame, and `lipsync render X.wav --text-file F --voice V` works.
@@ -151,7 +152,7 @@ TEST(RecordedLanguages, BoundariesOnFestivalRecordingsMeetTheGoals) {
   // Today's figures with a margin: a change that loses ground fails here.
   EXPECT_LE(median_ms, 15.0);
   EXPECT_LE(p95_ms, 60.0);
-  EXPECT_GE(bilabial_share, 0.88);
+  EXPECT_GE(bilabial_share, 0.95);
 }
 
 TEST(RecordedLanguages, StopsAfterAPauseStartAtTheirClosure) {

@@ -69,8 +69,11 @@ bool has_word_character(std::string_view text) {
 
 // The ARPAbet lip phone a label of espeak-ng (mnemonic or IPA) stands for, for the closure
 // refiner: p b m f v, alone or with length marks and diacritics ("pʰ", "mː", "b:"); else "X".
+// A /β/ is a /b/ too: espeak-ng says Catalan's and Spanish's /b/ between vowels as a fricative
+// that the recording (Festival's Catalan) may close.
 std::string lip_phone_for_refiner(const std::string& label) {
   if (label.empty()) return label;
+  if (label.starts_with("β")) return "B";
   const char first = label.front();
   if (first != 'p' && first != 'b' && first != 'm' && first != 'f' && first != 'v') return "X";
   if (label.size() > 1 && std::isalpha(static_cast<unsigned char>(label[1]))) return "X";  // "pf", "ts"…
