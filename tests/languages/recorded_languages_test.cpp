@@ -7,8 +7,9 @@
 //   30 ms ≥ 80 % (the goals of docs/languages.md), over the boundaries the regenerate script
 //   matched between Festival's segments and espeak-ng's phonemes (NAME.truth.tsv); and, so that
 //   a regression fails, no worse than this corpus measures today with some margin (median
-//   ≤ 15 ms, p95 ≤ 60 ms, bilabials ≥ 88 %). A stop after a pause starts at its closure, not
-//   at its burst.
+//   ≤ 15 ms, p95 ≤ 60 ms, bilabials ≥ 97 %: today 39 of 40, among them a Catalan /b/ that
+//   espeak-ng says as /β/, refined as a /b/). A stop after a pause, and one after a nasal (the
+//   /m b/ of Italian "bambino"), starts at its closure, not at its burst.
 // - Through the render path the aligned phonemes render with the lips sealed at every bilabial
 //   key frame, and `lipsync render X.wav --text-file F --voice V` works.
 // - Bad inputs (empty transcript, silence, noise, a transcript far too long for the audio, an
@@ -38,7 +39,7 @@ namespace {
 using ::testing::HasSubstr;
 
 const std::filesystem::path kCorpus = std::filesystem::path(LIPSYNC_TEST_DATA_DIR) / "recorded_languages";
-constexpr const char* kItems[] = {"it_3", "cs_1", "ca_1", "cs_2", "hi_3"};
+constexpr const char* kItems[] = {"it_3", "cs_1", "ca_1", "cs_2", "hi_3", "it_1"};
 
 const ArticulationModel& model() { return ArticulationModel::builtin(); }
 
@@ -85,12 +86,25 @@ double percentile(std::vector<double> values, double q) {
   return values[std::min(values.size() - 1, static_cast<std::size_t>(std::lround(q * double(values.size() - 1))))];
 }
 
+// The errors of some bilabial closures, ms, each named "NAME: LABEL error ms" for the messages.
+struct NamedErrors {
+  std::vector<double> ms;
+  std::vector<std::string> names;
+
+  void add(const std::string& item, const std::string& label, double error_ms) {
+    ms.push_back(error_ms);
+    names.push_back(item + ": " + label + " " + std::to_string(std::lround(error_ms)) + " ms");
+  }
+};
+
 // The errors of the corpus's scored boundaries, ms.
 struct CorpusErrors {
   std::vector<double> boundaries_ms, bilabials_ms;
-  std::vector<std::string> stops_after_pauses;  ///< "NAME: LABEL error ms", one per bilabial stop after a pause
-  std::vector<double> stops_after_pauses_ms;
+  NamedErrors stops_after_pauses;  ///< bilabial stops after a pause
+  NamedErrors stops_after_nasals;  ///< bilabial stops after a nasal (/m b/, /n b/)
 };
+
+bool is_nasal(const std::string& label) { return label.starts_with("m") || label.starts_with("n"); }
 
 CorpusErrors measure_corpus() {
   CorpusErrors errors;
@@ -121,11 +135,9 @@ CorpusErrors measure_corpus() {
       if (kind & 1) errors.boundaries_ms.push_back(error_ms);
       if (kind & 2) errors.bilabials_ms.push_back(error_ms);
       const bool stop = aligned_label == "p" || aligned_label == "b";
-      if ((kind & 2) && stop && index > 0 && phones[index - 1].label.empty()) {
-        errors.stops_after_pauses_ms.push_back(error_ms);
-        errors.stops_after_pauses.push_back(std::string(name) + ": " + aligned_label + " " +
-                                            std::to_string(std::lround(error_ms)) + " ms");
-      }
+      if (!(kind & 2) || !stop || index == 0) continue;
+      if (phones[index - 1].label.empty()) errors.stops_after_pauses.add(name, aligned_label, error_ms);
+      if (is_nasal(phones[index - 1].label)) errors.stops_after_nasals.add(name, aligned_label, error_ms);
     }
   }
   return errors;
@@ -152,16 +164,26 @@ TEST(RecordedLanguages, BoundariesOnFestivalRecordingsMeetTheGoals) {
   // Today's figures with a margin: a change that loses ground fails here.
   EXPECT_LE(median_ms, 15.0);
   EXPECT_LE(p95_ms, 60.0);
-  EXPECT_GE(bilabial_share, 0.88);
+  EXPECT_GE(bilabial_share, 0.97);
 }
 
 TEST(RecordedLanguages, StopsAfterAPauseStartAtTheirClosure) {
   // Both audios start such a stop at its burst (its closure is as silent as the pause); the aligner
   // gives it a closure before the burst, so the lips close before the sound starts.
   const CorpusErrors errors = measure_corpus();
-  ASSERT_GE(errors.stops_after_pauses_ms.size(), 2U);
-  for (std::size_t k = 0; k < errors.stops_after_pauses_ms.size(); ++k) {
-    EXPECT_LE(errors.stops_after_pauses_ms[k], 30.0) << errors.stops_after_pauses[k];
+  ASSERT_GE(errors.stops_after_pauses.ms.size(), 2U);
+  for (std::size_t k = 0; k < errors.stops_after_pauses.ms.size(); ++k) {
+    EXPECT_LE(errors.stops_after_pauses.ms[k], 30.0) << errors.stops_after_pauses.names[k];
+  }
+}
+
+TEST(RecordedLanguages, StopsAfterANasalStartAtTheirClosure) {
+  // The nasal's closure goes on into the stop (/m b/ of "bambino", /n b/ of "un bicchiere"), and
+  // espeak-ng's nasal lasts until the burst; the aligner gives the stop a closure before its burst.
+  const CorpusErrors errors = measure_corpus();
+  ASSERT_GE(errors.stops_after_nasals.ms.size(), 2U);
+  for (std::size_t k = 0; k < errors.stops_after_nasals.ms.size(); ++k) {
+    EXPECT_LE(errors.stops_after_nasals.ms[k], 30.0) << errors.stops_after_nasals.names[k];
   }
 }
 

@@ -10,7 +10,14 @@ scored when a phone and the one before it are matched on both sides (pauses excl
 its error is |aligned start - Festival start|. A bilabial closure (/p b m/ matched to
 /p b m/) counts as within 30 ms when the start is.
 
+Festival's Russian voice (unit selection) labels some /p b m/ 50 to 85 ms after its own waveform
+has closed: --label-check counts, per voice, the /p b m/ after a sound whose formant band level
+(400-3500 Hz) is already 10 dB down, and stays down, before Festival's label; --acoustic-closures
+scores the voices of ACOUSTIC_CLOSURE_VOICES against those closures measured on the samples
+instead (only ever earlier than the label), as tests/speech/tts_recordings.hpp does for espeak-ng.
+
 Usage: measure_language_alignment.py LIPSYNC_BINARY OUT_DIR [--voices it,ca,...] [--markdown]
+       [--held-out] [--details] [--acoustic-closures | --label-check]
        measure_language_alignment.py LIPSYNC_BINARY OUT_DIR --corpus tests/data/recorded_languages
 The second form (re)makes the test corpus: CORPUS_ITEMS spoken by Festival (NAME.wav), their
 transcripts (NAME.txt, first line the espeak-ng voice) and NAME.truth.tsv, one line per
@@ -21,11 +28,14 @@ start is a scored boundary: the phone before is matched too) and 2 (a bilabial c
 """
 import argparse
 import json
+import math
 import os
 import re
 import statistics
+import struct
 import subprocess
 import sys
+import wave
 
 # Festival voice, espeak-ng voice, sentences (the same text for both).
 VOICES = {
@@ -233,8 +243,77 @@ def boundary_errors(truth, aligned, english_espeak):
 
 DETAILS = False
 
+# Festival voices whose labels are not where their own waveform closes the lips: the Russian unit
+# selection voice puts /p b m/ 50 to 85 ms after the formant band has fallen (its units' labels
+# come from its database, not from the joined waveform; --label-check shows it per voice).
+# --acoustic-closures scores these voices against the closures measured on the samples.
+ACOUSTIC_CLOSURE_VOICES = {"ru"}
+# A closure: the formant band's level this far under the phone before's (median of its first half's 10 ms levels).
+CLOSURE_FALL_DB = 10.0
+# How far before Festival's label a closure is looked for, ms.
+CLOSURE_SEARCH_MS = 100
+
+
+def band_energies(wav):
+    """The energy of every millisecond of the WAV in the formant band (400-3500 Hz, two second-order
+    Butterworth sections, as core/speech/src/closure_refiner.cpp filters it)."""
+    with wave.open(wav) as w:
+        rate, count = w.getframerate(), w.getnframes()
+        samples = [v / 32768.0 for v in struct.unpack("<%dh" % count, w.readframes(count))]
+    for hz, high in ((400.0, True), (min(3500.0, 0.45 * rate), False)):
+        omega = 2 * math.pi * hz / rate
+        alpha, c = math.sin(omega) / math.sqrt(2), math.cos(omega)
+        k, b1 = ((1 + c) / 2, -(1 + c)) if high else ((1 - c) / 2, 1 - c)
+        b0, b1, b2, a1, a2 = (v / (1 + alpha) for v in (k, b1, k, -2 * c, 1 - alpha))
+        x1 = x2 = y1 = y2 = 0.0
+        for i, x in enumerate(samples):
+            y = b0 * x + b1 * x1 + b2 * x2 - a1 * y1 - a2 * y2
+            x2, x1, y2, y1 = x1, x, y1, y
+            samples[i] = y
+    per_ms = rate // 1000
+    return [sum(y * y for y in samples[k * per_ms:(k + 1) * per_ms]) / per_ms for k in range(len(samples) // per_ms)]
+
+
+def level_db(energies, start_ms, end_ms=None):
+    """The level (dB) of the 10 ms from start_ms, or of [start_ms, end_ms)."""
+    span = energies[max(0, start_ms):min(len(energies), end_ms if end_ms else start_ms + 10)]
+    return 10 * math.log10(max(1e-10, sum(span) / max(1, len(span))))
+
+
+def is_bilabial_after_sound(truth, k):
+    """Festival's segment k is a /p b m/ after a sound: not after a pause or a stop (whose closure is
+    as quiet as the /p b m/)."""
+    return (k > 0 and truth[k][0] not in PAUSES and truth[k - 1][0] not in PAUSES
+            and phone_key(truth[k][0], True) in ("p", "b", "m") and phone_key(truth[k - 1][0], True) not in "ptkbdgc")
+
+
+def acoustic_closures(truth, energies):
+    """Festival's segments with each /p b m/ after a sound starting at its acoustic closure: the
+    earliest millisecond, at most CLOSURE_SEARCH_MS before the label and after the phone before
+    starts, from which every 10 ms level up to the label is CLOSURE_FALL_DB under the median
+    level of the first half of the phone before (before any closing movement). A label with no such fall before it stays; none moves later. Also the moves (ms)."""
+    result, moves = list(truth), []
+    for k in range(1, len(truth)):
+        label, start, end = truth[k]
+        before = truth[k - 1]
+        if not is_bilabial_after_sound(truth, k):
+            continue
+        label_ms, before_ms = int(round(start * 1000)), int(round(before[1] * 1000))
+        half_ms = max(before_ms + 1, (before_ms + label_ms) // 2 - 10)
+        reference = statistics.median(level_db(energies, t) for t in range(before_ms, half_ms))
+        closure_ms = label_ms
+        for t in range(label_ms, max(before_ms + 10, label_ms - CLOSURE_SEARCH_MS) - 1, -1):
+            if level_db(energies, t) > reference - CLOSURE_FALL_DB:
+                break
+            closure_ms = t
+        if closure_ms < label_ms:
+            result[k - 1] = (before[0], before[1], closure_ms / 1000)
+            result[k] = (label, closure_ms / 1000, end)
+            moves.append(closure_ms - label_ms)
+    return result, moves
+
 # The test corpus: (voice code, sentence index) of VOICES.
-CORPUS_ITEMS = [("it", 3), ("cs", 1), ("ca", 1), ("cs", 2), ("hi", 3)]
+CORPUS_ITEMS = [("it", 3), ("cs", 1), ("ca", 1), ("cs", 2), ("hi", 3), ("it", 1)]
 
 
 def scored_pairs(truth, aligned, english_espeak=False):
@@ -282,6 +361,38 @@ def percentile(values, q):
     return ordered[min(len(ordered) - 1, int(round(q * (len(ordered) - 1))))]
 
 
+def sentences_of(code, held_out):
+    """Festival voice, espeak-ng voice, sentences and file prefix of a voice's sentence set."""
+    festival_voice, espeak_voice, sentences = VOICES[code]
+    if held_out:
+        return festival_voice, espeak_voice, HELD_OUT[code], code + "_held_out"
+    return festival_voice, espeak_voice, sentences, code
+
+
+def festival_truth(festival_voice, sentence, base, acoustic):
+    """Festival's segments of base.wav (spoken first if missing), with acoustic closures if asked."""
+    if not os.path.exists(base + ".wav"):
+        speak_with_festival(festival_voice, sentence, base + ".wav", base + ".segs")
+    truth = read_festival_segs(base + ".segs")
+    return acoustic_closures(truth, band_energies(base + ".wav"))[0] if acoustic else truth
+
+
+def check_labels(args):
+    """Per voice: the /p b m/ after a sound, how many start after their acoustic closure, by how much."""
+    print("| Voice (Festival) | /p b m/ after a sound | label after the closure | median | largest |")
+    print("|---|---|---|---|---|")
+    for code in args.voices.split(","):
+        festival_voice, _, sentences, prefix = sentences_of(code, args.held_out)
+        count, moves = 0, []
+        for k, sentence in enumerate(sentences):
+            base = os.path.join(args.out_dir, f"{prefix}_{k}")
+            truth = festival_truth(festival_voice, sentence, base, False)
+            count += sum(is_bilabial_after_sound(truth, i) for i in range(len(truth)))
+            moves += acoustic_closures(truth, band_energies(base + ".wav"))[1]
+        late = f"{statistics.median(moves):+.0f} ms | {min(moves):+.0f} ms" if moves else "– | –"
+        print(f"| {code} ({festival_voice}) | {count} | {len(moves)} | {late} |")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("lipsync")
@@ -292,6 +403,10 @@ def main():
     parser.add_argument("--held-out", action="store_true",
                         help="measure the held-out sentences (HELD_OUT) instead of the four of VOICES")
     parser.add_argument("--details", action="store_true", help="print every bilabial closure's signed error")
+    parser.add_argument("--acoustic-closures", action="store_true",
+                        help="score ACOUSTIC_CLOSURE_VOICES against the closures measured on their samples")
+    parser.add_argument("--label-check", action="store_true",
+                        help="only print, per voice, how many /p b m/ labels start after the acoustic closure")
     args = parser.parse_args()
     global DETAILS
     DETAILS = args.details
@@ -299,12 +414,13 @@ def main():
     if args.corpus:
         make_corpus(args.lipsync, args.out_dir, args.corpus)
         return
+    if args.label_check:
+        check_labels(args)
+        return
     rows = []
     for code in args.voices.split(","):
-        festival_voice, espeak_voice, sentences = VOICES[code]
-        prefix = code
-        if args.held_out:
-            sentences, prefix = HELD_OUT[code], code + "_held_out"
+        festival_voice, espeak_voice, sentences, prefix = sentences_of(code, args.held_out)
+        acoustic = args.acoustic_closures and code in ACOUSTIC_CLOSURE_VOICES
         aligners = [("dtw", ["--voice", espeak_voice, "--aligner", "dtw"])]
         if code == "en":
             aligners.append(("pocketsphinx", []))
@@ -314,8 +430,7 @@ def main():
                 base = os.path.join(args.out_dir, f"{prefix}_{k}")
                 if DETAILS:
                     print(f"{prefix}_{k} {aligner}", file=sys.stderr)
-                if not os.path.exists(base + ".wav"):
-                    speak_with_festival(festival_voice, sentence, base + ".wav", base + ".segs")
+                truth = festival_truth(festival_voice, sentence, base, acoustic)
                 grid = f"{base}.{aligner}.TextGrid"
                 run = subprocess.run([args.lipsync, "align", base + ".wav", "--text", sentence, "-o", grid] + options,
                                      capture_output=True, text=True)
@@ -323,15 +438,14 @@ def main():
                     print(f"{code} {k} {aligner}: {run.stderr.strip()}", file=sys.stderr)
                     failures += 1
                     continue
-                e, b = boundary_errors(read_festival_segs(base + ".segs"), read_textgrid_phones(grid),
-                                       english_espeak=(code == "en" and aligner == "dtw"))
+                aligned = read_textgrid_phones(grid)
                 if aligner == "pocketsphinx":
-                    e, b = boundary_errors(read_festival_segs(base + ".segs"),
-                                           [(l.lower(), s, t) for l, s, t in read_textgrid_phones(grid)], False)
+                    aligned = [(l.lower(), s, t) for l, s, t in aligned]
+                e, b = boundary_errors(truth, aligned, english_espeak=(code == "en" and aligner == "dtw"))
                 errors += e
                 bilabial += b
             row = {
-                "voice": code, "festival": festival_voice, "espeak": espeak_voice, "aligner": aligner,
+                "voice": code + (" acoustic closures" if acoustic else ""), "festival": festival_voice, "espeak": espeak_voice, "aligner": aligner,
                 "sentences": len(sentences), "failures": failures, "boundaries": len(errors),
                 "median_ms": 1000 * statistics.median(errors) if errors else None,
                 "p95_ms": 1000 * percentile(errors, 0.95) if errors else None,

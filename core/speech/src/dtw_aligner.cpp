@@ -29,6 +29,11 @@ constexpr double kStopClosureStepDb = 10.0;
 // start it at the burst): its closure is taken to last this long, a typical closure of a stop
 // that begins an utterance (longer than espeak-ng's closures between vowels), µs.
 constexpr std::int64_t kClosureAfterPauseUs = 80'000;
+// A stop after a nasal (/m b/, /n d/) has no fall of the level to mark its closure either: the
+// nasal's closure goes on into it, and espeak-ng's nasal lasts until the burst. Its closure is taken
+// to last this long, a typical closure of a voiced stop (chosen on the four sentences of Italian
+// and Hindi whose /m b/ arrived at their bursts, 58 and 73 ms after Festival's closures), µs.
+constexpr std::int64_t kClosureAfterNasalUs = 60'000;
 // The recording may be this many times longer or shorter than the synthesis.
 constexpr double kMostDurationRatio = 4.0;
 
@@ -69,8 +74,11 @@ bool has_word_character(std::string_view text) {
 
 // The ARPAbet lip phone a label of espeak-ng (mnemonic or IPA) stands for, for the closure
 // refiner: p b m f v, alone or with length marks and diacritics ("pʰ", "mː", "b:"); else "X".
+// A /β/ is a /b/ too: espeak-ng says Catalan's and Spanish's /b/ between vowels as a fricative
+// that the recording (Festival's Catalan) may close.
 std::string lip_phone_for_refiner(const std::string& label) {
   if (label.empty()) return label;
+  if (label.starts_with("β")) return "B";
   const char first = label.front();
   if (first != 'p' && first != 'b' && first != 'm' && first != 'f' && first != 'v') return "X";
   if (label.size() > 1 && std::isalpha(static_cast<unsigned char>(label[1]))) return "X";  // "pf", "ts"…
@@ -98,6 +106,13 @@ bool starts_with_closure(const std::string& label) {
   return label.starts_with("ɟ") || label.starts_with("ʈ") || label.starts_with("ɖ");
 }
 
+// A nasal of espeak-ng (mnemonic or IPA): m n ŋ ɲ ɳ ɱ ("N" in the English mnemonics), with any marks.
+bool is_nasal(const std::string& label) {
+  if (label.empty()) return false;
+  if (label.front() == 'm' || label.front() == 'n' || label.front() == 'N') return true;
+  return label.starts_with("ŋ") || label.starts_with("ɲ") || label.starts_with("ɳ") || label.starts_with("ɱ");
+}
+
 // The steepest fall of the formant band's level (`level_db`, 10 ms windows every ms) within
 // [earliest_ms, start_ms − 5 ms] larger than kStopClosureStepDb: a stop's closure before its
 // burst at start_ms; −1 when there is none.
@@ -118,11 +133,15 @@ std::int64_t closure_before_ms(const std::vector<double>& level_db, std::int64_t
 // espeak-ng starts a stop's phoneme event at its burst, the closure's silence still counted in
 // the phoneme before. Each stop's start moves back to the steepest fall of the formant band's
 // level within kStopClosureSearchUs before it (the closure), when the fall is clear, so that
-// what is carried to the recording is where the stop begins, as in a recording's labels.
-void move_stop_starts_to_closures(const PcmAudio& audio, LabeledUtterance& phones) {
+// what is carried to the recording is where the stop begins, as in a recording's labels. Returns
+// every phoneme's start before the move (a stop's burst).
+std::vector<std::int64_t> move_stop_starts_to_closures(const PcmAudio& audio, LabeledUtterance& phones) {
   std::vector<LabeledInterval>& intervals = phones.intervals;
+  std::vector<std::int64_t> bursts_us;
+  bursts_us.reserve(intervals.size());
+  for (const LabeledInterval& interval : intervals) bursts_us.push_back(interval.start_us);
   const std::vector<double> level_db = formant_band_levels_db(audio, 10'000, 1'000);  // window [t, t+10 ms)
-  if (level_db.size() < 20) return;
+  if (level_db.size() < 20) return bursts_us;
   for (std::size_t k = 1; k < intervals.size(); ++k) {
     if (!starts_with_closure(intervals[k].label)) continue;
     const std::int64_t start_ms = intervals[k].start_us / 1000;
@@ -132,6 +151,7 @@ void move_stop_starts_to_closures(const PcmAudio& audio, LabeledUtterance& phone
     intervals[k].start_us = best_ms * 1000;
     intervals[k - 1].end_us = best_ms * 1000;
   }
+  return bursts_us;
 }
 
 // A stop after a pause starts, in both audios, at its burst: the closure is silent, like the pause.
@@ -141,6 +161,35 @@ void open_closures_after_pauses(std::vector<std::int64_t>& bounds, const std::ve
     if (!phones[k - 1].label.empty() || !starts_with_closure(phones[k].label)) continue;
     bounds[k] = std::max(bounds[k] - kClosureAfterPauseUs, bounds[k - 1] + kMinPhoneUs);
   }
+}
+
+// A stop after a nasal arrives at (or just before) the recording's burst: its closure is the nasal's
+// and shows no fall of the level. It starts kClosureAfterNasalUs before its burst carried across,
+// unless it is earlier already (the nasal keeps kMinPhoneUs at least).
+void open_closures_after_nasals(std::vector<std::int64_t>& bounds, const std::vector<LabeledInterval>& phones,
+                                const std::vector<std::int64_t>& bursts_us, const WarpPath& path) {
+  for (std::size_t k = 1; k < phones.size(); ++k) {
+    if (!is_nasal(phones[k - 1].label) || !starts_with_closure(phones[k].label)) continue;
+    const std::int64_t closure_us = carry_time_us(path, bursts_us[k]) - kClosureAfterNasalUs;
+    bounds[k] = std::max(std::min(bounds[k], closure_us), bounds[k - 1] + kMinPhoneUs);
+  }
+}
+
+// The boundaries of `phones` (espeak-ng's, stops from their closures) carried across the warp to a
+// recording of `end_us`, in order and at least kMinPhoneUs apart, with the closures of stops after a
+// pause or a nasal opened: bounds[k] is the start of phones[k], bounds[size] the end.
+std::vector<std::int64_t> carried_bounds(const WarpPath& path, const std::vector<LabeledInterval>& phones,
+                                         const std::vector<std::int64_t>& bursts_us, std::int64_t end_us) {
+  const std::size_t count = phones.size();
+  std::vector<std::int64_t> bounds(count + 1);
+  bounds[0] = 0;
+  bounds[count] = end_us;
+  for (std::size_t k = 1; k < count; ++k) bounds[k] = carry_time_us(path, phones[k].start_us);
+  for (std::size_t k = 1; k < count; ++k) bounds[k] = std::max(bounds[k], bounds[k - 1] + kMinPhoneUs);
+  for (std::size_t k = count; k-- > 1;) bounds[k] = std::min(bounds[k], bounds[k + 1] - kMinPhoneUs);
+  open_closures_after_pauses(bounds, phones);
+  open_closures_after_nasals(bounds, phones, bursts_us, path);
+  return bounds;
 }
 
 // `audio` with kSynthesisPaddingUs of silence before and after.
@@ -317,7 +366,7 @@ Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view sour
   } else {
     padded_phones.push_back(LabeledInterval{"", padded_phones.back().end_us, spoken_end_us, 0});
   }
-  move_stop_starts_to_closures(spoken, synthesis_phones);
+  const std::vector<std::int64_t> bursts_us = move_stop_starts_to_closures(spoken, synthesis_phones);
 
   const FeatureFrames synthesis_frames = mfcc_features(spoken);
   const FeatureFrames recording_frames = mfcc_features(recording);
@@ -339,17 +388,10 @@ Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view sour
                 voice.c_str(), path.mean_distance, 100.0 * path.mean_distance / path.unrelated_distance);
   result.notes.push_back(text);
 
-  // Carry every boundary across, then keep the phonemes in order and at least kMinPhoneUs long.
   const std::vector<LabeledInterval>& spoken_phones = synthesis_phones.intervals;
   const std::size_t count = spoken_phones.size();
   const std::int64_t end_us = input.duration_us();
-  std::vector<std::int64_t> bounds(count + 1);
-  bounds[0] = 0;
-  bounds[count] = end_us;
-  for (std::size_t k = 1; k < count; ++k) bounds[k] = carry_time_us(path, spoken_phones[k].start_us);
-  for (std::size_t k = 1; k < count; ++k) bounds[k] = std::max(bounds[k], bounds[k - 1] + kMinPhoneUs);
-  for (std::size_t k = count; k-- > 1;) bounds[k] = std::min(bounds[k], bounds[k + 1] - kMinPhoneUs);
-  open_closures_after_pauses(bounds, spoken_phones);
+  const std::vector<std::int64_t> bounds = carried_bounds(path, spoken_phones, bursts_us, end_us);
   for (std::size_t k = 0; k < count; ++k) {
     LabeledInterval interval = spoken_phones[k];
     interval.start_us = bounds[k];

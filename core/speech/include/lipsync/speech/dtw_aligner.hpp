@@ -16,7 +16,9 @@
 // after it the lip phones' boundaries move to the recording's energy steps, as
 // with PocketSphinx. A stop after a pause shows no closure in either audio (it is
 // as silent as the pause): it arrives at the recording's burst and starts 80 ms
-// before it.
+// before it. Nor does a stop after a nasal (/m b/, /n d/: the nasal's closure goes on
+// into it, and espeak-ng's nasal lasts until the burst): it starts 60 ms before its
+// burst. A /β/ (espeak-ng's Catalan and Spanish /b/ between vowels) is refined as a /b/.
 //
 // Bounds: the path is searched in a band around the line from the start of
 // speech in one audio to the start in the other, and from end to end (leading
