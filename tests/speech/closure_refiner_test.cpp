@@ -96,6 +96,33 @@ TEST(ClosureRefiner, TheClosureIsPlacedItsLeadBeforeTheOnsetOfTheFall) {
   EXPECT_NEAR(double(phones.intervals[1].end_us), 380e3, 2e3);
 }
 
+TEST(ClosureRefiner, AnMWhoseFormantsBarelyFallClosesWhereItsMurmurBegins) {
+  // As in espeak-ng's "lemons": into the /m/ at 300 ms the vowel's formants fall by
+  // under 10 dB, too little to move a boundary, while a murmur at 150 Hz rises below
+  // them; the formant band's level less the level below 400 Hz falls by more.
+  speech::PcmAudio audio;
+  for (std::int64_t i = 0; i < sample_of(600'000); ++i) {
+    const bool murmur = i >= sample_of(300'000) && i < sample_of(400'000);
+    const double v =
+        murmur ? 0.5 * vowel(i) + 0.3 * std::sin(2 * std::numbers::pi * 150 * double(i) / kRate) : vowel(i);
+    audio.samples.push_back(static_cast<std::int16_t>(std::lround(std::clamp(v, -1.0, 1.0) * 32767)));
+  }
+  LabeledUtterance phones = phones_of({{"AA", 0, 320'000, 1}, {"M", 320'000, 400'000, 2}, {"AA", 400'000, 600'000, 3}});
+  const std::vector<speech::RefinedBoundary> refined = speech::refine_closures(audio, phones);
+  ASSERT_EQ(refined.size(), 2U);
+  EXPECT_TRUE(refined[0].moved);
+  EXPECT_GE(refined[0].step_db, 10.0);
+  EXPECT_NEAR(double(phones.intervals[1].start_us), 300e3, 2e3);  // the contrast's steepest fall
+  EXPECT_EQ(phones.intervals[0].end_us, phones.intervals[1].start_us);
+  // The same /m/ as a /b/: no murmur rule, and the formant band's step is too small.
+  phones = phones_of({{"AA", 0, 320'000, 1}, {"B", 320'000, 400'000, 2}, {"AA", 400'000, 600'000, 3}});
+  const std::vector<speech::RefinedBoundary> as_b = speech::refine_closures(audio, phones);
+  ASSERT_EQ(as_b.size(), 2U);
+  EXPECT_FALSE(as_b[0].moved);
+  EXPECT_LT(as_b[0].step_db, 10.0);
+  EXPECT_EQ(phones.intervals[1].start_us, 320'000);
+}
+
 TEST(ClosureRefiner, BoundariesStayWhereTheSignalShowsNoStep) {
   speech::PcmAudio audio;
   for (std::int64_t i = 0; i < sample_of(600'000); ++i)

@@ -222,8 +222,10 @@ TEST(Alignment, SyntheticSpeechAlignsWithinTheReportedError) {
   // moved back from their bursts to their closures' silence (the acoustic closure,
   // tts_recordings.hpp). Each synthesis runs in a fresh espeak-ng, so the figures are
   // reproducible; the bounds are the reported figures (refined, the default) rounded
-  // outward: 13 of 15 bilabial closures within 20 ms (7 of 15 before the refiner took
-  // a pause before /p b/ for its closure).
+  // outward: 15 of 15 bilabial closures within 20 ms, median 7.4 ms, p95 9.4 ms (13 of
+  // 15 and a p95 of 180 ms before a pause over loud formants was refused and an /m/'s
+  // murmur moved its closure; 7 of 15 before the refiner took a pause before /p b/ for
+  // its closure).
   const ArticulationModel& model = ArticulationModel::builtin();
   const PhoneSet espeak = *PhoneSet::builtin("espeak", model);
   const PhoneSet arpabet = *PhoneSet::builtin("arpabet", model);
@@ -237,11 +239,15 @@ TEST(Alignment, SyntheticSpeechAlignsWithinTheReportedError) {
     ASSERT_EQ(aligned.words.size(), speech::transcript_words(sentence).size()) << sentence;
     testing::score_alignment(speech.phonemes, espeak, aligned.phones, arpabet, model, score);
   }
-  EXPECT_LE(testing::quantile(score.errors_ms, 0.5), 11.0);
-  EXPECT_LE(testing::quantile(score.errors_ms, 0.95), 95.0);
+  EXPECT_LE(testing::quantile(score.errors_ms, 0.5), 10.0);
+  EXPECT_LE(testing::quantile(score.errors_ms, 0.95), 60.0);
   EXPECT_GE(double(score.matched_phonemes) / score.reference_phonemes, 0.85);
-  EXPECT_GE(score.bilabials_within_20ms, 13) << "of " << score.bilabials;
-  EXPECT_LE(testing::quantile(score.bilabial_errors_ms, 0.5), 10.0);
+  EXPECT_EQ(score.bilabials, 15);
+  EXPECT_EQ(score.bilabials_within_20ms, 15) << "of " << score.bilabials;
+  EXPECT_LE(testing::quantile(score.bilabial_errors_ms, 0.5), 8.0);
+  EXPECT_LE(testing::quantile(score.bilabial_errors_ms, 0.95), 12.0);
+  EXPECT_GE(score.bilabials_closed_at_middle, 14);
+  EXPECT_EQ(score.false_closures, 0);
 }
 
 TEST(Alignment, RefinedBilabialClosuresOfFliteAndFestivalSpeechStartWithin20Ms) {

@@ -118,9 +118,15 @@ std::string lower(std::string text) {
 }
 
 // The JSGF grammar of the transcript: each word's pronunciations as alternatives
-// of one-phone words; pauses between words are PocketSphinx's own filler words.
-std::string build_grammar(ps_decoder_t* decoder, const std::vector<std::string>& words, const std::string& source) {
-  ps_add_word(decoder, kPauseWord, "SIL", FALSE);
+// of one-phone words; an optional pause (PocketSphinx's silence phone) before, between
+// and after the words, except after word w - 1 where no_pause_before[w] (w from 1).
+std::string build_grammar(ps_decoder_t* decoder, const std::vector<std::string>& words, const std::string& source,
+                          const std::vector<bool>& no_pause_before) {
+  if (char* known = ps_lookup_word(decoder, kPauseWord)) {
+    std::free(known);
+  } else {
+    ps_add_word(decoder, kPauseWord, "SIL", FALSE);
+  }
   const std::string pause = " [ " + std::string(kPauseWord) + " ]";
   std::string rule = pause;
   for (std::size_t w = 0; w < words.size(); ++w) {
@@ -152,9 +158,127 @@ std::string build_grammar(ps_decoder_t* decoder, const std::vector<std::string>&
         rule += " " + word;
       }
     }
-    rule += " ) " + pause;
+    rule += " )";
+    if (w + 1 == words.size() || !no_pause_before[w + 1]) rule += pause;
   }
   return "#JSGF V1.0;\ngrammar transcript;\npublic <utterance> =" + rule + " ;\n";
+}
+
+// Runs the decoder's current search over the audio; false when no path fits.
+bool decode(ps_decoder_t* decoder, const PcmAudio& audio) {
+  ps_start_utt(decoder);
+  ps_process_raw(decoder, audio.samples.data(), audio.samples.size(), FALSE, TRUE);
+  ps_end_utt(decoder);
+  std::int32_t score = 0;
+  return ps_get_hyp(decoder, &score) != nullptr;
+}
+
+// The decoded segments as phones (pauses and noises one silence, a silence before the
+// first and after the last segment, so that they tile [0, the audio's end]) and words.
+void read_segments(ps_decoder_t* decoder, const std::vector<std::string>& words, std::int64_t end_us,
+                   Alignment& result) {
+  std::vector<LabeledInterval>& phones = result.phones.intervals;
+  phones.clear();
+  result.words.clear();
+  int word_index = -1;
+  for (ps_seg_t* seg = ps_seg_iter(decoder); seg != nullptr; seg = ps_seg_next(seg)) {
+    int first_frame = 0, last_frame = 0;
+    ps_seg_frames(seg, &first_frame, &last_frame);
+    const std::int64_t start = first_frame == 0 ? 0 : std::min(end_us, first_frame * kFrameUs + kBoundaryOffsetUs);
+    const std::int64_t end = std::min(end_us, (last_frame + 1) * kFrameUs + kBoundaryOffsetUs);
+    if (end <= start) continue;
+    const std::string_view word = ps_seg_word(seg);
+    if (word == "(NULL)") continue;  // an empty grammar arc, no audio
+    auto [phone, index] = phone_of(word);
+    if (!phones.empty() && phone.empty() && phones.back().label.empty()) {
+      phones.back().end_us = end;  // adjacent pauses and noises are one silence
+    } else {
+      phones.push_back({phone, start, end, static_cast<int>(phones.size()) + 1});
+    }
+    if (index < 0) continue;
+    if (index != word_index) {
+      result.words.push_back({words[static_cast<std::size_t>(index)], start, end, index + 1});
+      word_index = index;
+    }
+    result.words.back().end_us = end;
+  }
+  if (phones.empty() || phones.front().start_us > 0) {
+    phones.insert(phones.begin(), {"", 0, phones.empty() ? end_us : phones.front().start_us, 0});
+  }
+  if (phones.back().end_us < end_us) phones.push_back({"", phones.back().end_us, end_us, int(phones.size()) + 1});
+}
+
+// A pause between two words that holds this many 20 ms windows of loud formants (the
+// formant band's level within kLoudDb of its loudest window) or more is speech the
+// recogniser could not fit, not a pause: vowels and glides are loud there, closures,
+// voiced (their voicing bar is below the band) or not, are not.
+constexpr int kLeastLoudWindowsOfSpeech = 3;
+constexpr std::int64_t kWindowUs = 20'000;
+
+// Which word gaps (w: between words w - 1 and w) hold a pause over speech, as above.
+std::vector<bool> pauses_over_speech(const std::vector<double>& formant_levels, const Alignment& alignment) {
+  std::vector<bool> over_speech(alignment.words.size(), false);
+  if (formant_levels.empty()) return over_speech;
+  const double loudest = *std::max_element(formant_levels.begin(), formant_levels.end());
+  for (const LabeledInterval& pause : alignment.phones.intervals) {
+    if (!pause.label.empty()) continue;
+    int loud = 0;
+    for (std::size_t w = 0; w < formant_levels.size(); ++w) {
+      const std::int64_t centre_us = static_cast<std::int64_t>(w) * kWindowUs + kWindowUs / 2;
+      if (pause.start_us <= centre_us && centre_us < pause.end_us && formant_levels[w] >= loudest - kLoudDb) ++loud;
+    }
+    const auto gap = static_cast<std::size_t>(
+        std::count_if(alignment.words.begin(), alignment.words.end(),
+                      [&](const LabeledInterval& word) { return word.end_us <= pause.start_us; }));
+    if (loud >= kLeastLoudWindowsOfSpeech && gap > 0 && gap < over_speech.size()) over_speech[gap] = true;
+  }
+  return over_speech;
+}
+
+// Forced alignment of the transcript's words. Where the best path puts a pause over
+// loud speech (espeak-ng's "lemons makes": a 230 ms pause over "makes", its /m ey/
+// squeezed into 60 ms after it), the words around that pause were misplaced: the audio
+// is decoded once more with no pause allowed in those gaps, and that alignment is kept
+// when it fits and leaves no more of the loud windows in pauses than the first.
+void force_align(ps_decoder_t* decoder, const PcmAudio& audio, const std::vector<std::string>& words,
+                 const std::vector<double>& levels, const std::string& source, Alignment& result) {
+  const auto use_grammar = [&](const char* name, const std::vector<bool>& no_pause_before) {
+    const std::string grammar = build_grammar(decoder, words, source, no_pause_before);
+    if (ps_set_jsgf_string(decoder, name, grammar.c_str()) != 0 || ps_set_search(decoder, name) != 0) {
+      throw InputError(source, 0, "PocketSphinx rejected the transcript's grammar");
+    }
+  };
+  use_grammar("transcript", std::vector<bool>(words.size(), false));
+  if (!decode(decoder, audio)) {
+    throw InputError(
+        source, 0,
+        "the transcript does not match the audio (no alignment of its " + count_words(words.size()) + " fits)");
+  }
+  read_segments(decoder, words, audio.duration_us(), result);
+  const double loudest = *std::max_element(levels.begin(), levels.end());
+  const double share = loud_share_in_pauses(levels, loudest, result.phones.intervals);
+  const std::vector<bool> over_speech = pauses_over_speech(formant_band_levels_db(audio, kWindowUs, kWindowUs), result);
+  // A transcript that does not fit leaves much speech in its pauses: that is an error
+  // (align_speech), not something to force.
+  if (share > kMostSpeechInPauses || std::find(over_speech.begin(), over_speech.end(), true) == over_speech.end()) {
+    return;
+  }
+  use_grammar("transcript_without_pauses_over_speech", over_speech);
+  if (!decode(decoder, audio)) return;
+  Alignment second = result;
+  read_segments(decoder, words, audio.duration_us(), second);
+  if (loud_share_in_pauses(levels, loudest, second.phones.intervals) <= share) result = std::move(second);
+}
+
+// Phones recognised with the phonetic language model.
+void recognise_phones(ps_decoder_t* decoder, const PcmAudio& audio, const AlignmentOptions& options,
+                      const std::string& source, Alignment& result) {
+  const std::string phone_lm = options.model_dir + "/en-us-phone.lm.bin";
+  if (ps_set_allphone_file(decoder, "phones", phone_lm.c_str()) != 0 || ps_set_search(decoder, "phones") != 0) {
+    throw InputError(source, 0, "cannot load the phonetic language model " + phone_lm);
+  }
+  if (!decode(decoder, audio)) throw InputError(source, 0, "no phones were recognised in the audio");
+  read_segments(decoder, {}, audio.duration_us(), result);
 }
 
 }  // namespace
@@ -210,59 +334,11 @@ Alignment align_speech(const PcmAudio& input, std::string_view source_view, cons
   }
   const Decoder decoder = make_decoder(options, source, options.transcript.has_value());
   if (options.transcript) {
-    const std::string grammar = build_grammar(decoder.get(), words, source);
-    if (ps_set_jsgf_string(decoder.get(), "transcript", grammar.c_str()) != 0 ||
-        ps_set_search(decoder.get(), "transcript") != 0) {
-      throw InputError(source, 0, "PocketSphinx rejected the transcript's grammar");
-    }
+    force_align(decoder.get(), audio, words, levels, source, result);
   } else {
-    const std::string phone_lm = options.model_dir + "/en-us-phone.lm.bin";
-    if (ps_set_allphone_file(decoder.get(), "phones", phone_lm.c_str()) != 0 ||
-        ps_set_search(decoder.get(), "phones") != 0) {
-      throw InputError(source, 0, "cannot load the phonetic language model " + phone_lm);
-    }
+    recognise_phones(decoder.get(), audio, options, source, result);
   }
-
-  ps_start_utt(decoder.get());
-  ps_process_raw(decoder.get(), audio.samples.data(), audio.samples.size(), FALSE, TRUE);
-  ps_end_utt(decoder.get());
-  std::int32_t score = 0;
-  if (ps_get_hyp(decoder.get(), &score) == nullptr) {
-    throw InputError(source, 0,
-                     options.transcript ? "the transcript does not match the audio (no alignment of its " +
-                                              count_words(words.size()) + " fits)"
-                                        : "no phones were recognised in the audio");
-  }
-
-  const std::int64_t end_us = audio.duration_us();
   std::vector<LabeledInterval>& phones = result.phones.intervals;
-  int word_index = -1;
-  for (ps_seg_t* seg = ps_seg_iter(decoder.get()); seg != nullptr; seg = ps_seg_next(seg)) {
-    int first_frame = 0, last_frame = 0;
-    ps_seg_frames(seg, &first_frame, &last_frame);
-    const std::int64_t start = first_frame == 0 ? 0 : std::min(end_us, first_frame * kFrameUs + kBoundaryOffsetUs);
-    const std::int64_t end = std::min(end_us, (last_frame + 1) * kFrameUs + kBoundaryOffsetUs);
-    if (end <= start) continue;
-    const std::string_view word = ps_seg_word(seg);
-    if (word == "(NULL)") continue;  // an empty grammar arc, no audio
-    auto [phone, index] = phone_of(word);
-    if (!phones.empty() && phone.empty() && phones.back().label.empty()) {
-      phones.back().end_us = end;  // adjacent pauses and noises are one silence
-    } else {
-      phones.push_back({phone, start, end, static_cast<int>(phones.size()) + 1});
-    }
-    if (index < 0) continue;
-    if (index != word_index) {
-      result.words.push_back({words[static_cast<std::size_t>(index)], start, end, index + 1});
-      word_index = index;
-    }
-    result.words.back().end_us = end;
-  }
-  // Tile [0, end]: a silence before the first and after the last recognised segment.
-  if (phones.empty() || phones.front().start_us > 0) {
-    phones.insert(phones.begin(), {"", 0, phones.empty() ? end_us : phones.front().start_us, 0});
-  }
-  if (phones.back().end_us < end_us) phones.push_back({"", phones.back().end_us, end_us, int(phones.size()) + 1});
   if (options.refine_closures) {
     result.refined = refine_closures(audio, result.phones, options.refiner);
     for (const RefinedBoundary& boundary : result.refined) {  // words start and end with their phones

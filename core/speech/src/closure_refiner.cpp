@@ -39,16 +39,22 @@ struct Biquad {
   }
 };
 
-// The formant band's energy in every millisecond [k ms, k+1 ms) of the audio (summed
+// The bands looked at: the formants (400 to 3500 Hz, a high-pass and a low-pass
+// section) and the nasal murmur's resonance below them (below 400 Hz, two low-pass
+// sections).
+enum class Band { kFormants, kNasal };
+
+// A band's energy in every millisecond [k ms, k+1 ms) of the audio (summed
 // per millisecond, so a quiet millisecond late in a long recording keeps its
 // precision), with running sums over the milliseconds: the level of any whole-ms
 // span in O(1).
 class BandEnergy {
  public:
-  explicit BandEnergy(const PcmAudio& audio) {
+  BandEnergy(const PcmAudio& audio, Band band) {
     const int rate_hz = audio.sample_rate_hz;
-    Biquad high = Biquad::make(kLowEdgeHz, rate_hz, true);
-    Biquad low = Biquad::make(std::min(kHighEdgeHz, 0.45 * rate_hz), rate_hz, false);
+    const bool formants = band == Band::kFormants;
+    Biquad high = Biquad::make(kLowEdgeHz, rate_hz, formants);
+    Biquad low = Biquad::make(formants ? std::min(kHighEdgeHz, 0.45 * rate_hz) : kLowEdgeHz, rate_hz, false);
     const auto frames = static_cast<std::int64_t>(audio.samples.size()) * 1000 / rate_hz;
     prefix_.assign(static_cast<std::size_t>(frames) + 1, 0.0L);
     samples_per_frame_.assign(static_cast<std::size_t>(frames), 0);
@@ -104,7 +110,18 @@ class LevelTrack {
     prefix_.push_back(0);
     for (const double level : levels) prefix_.push_back(prefix_.back() + std::max(level, loudest - kRangeDb));
   }
+  // The difference of two tracks' levels, millisecond by millisecond.
+  LevelTrack(const LevelTrack& minuend, const LevelTrack& subtrahend) : prefix_(minuend.prefix_) {
+    for (std::size_t k = 0; k < prefix_.size(); ++k) prefix_[k] -= subtrahend.prefix_[k];
+  }
   std::int64_t frames() const { return static_cast<std::int64_t>(prefix_.size()) - 1; }
+  // The fall of the level at t: the mean of the 10 ms before less that of the 10 ms after, dB.
+  double fall_db(std::int64_t t_us) const {
+    constexpr std::int64_t kSide = kStepWindowUs / kCandidateStepUs;
+    const std::int64_t k = t_us / kCandidateStepUs;
+    if (k < kSide || k + kSide > frames()) return 0;
+    return mean_db(k - kSide, k) - mean_db(k, k + kSide);
+  }
   // Mean level of frames [a, b), dB.
   double mean_db(std::int64_t a, std::int64_t b) const {
     return (prefix_[static_cast<std::size_t>(b)] - prefix_[static_cast<std::size_t>(a)]) / double(b - a);
@@ -112,6 +129,16 @@ class LevelTrack {
 
  private:
   std::vector<double> prefix_;
+};
+
+// The formant band's level, and the nasal contrast: the formant band's level less
+// the level below 400 Hz. An /m/ closing after a vowel can keep much of the vowel's
+// energy in the formant band (espeak-ng's "lemons": a fall of 7.7 dB) while its murmur
+// raises the level below it, so its closure is a larger step of the contrast (12 dB
+// there) than of the formant band alone.
+struct Levels {
+  LevelTrack formants;
+  LevelTrack nasal_contrast;
 };
 
 struct Step {
@@ -147,6 +174,8 @@ std::string upper_letters(std::string_view arpabet) {
   }
   return phone;
 }
+
+bool is_nasal(std::string_view arpabet) { return upper_letters(arpabet) == "M"; }
 
 // /m f v/: phones whose sound (murmur, frication) is heard from their first moment.
 bool starts_with_sound(std::string_view arpabet) {
@@ -202,7 +231,7 @@ std::int64_t fall_onset_us(const LevelTrack& levels, const Step& step, std::int6
 
 // Moves the start of the lip phone intervals[i] (i > 0): after a pause to the rise of
 // its sound (/m f v/), otherwise to the closure, where the formant band's level falls.
-void refine_start(const LevelTrack& levels, std::vector<LabeledInterval>& intervals, std::size_t i,
+void refine_start(const Levels& levels, std::vector<LabeledInterval>& intervals, std::size_t i,
                   const ClosureRefinerOptions& options, std::vector<RefinedBoundary>& refined) {
   LabeledInterval& previous = intervals[i - 1];
   LabeledInterval& phone = intervals[i];
@@ -212,15 +241,23 @@ void refine_start(const LevelTrack& levels, std::vector<LabeledInterval>& interv
   if (previous.label.empty() && starts_with_sound(phone.label)) {
     // After a pause there is no closing movement to hear: an /m f v/ starts where its
     // sound does, at the level's steepest rise.
-    const Step step = best_step(levels, aligned, from, to, false, options);
+    const Step step = best_step(levels.formants, aligned, from, to, false, options);
     const bool moved = step.db >= options.min_step_db;
     if (moved) previous.end_us = phone.start_us = step.at_us;
     refined.push_back({i, false, aligned, phone.start_us, std::max(0.0, step.db), moved});
     return;
   }
-  const Step step = best_step(levels, aligned, from, to, true, options);
-  const std::int64_t onset = fall_onset_us(levels, step, from, options);
-  const std::int64_t at = std::max(onset - options.closure_lead_us, previous.start_us + options.min_phone_us);
+  Step step = best_step(levels.formants, aligned, from, to, true, options);
+  std::int64_t at = fall_onset_us(levels.formants, step, from, options) - options.closure_lead_us;
+  if (is_nasal(phone.label) && step.db < options.min_step_db) {
+    // An /m/ whose closing the formant band hardly hears: its murmur's onset, where the
+    // nasal contrast falls while the formant band falls too (from a fricative both
+    // rise, the low band more, and the contrast falls with no closing). The murmur
+    // starts at once, so the closure is at the contrast's steepest fall, with no lead.
+    const Step nasal = best_step(levels.nasal_contrast, aligned, from, to, true, options);
+    if (nasal.db >= options.min_step_db && levels.formants.fall_db(nasal.at_us) > 0) step = nasal, at = nasal.at_us;
+  }
+  at = std::max(at, previous.start_us + options.min_phone_us);
   const bool moved = step.db >= options.min_step_db && at <= phone.end_us - options.min_phone_us;
   if (moved) previous.end_us = phone.start_us = at;
   refined.push_back({i, false, aligned, phone.start_us, std::max(0.0, step.db), moved});
@@ -237,8 +274,9 @@ std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtter
                                              const ClosureRefinerOptions& options) {
   std::vector<RefinedBoundary> refined;
   if (audio.samples.empty() || audio.sample_rate_hz < kLowestRateHz) return refined;
-  const BandEnergy energy(audio);
-  const LevelTrack levels(energy);
+  LevelTrack formants{BandEnergy(audio, Band::kFormants)};
+  LevelTrack nasal_contrast(formants, LevelTrack{BandEnergy(audio, Band::kNasal)});
+  const Levels levels{std::move(formants), std::move(nasal_contrast)};
   std::vector<LabeledInterval>& intervals = phones.intervals;
   for (std::size_t i = 0; i < intervals.size(); ++i) {
     if (!is_lip_phone(intervals[i].label)) continue;
@@ -248,8 +286,9 @@ std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtter
       // second one's closure: that starts at the pause's last fall of the level.
       LabeledInterval& pause = intervals[i - 1];
       const std::int64_t aligned = intervals[i].start_us;
-      const Step step = latest_step(levels, pause.start_us + options.min_phone_us, aligned, true, options.min_step_db);
-      const std::int64_t onset = fall_onset_us(levels, step, pause.start_us + options.min_phone_us, options);
+      const Step step =
+          latest_step(levels.formants, pause.start_us + options.min_phone_us, aligned, true, options.min_step_db);
+      const std::int64_t onset = fall_onset_us(levels.formants, step, pause.start_us + options.min_phone_us, options);
       const std::int64_t at = std::max(onset - options.closure_lead_us, pause.start_us + options.min_phone_us);
       const bool moved = step.db > 0 && at <= intervals[i].end_us - options.min_phone_us;
       if (moved) pause.end_us = intervals[i].start_us = at;
@@ -269,7 +308,7 @@ std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtter
       LabeledInterval& next = intervals[i + 1];
       const std::int64_t aligned = intervals[i].end_us;
       const Step step = best_step(
-          levels, aligned, std::max(aligned - options.search_us, intervals[i].start_us + options.min_phone_us),
+          levels.formants, aligned, std::max(aligned - options.search_us, intervals[i].start_us + options.min_phone_us),
           std::min(aligned + options.search_us, next.end_us - options.min_phone_us), false, options);
       const std::int64_t at = std::min(step.at_us + options.release_lag_us, next.end_us - options.min_phone_us);
       const bool moved = step.db >= options.min_step_db && at >= intervals[i].start_us + options.min_phone_us;
@@ -283,7 +322,7 @@ std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtter
 std::vector<double> formant_band_levels_db(const PcmAudio& audio, std::int64_t window_us, std::int64_t hop_us) {
   std::vector<double> levels;
   if (audio.samples.empty() || audio.sample_rate_hz < kLowestRateHz) return levels;
-  const BandEnergy energy(audio);
+  const BandEnergy energy(audio, Band::kFormants);
   const std::int64_t window = std::max<std::int64_t>(1, window_us / 1000),
                      hop = std::max<std::int64_t>(1, hop_us / 1000);
   for (std::int64_t k = 0; k + window <= energy.frames(); k += hop) levels.push_back(energy.level_db(k, k + window));

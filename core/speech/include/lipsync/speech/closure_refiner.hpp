@@ -18,8 +18,12 @@
 // `min_step_db`: the step in dB is the move's confidence. A release goes to the
 // steepest rise; a closure to where its fall begins (walking back from the steepest
 // fall while D(t) stays at least `closure_onset_fraction` of it) less
-// `closure_lead_us`, as the level starts to drop while the lips close. Where no step
-// is that clear the aligner's boundary stays. Pauses next to lip phones get three rules:
+// `closure_lead_us`, as the level starts to drop while the lips close. An /m/ whose
+// formant band falls by less than `min_step_db` (the vowel's energy partly carried
+// into the murmur) is looked for in the nasal contrast too, the formant band's level
+// less the level below 400 Hz, which the murmur raises: where that falls by
+// `min_step_db` or more and the formant band falls there too, the closure is at its
+// steepest fall. Where no step is that clear the aligner's boundary stays. Pauses next to lip phones get three rules:
 // a /p b/ after a pause of at most `longest_closure_pause_us` had that silence as its
 // closure (the recogniser hears a silent closure as a pause and puts the stop at its
 // burst), so it takes the pause over and its start is refined from where the pause
