@@ -175,7 +175,7 @@ std::string upper_letters(std::string_view arpabet) {
   return phone;
 }
 
-bool is_nasal(std::string_view arpabet) { return upper_letters(arpabet) == "M"; }
+bool is_bilabial_nasal(std::string_view arpabet) { return upper_letters(arpabet) == "M"; }
 
 // /m f v/: phones whose sound (murmur, frication) is heard from their first moment.
 bool starts_with_sound(std::string_view arpabet) {
@@ -249,13 +249,16 @@ void refine_start(const Levels& levels, std::vector<LabeledInterval>& intervals,
   }
   Step step = best_step(levels.formants, aligned, from, to, true, options);
   std::int64_t at = fall_onset_us(levels.formants, step, from, options) - options.closure_lead_us;
-  if (is_nasal(phone.label) && step.db < options.min_step_db) {
+  if (is_bilabial_nasal(phone.label) && step.db < options.min_step_db) {
     // An /m/ whose closing the formant band hardly hears: its murmur's onset, where the
     // nasal contrast falls while the formant band falls too (from a fricative both
     // rise, the low band more, and the contrast falls with no closing). The murmur
     // starts at once, so the closure is at the contrast's steepest fall, with no lead.
     const Step nasal = best_step(levels.nasal_contrast, aligned, from, to, true, options);
-    if (nasal.db >= options.min_step_db && levels.formants.fall_db(nasal.at_us) > 0) step = nasal, at = nasal.at_us;
+    if (nasal.db >= options.min_step_db && levels.formants.fall_db(nasal.at_us) > 0) {
+      step = nasal;
+      at = nasal.at_us;
+    }
   }
   at = std::max(at, previous.start_us + options.min_phone_us);
   const bool moved = step.db >= options.min_step_db && at <= phone.end_us - options.min_phone_us;
