@@ -160,6 +160,7 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
     stopped_ = true;
     if (mesh_weight_milli_ > 0) service_.face_capacity().release(mesh_weight_milli_);
     if (audio_reserved_bytes_ > 0) service_.audio_budget().release(audio_reserved_bytes_);
+    service_.call_ended();
     if (lane_) {
       lane_->retire([this] { delete this; });  // after the face jobs still queued
     } else {

@@ -29,8 +29,7 @@ void describe(const ModelEntry& entry, v1::ModelInfo& info) {
 UnaryCall* LipSyncService::start_model_query(const char* method, grpc::CallbackServerContext& context) {
   handoff_acquire(this);     // the service as built before the server started (tsan_handoff.hpp)
   admission_.count_query();  // the drain waits for the call's end, its access line and metrics included
-  return new UnaryCall(
-      method, context, [this](const grpc::Status&) { admission_.release_query(); }, &metrics_);
+  return new UnaryCall(*this, method, context, [this](const grpc::Status&) { admission_.release_query(); });
 }
 
 grpc::Status LipSyncService::authenticate_model_query(const char* method, grpc::CallbackServerContext& context,

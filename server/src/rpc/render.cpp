@@ -56,8 +56,7 @@ grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* co
                                                  v1::RenderResponse* response) {
   handoff_acquire(this);  // the service as built before the server started (tsan_handoff.hpp)
   if (grpc::Status admission = admission_.admit_render(context->peer()); !admission.ok()) {
-    return unary(
-        context, "Render", [&] { return admission; }, &metrics_);
+    return unary(*this, context, "Render", [&] { return admission; });
   }
   // What the call holds until it is done: until its response has left, not until Finish
   // (a drain must not take a Render whose response is still on its way for a finished one).
@@ -66,13 +65,10 @@ grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* co
     std::int64_t face_weight = 0;  // once admitted against the face's capacity
   };
   auto holds = std::make_shared<Holds>();
-  auto* call = new UnaryCall(
-      "Render", *context,
-      [this, holds](const grpc::Status&) {
-        if (holds->face_weight > 0) face_capacity_.release(holds->face_weight);
-        admission_.release_render();
-      },
-      &metrics_);
+  auto* call = new UnaryCall(*this, "Render", *context, [this, holds](const grpc::Status&) {
+    if (holds->face_weight > 0) face_capacity_.release(holds->face_weight);
+    admission_.release_render();
+  });
   // The tenant (tenants.hpp): its key, its phoneme rate and, with the mesh, its mesh calls.
   Caller caller;
   grpc::Status refused = tenants_.authenticate(*context, "Render", caller);

@@ -10,6 +10,7 @@
 #include "face/face_stream.hpp"
 #include "face/face_workers.hpp"
 #include "lipsync/server/config.hpp"
+#include "lipsync/tsan_handoff.hpp"
 #include "metrics.hpp"
 #include "rpc/speech_thread.hpp"
 #include "sessions/audio_budget.hpp"
@@ -72,6 +73,12 @@ class LipSyncService final : public v1::LipSync::WithRawCallbackMethod_Subscribe
   /// The sound sessions keep for /audio, all together (--max-session-audio-bytes).
   AudioBudget& audio_budget() { return *audio_budget_; }
 
+  /// The last statement of every call's OnDone, and Server's first after gRPC's Shutdown, which
+  /// returns only once every OnDone has: what the calls wrote is Server's to destroy
+  /// (tsan_handoff.hpp). A key of its own, so that it orders no call before another.
+  void call_ended() const { handoff_release(&calls_ended_); }
+  void after_every_call() const { handoff_acquire(&calls_ended_); }
+
  private:
   void register_gauges();
   /// ListModels and GetModel: counted as calls in progress (never refused) until their end.
@@ -79,6 +86,7 @@ class LipSyncService final : public v1::LipSync::WithRawCallbackMethod_Subscribe
   /// The caller's API key checked for `method`, its tenant set on `call`.
   grpc::Status authenticate_model_query(const char* method, grpc::CallbackServerContext& context, UnaryCall& call);
 
+  char calls_ended_ = 0;  // only its address: the key of call_ended
   const ServerConfig& config_;
   const ModelCatalog& catalog_;
   MetricsRegistry metrics_registry_;

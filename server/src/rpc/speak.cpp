@@ -165,6 +165,7 @@ class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::Sp
     log_.ended(cancelled_ ? cancelled_status() : status,
                {{"samples", samples_sent_.load()}, {"frames", frames_sent_.load()}});
     if (admitted_) service_.admission().release_stream();
+    service_.call_ended();
     if (last_owner) delete this;
   }
 

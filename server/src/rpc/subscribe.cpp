@@ -106,6 +106,7 @@ class SubscribeReactor final : public HandoffReactor<grpc::ServerWriteReactor<gr
     log_.ended(status, {{"frames", frames_sent_}});
     if (open_stream_) open_stream_->add(-1);
     if (admitted_) service_.admission().release_stream();
+    service_.call_ended();
     delete this;
   }
 

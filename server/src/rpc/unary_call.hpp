@@ -16,6 +16,7 @@
 
 #include "call_log.hpp"
 #include "lipsync/tsan_handoff.hpp"
+#include "rpc/service.hpp"
 
 namespace lipsync::server {
 
@@ -32,9 +33,9 @@ grpc::Status run_guarded(Function&& function) {
 class UnaryCall final : public HandoffReactor<grpc::ServerUnaryReactor> {
  public:
   /// `on_done` runs once the call is done (after the access line), on a gRPC thread.
-  UnaryCall(const char* method, grpc::CallbackServerContext& context,
-            std::function<void(const grpc::Status&)> on_done = {}, ServerMetrics* metrics = nullptr)
-      : log_(method, context, metrics), on_done_(std::move(on_done)) {}
+  UnaryCall(LipSyncService& service, const char* method, grpc::CallbackServerContext& context,
+            std::function<void(const grpc::Status&)> on_done = {})
+      : service_(service), log_(method, context, &service.metrics()), on_done_(std::move(on_done)) {}
 
   /// Runs `function` (may be called on any thread) and finishes the call with its status.
   template <class Function>
@@ -55,10 +56,12 @@ class UnaryCall final : public HandoffReactor<grpc::ServerUnaryReactor> {
     const grpc::Status received = cancelled_ ? cancelled_status() : status_;
     log_.ended(received);
     if (on_done_) on_done_(received);
+    service_.call_ended();
     delete this;
   }
 
  private:
+  LipSyncService& service_;
   CallLog log_;
   std::function<void(const grpc::Status&)> on_done_;
   grpc::Status status_;
@@ -67,9 +70,9 @@ class UnaryCall final : public HandoffReactor<grpc::ServerUnaryReactor> {
 
 /// Runs `function` now and finishes the call with its status.
 template <class Function>
-grpc::ServerUnaryReactor* unary(grpc::CallbackServerContext* context, const char* method, Function&& function,
-                                ServerMetrics* metrics = nullptr) {
-  auto* call = new UnaryCall(method, *context, {}, metrics);
+grpc::ServerUnaryReactor* unary(LipSyncService& service, grpc::CallbackServerContext* context, const char* method,
+                                Function&& function) {
+  auto* call = new UnaryCall(service, method, *context);
   call->run(std::forward<Function>(function));
   return call;
 }

@@ -205,6 +205,9 @@ void Server::shutdown(std::chrono::milliseconds drain) {
     impl_->drain_calls(drain);
     impl_->server->Shutdown(std::chrono::system_clock::now() + kConnectionGrace);
     impl_->server->Wait();
+    // Shutdown returned once every call's OnDone had, those of calls refused in the drain
+    // (never counted as in progress) included.
+    impl_->service.after_every_call();
   });
 }
 

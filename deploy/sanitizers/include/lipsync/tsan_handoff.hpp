@@ -27,6 +27,11 @@
 //   pthread_create TSan ignores: deploy/sanitizers/tsan.supp): Server releases the
 //   service before BuildAndStart and once its address is known, and each
 //   method handler acquires it on entry.
+// - gRPC's Server::Shutdown returns only after every call's OnDone has (it
+//   waits for each call's request, which gRPC deletes once OnDone returns),
+//   calls refused during the drain included: each OnDone ends by releasing the
+//   service's own key (LipSyncService::call_ended), and Server acquires it
+//   after Shutdown, before it destroys the service.
 //
 // Under -fsanitize=thread (GCC defines `__SANITIZE_THREAD__`, clang 14
 // answers `__has_feature(thread_sanitizer)`) these call the TSan runtime's
