@@ -27,13 +27,14 @@ constexpr std::string_view kUsage =
     "lipsync align SPEECH.wav [--text WORDS | --text-file FILE] [--voice NAME] [options]";
 constexpr std::string_view kDescription =
     "Aligns recorded speech with PocketSphinx and writes a Praat TextGrid with the tiers\n"
-    "'phones' (ARPAbet, empty labels for pauses) and, with a transcript, 'words'.\n"
+    "'phones' (ARPAbet, empty labels for pauses) and 'words' (the transcript's, or those recognised).\n"
     "With a non-English --voice (or --aligner dtw) the recording is aligned instead against\n"
     "espeak-ng's rendering of the transcript in that voice (MFCC frames, dynamic time\n"
     "warping; docs/languages.md): 'phones' then has espeak-ng's phonemes (IPA), no 'words',\n"
     "and up to 600 s of audio are accepted.\n"
-    "With --text or --text-file the words are force-aligned; without, the phones are\n"
-    "recognised freely (less exact). Either way the starts and ends of /p b m f v/ then\n"
+    "With --text or --text-file the words are force-aligned; without, the words\n"
+    "PocketSphinx recognises are, where they fit the audio (a note names them), else the\n"
+    "phones are recognised one by one (less exact). Either way the starts and ends of /p b m f v/ then\n"
     "move to where the sound shows the lips closing and opening (the steps of its\n"
     "400-3500 Hz level, within 30 ms). The WAV is best 16 kHz mono 16-bit; other rates,\n"
     "channel counts and sample sizes are converted (a note on stderr says so). At most\n"

@@ -201,7 +201,7 @@ constexpr std::string_view kDescription =
     "animation track: one frame per grid step at --fps, plus key frames at the closure\n"
     "and release of /p b m f v/ and in phonemes too short for the grid.\n"
     "A WAV INPUT is recorded speech: it is aligned to --text / --text-file with\n"
-    "PocketSphinx (phones are recognised without them, less exactly), or, with a\n"
+    "PocketSphinx (without them, to the words it recognises, or its phones: less exact), or, with a\n"
     "non-English --voice, against espeak-ng's rendering of the transcript; it is the\n"
     "sound of --video. With audio the track covers it to its end.\n"
     "With --mesh, --video or --still it also simulates the physics face on the\n"

@@ -184,7 +184,7 @@ TEST_F(SpeechCliTest, RhubarbShapesOfRecordedSpeechCloseEveryBilabialAndOpenTheO
   // truth), rendered as Rhubarb shapes at Rhubarb's 10 ms resolution (--fps 100) with
   // the transcript and without, scored at the middle of every /p b m/ (A), /f v/ (G)
   // and open vowel /aa ae ah eh/ (C or D). Measured: with the transcript 30/30, 18/18,
-  // 47/57 (82 %); audio only 21/30, 18/18, 46/57 (81 %); Rhubarb 1.14 on the same
+  // 47/57 (82 %); audio only 27/30, 18/18, 49/57 (86 %); Rhubarb 1.14 on the same
   // recordings: 30 % and 27 %, 83 % and 78 %, 79 % and 77 %. The bounds keep lipsyncd
   // ahead of those in every class.
   const bool have_flite = std::system("command -v flite >/dev/null 2>&1") == 0;
@@ -218,9 +218,9 @@ TEST_F(SpeechCliTest, RhubarbShapesOfRecordedSpeechCloseEveryBilabialAndOpenTheO
     const char* mode = with_transcript ? "with the transcript" : "audio only";
     EXPECT_EQ(closure_count, 30);
     EXPECT_EQ(open_count, 57);
-    EXPECT_GE(closed, with_transcript ? 30 : 21) << mode;
+    EXPECT_GE(closed, with_transcript ? 30 : 27) << mode;
     EXPECT_EQ(lip_under_teeth, labiodental_count) << mode;
-    EXPECT_GE(opened, with_transcript ? 47 : 46) << mode << " (Rhubarb 1.14: 45 and 44 of 57)";
+    EXPECT_GE(opened, with_transcript ? 47 : 49) << mode << " (Rhubarb 1.14: 45 and 44 of 57)";
   }
 }
 

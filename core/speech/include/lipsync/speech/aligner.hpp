@@ -8,10 +8,15 @@
 // with optional pauses between them. The grammar's "words" are single phones
 // (one dictionary entry per phone and transcript word, `aa_3` is /AA/ of word 3),
 // so the recogniser's word segmentation is the phone alignment and each phone
-// still knows its word. Without a transcript the phones are recognised freely
-// with the model's phonetic language model (en-us-phone.lm.bin, PocketSphinx's
-// "allphone" search). Either way the result is ARPAbet at the recogniser's
-// 10 ms frame step.
+// still knows its word. Without a transcript the model's English language model
+// (en-us.lm.bin) recognises words, and those words are force-aligned as if they were
+// the transcript, when they fit the audio closely (at most 10 % of its loud windows
+// left in pauses; a note names them): a word knows which phones follow which, so a
+// /b/ the phones alone would take for /d/ comes out right whenever its word does.
+// Where the words do not fit (a voice far from the model's, as espeak-ng's formant
+// synthesis is) the phones are recognised one by one with the phonetic language
+// model (en-us-phone.lm.bin, PocketSphinx's "allphone" search). Either way the result
+// is ARPAbet at the recogniser's 10 ms frame step.
 //
 // After decoding, the boundaries of /p b m f v/ move to the energy steps of the signal
 // (closure_refiner.hpp): the recogniser's grid is 10 ms and its model knows nothing of
@@ -21,7 +26,8 @@
 //
 // Bounds: the audio is converted to 16 kHz mono when it is not (a note says so),
 // longer audio than `max_duration_s` is refused before decoding (a decode takes
-// about 0.2x real time aligned and 1x recognised, on one core, and its memory grows
+// about 0.2x real time aligned, 0.3x from the words heard and up to 1.1x when the
+// phone loop is needed, on one core, and its memory grows
 // with its length), silence is refused before decoding, and a
 // transcript the recogniser cannot fit to the audio is an error that says so.
 #pragma once
@@ -51,7 +57,7 @@ struct AlignmentOptions {
 
 struct Alignment {
   LabeledUtterance phones;               ///< phone_set "arpabet"; "" is silence; tiles [0, audio end]
-  std::vector<LabeledInterval> words;    ///< transcript words (lower case); empty without a transcript
+  std::vector<LabeledInterval> words;    ///< transcript words, or the words recognised (lower case); may be empty
   std::vector<std::string> notes;        ///< conversions done on the audio, for the user
   std::vector<RefinedBoundary> refined;  ///< what refine_closures did to each lip boundary
 };
