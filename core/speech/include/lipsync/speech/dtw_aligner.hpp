@@ -10,6 +10,15 @@
 // boundary of the synthesis is carried along the path to the recording: a
 // boundary between synthesis frames i−1 and i lands between the last recording
 // frame matched to i−1 and the first matched to i, interpolated within the frame.
+// Silence prefers silence: a pause-level frame matched to one that is not pays extra.
+//
+// A speaker pauses where espeak-ng does not (between words, or longer at a comma), and the
+// warp then matches the pause to whatever espeak-ng says there, a closure or a vowel, and
+// carries the next boundaries into the pause. So after a first warp each pause of the recording
+// (120 ms or more, inside its speech) matched to 100 ms or more less pause of the rendering is
+// put into espeak-ng's audio as silence, at the phone boundary nearest the rendering frame that
+// takes most of it (before a stop's closure), and the warp is done again; the second warp is
+// kept when its mean distance is no larger than the first's.
 //
 // espeak-ng reports a stop at its burst, so before the warp the lip phones' starts
 // are moved to the closures in espeak-ng's own audio (closure_refiner.hpp), and
@@ -81,6 +90,9 @@ struct WarpPath {
 /// The cheapest monotone path from (0, 0) to (a.size()−1, b.size()−1) within
 /// `band_frames` of the line through (0, 0), (a_speech_start, b_speech_start),
 /// (a_speech_end, b_speech_end), (a.size()−1, b.size()−1). Needs frames in both.
+/// A frame at pause level (35 dB under its sequence's loudest) matched to one that is not costs
+/// 5 % of the distance of unrelated frames more than their distance, so that silence prefers
+/// silence; WarpPath::mean_distance is the plain distance along the path.
 WarpPath warp(const FeatureFrames& a, const FeatureFrames& b, std::size_t band_frames,
               std::pair<std::size_t, std::size_t> a_speech, std::pair<std::size_t, std::size_t> b_speech);
 
@@ -89,6 +101,21 @@ std::int64_t carry_time_us(const WarpPath& path, std::int64_t a_us);
 
 /// The frames from the first to the last whose level is within 35 dB of the loudest (the speech).
 std::pair<std::size_t, std::size_t> speech_frames(const FeatureFrames& frames);
+
+/// A pause the recording has and espeak-ng's rendering lacks: `duration_us` of silence that
+/// belongs in the rendering at the start of its phone `phone`.
+struct MissingPause {
+  std::size_t phone;
+  std::int64_t duration_us;
+};
+
+/// The recording's pauses (120 ms or more of frames 35 dB under its loudest, between the first and
+/// last of its speech) that `path` (rendering rows, recording columns) matches to 100 ms or more
+/// fewer pause-level frames of the rendering: for each, the phone of `phones` (the rendering's,
+/// tiling it) whose start is nearest the rendering frame that takes the most of the pause, and the
+/// pause's length less the rendering's pause-level frames matched to it.
+std::vector<MissingPause> missing_pauses(const WarpPath& path, const FeatureFrames& rendering,
+                                         const std::vector<LabeledInterval>& phones, const FeatureFrames& recording);
 
 /// Aligns `audio` (any rate) against options.synthesis's rendering of options.transcript:
 /// phones in phone_set_for_voice(voice) ("" for pauses), tiling [0, audio end]; no words.
