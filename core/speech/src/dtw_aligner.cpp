@@ -308,6 +308,7 @@ std::vector<MissingPause> missing_pauses(const WarpPath& path, const FeatureFram
     }
     if (matched_quiet >= frames) continue;
     const std::int64_t duration_us = static_cast<std::int64_t>(frames - matched_quiet) * kFeatureHopUs;
+    if (duration_us < kLeastMissingPauseUs) continue;
     // The pause goes where the rendering's phone boundary nearest to that frame is.
     const std::int64_t widest_us = feature_frame_centre_us(widest_row);
     std::size_t best = 0;
@@ -319,8 +320,7 @@ std::vector<MissingPause> missing_pauses(const WarpPath& path, const FeatureFram
         best = k;
       }
     }
-    if (duration_us < kLeastMissingPauseUs || best == 0) continue;
-    missing.push_back({best, duration_us});
+    if (best > 0) missing.push_back({best, duration_us});
   }
   return missing;
 }
