@@ -42,10 +42,6 @@ constexpr std::int64_t kLeastPauseUs = 120'000;
 // A pause of the recording that the warp matches to this much less pause of the rendering is
 // put into the rendering, µs.
 constexpr std::int64_t kLeastMissingPauseUs = 100'000;
-// What a frame of espeak-ng's rendering at pause level (kSpeechRangeDb under its loudest) matched to
-// a frame of the recording that is not costs on top of their distance, as a share of the distance
-// of unrelated frames.
-constexpr double kPauseMismatchShare = 0.05;
 
 enum Step : std::uint8_t { kDiagonal, kDown, kRight };
 
@@ -353,29 +349,11 @@ WarpPath warp(const FeatureFrames& a, const FeatureFrames& b, std::size_t band_f
   std::vector<std::size_t> offset(rows + 1, 0);
   for (std::size_t i = 0; i < rows; ++i) offset[i + 1] = offset[i] + (high[i] - low[i] + 1);
   std::vector<std::uint8_t> steps(offset[rows]);
-  // The distance of unrelated frames: every frame of a against b's frames at a fixed stride.
-  double sum = 0.0;
-  std::size_t pairs = 0;
-  const std::size_t stride = std::max<std::size_t>(1, columns / 64);
-  for (std::size_t i = 0; i < rows; ++i) {
-    for (std::size_t j = i % stride; j < columns; j += stride, ++pairs) sum += frame_distance(a, i, b, j);
-  }
-  path.unrelated_distance = sum / static_cast<double>(pairs);
-  // Silence prefers silence: a pause-level frame of a (espeak-ng's closures and pauses are digital
-  // silence) matched to one of b that is not costs more. Not the other way round: a pause that
-  // espeak-ng lacks is put in by a second warp, and charging the recording's pause-level frames too
-  // moved an English /p/ after /m/ 33 ms off on the sentences the settings were chosen on.
-  const std::vector<bool> a_pause = pause_frames(a), b_pause = pause_frames(b);
-  const double mismatch_cost = kPauseMismatchShare * path.unrelated_distance;
-  const auto local_cost = [&](std::size_t i, std::size_t j) {
-    const double distance = frame_distance(a, i, b, j);
-    return a_pause[i] && !b_pause[j] ? distance + mismatch_cost : distance;
-  };
   constexpr double kUnreachable = std::numeric_limits<double>::infinity();
   std::vector<double> previous(columns, kUnreachable), current(columns, kUnreachable);
   for (std::size_t i = 0; i < rows; ++i) {
     for (std::size_t j = low[i]; j <= high[i]; ++j) {
-      const double distance = local_cost(i, j);
+      const double distance = frame_distance(a, i, b, j);
       double best = kUnreachable;
       Step step = kDiagonal;
       if (i == 0 && j == 0) best = distance;
@@ -396,16 +374,23 @@ WarpPath warp(const FeatureFrames& a, const FeatureFrames& b, std::size_t band_f
     }
     std::swap(previous, current);
   }
+  path.mean_distance = previous[columns - 1] / static_cast<double>(rows + columns);
+  // The distance of unrelated frames: every frame of a against b's frames at a fixed stride.
+  double sum = 0.0;
+  std::size_t pairs = 0;
+  const std::size_t stride = std::max<std::size_t>(1, columns / 64);
+  for (std::size_t i = 0; i < rows; ++i) {
+    for (std::size_t j = i % stride; j < columns; j += stride, ++pairs) sum += frame_distance(a, i, b, j);
+  }
+  path.unrelated_distance = sum / static_cast<double>(pairs);
 
   path.first.assign(rows, 0);
   path.last.assign(rows, 0);
   std::size_t i = rows - 1, j = columns - 1;
   path.last[i] = j;
   path.first[i] = j;
-  double path_sum = frame_distance(a, i, b, j);
   while (i > 0 || j > 0) {
     const Step step = static_cast<Step>(steps[offset[i] + (j - low[i])]);
-    if (step == kDiagonal) path_sum += frame_distance(a, i, b, j);
     if (step == kRight) {
       --j;
     } else {
@@ -414,9 +399,7 @@ WarpPath warp(const FeatureFrames& a, const FeatureFrames& b, std::size_t band_f
       path.last[i] = j;
     }
     path.first[i] = j;
-    path_sum += frame_distance(a, i, b, j);
   }
-  path.mean_distance = path_sum / static_cast<double>(rows + columns);
   return path;
 }
 

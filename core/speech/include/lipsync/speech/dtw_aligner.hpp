@@ -10,8 +10,6 @@
 // boundary of the synthesis is carried along the path to the recording: a
 // boundary between synthesis frames i−1 and i lands between the last recording
 // frame matched to i−1 and the first matched to i, interpolated within the frame.
-// Silence prefers silence: a frame of espeak-ng's at pause level (a closure, a pause) matched to a
-// frame of the recording that is not pays extra.
 //
 // A speaker pauses where espeak-ng does not (between words, or longer at a comma), and the
 // warp then matches the pause to whatever espeak-ng says there, a closure or a vowel, and
@@ -91,9 +89,6 @@ struct WarpPath {
 /// The cheapest monotone path from (0, 0) to (a.size()−1, b.size()−1) within
 /// `band_frames` of the line through (0, 0), (a_speech_start, b_speech_start),
 /// (a_speech_end, b_speech_end), (a.size()−1, b.size()−1). Needs frames in both.
-/// A frame of `a` at pause level (35 dB under its loudest) matched to a frame of `b` that is not
-/// costs 5 % of the distance of unrelated frames more than their distance, so that espeak-ng's
-/// silence prefers the recording's; WarpPath::mean_distance is the plain distance along the path.
 WarpPath warp(const FeatureFrames& a, const FeatureFrames& b, std::size_t band_frames,
               std::pair<std::size_t, std::size_t> a_speech, std::pair<std::size_t, std::size_t> b_speech);
 
