@@ -1,9 +1,11 @@
 // The parts of the DTW aligner (lipsync/speech/dtw_aligner.hpp, acoustic_features.hpp) on
 // made-up signals: MFCC frames every 10 ms with mean zero, the start and end of speech found
-// past pauses, a warp of a sequence with itself on the diagonal, and boundaries carried across
-// a uniform stretch.
+// past pauses, a warp of a sequence with itself on the diagonal, boundaries carried across
+// a uniform stretch, and a pause the recording has and the rendering lacks found at the phone
+// it comes before.
 #include "lipsync/speech/dtw_aligner.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -28,6 +30,26 @@ PcmAudio varied_tones(double seconds, double pause_s) {
   }
   audio.samples.resize(audio.samples.size() + pause, 0);
   return audio;
+}
+
+// `audio` with `pause_s` of silence put in at `at_s`.
+PcmAudio with_pause(const PcmAudio& audio, double at_s, double pause_s) {
+  PcmAudio result = audio;
+  const auto at = static_cast<std::ptrdiff_t>(at_s * kFeatureRateHz);
+  result.samples.insert(result.samples.begin() + at, static_cast<std::size_t>(pause_s * kFeatureRateHz), 0);
+  return result;
+}
+
+// One phone per 100 ms tone of varied_tones(seconds, pause_s), between two pauses.
+std::vector<LabeledInterval> tone_phones(double seconds, double pause_s) {
+  const auto pause_us = static_cast<std::int64_t>(pause_s * 1e6);
+  const auto tones = static_cast<std::int64_t>(std::llround(seconds * 10));
+  std::vector<LabeledInterval> phones{{"", 0, pause_us, 0}};
+  for (std::int64_t k = 0; k < tones; ++k) {
+    phones.push_back({"a", pause_us + k * 100'000, pause_us + (k + 1) * 100'000, 0});
+  }
+  phones.push_back({"", pause_us + tones * 100'000, 2 * pause_us + tones * 100'000, 0});
+  return phones;
 }
 
 FeatureFrames stretched(const FeatureFrames& frames, int factor) {
@@ -93,6 +115,39 @@ TEST(DtwWarp, ANarrowBandStillReachesTheFarCorner) {
   EXPECT_EQ(path.first.front(), 0U);
   EXPECT_EQ(path.last.back(), thrice.size() - 1);
   for (std::size_t k = 1; k < frames.size(); ++k) EXPECT_GE(path.first[k], path.last[k - 1]) << k;
+}
+
+TEST(MissingPauses, APauseOnlyTheRecordingHasIsPutBeforeThePhoneItPrecedes) {
+  const PcmAudio rendering_audio = varied_tones(2.0, 0.3);
+  const FeatureFrames rendering = mfcc_features(rendering_audio);
+  const FeatureFrames recording = mfcc_features(with_pause(rendering_audio, 1.3, 0.3));
+  const WarpPath path = warp(rendering, recording, 100, speech_frames(rendering), speech_frames(recording));
+  const std::vector<LabeledInterval> phones = tone_phones(2.0, 0.3);
+  const std::vector<MissingPause> pauses = missing_pauses(path, rendering, phones, recording);
+  ASSERT_EQ(pauses.size(), 1U);
+  EXPECT_EQ(phones[pauses[0].phone].start_us, 1'300'000);
+  EXPECT_NEAR(double(pauses[0].duration_us), 300'000.0, 40'000.0);
+}
+
+TEST(MissingPauses, NoneWhereTheRenderingHasThePausesOrTheyAreShort) {
+  const PcmAudio rendering_audio = with_pause(varied_tones(2.0, 0.3), 1.3, 0.3);
+  const FeatureFrames rendering = mfcc_features(rendering_audio);
+  const FeatureFrames same = mfcc_features(rendering_audio);
+  std::vector<LabeledInterval> phones = tone_phones(2.0, 0.3);
+  for (std::size_t k = 11; k < phones.size(); ++k) {  // the phones from 1.3 s on move by the pause
+    phones[k].start_us += 300'000;
+    phones[k].end_us += 300'000;
+  }
+  phones.insert(phones.begin() + 11, LabeledInterval{"", 1'300'000, 1'600'000, 0});
+  phones[10].end_us = 1'300'000;
+  EXPECT_THAT(missing_pauses(warp(rendering, same, 100, speech_frames(rendering), speech_frames(same)), rendering,
+                             phones, same),
+              ::testing::IsEmpty());
+  const FeatureFrames plain = mfcc_features(varied_tones(2.0, 0.3));
+  const FeatureFrames short_pause = mfcc_features(with_pause(varied_tones(2.0, 0.3), 1.3, 0.08));
+  EXPECT_THAT(missing_pauses(warp(plain, short_pause, 100, speech_frames(plain), speech_frames(short_pause)), plain,
+                             tone_phones(2.0, 0.3), short_pause),
+              ::testing::IsEmpty());
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <limits>
 
 #include "alignable_audio.hpp"
@@ -36,6 +37,11 @@ constexpr std::int64_t kClosureAfterPauseUs = 80'000;
 constexpr std::int64_t kClosureAfterNasalUs = 60'000;
 // The recording may be this many times longer or shorter than the synthesis.
 constexpr double kMostDurationRatio = 4.0;
+// A recording's pause: at least this long at a level kSpeechRangeDb under its loudest, µs.
+constexpr std::int64_t kLeastPauseUs = 120'000;
+// A pause of the recording that the warp matches to this much less pause of the rendering is
+// put into the rendering, µs.
+constexpr std::int64_t kLeastMissingPauseUs = 100'000;
 
 enum Step : std::uint8_t { kDiagonal, kDown, kRight };
 
@@ -201,6 +207,67 @@ PcmAudio padded(const PcmAudio& audio) {
   return result;
 }
 
+// espeak-ng's rendering of the transcript, ready to warp: its audio (padded, at kFeatureRateHz), its
+// phones (stops from their closures), each phone's start before that move (a stop's burst), its frames.
+struct Rendering {
+  PcmAudio audio;
+  LabeledUtterance phones;
+  std::vector<std::int64_t> bursts_us;
+  FeatureFrames frames;
+};
+
+Rendering prepared_rendering(PcmAudio audio, LabeledUtterance phones) {
+  Rendering rendering{std::move(audio), std::move(phones), {}, {}};
+  rendering.bursts_us = move_stop_starts_to_closures(rendering.audio, rendering.phones);
+  rendering.frames = mfcc_features(rendering.audio);
+  return rendering;
+}
+
+// The frames quieter than the loudest by more than kSpeechRangeDb.
+std::vector<bool> pause_frames(const FeatureFrames& frames) {
+  std::vector<bool> quiet(frames.size(), false);
+  if (frames.level_db.size() != frames.size() || frames.level_db.empty()) return quiet;
+  const double loudest = *std::max_element(frames.level_db.begin(), frames.level_db.end());
+  for (std::size_t k = 0; k < quiet.size(); ++k) quiet[k] = frames.level_db[k] < loudest - kSpeechRangeDb;
+  return quiet;
+}
+
+// `audio` (kFeatureRateHz) and `phones` (espeak-ng's, stops from their bursts) with each pause of
+// `pauses` put in as silence at the start of its phone in `moved` (the same phones, stops from their
+// closures): a stop's closure then follows the pause, the pause's interval ends at its burst.
+std::pair<PcmAudio, LabeledUtterance> with_pauses(const PcmAudio& audio, const LabeledUtterance& phones,
+                                                  const LabeledUtterance& moved, std::vector<MissingPause> pauses) {
+  std::sort(pauses.begin(), pauses.end(),
+            [](const MissingPause& a, const MissingPause& b) { return a.phone > b.phone; });
+  PcmAudio result_audio = audio;
+  LabeledUtterance result_phones = phones;
+  std::vector<LabeledInterval>& intervals = result_phones.intervals;
+  std::size_t previous_phone = intervals.size();
+  for (const MissingPause& pause : pauses) {
+    if (pause.phone == previous_phone) continue;
+    previous_phone = pause.phone;
+    const std::int64_t at_us = moved.intervals[pause.phone].start_us;
+    const auto at_sample = static_cast<std::size_t>(at_us * kFeatureRateHz / 1'000'000);
+    const auto samples = static_cast<std::size_t>(pause.duration_us * kFeatureRateHz / 1'000'000);
+    result_audio.samples.insert(result_audio.samples.begin() + static_cast<std::ptrdiff_t>(at_sample), samples, 0);
+    const std::int64_t shift_us = static_cast<std::int64_t>(samples) * 1'000'000 / kFeatureRateHz;
+    for (std::size_t k = pause.phone; k < intervals.size(); ++k) {
+      intervals[k].start_us += shift_us;
+      intervals[k].end_us += shift_us;
+    }
+    if (intervals[pause.phone].label.empty()) {  // a pause of espeak-ng's own, lengthened
+      intervals[pause.phone].start_us = at_us;
+    } else if (intervals[pause.phone - 1].label.empty()) {
+      intervals[pause.phone - 1].end_us = intervals[pause.phone].start_us;
+    } else {
+      intervals[pause.phone - 1].end_us = at_us;
+      intervals.insert(intervals.begin() + static_cast<std::ptrdiff_t>(pause.phone),
+                       LabeledInterval{"", at_us, intervals[pause.phone].start_us, intervals[pause.phone].line});
+    }
+  }
+  return {std::move(result_audio), std::move(result_phones)};
+}
+
 }  // namespace
 
 std::pair<std::size_t, std::size_t> speech_frames(const FeatureFrames& frames) {
@@ -210,6 +277,49 @@ std::pair<std::size_t, std::size_t> speech_frames(const FeatureFrames& frames) {
   while (first < last && frames.level_db[first] < loudest - kSpeechRangeDb) ++first;
   while (last > first && frames.level_db[last] < loudest - kSpeechRangeDb) --last;
   return {first, last};
+}
+
+std::vector<MissingPause> missing_pauses(const WarpPath& path, const FeatureFrames& rendering,
+                                         const std::vector<LabeledInterval>& phones, const FeatureFrames& recording) {
+  std::vector<MissingPause> missing;
+  const std::vector<bool> quiet = pause_frames(recording), rendering_quiet = pause_frames(rendering);
+  const auto [speech_first, speech_last] = speech_frames(recording);
+  for (std::size_t c0 = speech_first; c0 <= speech_last; ++c0) {
+    if (!quiet[c0]) continue;
+    std::size_t c1 = c0;
+    while (c1 + 1 <= speech_last && quiet[c1 + 1]) ++c1;
+    const std::size_t frames = c1 - c0 + 1;
+    const std::size_t first = c0;
+    c0 = c1;
+    if (static_cast<std::int64_t>(frames) * kFeatureHopUs < kLeastPauseUs) continue;
+    // The rendering's frames matched to the pause: how many are quiet, and which takes the most of it.
+    std::size_t matched_quiet = 0, widest_row = 0, widest_columns = 0;
+    for (std::size_t i = 0; i < path.first.size() && i < rendering_quiet.size(); ++i) {
+      if (path.last[i] < first || path.first[i] > c1) continue;
+      if (rendering_quiet[i]) ++matched_quiet;
+      const std::size_t columns = std::min(path.last[i], c1) - std::max(path.first[i], first) + 1;
+      if (columns > widest_columns) {
+        widest_columns = columns;
+        widest_row = i;
+      }
+    }
+    if (matched_quiet >= frames) continue;
+    const std::int64_t duration_us = static_cast<std::int64_t>(frames - matched_quiet) * kFeatureHopUs;
+    if (duration_us < kLeastMissingPauseUs) continue;
+    // The pause goes where the rendering's phone boundary nearest to that frame is.
+    const std::int64_t widest_us = feature_frame_centre_us(widest_row);
+    std::size_t best = 0;
+    std::int64_t best_distance_us = std::numeric_limits<std::int64_t>::max();
+    for (std::size_t k = 1; k < phones.size(); ++k) {
+      const std::int64_t distance_us = std::abs(phones[k].start_us - widest_us);
+      if (distance_us < best_distance_us) {
+        best_distance_us = distance_us;
+        best = k;
+      }
+    }
+    if (best > 0) missing.push_back({best, duration_us});
+  }
+  return missing;
 }
 
 WarpPath warp(const FeatureFrames& a, const FeatureFrames& b, std::size_t band_frames,
@@ -366,13 +476,25 @@ Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view sour
   } else {
     padded_phones.push_back(LabeledInterval{"", padded_phones.back().end_us, spoken_end_us, 0});
   }
-  const std::vector<std::int64_t> bursts_us = move_stop_starts_to_closures(spoken, synthesis_phones);
-
-  const FeatureFrames synthesis_frames = mfcc_features(spoken);
   const FeatureFrames recording_frames = mfcc_features(recording);
   const auto band_frames = static_cast<std::size_t>(std::max(1.0, options.band_s * 1e6 / kFeatureHopUs));
-  const WarpPath path = warp(synthesis_frames, recording_frames, band_frames, speech_frames(synthesis_frames),
-                             speech_frames(recording_frames));
+  const auto warp_to_recording = [&](const Rendering& rendering) {
+    return warp(rendering.frames, recording_frames, band_frames, speech_frames(rendering.frames),
+                speech_frames(recording_frames));
+  };
+  Rendering rendering = prepared_rendering(spoken, synthesis_phones);
+  WarpPath path = warp_to_recording(rendering);
+  if (const std::vector<MissingPause> pauses =
+          missing_pauses(path, rendering.frames, rendering.phones.intervals, recording_frames);
+      !pauses.empty()) {
+    auto [paused_audio, paused_phones] = with_pauses(spoken, synthesis_phones, rendering.phones, pauses);
+    Rendering paused = prepared_rendering(std::move(paused_audio), std::move(paused_phones));
+    WarpPath paused_path = warp_to_recording(paused);
+    if (paused_path.mean_distance <= path.mean_distance) {
+      rendering = std::move(paused);
+      path = std::move(paused_path);
+    }
+  }
   if (path.mean_distance > options.max_distance_ratio * path.unrelated_distance) {
     std::snprintf(text, sizeof text,
                   "the recording does not match the transcript as espeak-ng voice '%s' speaks it (the best warp's "
@@ -388,10 +510,10 @@ Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view sour
                 voice.c_str(), path.mean_distance, 100.0 * path.mean_distance / path.unrelated_distance);
   result.notes.push_back(text);
 
-  const std::vector<LabeledInterval>& spoken_phones = synthesis_phones.intervals;
+  const std::vector<LabeledInterval>& spoken_phones = rendering.phones.intervals;
   const std::size_t count = spoken_phones.size();
   const std::int64_t end_us = input.duration_us();
-  const std::vector<std::int64_t> bounds = carried_bounds(path, spoken_phones, bursts_us, end_us);
+  const std::vector<std::int64_t> bounds = carried_bounds(path, spoken_phones, rendering.bursts_us, end_us);
   for (std::size_t k = 0; k < count; ++k) {
     LabeledInterval interval = spoken_phones[k];
     interval.start_us = bounds[k];

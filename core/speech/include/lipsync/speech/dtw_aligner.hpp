@@ -11,6 +11,14 @@
 // boundary between synthesis frames i−1 and i lands between the last recording
 // frame matched to i−1 and the first matched to i, interpolated within the frame.
 //
+// A speaker pauses where espeak-ng does not (between words, or longer at a comma), and the
+// warp then matches the pause to whatever espeak-ng says there, a closure or a vowel, and
+// carries the next boundaries into the pause. So after a first warp each pause of the recording
+// (120 ms or more, inside its speech) matched to 100 ms or more less pause of the rendering is
+// put into espeak-ng's audio as silence, at the phone boundary nearest the rendering frame that
+// takes most of it (before a stop's closure), and the warp is done again; the second warp is
+// kept when its mean distance is no larger than the first's.
+//
 // espeak-ng reports a stop at its burst, so before the warp the lip phones' starts
 // are moved to the closures in espeak-ng's own audio (closure_refiner.hpp), and
 // after it the lip phones' boundaries move to the recording's energy steps, as
@@ -23,11 +31,11 @@
 // Bounds: the path is searched in a band around the line from the start of
 // speech in one audio to the start in the other, and from end to end (leading
 // and trailing pauses matched to each other), `band_s` wide on each side of it,
-// so time and memory grow with length × band (a 10-minute file on one core of this
-// machine: 29 s, 70 % of it resampling espeak-ng's 22 050 Hz audio, and 210 MB at the
-// peak, 60 MB of it the path's steps). A recording that does not say the transcript in that
-// voice's language shows as a mean distance along the path near that of unrelated
-// frames, and is an error rather than a guess.
+// so time and memory grow with length × band (a 10-minute file of Italian on one core
+// of this machine: 13 s, 2 s of it the second warp after the pauses put in, and 260 MB at
+// the peak). A recording that does not say the transcript in that voice's language shows
+// as a mean distance along the path near that of unrelated frames, and is an error rather
+// than a guess.
 #pragma once
 
 #include <cstdint>
@@ -89,6 +97,21 @@ std::int64_t carry_time_us(const WarpPath& path, std::int64_t a_us);
 
 /// The frames from the first to the last whose level is within 35 dB of the loudest (the speech).
 std::pair<std::size_t, std::size_t> speech_frames(const FeatureFrames& frames);
+
+/// A pause the recording has and espeak-ng's rendering lacks: `duration_us` of silence that
+/// belongs in the rendering at the start of its phone `phone`.
+struct MissingPause {
+  std::size_t phone;
+  std::int64_t duration_us;
+};
+
+/// The recording's pauses (120 ms or more of frames 35 dB under its loudest, between the first and
+/// last of its speech) that `path` (rendering rows, recording columns) matches to 100 ms or more
+/// fewer pause-level frames of the rendering: for each, the phone of `phones` (the rendering's,
+/// tiling it) whose start is nearest the rendering frame that takes the most of the pause, and the
+/// pause's length less the rendering's pause-level frames matched to it.
+std::vector<MissingPause> missing_pauses(const WarpPath& path, const FeatureFrames& rendering,
+                                         const std::vector<LabeledInterval>& phones, const FeatureFrames& recording);
 
 /// Aligns `audio` (any rate) against options.synthesis's rendering of options.transcript:
 /// phones in phone_set_for_voice(voice) ("" for pauses), tiling [0, audio end]; no words.
