@@ -333,8 +333,8 @@ TEST(Alignment, WithoutATranscriptBilabialsShowClosedAtLeastAsOftenAsMeasured) {
 TEST(Alignment, WithoutATranscriptTheWordsHeardAreAlignedWhereTheyFitAndThePhoneLoopServesWhereNot) {
   const std::filesystem::path wav =
       std::filesystem::temp_directory_path() / ("speech_test-heard-" + std::to_string(::getpid()) + ".wav");
-  // flite's "Rice is often served in round bowls": heard nearly right, so its /b/ of
-  // "bowls" comes from the word, not from the phone loop (which hears /d/ there).
+  // flite's "Rice is often served in round bowls", heard as "prices offensive in round
+  // bills": the /b/ of its last word comes from the word heard, where the phone loop hears /d/.
   const std::optional<testing::Recording> flite = testing::flite_recording(testing::accuracy_sentences()[4], wav);
   std::filesystem::remove(wav);
   ASSERT_TRUE(flite);
@@ -342,6 +342,13 @@ TEST(Alignment, WithoutATranscriptTheWordsHeardAreAlignedWhereTheyFitAndThePhone
   ASSERT_FALSE(heard.words.empty());
   EXPECT_TRUE(std::any_of(heard.words.begin(), heard.words.end(),
                           [](const LabeledInterval& word) { return word.label == "round"; }));
+  const LabeledInterval& last_word = heard.words.back();
+  EXPECT_TRUE(std::any_of(heard.phones.intervals.begin(), heard.phones.intervals.end(),
+                          [&](const LabeledInterval& phone) {
+                            return phone.label == "B" && phone.start_us >= last_word.start_us &&
+                                   phone.end_us <= last_word.end_us;
+                          }))
+      << "no /b/ in the last word heard, '" << last_word.label << "'";
   ASSERT_FALSE(heard.notes.empty());
   EXPECT_NE(heard.notes.back().find("no transcript: aligned to the words recognised (\""), std::string::npos)
       << heard.notes.back();
