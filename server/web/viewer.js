@@ -41,6 +41,7 @@ const kSteerIntervalMs = 20;
 // The <audio> element's fallback (cross-origin audio the page may not read).
 const kResyncUs = 100000;       // locked audio further than this from the anchor is seeked
 const kSeekUnlockedUs = 60000;  // a started or seeked audio further than this is seeked again
+const kSeekSamples = 3;         // ... kSeekSamples measurements in a row (one is the element's jitter)
 const kMaxLeadUs = 500000;
 const kMaxElementRateTrim = 0.15;
 const kSettleAfterStartMs = 60; // after a start or seek, drift is measured once the audio runs again, and this long after
@@ -769,6 +770,7 @@ function steer(nowUs) {
 // a page that comes later says on the page why it cannot play the sound in sync.
 let audioRestart = null;  // {fromS, runningSinceMs}
 let audioInBand = 0;      // consecutive measurements within kLockUs while not locked
+let elementOutOfBand = [];  // the element's consecutive drifts beyond its seek threshold (µs)
 let audioLeadUs = 0;  // how far ahead of the anchor a seek aims (the pipeline's restart lag)
 let audioStarting = false;
 let elementStartedAtZero = false;  // an unseekable file was started from its beginning at the anchor
@@ -850,6 +852,7 @@ function steerElement(nowUs) {
     audioStarting = true;
     viewer.locked = false;
     audioInBand = 0;
+    elementOutOfBand = [];
     audio.currentTime = (nowUs + audioLeadUs) / 1e6;
     audioRestart = { fromS: audio.currentTime, runningSinceMs: null };
     audio.playbackRate = 1;
@@ -872,15 +875,27 @@ function steerElement(nowUs) {
   const trim = Math.max(-kMaxElementRateTrim, Math.min(kMaxElementRateTrim, (drift / 1e6) * kRateGainPerSecond));
   audio.playbackRate = 1 - trim;
   if (viewer.locked ? Math.abs(drift) > kResyncUs : Math.abs(drift) > kSeekUnlockedUs) {
-    seekElement(nowUs, drift);
-    return;
+    elementOutOfBand.push(drift);
+    if (elementOutOfBand.length >= kSeekSamples) {
+      seekElement(nowUs, median(elementOutOfBand));
+      return;
+    }
+  } else {
+    elementOutOfBand = [];
   }
   noteLock(drift, nowUs);
 }
 
+function median(values) {
+  const sorted = [...values].sort((a, b) => a - b);
+  return sorted[sorted.length >> 1];
+}
+
 /// A start or a seek costs the media pipeline a restart, which the audio spends behind the anchor:
-/// seek ahead by the lag measured after the last one, so that it lands on the anchor.
+/// seek ahead by the lag measured after the last one (the median of the measurements that asked
+/// for the seek, so that one jittery reading does not move it), so that it lands on the anchor.
 function seekElement(nowUs, drift) {
+  elementOutOfBand = [];
   audioLeadUs = Math.max(0, Math.min(kMaxLeadUs, audioLeadUs - drift));
   audio.currentTime = (nowUs + audioLeadUs) / 1e6;
   audioRestart = { fromS: audio.currentTime, runningSinceMs: null };
