@@ -293,8 +293,8 @@ TEST(Alignment, WithoutATranscriptBilabialsShowClosedAtLeastAsOftenAsMeasured) {
   // flite and Festival, aligned from the audio alone (the words heard, or the phone loop's
   // phones where those do not fit) and refined (the default), scored at the middle of
   // every reference /p b m/ ("closed at middle") and of every other phoneme ("false
-  // closures": a /p b m/ shown where the lips should be open). Measured: closed 4, 13 and
-  // 14 of 15; false closures 6/230, 2/240 and 1/240. A change to the recogniser or the
+  // closures": a /p b m/ shown where the lips should be open). Measured: closed 7, 13 and
+  // 14 of 15; false closures 7/230, 2/240 and 1/240. A change to the recogniser or the
   // refiner must not lose a closure or add a false one.
   struct Voice {
     const char* name;
@@ -305,7 +305,7 @@ TEST(Alignment, WithoutATranscriptBilabialsShowClosedAtLeastAsOftenAsMeasured) {
   const PhoneSet arpabet = *PhoneSet::builtin("arpabet", model);
   const std::filesystem::path wav =
       std::filesystem::temp_directory_path() / ("speech_test-free-" + std::to_string(::getpid()) + ".wav");
-  for (const Voice voice : {Voice{"espeak-ng", 4, 6}, Voice{"flite", 13, 2}, Voice{"festival", 14, 1}}) {
+  for (const Voice voice : {Voice{"espeak-ng", 7, 7}, Voice{"flite", 13, 2}, Voice{"festival", 14, 1}}) {
     const std::string name = voice.name;
     const PhoneSet reference_set = *PhoneSet::builtin(name == "espeak-ng" ? "espeak" : "radio", model);
     testing::BoundaryScore score;
@@ -353,12 +353,28 @@ TEST(Alignment, WithoutATranscriptTheWordsHeardAreAlignedWhereTheyFitAndThePhone
   EXPECT_NE(heard.notes.back().find("no transcript: aligned to the words recognised (\""), std::string::npos)
       << heard.notes.back();
   // espeak-ng's formant voice is heard as a few wrong words that leave its speech in
-  // pauses: the phones come from the phone loop, with no words and no such note.
+  // pauses, in the recording as it is and over a noise floor ("american nuclear bomb us
+  // who planned"): the phones come from the phone loop, with no words and no such note.
   const speech::Synthesis espeak = speech::synthesize(testing::accuracy_sentences()[0]);
   const speech::Alignment looped = speech::align_speech(espeak.audio, "birch.wav", {});
   EXPECT_TRUE(looped.words.empty());
   EXPECT_GT(looped.phones.intervals.size(), 20U);
   for (const std::string& note : looped.notes) EXPECT_EQ(note.find("words recognised"), std::string::npos) << note;
+  // Its "The box was thrown beside the parked truck" is heard as "the box was through that"
+  // (which does not fit), and over the noise floor as "the box with road beside the parked
+  // truck" (which does): the /p/ of "parked" comes from that word.
+  const speech::Synthesis box = speech::synthesize(testing::accuracy_sentences()[6]);
+  const speech::Alignment over_noise = speech::align_speech(box.audio, "box.wav", {});
+  const auto parked = std::find_if(over_noise.words.begin(), over_noise.words.end(),
+                                   [](const LabeledInterval& word) { return word.label == "parked"; });
+  ASSERT_NE(parked, over_noise.words.end()) << "'parked' not heard";
+  EXPECT_TRUE(std::any_of(
+      over_noise.phones.intervals.begin(), over_noise.phones.intervals.end(), [&](const LabeledInterval& phone) {
+        // the refiner may start its closure before the word, in the pause ahead of it
+        return phone.label == "P" && phone.end_us > parked->start_us && phone.end_us <= parked->end_us;
+      }));
+  ASSERT_FALSE(over_noise.notes.empty());
+  EXPECT_NE(over_noise.notes.back().find("words recognised"), std::string::npos) << over_noise.notes.back();
 }
 
 TEST(Alignment, WordsAndPhonesFollowTheTranscript) {
@@ -380,8 +396,9 @@ TEST(Alignment, WordsAndPhonesFollowTheTranscript) {
 
 TEST(Alignment, WithoutATranscriptPhonesAreRecognised) {
   const speech::Synthesis speech = speech::synthesize("Papa parked the car.");
+  // Heard over the noise floor as "political or to the dollar", which fits: the phones
+  // come from those words (the phone loop's where no words fit); either way they are phones.
   const speech::Alignment recognised = speech::align_speech(speech.audio, "papa.wav", {});
-  EXPECT_TRUE(recognised.words.empty());
   const auto spoken = std::count_if(recognised.phones.intervals.begin(), recognised.phones.intervals.end(),
                                     [](const LabeledInterval& phone) { return !phone.label.empty(); });
   EXPECT_GE(spoken, 5);

@@ -14,8 +14,10 @@
 // left in pauses; a note names them): a word knows which phones follow which, so a
 // /b/ the phones alone would take for /d/ comes out right whenever its word does.
 // Where the words do not fit (a voice far from the model's, as espeak-ng's formant
-// synthesis is) the phones are recognised one by one with the phonetic language
-// model (en-us-phone.lm.bin, PocketSphinx's "allphone" search). Either way the result
+// synthesis is) they are listened for once more over a faint white noise floor (the
+// model knows no digital silence), and kept when those fit; where neither fits the
+// phones are recognised one by one with the phonetic language model
+// (en-us-phone.lm.bin, PocketSphinx's "allphone" search). Either way the result
 // is ARPAbet at the recogniser's 10 ms frame step.
 //
 // After decoding, the boundaries of /p b m f v/ move to the energy steps of the signal
