@@ -243,6 +243,38 @@ TEST(RecordedLanguages, TheWarpFollowsARecordingSpokenSlowerThanEspeakNg) {
   EXPECT_LE(percentile(errors_ms, 0.95), 100.0);
 }
 
+TEST(RecordedLanguages, AStopThatTakesOverTheShortPauseBeforeItLeavesEveryLabelOnItsOwnInterval) {
+  // espeak-ng's Catalan puts a short pause before the /p/ of "per" (its closure, as silent as a
+  // pause); the closure refiner gives that pause to the stop and drops it. The phones after it must
+  // keep their own times: the aligned phones tile the recording, in espeak-ng's order.
+  const std::string transcript = "Ma mare prepara un bon sopar per a tothom.";
+  speech::SynthesisOptions slow;
+  slow.voice = "ca";
+  slow.words_per_minute = 140;
+  const speech::Synthesis recording = speech::synthesize(transcript, slow);
+  speech::DtwAlignmentOptions options;
+  options.transcript = transcript;
+  options.synthesis.voice = "ca";
+  const speech::Alignment alignment = speech::align_speech_to_synthesis(recording.audio, "slow_ca.wav", options);
+  const std::vector<LabeledInterval>& phones = alignment.phones.intervals;
+  ASSERT_FALSE(phones.empty());
+  EXPECT_EQ(phones.front().start_us, 0);
+  EXPECT_EQ(phones.back().end_us, recording.audio.duration_us());
+  for (std::size_t k = 0; k < phones.size(); ++k) {
+    EXPECT_LT(phones[k].start_us, phones[k].end_us) << k << " /" << phones[k].label << "/";
+    if (k > 0) EXPECT_EQ(phones[k].start_us, phones[k - 1].end_us) << k << " /" << phones[k].label << "/";
+  }
+  const auto spoken = [](const std::vector<LabeledInterval>& intervals) {
+    std::vector<std::string> labels;
+    for (const LabeledInterval& interval : intervals) {
+      if (!interval.label.empty()) labels.push_back(interval.label);
+    }
+    return labels;
+  };
+  EXPECT_THAT(spoken(phones), ::testing::ElementsAreArray(spoken(recording.phonemes.intervals)));
+  EXPECT_EQ(phones.back().label, "") << "the pause after the last /m/";
+}
+
 // --- the command line ------------------------------------------------------------------------
 
 class RecordedLanguagesCli : public testing::LipsyncCliTest {

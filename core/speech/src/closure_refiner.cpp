@@ -183,6 +183,18 @@ bool starts_with_sound(std::string_view arpabet) {
   return phone == "M" || phone == "F" || phone == "V";
 }
 
+bool is_oral_bilabial_stop(std::string_view arpabet) {
+  const std::string phone = upper_letters(arpabet);
+  return phone == "P" || phone == "B";
+}
+
+// An /m/ before a /p b/ (Italian "compra", Finnish "puistoon pelaamaan" said [m p]): the lips stay
+// closed from the nasal into the stop's closure, so there is no release between them; the murmur's
+// end is the stop's start, found as its closure.
+bool closes_into_stop(std::string_view nasal, std::string_view next) {
+  return is_bilabial_nasal(nasal) && is_oral_bilabial_stop(next);
+}
+
 bool is_stop(std::string_view arpabet) {
   const std::string phone = upper_letters(arpabet);
   return phone == "P" || phone == "B" || phone == "T" || phone == "D" || phone == "K" || phone == "G" ||
@@ -307,7 +319,8 @@ std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtter
       }
       if (i > 0) refine_start(levels, intervals, i, options, refined);
     }
-    if (i + 1 < intervals.size()) {  // the release: the level rises again
+    if (i + 1 < intervals.size() &&
+        !closes_into_stop(intervals[i].label, intervals[i + 1].label)) {  // the release: the level rises again
       LabeledInterval& next = intervals[i + 1];
       const std::int64_t aligned = intervals[i].end_us;
       const Step step = best_step(

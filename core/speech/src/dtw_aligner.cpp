@@ -91,16 +91,24 @@ std::string lip_phone_for_refiner(const std::string& label) {
   return std::string(1, static_cast<char>(std::toupper(static_cast<unsigned char>(first))));
 }
 
-// Runs the closure refiner on `phones` (labels of espeak-ng) through their ARPAbet stand-ins.
+// Runs the closure refiner on `phones` (labels of espeak-ng) through their ARPAbet stand-ins. The
+// refiner may give a short pause before a /p b/ to the stop (its closure, heard as silence) and drop
+// it: each stand-in carries the index of its phone in `line`, so the labels follow their intervals.
 std::vector<RefinedBoundary> refine_lip_phones(const PcmAudio& audio, LabeledUtterance& phones,
                                                const ClosureRefinerOptions& options) {
   LabeledUtterance stand_in = phones;
-  for (LabeledInterval& interval : stand_in.intervals) interval.label = lip_phone_for_refiner(interval.label);
-  std::vector<RefinedBoundary> refined = refine_closures(audio, stand_in, options);
-  for (std::size_t i = 0; i < phones.intervals.size(); ++i) {
-    phones.intervals[i].start_us = stand_in.intervals[i].start_us;
-    phones.intervals[i].end_us = stand_in.intervals[i].end_us;
+  for (std::size_t i = 0; i < stand_in.intervals.size(); ++i) {
+    stand_in.intervals[i].label = lip_phone_for_refiner(phones.intervals[i].label);
+    stand_in.intervals[i].line = static_cast<int>(i);
   }
+  std::vector<RefinedBoundary> refined = refine_closures(audio, stand_in, options);
+  std::vector<LabeledInterval> intervals;
+  intervals.reserve(stand_in.intervals.size());
+  for (const LabeledInterval& interval : stand_in.intervals) {
+    const LabeledInterval& phone = phones.intervals[static_cast<std::size_t>(interval.line)];
+    intervals.push_back({phone.label, interval.start_us, interval.end_us, phone.line});
+  }
+  phones.intervals = std::move(intervals);
   return refined;
 }
 

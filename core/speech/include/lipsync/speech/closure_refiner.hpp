@@ -23,7 +23,9 @@
 // into the murmur) is looked for in the nasal contrast too, the formant band's level
 // less the level below 400 Hz, which the murmur raises: where that falls by
 // `min_step_db` or more and the formant band falls there too, the closure is at its
-// steepest fall. Where no step is that clear the aligner's boundary stays. Pauses next to lip phones get three rules:
+// steepest fall. Where no step is that clear the aligner's boundary stays. An /m/ before a /p b/
+// has no release (the lips stay closed into the stop): its end is left to the stop's closure,
+// where the murmur falls to the stop's silence. Pauses next to lip phones get three rules:
 // a /p b/ after a pause of at most `longest_closure_pause_us` had that silence as its
 // closure (the recogniser hears a silent closure as a pause and puts the stop at its
 // burst), so it takes the pause over and its start is refined from where the pause
