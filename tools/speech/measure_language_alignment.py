@@ -5,7 +5,8 @@ Festival speaks each sentence and writes its own segment times (utt.save.segs): 
 `lipsync align X.wav --text T --voice V` aligns the WAV; its phones (espeak-ng's IPA, or its
 English mnemonics) are matched to Festival's by a Needleman-Wunsch alignment of the two
 phone sequences after mapping both to a coarse key (Festival's SAMPA-like labels without
-stress digits, IPA without length marks and diacritics; see phone_key). A boundary is
+stress digits, IPA without length marks and diacritics; see phone_key), a geminate consonant
+written as two phones in a row taken as one (scored_phones). A boundary is
 scored when a phone and the one before it are matched on both sides (pauses excluded):
 its error is |aligned start - Festival start|. A bilabial closure (/p b m/ matched to
 /p b m/) counts as within 30 ms when the start is.
@@ -215,13 +216,31 @@ def speak_with_festival(festival_voice, text, wav, segs):
     subprocess.run([c.encode(encoding) for c in command], check=True, capture_output=True, timeout=120)
 
 
+def scored_phones(segments, festival, english_espeak=False):
+    """The indices and keys of the phones scored: pauses left out, and a geminate consonant
+    written as two phones in a row (espeak-ng's Finnish "Mummo" /m m/, where Festival has one
+    /mː/) taken as one, at its first phone's start: its closure starts there."""
+    indices, keys = [], []
+    for k, (label, start, _) in enumerate(segments):
+        if label in PAUSES:
+            continue
+        key = phone_key(label, festival, english_espeak)
+        previous = indices[-1] if indices else None
+        if (previous == k - 1 and keys[-1] == key and not is_vowel(key)
+                and abs(segments[previous][2] - start) < 1e-3):
+            continue
+        indices.append(k)
+        keys.append(key)
+    return indices, keys
+
+
 def boundary_errors(truth, aligned, english_espeak):
     """Errors (s) of the boundaries matched between Festival's segments and the aligner's
     phones, and of the bilabial closures; the pairs scored."""
-    truth = [s for s in truth if s[0] not in PAUSES]
-    aligned = [s for s in aligned if s[0] not in PAUSES]
-    a = [phone_key(s[0], True) for s in truth]
-    b = [phone_key(s[0], False, english_espeak) for s in aligned]
+    t_index, a = scored_phones(truth, True)
+    a_index, b = scored_phones(aligned, False, english_espeak)
+    truth = [truth[k] for k in t_index]
+    aligned = [aligned[k] for k in a_index]
     pairs = needleman_wunsch(a, b)
     errors, bilabial = [], []
     previous = None
@@ -318,10 +337,8 @@ CORPUS_ITEMS = [("it", 3), ("cs", 1), ("ca", 1), ("cs", 2), ("hi", 3), ("it", 1)
 
 def scored_pairs(truth, aligned, english_espeak=False):
     """(truth index, aligned index, kind) as boundary_errors scores them; indices into the full lists."""
-    t_index = [k for k, s in enumerate(truth) if s[0] not in PAUSES]
-    a_index = [k for k, s in enumerate(aligned) if s[0] not in PAUSES]
-    a = [phone_key(truth[k][0], True) for k in t_index]
-    b = [phone_key(aligned[k][0], False, english_espeak) for k in a_index]
+    t_index, a = scored_phones(truth, True)
+    a_index, b = scored_phones(aligned, False, english_espeak)
     result, previous = [], None
     for i, j in needleman_wunsch(a, b):
         consecutive = previous == (i - 1, j - 1)
