@@ -217,6 +217,23 @@ TEST(Wav, BadFilesAreRefusedNamingTheFileAndWhatWasFound) {
   EXPECT_EQ(error_of([&] { speech::decode_wav(no_data, "n.wav"); }), "n.wav: WAV file has no 'data' chunk");
 }
 
+// Every word of `aligned` starts where a spoken phone starts and ends where one ends, with
+// the phones between them spoken or pauses, also where the closure refiner moved its lip
+// boundaries (or gave a pause before a /p b/ to the stop).
+void expect_words_start_and_end_with_their_phones(const speech::Alignment& aligned, const std::string& what) {
+  const std::vector<LabeledInterval>& phones = aligned.phones.intervals;
+  for (const LabeledInterval& word : aligned.words) {
+    const auto first = std::find_if(phones.begin(), phones.end(),
+                                    [&](const LabeledInterval& p) { return p.start_us == word.start_us; });
+    const auto last =
+        std::find_if(phones.begin(), phones.end(), [&](const LabeledInterval& p) { return p.end_us == word.end_us; });
+    ASSERT_NE(first, phones.end()) << what << ": '" << word.label << "' starts inside a phone, at " << word.start_us;
+    ASSERT_NE(last, phones.end()) << what << ": '" << word.label << "' ends inside a phone, at " << word.end_us;
+    EXPECT_FALSE(first->label.empty()) << what << ": '" << word.label << "' starts with a pause";
+    EXPECT_FALSE(last->label.empty()) << what << ": '" << word.label << "' ends with a pause";
+  }
+}
+
 TEST(Alignment, SyntheticSpeechAlignsWithinTheReportedError) {
   // The figures of docs/input-formats.md, "Speech in": espeak-ng speech of the ten
   // sentences, force-aligned, against espeak-ng's own phoneme boundaries, its stops
@@ -238,6 +255,7 @@ TEST(Alignment, SyntheticSpeechAlignsWithinTheReportedError) {
     options.transcript = sentence;
     const speech::Alignment aligned = speech::align_speech(speech.audio, "espeak-ng", options);
     ASSERT_EQ(aligned.words.size(), speech::transcript_words(sentence).size()) << sentence;
+    expect_words_start_and_end_with_their_phones(aligned, sentence);
     testing::score_alignment(speech.phonemes, espeak, aligned.phones, arpabet, model, score);
   }
   EXPECT_LE(testing::quantile(score.errors_ms, 0.5), 10.0);
@@ -368,11 +386,12 @@ TEST(Alignment, WithoutATranscriptTheWordsHeardAreAlignedWhereTheyFitAndThePhone
   const auto parked = std::find_if(over_noise.words.begin(), over_noise.words.end(),
                                    [](const LabeledInterval& word) { return word.label == "parked"; });
   ASSERT_NE(parked, over_noise.words.end()) << "'parked' not heard";
+  // The refiner gives the pause before "parked" to its /p/: the word starts with that closure.
   EXPECT_TRUE(std::any_of(
       over_noise.phones.intervals.begin(), over_noise.phones.intervals.end(), [&](const LabeledInterval& phone) {
-        // the refiner may start its closure before the word, in the pause ahead of it
-        return phone.label == "P" && phone.end_us > parked->start_us && phone.end_us <= parked->end_us;
+        return phone.label == "P" && phone.start_us == parked->start_us && phone.end_us <= parked->end_us;
       }));
+  expect_words_start_and_end_with_their_phones(over_noise, "box.wav");
   ASSERT_FALSE(over_noise.notes.empty());
   EXPECT_NE(over_noise.notes.back().find("words recognised"), std::string::npos) << over_noise.notes.back();
 }

@@ -377,6 +377,36 @@ void recognise_speech(const PcmAudio& audio, const std::vector<double>& levels, 
   recognise_phones(phones.get(), audio, options, source, result);
 }
 
+// How many phones (pauses aside) each word of `alignment` holds.
+std::vector<std::size_t> phones_per_word(const Alignment& alignment) {
+  std::vector<std::size_t> counts;
+  for (const LabeledInterval& word : alignment.words) {
+    counts.push_back(static_cast<std::size_t>(std::count_if(
+        alignment.phones.intervals.begin(), alignment.phones.intervals.end(), [&](const LabeledInterval& phone) {
+          return !phone.label.empty() && phone.start_us >= word.start_us && phone.end_us <= word.end_us;
+        })));
+  }
+  return counts;
+}
+
+// After refine_closures: each word starts where its first phone starts now and ends where
+// its last one ends (`phone_counts` from phones_per_word before it). The refiner moves
+// boundaries and may give a pause before a /p b/ to the stop, which then starts where the
+// pause did, inside the gap between two words; it keeps every phone and their order.
+void fit_words_to_phones(const std::vector<std::size_t>& phone_counts, Alignment& alignment) {
+  std::vector<const LabeledInterval*> spoken;
+  for (const LabeledInterval& phone : alignment.phones.intervals) {
+    if (!phone.label.empty()) spoken.push_back(&phone);
+  }
+  std::size_t next = 0;
+  for (std::size_t w = 0; w < alignment.words.size(); ++w) {
+    if (phone_counts[w] == 0 || next + phone_counts[w] > spoken.size()) return;
+    alignment.words[w].start_us = spoken[next]->start_us;
+    alignment.words[w].end_us = spoken[next + phone_counts[w] - 1]->end_us;
+    next += phone_counts[w];
+  }
+}
+
 }  // namespace
 
 std::vector<std::string> transcript_words(std::string_view transcript) {
@@ -436,14 +466,9 @@ Alignment align_speech(const PcmAudio& input, std::string_view source_view, cons
   }
   std::vector<LabeledInterval>& phones = result.phones.intervals;
   if (options.refine_closures) {
+    const std::vector<std::size_t> phone_counts = phones_per_word(result);
     result.refined = refine_closures(audio, result.phones, options.refiner);
-    for (const RefinedBoundary& boundary : result.refined) {  // words start and end with their phones
-      if (!boundary.moved) continue;
-      for (LabeledInterval& word : result.words) {
-        if (word.start_us == boundary.aligned_us) word.start_us = boundary.refined_us;
-        if (word.end_us == boundary.aligned_us) word.end_us = boundary.refined_us;
-      }
-    }
+    fit_words_to_phones(phone_counts, result);
   }
   if (options.transcript) {
     const double share = loud_share_in_pauses(levels, loudest, phones);
