@@ -327,7 +327,9 @@ std::vector<std::string> recognise_words(const PcmAudio& audio, const AlignmentO
 // ten (none without). On the first listening the floor would cost words that fit without it
 // (flite's 52 to 43 of 80 right, LibriVox's 51 to 48 of 71). 42 dB is uniform noise of 100
 // LSB (-55 dBFS RMS) under espeak-ng's loudest windows (about -12.5 dBFS); 80 to 150 LSB
-// measured about the same.
+// measured about the same. The phone loop, where even those words do not fit, hears the
+// same noisy copy: on espeak-ng's ten sentences 10 of 15 closures shown against 7 on the
+// recording as it is, 56 % of the phonemes matched against 46 %, one false closure more.
 constexpr double kNoiseFloorBelowLoudestDb = 42.0;
 
 // `audio` plus uniform white noise with an RMS level `below_db` under `loudest_dbfs`, from a
@@ -366,7 +368,8 @@ bool align_heard_words(const std::vector<std::string>& heard, const PcmAudio& au
 
 // Without a transcript: the words the English language model hears, force-aligned as
 // if they were the transcript, where they fit the audio closely (heard in the recording
-// as it is, else over a faint noise floor); the phone loop's phones where they do not.
+// as it is, else over a faint noise floor); the phone loop's phones (over that floor) where
+// they do not. Every alignment's times are on the recording as it is.
 void recognise_speech(const PcmAudio& audio, const std::vector<double>& levels, const AlignmentOptions& options,
                       const std::string& source, Alignment& result) {
   if (align_heard_words(recognise_words(audio, options, source), audio, levels, options, source, result)) return;
@@ -374,7 +377,7 @@ void recognise_speech(const PcmAudio& audio, const std::vector<double>& levels, 
   const PcmAudio noisy = with_noise_floor(audio, loudest_dbfs, kNoiseFloorBelowLoudestDb);
   if (align_heard_words(recognise_words(noisy, options, source), audio, levels, options, source, result)) return;
   const Decoder phones = make_decoder(options, source, Search::phones);
-  recognise_phones(phones.get(), audio, options, source, result);
+  recognise_phones(phones.get(), noisy, options, source, result);
 }
 
 // How many phones (pauses aside) each word of `alignment` holds.

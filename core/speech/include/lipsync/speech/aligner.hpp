@@ -16,7 +16,7 @@
 // Where the words do not fit (a voice far from the model's, as espeak-ng's formant
 // synthesis is) they are listened for once more over a faint white noise floor (the
 // model knows no digital silence), and kept when those fit; where neither fits the
-// phones are recognised one by one with the phonetic language model
+// phones are recognised one by one, over the same floor, with the phonetic language model
 // (en-us-phone.lm.bin, PocketSphinx's "allphone" search). Either way the result
 // is ARPAbet at the recogniser's 10 ms frame step.
 //
