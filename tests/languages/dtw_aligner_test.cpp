@@ -1,8 +1,8 @@
 // The parts of the DTW aligner (lipsync/speech/dtw_aligner.hpp, acoustic_features.hpp) on
 // made-up signals: MFCC frames every 10 ms with mean zero, the start and end of speech found
 // past pauses, a warp of a sequence with itself on the diagonal, boundaries carried across
-// a uniform stretch, and a pause the recording has and the rendering lacks found at the phone
-// it comes before.
+// a uniform stretch, a frame a little closer kept from taking a whole stretch, and a pause
+// the recording has and the rendering lacks found at the phone it comes before.
 #include "lipsync/speech/dtw_aligner.hpp"
 
 #include <gmock/gmock.h>
@@ -115,6 +115,37 @@ TEST(DtwWarp, ANarrowBandStillReachesTheFarCorner) {
   EXPECT_EQ(path.first.front(), 0U);
   EXPECT_EQ(path.last.back(), thrice.size() - 1);
   for (std::size_t k = 1; k < frames.size(); ++k) EXPECT_GE(path.first[k], path.last[k - 1]) << k;
+}
+
+// Frames of one dimension, all at speech level: `runs` of (value, count).
+FeatureFrames level_frames(std::initializer_list<std::pair<float, int>> runs) {
+  FeatureFrames frames;
+  frames.dimensions = 1;
+  for (const auto& [value, count] : runs) {
+    frames.values.insert(frames.values.end(), static_cast<std::size_t>(count), value);
+    frames.level_db.insert(frames.level_db.end(), static_cast<std::size_t>(count), -20.0);
+  }
+  return frames;
+}
+
+TEST(DtwWarp, AFrameALittleCloserDoesNotTakeAWholeStretch) {
+  // The shape of Finnish "aamulla": the rendering's vowel (6 frames) then a nasal whose first frame
+  // lies a little nearer the recording's vowel (30 frames; distance 15) than the rendering's vowel does
+  // (21), the nasal's other frames (its release) far from both.
+  const FeatureFrames rendering = level_frames({{0, 3}, {60, 6}, {96, 1}, {130, 2}, {180, 3}});
+  const FeatureFrames recording = level_frames({{0, 3}, {81, 30}, {96, 1}, {130, 2}, {180, 3}});
+  const auto nasal_start_us = [&](const StretchCost& stretch) {
+    const WarpPath path = warp(rendering, recording, 50, speech_frames(rendering), speech_frames(recording), stretch);
+    return carry_time_us(path, feature_frame_centre_us(8) + kFeatureHopUs / 2);  // between frames 8 and 9
+  };
+  // Between the recording's frames 32 and 33, where its nasal starts.
+  const std::int64_t recording_nasal_us = feature_frame_centre_us(32) + kFeatureHopUs / 2;
+  // The nasal's first frame takes no more of the vowel than a run is free for (8 frames), ...
+  const std::int64_t charged_us = nasal_start_us(StretchCost{});
+  EXPECT_GE(charged_us, recording_nasal_us - 8 * kFeatureHopUs);
+  EXPECT_LE(charged_us, recording_nasal_us);
+  // ... where with runs free it takes all of it but the frame the rendering's vowel is squeezed onto.
+  EXPECT_EQ(nasal_start_us(StretchCost{.free_frames = 8, .cost = 0}), feature_frame_centre_us(3) + kFeatureHopUs / 2);
 }
 
 TEST(MissingPauses, APauseOnlyTheRecordingHasIsPutBeforeThePhoneItPrecedes) {

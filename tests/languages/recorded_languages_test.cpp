@@ -1,15 +1,17 @@
 // Recorded speech in other languages: `lipsync align/render X.wav --voice V` aligns against
 // espeak-ng's rendering of the transcript (lipsync/speech/dtw_aligner.hpp), checked on real
-// Festival recordings in Italian, Czech, Catalan and Hindi (tests/data/recorded_languages, made by
+// Festival recordings in Italian, Czech, Catalan, Hindi and Finnish (tests/data/recorded_languages, made by
 // tools/speech/measure_language_alignment.py --corpus), whose own segment times are the truth.
 //
 // - Boundaries: median error ≤ 30 ms, 95th percentile ≤ 100 ms, bilabial closures within
 //   30 ms ≥ 80 % (the goals of docs/languages.md), over the boundaries the regenerate script
 //   matched between Festival's segments and espeak-ng's phonemes (NAME.truth.tsv); and, so that
 //   a regression fails, no worse than this corpus measures today with some margin (median
-//   ≤ 15 ms, p95 ≤ 60 ms, bilabials ≥ 97 %: today 39 of 40, among them a Catalan /b/ that
-//   espeak-ng says as /β/, refined as a /b/). A stop after a pause, and one after a nasal (the
-//   /m b/ of Italian "bambino"), starts at its closure, not at its burst.
+//   ≤ 15 ms, p95 ≤ 60 ms, bilabials ≥ 97 %: today 42 of 43, among them a Catalan /b/ that
+//   espeak-ng says as /β/, refined as a /b/). No bilabial closure is more than 100 ms off (the
+//   Finnish /m/ of "aamulla" was 275 ms early before the warp charged long runs). A stop after a
+//   pause, and one after a nasal (the /m b/ of Italian "bambino"), starts at its closure, not at
+//   its burst.
 // - Through the render path the aligned phonemes render with the lips sealed at every bilabial
 //   key frame, and `lipsync render X.wav --text-file F --voice V` works.
 // - Bad inputs (empty transcript, silence, noise, a transcript far too long for the audio, an
@@ -39,7 +41,7 @@ namespace {
 using ::testing::HasSubstr;
 
 const std::filesystem::path kCorpus = std::filesystem::path(LIPSYNC_TEST_DATA_DIR) / "recorded_languages";
-constexpr const char* kItems[] = {"it_3", "cs_1", "ca_1", "cs_2", "hi_3", "it_1"};
+constexpr const char* kItems[] = {"it_3", "cs_1", "ca_1", "cs_2", "hi_3", "it_1", "fi_2"};
 
 const ArticulationModel& model() { return ArticulationModel::builtin(); }
 
@@ -99,7 +101,8 @@ struct NamedErrors {
 
 // The errors of the corpus's scored boundaries, ms.
 struct CorpusErrors {
-  std::vector<double> boundaries_ms, bilabials_ms;
+  std::vector<double> boundaries_ms;
+  NamedErrors bilabials;           ///< every bilabial closure
   NamedErrors stops_after_pauses;  ///< bilabial stops after a pause
   NamedErrors stops_after_nasals;  ///< bilabial stops after a nasal (/m b/, /n b/)
 };
@@ -133,7 +136,7 @@ CorpusErrors measure_corpus() {
       EXPECT_EQ(phones[index].label, aligned_label) << name << ": phone " << index;
       const double error_ms = std::abs(double(phones[index].start_us) / 1000.0 - 1000.0 * festival_start_s);
       if (kind & 1) errors.boundaries_ms.push_back(error_ms);
-      if (kind & 2) errors.bilabials_ms.push_back(error_ms);
+      if (kind & 2) errors.bilabials.add(name, aligned_label, error_ms);
       const bool stop = aligned_label == "p" || aligned_label == "b";
       if (!(kind & 2) || !stop || index == 0) continue;
       if (phones[index - 1].label.empty()) errors.stops_after_pauses.add(name, aligned_label, error_ms);
@@ -151,13 +154,13 @@ std::size_t count_within_30_ms(const std::vector<double>& errors_ms) {
 TEST(RecordedLanguages, BoundariesOnFestivalRecordingsMeetTheGoals) {
   const CorpusErrors errors = measure_corpus();
   ASSERT_GE(errors.boundaries_ms.size(), 150U);
-  ASSERT_GE(errors.bilabials_ms.size(), 30U);
+  ASSERT_GE(errors.bilabials.ms.size(), 30U);
   const double median_ms = percentile(errors.boundaries_ms, 0.5);
   const double p95_ms = percentile(errors.boundaries_ms, 0.95);
-  const std::size_t close = count_within_30_ms(errors.bilabials_ms);
-  const double bilabial_share = double(close) / double(errors.bilabials_ms.size());
+  const std::size_t close = count_within_30_ms(errors.bilabials.ms);
+  const double bilabial_share = double(close) / double(errors.bilabials.ms.size());
   std::printf("[ measured ] %zu boundaries: median %.1f ms, p95 %.1f ms; bilabial closures within 30 ms: %zu of %zu\n",
-              errors.boundaries_ms.size(), median_ms, p95_ms, close, errors.bilabials_ms.size());
+              errors.boundaries_ms.size(), median_ms, p95_ms, close, errors.bilabials.ms.size());
   EXPECT_LE(median_ms, 30.0);
   EXPECT_LE(p95_ms, 100.0);
   EXPECT_GE(bilabial_share, 0.8);
@@ -165,6 +168,19 @@ TEST(RecordedLanguages, BoundariesOnFestivalRecordingsMeetTheGoals) {
   EXPECT_LE(median_ms, 15.0);
   EXPECT_LE(p95_ms, 60.0);
   EXPECT_GE(bilabial_share, 0.97);
+}
+
+TEST(RecordedLanguages, NoBilabialClosureIsGrosslyOff) {
+  // A frame of espeak-ng's that is only a little closer must not take a whole stretch of the recording:
+  // the /m/ of Finnish "leipaa aamulla" (fi_2), after a vowel Festival says a little longer than
+  // espeak-ng and with a dip in its level between the words, was 275 ms early when one frame of
+  // espeak-ng's /m/ could take 310 ms of the vowel at no more than the frames' distance (StretchCost).
+  // The worst left is the second /m/ of Italian "mamma" (it_3), 90 ms: Festival starts that half of
+  // the geminate inside the closure, with nothing in the sound to mark it.
+  const CorpusErrors errors = measure_corpus();
+  for (std::size_t k = 0; k < errors.bilabials.ms.size(); ++k) {
+    EXPECT_LE(errors.bilabials.ms[k], 100.0) << errors.bilabials.names[k];
+  }
 }
 
 TEST(RecordedLanguages, StopsAfterAPauseStartAtTheirClosure) {

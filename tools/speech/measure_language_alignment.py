@@ -332,7 +332,7 @@ def acoustic_closures(truth, energies):
     return result, moves
 
 # The test corpus: (voice code, sentence index) of VOICES.
-CORPUS_ITEMS = [("it", 3), ("cs", 1), ("ca", 1), ("cs", 2), ("hi", 3), ("it", 1)]
+CORPUS_ITEMS = [("it", 3), ("cs", 1), ("ca", 1), ("cs", 2), ("hi", 3), ("it", 1), ("fi", 2)]
 
 
 def scored_pairs(truth, aligned, english_espeak=False):

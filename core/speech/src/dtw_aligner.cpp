@@ -44,6 +44,8 @@ constexpr std::int64_t kLeastPauseUs = 120'000;
 constexpr std::int64_t kLeastMissingPauseUs = 100'000;
 
 enum Step : std::uint8_t { kDiagonal, kDown, kRight };
+// Marks a stored step that paid StretchCost::cost (a → or ↓ past a run's free frames).
+constexpr std::uint8_t kStretched = 4;
 
 double frame_distance(const FeatureFrames& a, std::size_t i, const FeatureFrames& b, std::size_t j) {
   const float* x = a.frame(i);
@@ -331,7 +333,8 @@ std::vector<MissingPause> missing_pauses(const WarpPath& path, const FeatureFram
 }
 
 WarpPath warp(const FeatureFrames& a, const FeatureFrames& b, std::size_t band_frames,
-              std::pair<std::size_t, std::size_t> a_speech, std::pair<std::size_t, std::size_t> b_speech) {
+              std::pair<std::size_t, std::size_t> a_speech, std::pair<std::size_t, std::size_t> b_speech,
+              const StretchCost& stretch) {
   const std::size_t rows = a.size(), columns = b.size();
   WarpPath path;
   if (rows == 0 || columns == 0) return path;
@@ -359,30 +362,51 @@ WarpPath warp(const FeatureFrames& a, const FeatureFrames& b, std::size_t band_f
   std::vector<std::uint8_t> steps(offset[rows]);
   constexpr double kUnreachable = std::numeric_limits<double>::infinity();
   std::vector<double> previous(columns, kUnreachable), current(columns, kUnreachable);
+  // The run of → or ↓ steps that the cheapest way into each cell ends with: +n after n ↓ steps (b's
+  // frame j matched to n + 1 frames of a), −n after n → steps, 0 after ↘. A cell keeps only the run of
+  // its cheapest way in, not one cost per run length (an approximation that keeps the warp's time and
+  // memory).
+  std::vector<std::int32_t> previous_run(columns, 0), current_run(columns, 0);
+  const std::vector<bool> a_quiet = pause_frames(a), b_quiet = pause_frames(b);
+  const auto free_frames = static_cast<std::int32_t>(stretch.free_frames);
   for (std::size_t i = 0; i < rows; ++i) {
     for (std::size_t j = low[i]; j <= high[i]; ++j) {
       const double distance = frame_distance(a, i, b, j);
+      // Runs over pause-level frames are free: pauses and closures differ in length between speakers.
+      const double run_cost = a_quiet[i] || b_quiet[j] ? 0.0 : stretch.cost;
       double best = kUnreachable;
-      Step step = kDiagonal;
+      std::uint8_t step = kDiagonal;
+      std::int32_t run = 0;
       if (i == 0 && j == 0) best = distance;
       if (i > 0 && j > 0 && j - 1 >= low[i - 1] && j - 1 <= high[i - 1] && previous[j - 1] + 2 * distance < best) {
         best = previous[j - 1] + 2 * distance;
-        step = kDiagonal;
       }
-      if (i > 0 && j >= low[i - 1] && j <= high[i - 1] && previous[j] + distance < best) {
-        best = previous[j] + distance;
-        step = kDown;
+      if (i > 0 && j >= low[i - 1] && j <= high[i - 1]) {
+        const std::int32_t down_run = std::max(previous_run[j], 0) + 1;
+        const bool stretched = down_run > free_frames;
+        if (const double cost = previous[j] + distance + (stretched ? run_cost : 0.0); cost < best) {
+          best = cost;
+          step = kDown | (stretched && run_cost > 0 ? kStretched : 0);
+          run = down_run;
+        }
       }
-      if (j > low[i] && current[j - 1] + distance < best) {
-        best = current[j - 1] + distance;
-        step = kRight;
+      if (j > low[i]) {
+        const std::int32_t right_run = std::max(-current_run[j - 1], 0) + 1;
+        const bool stretched = right_run > free_frames;
+        if (const double cost = current[j - 1] + distance + (stretched ? run_cost : 0.0); cost < best) {
+          best = cost;
+          step = kRight | (stretched && run_cost > 0 ? kStretched : 0);
+          run = -right_run;
+        }
       }
       current[j] = best;
+      current_run[j] = run;
       steps[offset[i] + (j - low[i])] = step;
     }
     std::swap(previous, current);
+    std::swap(previous_run, current_run);
   }
-  path.mean_distance = previous[columns - 1] / static_cast<double>(rows + columns);
+  const double total_cost = previous[columns - 1];
   // The distance of unrelated frames: every frame of a against b's frames at a fixed stride.
   double sum = 0.0;
   std::size_t pairs = 0;
@@ -397,8 +421,11 @@ WarpPath warp(const FeatureFrames& a, const FeatureFrames& b, std::size_t band_f
   std::size_t i = rows - 1, j = columns - 1;
   path.last[i] = j;
   path.first[i] = j;
+  double stretch_paid = 0.0;  // what the path paid for its runs, left out of its mean distance
   while (i > 0 || j > 0) {
-    const Step step = static_cast<Step>(steps[offset[i] + (j - low[i])]);
+    const std::uint8_t stored = steps[offset[i] + (j - low[i])];
+    if ((stored & kStretched) != 0) stretch_paid += stretch.cost;
+    const auto step = static_cast<Step>(stored & ~kStretched);
     if (step == kRight) {
       --j;
     } else {
@@ -408,6 +435,7 @@ WarpPath warp(const FeatureFrames& a, const FeatureFrames& b, std::size_t band_f
     }
     path.first[i] = j;
   }
+  path.mean_distance = (total_cost - stretch_paid) / static_cast<double>(rows + columns);
   return path;
 }
 
@@ -488,7 +516,7 @@ Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view sour
   const auto band_frames = static_cast<std::size_t>(std::max(1.0, options.band_s * 1e6 / kFeatureHopUs));
   const auto warp_to_recording = [&](const Rendering& rendering) {
     return warp(rendering.frames, recording_frames, band_frames, speech_frames(rendering.frames),
-                speech_frames(recording_frames));
+                speech_frames(recording_frames), options.stretch);
   };
   Rendering rendering = prepared_rendering(spoken, synthesis_phones);
   WarpPath path = warp_to_recording(rendering);

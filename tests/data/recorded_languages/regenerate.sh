@@ -1,8 +1,8 @@
 #!/bin/sh
 # Remakes this corpus: Festival's Italian (festvox-italp16k), Czech (festvox-czech-dita),
-# Catalan (festvox-ca-ona-hts) and Hindi (festvox-hi-nsk) voices speak five sentences (NAME.wav,
-# NAME.txt: the espeak-ng voice and the transcript; cs_2 and hi_3 begin with a stop after the
-# pause), with Festival's own segment times matched to the phones
+# Catalan (festvox-ca-ona-hts), Hindi (festvox-hi-nsk) and Finnish (festvox-suopuhe-lj) voices
+# speak seven sentences (NAME.wav, NAME.txt: the espeak-ng voice and the transcript; cs_2 and hi_3
+# begin with a stop after the pause; fi_2 has the /aː aː m/ of "leipaa aamulla"), with Festival's own segment times matched to the phones
 # `lipsync align --voice` gives (NAME.truth.tsv). Needs festival, those voices and a built lipsync:
 #   tests/data/recorded_languages/regenerate.sh build/clients/cli/lipsync
 set -eu

@@ -10,6 +10,9 @@
 // boundary of the synthesis is carried along the path to the recording: a
 // boundary between synthesis frames i−1 and i lands between the last recording
 // frame matched to i−1 and the first matched to i, interpolated within the frame.
+// A frame matched to a long run of the other's (→ or ↓ steps past the eighth, outside
+// pauses) pays extra per step (StretchCost), so that a frame only a little nearer cannot
+// take a whole vowel from the frames it belongs to.
 //
 // A speaker pauses where espeak-ng does not (between words, or longer at a comma), and the
 // warp then matches the pause to whatever espeak-ng says there, a closure or a vowel, and
@@ -57,6 +60,23 @@ inline ClosureRefinerOptions dtw_refiner_options() {
   return options;
 }
 
+/// What the warp charges, on top of the frames' distance, for matching one frame to a long run of
+/// frames of the other audio: each → or ↓ step past a run's first `free_frames` costs `cost` more,
+/// unless either frame is at pause level (pauses and closures differ freely in length).
+///
+/// Without it a frame that is only a little closer takes a whole stretch: Festival's Finnish says the
+/// /aː aː/ of "leipaa aamulla" 333 ms long, espeak-ng 270 ms, yet the warp matched one frame of
+/// espeak-ng's /m/ (quiet, like Festival's vowel as it dips between the words) to 310 ms of the vowel
+/// and all 27 frames of espeak-ng's vowel to one of Festival's, putting the /m/ 275 ms early; with
+/// this cost it is 6 ms late. 8 frames (80 ms on one frame) and 20 (a third of the mean frame
+/// distance along the warps of Festival's sentences, 50 to 61, distances of mfcc_features) were
+/// chosen on the sentences of docs/languages.md: 10 did not move that /m/; 40, or runs free only
+/// up to 3 to 6 frames, made other rows worse.
+struct StretchCost {
+  std::size_t free_frames = 8;
+  double cost = 20.0;
+};
+
 struct DtwAlignmentOptions {
   /// What the recording says (UTF-8, in the voice's language).
   std::string transcript;
@@ -66,6 +86,8 @@ struct DtwAlignmentOptions {
   double max_duration_s = 600;
   /// How far the path may stray from the proportional line, seconds, each side.
   double band_s = 5.0;
+  /// What matching one frame to many costs in the warp.
+  StretchCost stretch;
   /// The largest mean distance of the frames the warp matches, as a share of the mean distance of
   /// unrelated frames (the recording's against the synthesis's across the whole matrix), accepted
   /// as the same words. On Festival's voices the right transcript gives 0.40 to 0.65, white noise
@@ -88,9 +110,11 @@ struct WarpPath {
 
 /// The cheapest monotone path from (0, 0) to (a.size()−1, b.size()−1) within
 /// `band_frames` of the line through (0, 0), (a_speech_start, b_speech_start),
-/// (a_speech_end, b_speech_end), (a.size()−1, b.size()−1). Needs frames in both.
+/// (a_speech_end, b_speech_end), (a.size()−1, b.size()−1), long runs of → or ↓ steps
+/// charged `stretch` (its mean_distance is that of the frames alone). Needs frames in both.
 WarpPath warp(const FeatureFrames& a, const FeatureFrames& b, std::size_t band_frames,
-              std::pair<std::size_t, std::size_t> a_speech, std::pair<std::size_t, std::size_t> b_speech);
+              std::pair<std::size_t, std::size_t> a_speech, std::pair<std::size_t, std::size_t> b_speech,
+              const StretchCost& stretch = {});
 
 /// The time in b of the time `a_us` in a, µs (frame centres interpolated).
 std::int64_t carry_time_us(const WarpPath& path, std::int64_t a_us);
