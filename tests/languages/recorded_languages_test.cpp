@@ -278,7 +278,9 @@ TEST(RecordedLanguages, AStopThatTakesOverTheShortPauseBeforeItLeavesEveryLabelO
   EXPECT_EQ(phones.back().end_us, recording.audio.duration_us());
   for (std::size_t k = 0; k < phones.size(); ++k) {
     EXPECT_LT(phones[k].start_us, phones[k].end_us) << k << " /" << phones[k].label << "/";
-    if (k > 0) EXPECT_EQ(phones[k].start_us, phones[k - 1].end_us) << k << " /" << phones[k].label << "/";
+    if (k > 0) {
+      EXPECT_EQ(phones[k].start_us, phones[k - 1].end_us) << k << " /" << phones[k].label << "/";
+    }
   }
   const auto spoken = [](const std::vector<LabeledInterval>& intervals) {
     std::vector<std::string> labels;
