@@ -175,8 +175,7 @@ TEST(RecordedLanguages, NoBilabialClosureIsGrosslyOff) {
   // the /m/ of Finnish "leipaa aamulla" (fi_2), after a vowel Festival says a little longer than
   // espeak-ng and with a dip in its level between the words, was 275 ms early when one frame of
   // espeak-ng's /m/ could take 310 ms of the vowel at no more than the frames' distance (StretchCost).
-  // The worst left is the second /m/ of Italian "mamma" (it_3), 90 ms: Festival starts that half of
-  // the geminate inside the closure, with nothing in the sound to mark it.
+  // The worst left is the /m/ of Italian "le mele" (it_3), 90 ms early.
   const CorpusErrors errors = measure_corpus();
   for (std::size_t k = 0; k < errors.bilabials.ms.size(); ++k) {
     EXPECT_LE(errors.bilabials.ms[k], 100.0) << errors.bilabials.names[k];
