@@ -217,9 +217,9 @@ TEST(Wav, BadFilesAreRefusedNamingTheFileAndWhatWasFound) {
   EXPECT_EQ(error_of([&] { speech::decode_wav(no_data, "n.wav"); }), "n.wav: WAV file has no 'data' chunk");
 }
 
-// Every word of `aligned` starts where a spoken phone starts and ends where one ends, with
-// the phones between them spoken or pauses, also where the closure refiner moved its lip
-// boundaries (or gave a pause before a /p b/ to the stop).
+// Every word of `aligned` starts where a spoken phone starts and ends where one ends, also
+// where the closure refiner moved its lip boundaries (or gave a pause before a /p b/ to the
+// stop).
 void expect_words_start_and_end_with_their_phones(const speech::Alignment& aligned, const std::string& what) {
   const std::vector<LabeledInterval>& phones = aligned.phones.intervals;
   for (const LabeledInterval& word : aligned.words) {

@@ -23,8 +23,9 @@ Usage: measure_language_alignment.py LIPSYNC_BINARY OUT_DIR [--voices it,ca,...]
 The second form (re)makes the test corpus: CORPUS_ITEMS spoken by Festival (NAME.wav), their
 transcripts (NAME.txt, first line the espeak-ng voice) and NAME.truth.tsv, one line per
 Festival segment the scoring matches: Festival's label and start (s), the index and label
-of the aligned phone it is matched to (in the 'phones' tier, pauses included: espeak-ng's
-phoneme sequence for a text does not depend on the recording), and its kind, a sum of 1 (its
+of the aligned phone it is matched to (in the 'phones' tier of that recording's alignment,
+pauses included: espeak-ng's phonemes for the text, less any short pause before a /p b/ that
+the closure refiner gave to the stop), and its kind, a sum of 1 (its
 start is a scored boundary: the phone before is matched too) and 2 (a bilabial closure). tests/languages/recorded_languages_test.cpp reads them.
 """
 import argparse
