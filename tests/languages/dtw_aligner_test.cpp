@@ -181,5 +181,27 @@ TEST(MissingPauses, NoneWhereTheRenderingHasThePausesOrTheyAreShort) {
               ::testing::IsEmpty());
 }
 
+TEST(ExtraPauses, APauseOnlyTheRenderingHasIsCutAndOneBothHaveIsKept) {
+  const PcmAudio paused_audio = with_pause(varied_tones(2.0, 0.3), 1.3, 0.3);
+  const FeatureFrames paused = mfcc_features(paused_audio);
+  std::vector<LabeledInterval> phones = tone_phones(2.0, 0.3);
+  for (std::size_t k = 11; k < phones.size(); ++k) {  // the phones from 1.3 s on move by the pause
+    phones[k].start_us += 300'000;
+    phones[k].end_us += 300'000;
+  }
+  phones.insert(phones.begin() + 11, LabeledInterval{"", 1'300'000, 1'600'000, 0});
+  phones[10].end_us = 1'300'000;
+  const FeatureFrames plain = mfcc_features(varied_tones(2.0, 0.3));
+  const std::vector<ExtraPause> cuts =
+      extra_pauses(warp(paused, plain, 100, speech_frames(paused), speech_frames(plain)), paused, phones, plain);
+  ASSERT_EQ(cuts.size(), 1U);
+  EXPECT_EQ(cuts[0].first_phone, 11U);
+  EXPECT_EQ(cuts[0].last_phone, 11U);
+  EXPECT_NEAR(double(cuts[0].duration_us), 290'000.0, 40'000.0);
+  EXPECT_THAT(
+      extra_pauses(warp(paused, paused, 100, speech_frames(paused), speech_frames(paused)), paused, phones, paused),
+      ::testing::IsEmpty());
+}
+
 }  // namespace
 }  // namespace lipsync::speech

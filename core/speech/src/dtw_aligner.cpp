@@ -42,6 +42,15 @@ constexpr std::int64_t kLeastPauseUs = 120'000;
 // A pause of the recording that the warp matches to this much less pause of the rendering is
 // put into the rendering, µs.
 constexpr std::int64_t kLeastMissingPauseUs = 100'000;
+// A pause of the rendering that the warp matches to this much less pause of the recording is cut
+// from the rendering, µs. espeak-ng pauses between some words where a speaker runs on (110 ms after
+// Catalan "pomes" before "i peres", and after Finnish "maitoa" before "ja banaaneja"); the warp then
+// gives that digital silence to the next closure of the recording as quiet as it, and shifts the
+// phones after by one: the /p/ of "peres" came 193 ms late, the /b/ of "banaaneja" 199 ms. With the
+// pause cut (and the warp done again) they are 2 and 1 ms late, and Catalan's /u b/ of "Obrim" 11 ms
+// early instead of 38; five other closures move 2 to 20 ms, none past 30. espeak-ng's short pauses between words
+// (10 to 25 ms) stay.
+constexpr std::int64_t kLeastExtraPauseUs = 50'000;
 
 enum Step : std::uint8_t { kDiagonal, kDown, kRight };
 // Marks a stored step that paid StretchCost::cost (a → or ↓ past a run's free frames).
@@ -129,6 +138,15 @@ bool is_nasal(const std::string& label) {
   return label.starts_with("ŋ") || label.starts_with("ɲ") || label.starts_with("ɳ") || label.starts_with("ɱ");
 }
 
+// A closure that is voiced from its start: a nasal, or a voiced stop or affricate (b d g ɡ ɟ ɖ ɢ,
+// with any marks: "bʲ", "dʒ", "dZ").
+bool is_voiced_closure(const std::string& label) {
+  if (is_nasal(label)) return true;
+  if (label.empty()) return false;
+  if (std::string_view("bdg").find(label.front()) != std::string_view::npos) return true;
+  return label.starts_with("ɡ") || label.starts_with("ɟ") || label.starts_with("ɖ") || label.starts_with("ɢ");
+}
+
 // The steepest fall of the formant band's level (`level_db`, 10 ms windows every ms) within
 // [earliest_ms, start_ms − 5 ms] larger than kStopClosureStepDb: a stop's closure before its
 // burst at start_ms; −1 when there is none.
@@ -191,11 +209,41 @@ void open_closures_after_nasals(std::vector<std::int64_t>& bounds, const std::ve
   }
 }
 
+// A nasal or a voiced stop after a pause is heard from where the recording leaves pause level: the
+// nasal's murmur or the stop's voicing bar, under a closure that espeak-ng's rendering starts
+// softer or later, so that the warp carries its start into the recording's murmur. Such a phone
+// whose carried start is in the recording's speech, with pause-level frames within
+// kClosureAfterPauseUs before it, starts after the last of those. (Russian "Бабушка" after the
+// leading pause: 55 ms late, then 1 ms early; eight other /m/ after a pause, in four voices, move
+// 2 to 11 ms nearer Festival's labels. Applied to every phone after a pause, it moved espeak-ng's
+// own fricatives and vowels before their labels: the 120-wpm test's p95 went 26.7 to 32.3 ms.)
+void start_at_speech_after_pauses(std::vector<std::int64_t>& bounds, const std::vector<LabeledInterval>& phones,
+                                  const std::vector<bool>& recording_quiet) {
+  for (std::size_t k = 1; k < phones.size(); ++k) {
+    if (!phones[k - 1].label.empty() || !is_voiced_closure(phones[k].label) || recording_quiet.empty()) continue;
+    const auto frame_at = [&](std::int64_t us) {
+      const std::int64_t frame = (us - feature_frame_centre_us(0) + kFeatureHopUs / 2) / kFeatureHopUs;
+      return static_cast<std::size_t>(std::clamp<std::int64_t>(frame, 0, std::int64_t(recording_quiet.size()) - 1));
+    };
+    std::size_t frame = frame_at(bounds[k]);
+    if (recording_quiet[frame]) continue;
+    while (frame > 0 && !recording_quiet[frame - 1] &&
+           bounds[k] - feature_frame_centre_us(frame - 1) <= kClosureAfterPauseUs) {
+      --frame;
+    }
+    if (frame == 0 || !recording_quiet[frame - 1]) continue;
+    const std::int64_t onset_us = feature_frame_centre_us(frame) - kFeatureHopUs / 2;
+    bounds[k] = std::max(std::min(bounds[k], onset_us), bounds[k - 1] + kMinPhoneUs);
+  }
+}
+
 // The boundaries of `phones` (espeak-ng's, stops from their closures) carried across the warp to a
 // recording of `end_us`, in order and at least kMinPhoneUs apart, with the closures of stops after a
-// pause or a nasal opened: bounds[k] is the start of phones[k], bounds[size] the end.
+// pause or a nasal opened and sounds after a pause started at the recording's speech: bounds[k] is
+// the start of phones[k], bounds[size] the end.
 std::vector<std::int64_t> carried_bounds(const WarpPath& path, const std::vector<LabeledInterval>& phones,
-                                         const std::vector<std::int64_t>& bursts_us, std::int64_t end_us) {
+                                         const std::vector<std::int64_t>& bursts_us, std::int64_t end_us,
+                                         const std::vector<bool>& recording_quiet) {
   const std::size_t count = phones.size();
   std::vector<std::int64_t> bounds(count + 1);
   bounds[0] = 0;
@@ -204,6 +252,7 @@ std::vector<std::int64_t> carried_bounds(const WarpPath& path, const std::vector
   for (std::size_t k = 1; k < count; ++k) bounds[k] = std::max(bounds[k], bounds[k - 1] + kMinPhoneUs);
   for (std::size_t k = count; k-- > 1;) bounds[k] = std::min(bounds[k], bounds[k + 1] - kMinPhoneUs);
   open_closures_after_pauses(bounds, phones);
+  start_at_speech_after_pauses(bounds, phones, recording_quiet);
   open_closures_after_nasals(bounds, phones, bursts_us, path);
   return bounds;
 }
@@ -244,21 +293,62 @@ std::vector<bool> pause_frames(const FeatureFrames& frames) {
 
 // `audio` (kFeatureRateHz) and `phones` (espeak-ng's, stops from their bursts) with each pause of
 // `pauses` put in as silence at the start of its phone in `moved` (the same phones, stops from their
-// closures): a stop's closure then follows the pause, the pause's interval ends at its burst.
+// closures): a stop's closure then follows the pause, the pause's interval ends at its burst. Each of
+// `cuts` is cut from the middle of its pause in `moved`, the pause's intervals shortened.
 std::pair<PcmAudio, LabeledUtterance> with_pauses(const PcmAudio& audio, const LabeledUtterance& phones,
-                                                  const LabeledUtterance& moved, std::vector<MissingPause> pauses) {
-  std::sort(pauses.begin(), pauses.end(),
-            [](const MissingPause& a, const MissingPause& b) { return a.phone > b.phone; });
+                                                  const LabeledUtterance& moved, std::vector<MissingPause> pauses,
+                                                  const std::vector<ExtraPause>& cuts) {
+  // Edits from the last phone back, so that each finds the times and indices before it unchanged.
+  struct Edit {
+    std::size_t phone;
+    const MissingPause* pause;
+    const ExtraPause* cut;
+  };
+  std::vector<Edit> edits;
+  for (const MissingPause& pause : pauses) edits.push_back({pause.phone, &pause, nullptr});
+  for (const ExtraPause& cut : cuts) {
+    const bool crossed = std::any_of(pauses.begin(), pauses.end(), [&](const MissingPause& pause) {
+      return pause.phone >= cut.first_phone && pause.phone <= cut.last_phone + 1;
+    });
+    if (!crossed) edits.push_back({cut.first_phone, nullptr, &cut});
+  }
+  std::sort(edits.begin(), edits.end(), [](const Edit& a, const Edit& b) { return a.phone > b.phone; });
   PcmAudio result_audio = audio;
   LabeledUtterance result_phones = phones;
   std::vector<LabeledInterval>& intervals = result_phones.intervals;
+  const auto sample_at = [](std::int64_t us) { return static_cast<std::size_t>(us * kFeatureRateHz / 1'000'000); };
   std::size_t previous_phone = intervals.size();
-  for (const MissingPause& pause : pauses) {
+  for (const Edit& edit : edits) {
+    if (edit.cut != nullptr) {
+      const ExtraPause& cut = *edit.cut;
+      const std::int64_t from_us = moved.intervals[cut.first_phone].start_us;
+      const std::int64_t to_us = moved.intervals[cut.last_phone].end_us;
+      const std::size_t begin = sample_at((from_us + to_us - cut.duration_us) / 2);
+      const std::size_t end = std::min(result_audio.samples.size(), begin + sample_at(cut.duration_us));
+      const std::int64_t cut_begin_us = static_cast<std::int64_t>(begin) * 1'000'000 / kFeatureRateHz;
+      const std::int64_t shift_us = static_cast<std::int64_t>(end - begin) * 1'000'000 / kFeatureRateHz;
+      result_audio.samples.erase(result_audio.samples.begin() + static_cast<std::ptrdiff_t>(begin),
+                                 result_audio.samples.begin() + static_cast<std::ptrdiff_t>(end));
+      const auto moved_time = [&](std::int64_t t) {
+        return t <= cut_begin_us ? t : std::max(cut_begin_us, t - shift_us);
+      };
+      for (std::size_t k = cut.first_phone; k < intervals.size(); ++k) {
+        intervals[k].start_us = moved_time(intervals[k].start_us);
+        intervals[k].end_us = moved_time(intervals[k].end_us);
+      }
+      // A pause of the run left empty goes (the run keeps at least a frame's length).
+      for (std::size_t k = cut.last_phone + 1; k-- > cut.first_phone;) {
+        if (intervals[k].end_us <= intervals[k].start_us)
+          intervals.erase(intervals.begin() + static_cast<std::ptrdiff_t>(k));
+      }
+      continue;
+    }
+    const MissingPause& pause = *edit.pause;
     if (pause.phone == previous_phone) continue;
     previous_phone = pause.phone;
     const std::int64_t at_us = moved.intervals[pause.phone].start_us;
-    const auto at_sample = static_cast<std::size_t>(at_us * kFeatureRateHz / 1'000'000);
-    const auto samples = static_cast<std::size_t>(pause.duration_us * kFeatureRateHz / 1'000'000);
+    const auto at_sample = sample_at(at_us);
+    const auto samples = sample_at(pause.duration_us);
     result_audio.samples.insert(result_audio.samples.begin() + static_cast<std::ptrdiff_t>(at_sample), samples, 0);
     const std::int64_t shift_us = static_cast<std::int64_t>(samples) * 1'000'000 / kFeatureRateHz;
     for (std::size_t k = pause.phone; k < intervals.size(); ++k) {
@@ -330,6 +420,54 @@ std::vector<MissingPause> missing_pauses(const WarpPath& path, const FeatureFram
     if (best > 0) missing.push_back({best, duration_us});
   }
   return missing;
+}
+
+std::vector<ExtraPause> extra_pauses(const WarpPath& path, const FeatureFrames& rendering,
+                                     const std::vector<LabeledInterval>& phones, const FeatureFrames& recording) {
+  std::vector<ExtraPause> extra;
+  const std::vector<bool> quiet = pause_frames(recording), rendering_quiet = pause_frames(rendering);
+  // The recording's frames in a pause of its own: kLeastPauseUs or more at pause level, inside its
+  // speech (a stop's closure is shorter).
+  std::vector<bool> in_pause(quiet.size(), false);
+  const auto [speech_first, speech_last] = speech_frames(recording);
+  for (std::size_t c0 = speech_first; c0 <= speech_last && c0 < quiet.size(); ++c0) {
+    if (!quiet[c0]) continue;
+    std::size_t c1 = c0;
+    while (c1 + 1 <= speech_last && quiet[c1 + 1]) ++c1;
+    if (static_cast<std::int64_t>(c1 - c0 + 1) * kFeatureHopUs >= kLeastPauseUs) {
+      for (std::size_t c = c0; c <= c1; ++c) in_pause[c] = true;
+    }
+    c0 = c1;
+  }
+  for (std::size_t k = 1; k + 1 < phones.size(); ++k) {
+    if (!phones[k].label.empty()) continue;
+    std::size_t last = k;
+    while (last + 2 < phones.size() && phones[last + 1].label.empty()) ++last;
+    const std::size_t first = k;
+    k = last;
+    if (phones[first - 1].label.empty() || phones[last + 1].label.empty()) continue;  // the padding's
+    // The rendering's rows in the pause (centres inside it), their pause-level ones, and the
+    // recording's pause frames matched to them.
+    std::size_t quiet_rows = 0, row_begin = path.first.size(), row_end = 0;
+    for (std::size_t i = 0; i < path.first.size() && i < rendering_quiet.size(); ++i) {
+      const std::int64_t centre_us = feature_frame_centre_us(i);
+      if (centre_us < phones[first].start_us || centre_us >= phones[last].end_us) continue;
+      row_begin = std::min(row_begin, i);
+      row_end = i + 1;
+      if (rendering_quiet[i]) ++quiet_rows;
+    }
+    if (row_end <= row_begin) continue;
+    std::size_t matched = 0;
+    for (std::size_t c = path.first[row_begin]; c <= path.last[row_end - 1] && c < in_pause.size(); ++c) {
+      if (in_pause[c]) ++matched;
+    }
+    if (matched >= quiet_rows) continue;
+    const std::int64_t length_us = phones[last].end_us - phones[first].start_us;
+    const std::int64_t duration_us =
+        std::min(static_cast<std::int64_t>(quiet_rows - matched) * kFeatureHopUs, length_us - kFeatureHopUs);
+    if (duration_us >= kLeastExtraPauseUs) extra.push_back({first, last, duration_us});
+  }
+  return extra;
 }
 
 WarpPath warp(const FeatureFrames& a, const FeatureFrames& b, std::size_t band_frames,
@@ -520,10 +658,12 @@ Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view sour
   };
   Rendering rendering = prepared_rendering(spoken, synthesis_phones);
   WarpPath path = warp_to_recording(rendering);
-  if (const std::vector<MissingPause> pauses =
-          missing_pauses(path, rendering.frames, rendering.phones.intervals, recording_frames);
-      !pauses.empty()) {
-    auto [paused_audio, paused_phones] = with_pauses(spoken, synthesis_phones, rendering.phones, pauses);
+  const std::vector<MissingPause> pauses =
+      missing_pauses(path, rendering.frames, rendering.phones.intervals, recording_frames);
+  const std::vector<ExtraPause> cuts =
+      extra_pauses(path, rendering.frames, rendering.phones.intervals, recording_frames);
+  if (!pauses.empty() || !cuts.empty()) {
+    auto [paused_audio, paused_phones] = with_pauses(spoken, synthesis_phones, rendering.phones, pauses, cuts);
     Rendering paused = prepared_rendering(std::move(paused_audio), std::move(paused_phones));
     WarpPath paused_path = warp_to_recording(paused);
     if (paused_path.mean_distance <= path.mean_distance) {
@@ -549,7 +689,8 @@ Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view sour
   const std::vector<LabeledInterval>& spoken_phones = rendering.phones.intervals;
   const std::size_t count = spoken_phones.size();
   const std::int64_t end_us = input.duration_us();
-  const std::vector<std::int64_t> bounds = carried_bounds(path, spoken_phones, rendering.bursts_us, end_us);
+  const std::vector<std::int64_t> bounds =
+      carried_bounds(path, spoken_phones, rendering.bursts_us, end_us, pause_frames(recording_frames));
   for (std::size_t k = 0; k < count; ++k) {
     LabeledInterval interval = spoken_phones[k];
     interval.start_us = bounds[k];

@@ -137,6 +137,22 @@ struct MissingPause {
 std::vector<MissingPause> missing_pauses(const WarpPath& path, const FeatureFrames& rendering,
                                          const std::vector<LabeledInterval>& phones, const FeatureFrames& recording);
 
+/// A pause espeak-ng's rendering has and the recording lacks: `duration_us` to cut from the
+/// middle of the rendering's pause that runs from its phone `first_phone` to `last_phone`
+/// (consecutive pauses are one).
+struct ExtraPause {
+  std::size_t first_phone;
+  std::size_t last_phone;
+  std::int64_t duration_us;
+};
+
+/// The rendering's pauses inside its speech (runs of `phones` labelled "", neither first nor last)
+/// that `path` matches to 50 ms or more fewer frames of the recording's own pauses (120 ms or more
+/// at 35 dB under its loudest): for each, its pause-level frames less those the recording's pauses
+/// give it, kept under the pause's length by one frame.
+std::vector<ExtraPause> extra_pauses(const WarpPath& path, const FeatureFrames& rendering,
+                                     const std::vector<LabeledInterval>& phones, const FeatureFrames& recording);
+
 /// Aligns `audio` (any rate) against options.synthesis's rendering of options.transcript:
 /// phones in phone_set_for_voice(voice) ("" for pauses), tiling [0, audio end]; no words.
 /// `source` names the audio in errors. Throws InputError: an empty transcript, an unknown
