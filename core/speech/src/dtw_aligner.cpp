@@ -89,6 +89,14 @@ bool has_word_character(std::string_view text) {
   return false;
 }
 
+// A label of espeak-ng (mnemonic or IPA) that begins with an oral closure: a plosive or an
+// affricate (p, b, t, d, k, g, c, ɟ, q, ʈ, ɖ with any marks: "tʃ", "kʰ", "t#", "dZ").
+bool starts_with_closure(const std::string& label) {
+  if (label.empty()) return false;
+  if (std::string_view("pbtdkgcq").find(label.front()) != std::string_view::npos) return true;
+  return label.starts_with("ɟ") || label.starts_with("ʈ") || label.starts_with("ɖ");
+}
+
 // The ARPAbet lip phone a label of espeak-ng (mnemonic or IPA) stands for, for the closure
 // refiner: p b m f v, alone or with length marks and diacritics ("pʰ", "mː", "b:"); else "X".
 // A /β/ is a /b/ too: espeak-ng says Catalan's and Spanish's /b/ between vowels as a fricative
@@ -97,7 +105,9 @@ std::string lip_phone_for_refiner(const std::string& label) {
   if (label.empty()) return label;
   if (label.starts_with("β")) return "B";
   const char first = label.front();
-  if (first != 'p' && first != 'b' && first != 'm' && first != 'f' && first != 'v') return "X";
+  if (first != 'p' && first != 'b' && first != 'm' && first != 'f' && first != 'v') {
+    return starts_with_closure(label) ? "T" : "X";  // the refiner finds a /p b/'s closure after a stop apart
+  }
   if (label.size() > 1 && std::isalpha(static_cast<unsigned char>(label[1]))) return "X";  // "pf", "ts"…
   return std::string(1, static_cast<char>(std::toupper(static_cast<unsigned char>(first))));
 }
@@ -121,14 +131,6 @@ std::vector<RefinedBoundary> refine_lip_phones(const PcmAudio& audio, LabeledUtt
   }
   phones.intervals = std::move(intervals);
   return refined;
-}
-
-// A label of espeak-ng (mnemonic or IPA) that begins with an oral closure: a plosive or an
-// affricate (p, b, t, d, k, g, c, ɟ, q, ʈ, ɖ with any marks: "tʃ", "kʰ", "t#", "dZ").
-bool starts_with_closure(const std::string& label) {
-  if (label.empty()) return false;
-  if (std::string_view("pbtdkgcq").find(label.front()) != std::string_view::npos) return true;
-  return label.starts_with("ɟ") || label.starts_with("ʈ") || label.starts_with("ɖ");
 }
 
 // A nasal of espeak-ng (mnemonic or IPA): m n ŋ ɲ ɳ ɱ ("N" in the English mnemonics), with any marks.
