@@ -232,6 +232,30 @@ TEST(ClosureRefiner, APauseBetweenTwoStopsGivesTheSecondItsClosureAtTheLastFall)
   EXPECT_EQ(phones.intervals[2].start_us, 230'000) << "the /k/ keeps its place";
 }
 
+TEST(ClosureRefiner, APAfterAReleasedStopStartsAtTheLastFallAndAfterAnUnreleasedOneStays) {
+  // /t/ closure 200 to 260 ms, its release 260 to 300 ms, then the /p/'s closure 300 to 380 ms,
+  // no pause between: the aligner put the /p/ inside the /t/'s closure, before its release.
+  const speech::PcmAudio released = sounds({{Sound::vowel, 200'000},
+                                            {Sound::silence, 260'000},
+                                            {Sound::vowel, 300'000},
+                                            {Sound::silence, 380'000},
+                                            {Sound::vowel, 700'000}});
+  const auto t_p = [] {
+    return phones_of(
+        {{"AA", 0, 200'000, 1}, {"T", 200'000, 240'000, 2}, {"P", 240'000, 390'000, 3}, {"AA", 390'000, 700'000, 4}});
+  };
+  LabeledUtterance phones = t_p();
+  speech::refine_closures(released, phones);
+  EXPECT_NEAR(double(phones.intervals[2].start_us), 294e3, 2e3);
+  EXPECT_EQ(phones.intervals[1].end_us, phones.intervals[2].start_us);
+  // One silence 200 to 380 ms (no release of the /t/ heard): the /p/ stays where it was put.
+  const speech::PcmAudio unreleased =
+      sounds({{Sound::vowel, 200'000}, {Sound::silence, 380'000}, {Sound::vowel, 700'000}});
+  phones = t_p();
+  speech::refine_closures(unreleased, phones);
+  EXPECT_EQ(phones.intervals[2].start_us, 240'000);
+}
+
 TEST(ClosureRefiner, AnMAfterAPauseStartsWhereItsMurmurDoes) {
   const speech::PcmAudio audio = sounds({{Sound::silence, 200'000}, {Sound::murmur, 280'000}, {Sound::vowel, 600'000}});
   LabeledUtterance phones = phones_of({{"", 0, 220'000, 1}, {"M", 220'000, 290'000, 2}, {"AA", 290'000, 600'000, 3}});
