@@ -48,7 +48,7 @@ constexpr std::int64_t kLeastMissingPauseUs = 100'000;
 // gives that digital silence to the next closure of the recording as quiet as it, and shifts the
 // phones after by one: the /p/ of "peres" came 193 ms late, the /b/ of "banaaneja" 199 ms. With the
 // pause cut (and the warp done again) they are 2 and 1 ms late, and Catalan's /u b/ of "Obrim" 11 ms
-// early instead of 38; five other closures move 2 to 20 ms, none past 30. espeak-ng's short pauses between words
+// early instead of 38; four other closures move 2 to 20 ms, none past 30. espeak-ng's short pauses between words
 // (10 to 25 ms) stay.
 constexpr std::int64_t kLeastExtraPauseUs = 50'000;
 
