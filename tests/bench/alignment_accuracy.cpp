@@ -19,6 +19,9 @@
 // its output.
 //
 // Usage: alignment_accuracy [--espeak-only]
+// With ALIGNMENT_ACCURACY_SENTENCES=next it speaks Harvard sentences 11 to 20 instead of
+// the first ten: a check that what was tuned on the first ten holds on sentences it was
+// not tuned on.
 // With ALIGNMENT_ACCURACY_DUMP=DIR it also writes each recording (16 kHz WAV), its
 // reference phones and the raw alignment (label, start µs, end µs per line) to DIR,
 // for trying refiner settings without decoding again.
@@ -31,6 +34,7 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <span>
 #include <sstream>
 #include <string>
 #include <string_view>
@@ -75,6 +79,11 @@ int main(int argc, char** argv) {
   const std::filesystem::path wav =
       std::filesystem::temp_directory_path() / ("alignment_accuracy-" + std::to_string(::getpid()) + ".wav");
 
+  const char* which = std::getenv("ALIGNMENT_ACCURACY_SENTENCES");
+  const bool next_ten = which != nullptr && std::string_view(which) == "next";
+  const std::span<const char* const> sentences =
+      next_ten ? std::span(testing::kHarvardSentences).subspan(10, 10) : testing::accuracy_sentences();
+
   for (const std::string source : {"espeak-ng", "flite", "festival"}) {
     if (source == "flite" && !have_flite) continue;
     if (source == "festival" && !have_festival) continue;
@@ -83,7 +92,7 @@ int main(int argc, char** argv) {
     testing::BoundaryScore scores[2][2];
     double audio_s = 0, seconds[2] = {0, 0};
     int n = 0;
-    for (const char* sentence : testing::accuracy_sentences()) {
+    for (const char* sentence : sentences) {
       ++n;
       std::optional<Recording> recording;
       if (source == "flite") {
