@@ -1,8 +1,9 @@
 // The parts of the DTW aligner (lipsync/speech/dtw_aligner.hpp, acoustic_features.hpp) on
 // made-up signals: MFCC frames every 10 ms with mean zero, the start and end of speech found
 // past pauses, a warp of a sequence with itself on the diagonal, boundaries carried across
-// a uniform stretch, a frame a little closer kept from taking a whole stretch, and a pause
-// the recording has and the rendering lacks found at the phone it comes before.
+// a uniform stretch, a frame a little closer kept from taking a whole stretch, a pause
+// the recording has and the rendering lacks found at the phone it comes before, and an /m/
+// carried into the loud vowel before it started at its murmur.
 #include "lipsync/speech/dtw_aligner.hpp"
 
 #include <gmock/gmock.h>
@@ -201,6 +202,36 @@ TEST(ExtraPauses, APauseOnlyTheRenderingHasIsCutAndOneBothHaveIsKept) {
   EXPECT_THAT(
       extra_pauses(warp(paused, paused, 100, speech_frames(paused), speech_frames(paused)), paused, phones, paused),
       ::testing::IsEmpty());
+}
+
+// The formant band's level every ms (10 ms windows): `runs` of (dB, ms).
+std::vector<double> level_ms(std::initializer_list<std::pair<double, int>> runs) {
+  std::vector<double> level;
+  for (const auto& [db, ms] : runs) level.insert(level.end(), static_cast<std::size_t>(ms), db);
+  return level;
+}
+
+TEST(BilabialNasals, AnMCarriedIntoTheLoudVowelBeforeItStartsWhereTheLevelFallsToItsMurmur) {
+  // Russian "в большом" /o m/: the vowel loud to 400 ms, the murmur 10 dB under it to 500 ms, and
+  // the warp's /m/ starting at 300 ms, inside the vowel.
+  const std::vector<LabeledInterval> phones{
+      {"", 0, 0, 0}, {"o", 0, 0, 0}, {"m", 0, 0, 0}, {"a", 0, 0, 0}, {"", 0, 0, 0}};
+  const std::vector<double> level = level_ms({{-60, 100}, {-16, 300}, {-26, 100}, {-16, 200}, {-60, 100}});
+  std::vector<std::int64_t> bounds{0, 100'000, 300'000, 500'000, 700'000, 800'000};
+  start_bilabial_nasals_at_murmur(bounds, phones, level);
+  EXPECT_EQ(bounds[2], 400'000);
+  EXPECT_EQ(bounds[3], 500'000);
+
+  // Started at a falling level already (the murmur comes on slowly), it stays; so does /n/.
+  const std::vector<double> falling = level_ms({{-60, 100}, {-16, 200}, {-20, 10}, {-23, 10}, {-26, 280}, {-60, 200}});
+  bounds = {0, 100'000, 300'000, 500'000, 700'000, 800'000};
+  start_bilabial_nasals_at_murmur(bounds, phones, falling);
+  EXPECT_EQ(bounds[2], 300'000);
+  std::vector<LabeledInterval> n_phones = phones;
+  n_phones[2].label = "n";
+  bounds = {0, 100'000, 300'000, 500'000, 700'000, 800'000};
+  start_bilabial_nasals_at_murmur(bounds, n_phones, level);
+  EXPECT_EQ(bounds[2], 300'000);
 }
 
 }  // namespace

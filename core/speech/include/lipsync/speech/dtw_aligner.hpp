@@ -153,6 +153,14 @@ struct ExtraPause {
 std::vector<ExtraPause> extra_pauses(const WarpPath& path, const FeatureFrames& rendering,
                                      const std::vector<LabeledInterval>& phones, const FeatureFrames& recording);
 
+/// An /m/ after a vowel whose start `bounds` (bounds[k] the start of phones[k], bounds[size] the
+/// end) carries into the recording's vowel, the formant band's level `level_db` (10 ms windows
+/// every ms, formant_band_levels_db) there within 4 dB of the vowel's loudest and not falling over
+/// the next 30 ms: it starts where the level first falls 6 dB under that loudest (the murmur), at
+/// the steepest 10 ms fall within 10 ms of that, when that is within its interval and 150 ms.
+void start_bilabial_nasals_at_murmur(std::vector<std::int64_t>& bounds, const std::vector<LabeledInterval>& phones,
+                                     const std::vector<double>& level_db);
+
 /// Aligns `audio` (any rate) against options.synthesis's rendering of options.transcript:
 /// phones in phone_set_for_voice(voice) ("" for pauses), tiling [0, audio end]; no words.
 /// `source` names the audio in errors. Throws InputError: an empty transcript, an unknown
