@@ -358,14 +358,26 @@ std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtter
   return refined;
 }
 
-std::vector<double> formant_band_levels_db(const PcmAudio& audio, std::int64_t window_us, std::int64_t hop_us) {
+namespace {
+
+std::vector<double> band_levels_db(const PcmAudio& audio, Band band, std::int64_t window_us, std::int64_t hop_us) {
   std::vector<double> levels;
   if (audio.samples.empty() || audio.sample_rate_hz < kLowestRateHz) return levels;
-  const BandEnergy energy(audio, Band::kFormants);
+  const BandEnergy energy(audio, band);
   const std::int64_t window = std::max<std::int64_t>(1, window_us / 1000),
                      hop = std::max<std::int64_t>(1, hop_us / 1000);
   for (std::int64_t k = 0; k + window <= energy.frames(); k += hop) levels.push_back(energy.level_db(k, k + window));
   return levels;
+}
+
+}  // namespace
+
+std::vector<double> formant_band_levels_db(const PcmAudio& audio, std::int64_t window_us, std::int64_t hop_us) {
+  return band_levels_db(audio, Band::kFormants, window_us, hop_us);
+}
+
+std::vector<double> low_band_levels_db(const PcmAudio& audio, std::int64_t window_us, std::int64_t hop_us) {
+  return band_levels_db(audio, Band::kNasal, window_us, hop_us);
 }
 
 }  // namespace lipsync::speech
