@@ -2,13 +2,15 @@
 // made-up signals: MFCC frames every 10 ms with mean zero, the start and end of speech found
 // past pauses, a warp of a sequence with itself on the diagonal, boundaries carried across
 // a uniform stretch, a frame a little closer kept from taking a whole stretch, a pause
-// the recording has and the rendering lacks found at the phone it comes before, and an /m/
-// carried into the loud vowel before it started at its murmur.
+// the recording has and the rendering lacks found at the phone it comes before, an /m/ carried
+// into the loud vowel before it started at its murmur, and a voiced /b/ started where its voiced
+// closure begins.
 #include "lipsync/speech/dtw_aligner.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <random>
@@ -232,6 +234,102 @@ TEST(BilabialNasals, AnMCarriedIntoTheLoudVowelBeforeItStartsWhereTheLevelFallsT
   bounds = {0, 100'000, 300'000, 500'000, 700'000, 800'000};
   start_bilabial_nasals_at_murmur(bounds, n_phones, level);
   EXPECT_EQ(bounds[2], 300'000);
+}
+
+// Made-up speech at 16 kHz, one part after another: a vowel (the harmonics of 120 Hz up to 3.5 kHz,
+// loud in the formant band and below 400 Hz), a voiced closure (the 120 Hz fundamental alone: the
+// voicing bar), or silence (a voiceless closure or pause), each `seconds` long, each sound rising over
+// its first 10 ms (an abrupt start would click across the bands).
+enum class Part { kVowel, kVoicingBar, kSilence };
+PcmAudio made_up_speech(std::initializer_list<std::pair<Part, double>> parts) {
+  PcmAudio audio;
+  double t = 0;
+  for (const auto& [part, seconds] : parts) {
+    for (std::size_t i = 0; i < static_cast<std::size_t>(seconds * kFeatureRateHz); ++i, t += 1.0 / kFeatureRateHz) {
+      const double rise = std::min(1.0, double(i) / (0.01 * kFeatureRateHz));
+      double value = 0;
+      if (part == Part::kVowel) {
+        for (int harmonic = 1; harmonic * 120 <= 3500; ++harmonic) {
+          value += 1500 / std::sqrt(double(harmonic)) * std::sin(2 * std::numbers::pi * 120 * harmonic * t);
+        }
+      } else if (part == Part::kVoicingBar) {
+        value = 1500 * std::sin(2 * std::numbers::pi * 120 * t);
+      }
+      audio.samples.push_back(static_cast<std::int16_t>(std::clamp(rise * value, -32000.0, 32000.0)));
+    }
+  }
+  return audio;
+}
+
+// The start of each phone of `labels` (its first a pause from 0), and the end of the last.
+std::pair<std::vector<LabeledInterval>, std::vector<std::int64_t>> phones_from(
+    std::initializer_list<std::pair<const char*, std::int64_t>> labels, std::int64_t end_us) {
+  std::vector<LabeledInterval> phones;
+  std::vector<std::int64_t> bounds;
+  for (const auto& [label, start_us] : labels) {
+    if (!phones.empty()) phones.back().end_us = start_us;
+    phones.push_back({label, start_us, end_us, 0});
+    bounds.push_back(start_us);
+  }
+  bounds.push_back(end_us);
+  return {phones, bounds};
+}
+
+TEST(VoicedBilabialClosures, ABStartsWhereItsVoicedClosureBeginsWithThePhonesInsideItSqueezedBefore) {
+  // "molt bo" as Festival's Catalan says it, [o l b o], closing at 0.70 s; espeak-ng's [o l t β o]
+  // carried with its /l t/ inside the closure and its /β/ at the burst.
+  const PcmAudio speech = made_up_speech({{Part::kSilence, 0.3},
+                                          {Part::kVowel, 0.4},
+                                          {Part::kVoicingBar, 0.08},
+                                          {Part::kVowel, 0.3},
+                                          {Part::kSilence, 0.3}});
+  auto [phones, bounds] = phones_from(
+      {{"", 0}, {"o", 300'000}, {"l", 705'000}, {"t", 730'000}, {"β", 770'000}, {"o", 785'000}, {"", 1'080'000}},
+      1'380'000);
+  start_voiced_bilabials_at_closures(bounds, phones, speech);
+  EXPECT_NEAR(double(bounds[4]), 700'000.0, 12'000.0);
+  EXPECT_EQ(bounds[3], bounds[4] - 10'000);
+  EXPECT_EQ(bounds[2], bounds[3] - 10'000);
+  EXPECT_EQ(bounds[1], 300'000);
+  EXPECT_EQ(bounds[5], 785'000);
+
+  // After a voiceless stop's silence ("barret blau": [t b], the /b/ voiced from 0.76 s), the /b/
+  // starts where the voicing bar rises.
+  const PcmAudio after_stop = made_up_speech({{Part::kSilence, 0.3},
+                                              {Part::kVowel, 0.4},
+                                              {Part::kSilence, 0.06},
+                                              {Part::kVoicingBar, 0.06},
+                                              {Part::kVowel, 0.3},
+                                              {Part::kSilence, 0.3}});
+  auto [stop_phones, stop_bounds] = phones_from(
+      {{"", 0}, {"ɛ", 300'000}, {"t", 700'000}, {"β", 805'000}, {"l", 830'000}, {"", 1'120'000}}, 1'420'000);
+  start_voiced_bilabials_at_closures(stop_bounds, stop_phones, after_stop);
+  EXPECT_NEAR(double(stop_bounds[3]), 760'000.0, 10'000.0);
+  EXPECT_EQ(stop_bounds[2], 700'000);
+}
+
+TEST(VoicedBilabialClosures, AVoicelessClosureOrAFricativeOrNasalBeforeTheBIsLeftAlone) {
+  const auto unchanged = [](const PcmAudio& speech,
+                            std::initializer_list<std::pair<const char*, std::int64_t>> labels) {
+    auto [phones, bounds] = phones_from(labels, 1'380'000);
+    const std::vector<std::int64_t> before = bounds;
+    start_voiced_bilabials_at_closures(bounds, phones, speech);
+    EXPECT_EQ(bounds, before);
+  };
+  const PcmAudio voiced = made_up_speech({{Part::kSilence, 0.3},
+                                          {Part::kVowel, 0.4},
+                                          {Part::kVoicingBar, 0.08},
+                                          {Part::kVowel, 0.3},
+                                          {Part::kSilence, 0.3}});
+  const PcmAudio voiceless = made_up_speech(
+      {{Part::kSilence, 0.3}, {Part::kVowel, 0.4}, {Part::kSilence, 0.08}, {Part::kVowel, 0.3}, {Part::kSilence, 0.3}});
+  // A voiceless closure: a /p b/ after a stop shares its silence, and where the lips close is not heard.
+  unchanged(voiceless, {{"", 0}, {"o", 300'000}, {"t", 705'000}, {"b", 770'000}, {"o", 785'000}, {"", 1'080'000}});
+  // A voiced fricative or a nasal before the /b/ is low in the formant band and voiced, like the closure.
+  unchanged(voiced, {{"", 0}, {"o", 300'000}, {"v", 705'000}, {"b", 770'000}, {"o", 785'000}, {"", 1'080'000}});
+  unchanged(voiced, {{"", 0}, {"o", 300'000}, {"m", 705'000}, {"b", 770'000}, {"o", 785'000}, {"", 1'080'000}});
+  // A /b/ carried to its closure's start already stays; a /p/ is not voiced.
+  unchanged(voiced, {{"", 0}, {"o", 300'000}, {"p", 770'000}, {"o", 785'000}, {"", 1'080'000}});
 }
 
 }  // namespace

@@ -93,4 +93,8 @@ std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtter
 /// the first window starts at 0; none below 8 kHz): for plots and tests.
 std::vector<double> formant_band_levels_db(const PcmAudio& audio, std::int64_t window_us, std::int64_t hop_us);
 
+/// The level below 400 Hz (a /b/'s voicing bar, a nasal's murmur) of `audio` in dBFS, windowed as
+/// formant_band_levels_db.
+std::vector<double> low_band_levels_db(const PcmAudio& audio, std::int64_t window_us, std::int64_t hop_us);
+
 }  // namespace lipsync::speech

@@ -161,6 +161,16 @@ std::vector<ExtraPause> extra_pauses(const WarpPath& path, const FeatureFrames& 
 void start_bilabial_nasals_at_murmur(std::vector<std::int64_t>& bounds, const std::vector<LabeledInterval>& phones,
                                      const std::vector<double>& level_db);
 
+/// A voiced /b/ of `phones` (espeak-ng's labels: b, β with any marks; not after a pause or nasal) whose
+/// start bounds[k] (bounds[k] starts phones[k], bounds.back() is the end) lies inside a voiced closure
+/// of `recording` (its 400–3500 Hz level 10 dB under the sound before and the release after for 40 ms
+/// or more, its level below 400 Hz, the voicing bar, held) starts where that closure begins: at the onset of the
+/// formant band's fall, or where the voicing bar rises in a voiceless stop's silence. The phones
+/// between (vowels, liquids, glides, stops only; a fricative or nasal there leaves the /b/ alone) are
+/// squeezed before it, 10 ms each where there is room.
+void start_voiced_bilabials_at_closures(std::vector<std::int64_t>& bounds, const std::vector<LabeledInterval>& phones,
+                                        const PcmAudio& recording);
+
 /// Aligns `audio` (any rate) against options.synthesis's rendering of options.transcript:
 /// phones in phone_set_for_voice(voice) ("" for pauses), tiling [0, audio end]; no words.
 /// `source` names the audio in errors. Throws InputError: an empty transcript, an unknown
