@@ -486,6 +486,7 @@ std::pair<PcmAudio, LabeledUtterance> with_pauses(const PcmAudio& audio, const L
     const ExtraPause* cut;
   };
   std::vector<Edit> edits;
+  edits.reserve(pauses.size() + cuts.size());
   for (const MissingPause& pause : pauses) edits.push_back({pause.phone, &pause, nullptr});
   for (const ExtraPause& cut : cuts) {
     const bool crossed = std::any_of(pauses.begin(), pauses.end(), [&](const MissingPause& pause) {
