@@ -55,6 +55,19 @@ std::vector<LabeledInterval> tone_phones(double seconds, double pause_s) {
   return phones;
 }
 
+// tone_phones(2.0, 0.3) with a pause of 300 ms put in at 1.3 s (as with_pause does to the audio):
+// the phones from there on move by it.
+std::vector<LabeledInterval> tone_phones_with_pause_at_1_3_s() {
+  std::vector<LabeledInterval> phones = tone_phones(2.0, 0.3);
+  for (std::size_t k = 11; k < phones.size(); ++k) {
+    phones[k].start_us += 300'000;
+    phones[k].end_us += 300'000;
+  }
+  phones.insert(phones.begin() + 11, LabeledInterval{"", 1'300'000, 1'600'000, 0});
+  phones[10].end_us = 1'300'000;
+  return phones;
+}
+
 FeatureFrames stretched(const FeatureFrames& frames, int factor) {
   FeatureFrames result;
   result.dimensions = frames.dimensions;
@@ -167,13 +180,7 @@ TEST(MissingPauses, NoneWhereTheRenderingHasThePausesOrTheyAreShort) {
   const PcmAudio rendering_audio = with_pause(varied_tones(2.0, 0.3), 1.3, 0.3);
   const FeatureFrames rendering = mfcc_features(rendering_audio);
   const FeatureFrames same = mfcc_features(rendering_audio);
-  std::vector<LabeledInterval> phones = tone_phones(2.0, 0.3);
-  for (std::size_t k = 11; k < phones.size(); ++k) {  // the phones from 1.3 s on move by the pause
-    phones[k].start_us += 300'000;
-    phones[k].end_us += 300'000;
-  }
-  phones.insert(phones.begin() + 11, LabeledInterval{"", 1'300'000, 1'600'000, 0});
-  phones[10].end_us = 1'300'000;
+  const std::vector<LabeledInterval> phones = tone_phones_with_pause_at_1_3_s();
   EXPECT_THAT(missing_pauses(warp(rendering, same, 100, speech_frames(rendering), speech_frames(same)), rendering,
                              phones, same),
               ::testing::IsEmpty());
@@ -187,13 +194,7 @@ TEST(MissingPauses, NoneWhereTheRenderingHasThePausesOrTheyAreShort) {
 TEST(ExtraPauses, APauseOnlyTheRenderingHasIsCutAndOneBothHaveIsKept) {
   const PcmAudio paused_audio = with_pause(varied_tones(2.0, 0.3), 1.3, 0.3);
   const FeatureFrames paused = mfcc_features(paused_audio);
-  std::vector<LabeledInterval> phones = tone_phones(2.0, 0.3);
-  for (std::size_t k = 11; k < phones.size(); ++k) {  // the phones from 1.3 s on move by the pause
-    phones[k].start_us += 300'000;
-    phones[k].end_us += 300'000;
-  }
-  phones.insert(phones.begin() + 11, LabeledInterval{"", 1'300'000, 1'600'000, 0});
-  phones[10].end_us = 1'300'000;
+  const std::vector<LabeledInterval> phones = tone_phones_with_pause_at_1_3_s();
   const FeatureFrames plain = mfcc_features(varied_tones(2.0, 0.3));
   const std::vector<ExtraPause> cuts =
       extra_pauses(warp(paused, plain, 100, speech_frames(paused), speech_frames(plain)), paused, phones, plain);

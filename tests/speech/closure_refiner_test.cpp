@@ -191,6 +191,16 @@ speech::PcmAudio sounds(std::initializer_list<std::pair<Sound, std::int64_t>> pa
   return audio;
 }
 
+// A vowel to 200 ms, a stop's closure to 260 ms, its release to 300 ms, a second stop's closure to
+// 380 ms, a vowel to 700 ms.
+speech::PcmAudio two_stop_closures() {
+  return sounds({{Sound::vowel, 200'000},
+                 {Sound::silence, 260'000},
+                 {Sound::vowel, 300'000},
+                 {Sound::silence, 380'000},
+                 {Sound::vowel, 700'000}});
+}
+
 TEST(ClosureRefiner, AShortPauseBeforeAStopIsTakenForItsClosure) {
   // The recogniser heard a /p/'s silent closure (300 to 380 ms) as a pause and put
   // the /p/ at its burst: the /p/ takes the pause over and starts at the closure.
@@ -215,11 +225,7 @@ TEST(ClosureRefiner, AShortPauseBeforeAStopIsTakenForItsClosure) {
 TEST(ClosureRefiner, APauseBetweenTwoStopsGivesTheSecondItsClosureAtTheLastFall) {
   // /k/ closure 200 to 260 ms, its release 260 to 300 ms, then the /p/'s closure 300 to
   // 380 ms: the pause the recogniser put over both ends where the /p/'s closure starts.
-  const speech::PcmAudio audio = sounds({{Sound::vowel, 200'000},
-                                         {Sound::silence, 260'000},
-                                         {Sound::vowel, 300'000},
-                                         {Sound::silence, 380'000},
-                                         {Sound::vowel, 700'000}});
+  const speech::PcmAudio audio = two_stop_closures();
   LabeledUtterance phones = phones_of({{"AA", 0, 200'000, 1},
                                        {"K", 200'000, 230'000, 2},
                                        {"", 230'000, 370'000, 3},
@@ -235,11 +241,7 @@ TEST(ClosureRefiner, APauseBetweenTwoStopsGivesTheSecondItsClosureAtTheLastFall)
 TEST(ClosureRefiner, APAfterAReleasedStopStartsAtTheLastFallAndAfterAnUnreleasedOneStays) {
   // /t/ closure 200 to 260 ms, its release 260 to 300 ms, then the /p/'s closure 300 to 380 ms,
   // no pause between: the aligner put the /p/ inside the /t/'s closure, before its release.
-  const speech::PcmAudio released = sounds({{Sound::vowel, 200'000},
-                                            {Sound::silence, 260'000},
-                                            {Sound::vowel, 300'000},
-                                            {Sound::silence, 380'000},
-                                            {Sound::vowel, 700'000}});
+  const speech::PcmAudio released = two_stop_closures();
   const auto t_p = [] {
     return phones_of(
         {{"AA", 0, 200'000, 1}, {"T", 200'000, 240'000, 2}, {"P", 240'000, 390'000, 3}, {"AA", 390'000, 700'000, 4}});
