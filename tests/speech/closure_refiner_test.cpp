@@ -259,6 +259,41 @@ TEST(ClosureRefiner, APAfterAReleasedStopStartsAtTheLastFallAndAfterAnUnreleased
   EXPECT_EQ(phones.intervals[2].start_us, 240'000);
 }
 
+TEST(ClosureRefiner, APauseAfterAStopHoldsBothClosuresAndWithNoReleaseHeardIsHalved) {
+  // /tʃ/ closure 200 to 260 ms, its frication 260 to 330 ms, the /p/'s closure 330 to 500 ms:
+  // the recogniser's pause over the frication and the /p/'s closure (260 ms) is longer than
+  // longest_closure_pause_us, but after a stop it may hold both closures, so the /p/ still
+  // starts at its last fall.
+  const speech::PcmAudio frication = sounds({{Sound::vowel, 200'000},
+                                             {Sound::silence, 260'000},
+                                             {Sound::vowel, 330'000},
+                                             {Sound::silence, 500'000},
+                                             {Sound::vowel, 800'000}});
+  LabeledUtterance phones = phones_of({{"AA", 0, 200'000, 1},
+                                       {"CH", 200'000, 230'000, 2},
+                                       {"", 230'000, 490'000, 3},
+                                       {"P", 490'000, 520'000, 4},
+                                       {"AA", 520'000, 800'000, 5}});
+  speech::refine_closures(frication, phones);
+  ASSERT_EQ(phones.intervals.size(), 5U);
+  EXPECT_NEAR(double(phones.intervals[3].start_us), 324e3, 2e3);
+  // One silence 200 to 380 ms, the /t/'s release not heard: where the lips close in it is not
+  // heard, and the /b/ takes its second half, from the middle of the /t/'s start and its burst.
+  const speech::PcmAudio unreleased =
+      sounds({{Sound::vowel, 200'000}, {Sound::silence, 380'000}, {Sound::vowel, 700'000}});
+  phones = phones_of({{"AA", 0, 200'000, 1},
+                      {"T", 200'000, 230'000, 2},
+                      {"", 230'000, 370'000, 3},
+                      {"B", 370'000, 400'000, 4},
+                      {"AA", 400'000, 700'000, 5}});
+  const std::vector<speech::RefinedBoundary> refined = speech::refine_closures(unreleased, phones);
+  ASSERT_EQ(phones.intervals.size(), 5U);
+  EXPECT_EQ(phones.intervals[3].start_us, 285'000);
+  EXPECT_EQ(phones.intervals[2].end_us, 285'000);
+  ASSERT_FALSE(refined.empty());
+  EXPECT_TRUE(refined[0].moved);
+}
+
 TEST(ClosureRefiner, AnMAfterAPauseStartsWhereItsMurmurDoes) {
   const speech::PcmAudio audio = sounds({{Sound::silence, 200'000}, {Sound::murmur, 280'000}, {Sound::vowel, 600'000}});
   LabeledUtterance phones = phones_of({{"", 0, 220'000, 1}, {"M", 220'000, 290'000, 2}, {"AA", 290'000, 600'000, 3}});

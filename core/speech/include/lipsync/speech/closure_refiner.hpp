@@ -30,11 +30,12 @@
 // closure (the recogniser hears a silent closure as a pause and puts the stop at its
 // burst), so it takes the pause over and its start is refined from where the pause
 // started; when the phone before that pause is itself a stop, the pause holds that
-// stop's closure and release too, and the /p b/ starts at the pause's last fall of
-// the level instead; and an /m f v/ after a pause, with no closing movement to hear,
-// starts at the level's steepest rise (its sound's onset). Neighbouring phones keep
-// at least `min_phone_us` and their order; the utterance still tiles the same span. Pure
-// computation on the samples: the same audio and phones give the same result.
+// stop's closure and release too (so it may last twice as long), and the /p b/ starts at
+// the pause's last fall of the level instead, or, with neither a fall nor that stop's
+// release heard, halfway between that stop's start and the /p b/'s burst; and an /m f v/ after a pause, with no closing
+// movement to hear, starts at the level's steepest rise (its sound's onset). Neighbouring phones keep at least
+// `min_phone_us` and their order; the utterance still tiles the same span. Pure computation on the samples: the same
+// audio and phones give the same result.
 #pragma once
 
 #include <cstddef>
@@ -62,7 +63,8 @@ struct ClosureRefinerOptions {
   std::int64_t closure_lead_us = 3'000;
   /// How far after the steepest rise the release is placed, µs.
   std::int64_t release_lag_us = 0;
-  /// The longest pause before a /p b/ that is taken for the stop's silent closure, µs.
+  /// The longest pause before a /p b/ that is taken for the stop's silent closure, µs
+  /// (twice this after another stop: the pause then holds both closures).
   std::int64_t longest_closure_pause_us = 160'000;
   /// The shortest a phone may become, µs.
   std::int64_t min_phone_us = 10'000;
