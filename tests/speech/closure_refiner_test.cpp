@@ -191,6 +191,17 @@ speech::PcmAudio sounds(std::initializer_list<std::pair<Sound, std::int64_t>> pa
   return audio;
 }
 
+// The recogniser's phones for a vowel, a `stop` from 200 ms, a pause from 230 ms over its release
+// and the next closure, and a `bilabial` from `bilabial_us` (30 ms) before a vowel to `end_us`.
+LabeledUtterance stop_pause_bilabial(const char* stop, std::int64_t bilabial_us, const char* bilabial,
+                                     std::int64_t end_us) {
+  return phones_of({{"AA", 0, 200'000, 1},
+                    {stop, 200'000, 230'000, 2},
+                    {"", 230'000, bilabial_us, 3},
+                    {bilabial, bilabial_us, bilabial_us + 30'000, 4},
+                    {"AA", bilabial_us + 30'000, end_us, 5}});
+}
+
 // A vowel to 200 ms, a stop's closure to 260 ms, its release to 300 ms, a second stop's closure to
 // 380 ms, a vowel to 700 ms.
 speech::PcmAudio two_stop_closures() {
@@ -226,11 +237,7 @@ TEST(ClosureRefiner, APauseBetweenTwoStopsGivesTheSecondItsClosureAtTheLastFall)
   // /k/ closure 200 to 260 ms, its release 260 to 300 ms, then the /p/'s closure 300 to
   // 380 ms: the pause the recogniser put over both ends where the /p/'s closure starts.
   const speech::PcmAudio audio = two_stop_closures();
-  LabeledUtterance phones = phones_of({{"AA", 0, 200'000, 1},
-                                       {"K", 200'000, 230'000, 2},
-                                       {"", 230'000, 370'000, 3},
-                                       {"P", 370'000, 400'000, 4},
-                                       {"AA", 400'000, 700'000, 5}});
+  LabeledUtterance phones = stop_pause_bilabial("K", 370'000, "P", 700'000);
   speech::refine_closures(audio, phones);
   ASSERT_EQ(phones.intervals.size(), 5U);
   EXPECT_NEAR(double(phones.intervals[3].start_us), 294e3, 2e3);
@@ -269,11 +276,7 @@ TEST(ClosureRefiner, APauseAfterAStopHoldsBothClosuresAndWithNoReleaseHeardIsHal
                                              {Sound::vowel, 330'000},
                                              {Sound::silence, 500'000},
                                              {Sound::vowel, 800'000}});
-  LabeledUtterance phones = phones_of({{"AA", 0, 200'000, 1},
-                                       {"CH", 200'000, 230'000, 2},
-                                       {"", 230'000, 490'000, 3},
-                                       {"P", 490'000, 520'000, 4},
-                                       {"AA", 520'000, 800'000, 5}});
+  LabeledUtterance phones = stop_pause_bilabial("CH", 490'000, "P", 800'000);
   speech::refine_closures(frication, phones);
   ASSERT_EQ(phones.intervals.size(), 5U);
   EXPECT_NEAR(double(phones.intervals[3].start_us), 324e3, 2e3);
@@ -281,11 +284,7 @@ TEST(ClosureRefiner, APauseAfterAStopHoldsBothClosuresAndWithNoReleaseHeardIsHal
   // heard, and the /b/ takes its second half, from the middle of the /t/'s start and its burst.
   const speech::PcmAudio unreleased =
       sounds({{Sound::vowel, 200'000}, {Sound::silence, 380'000}, {Sound::vowel, 700'000}});
-  phones = phones_of({{"AA", 0, 200'000, 1},
-                      {"T", 200'000, 230'000, 2},
-                      {"", 230'000, 370'000, 3},
-                      {"B", 370'000, 400'000, 4},
-                      {"AA", 400'000, 700'000, 5}});
+  phones = stop_pause_bilabial("T", 370'000, "B", 700'000);
   const std::vector<speech::RefinedBoundary> refined = speech::refine_closures(unreleased, phones);
   ASSERT_EQ(phones.intervals.size(), 5U);
   EXPECT_EQ(phones.intervals[3].start_us, 285'000);
