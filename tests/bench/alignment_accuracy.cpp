@@ -19,9 +19,11 @@
 // its output.
 //
 // Usage: alignment_accuracy [--espeak-only]
-// With ALIGNMENT_ACCURACY_SENTENCES=next it speaks Harvard sentences 11 to 20 instead of
-// the first ten: a check that what was tuned on the first ten holds on sentences it was
-// not tuned on.
+// ALIGNMENT_ACCURACY_SENTENCES chooses the ten sentences: unset, the first ten (what the
+// refiner was first tuned on); "next", Harvard sentences 11 to 20 (a check on sentences
+// the first rules were not tuned on; later rules were chosen on them); "third", sentences
+// 21 to 30 (Harvard list 3: the fresh check, no rule or setting tuned on them). Any other
+// value is an error.
 // With ALIGNMENT_ACCURACY_DUMP=DIR it also writes each recording (16 kHz WAV), its
 // reference phones and the raw alignment (label, start µs, end µs per line) to DIR,
 // for trying refiner settings without decoding again.
@@ -79,10 +81,20 @@ int main(int argc, char** argv) {
   const std::filesystem::path wav =
       std::filesystem::temp_directory_path() / ("alignment_accuracy-" + std::to_string(::getpid()) + ".wav");
 
-  const char* which = std::getenv("ALIGNMENT_ACCURACY_SENTENCES");
-  const bool next_ten = which != nullptr && std::string_view(which) == "next";
-  const std::span<const char* const> sentences =
-      next_ten ? std::span(testing::kHarvardSentences).subspan(10, 10) : testing::accuracy_sentences();
+  std::span<const char* const> sentences = testing::accuracy_sentences();
+  if (const char* which = std::getenv("ALIGNMENT_ACCURACY_SENTENCES")) {
+    const std::string_view value(which);
+    if (value == "next") {
+      sentences = std::span(testing::kHarvardSentences).subspan(10, 10);
+    } else if (value == "third") {
+      sentences = std::span(testing::kHarvardSentences).subspan(20, 10);
+    } else {
+      std::cerr << "alignment_accuracy: ALIGNMENT_ACCURACY_SENTENCES=\"" << value
+                << "\" is not known; use \"next\" (sentences 11 to 20), \"third\" (21 to 30) or leave it unset "
+                   "(the first ten)\n";
+      return 2;
+    }
+  }
 
   for (const std::string source : {"espeak-ng", "flite", "festival"}) {
     if (source == "flite" && !have_flite) continue;

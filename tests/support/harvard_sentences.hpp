@@ -1,13 +1,14 @@
 // Harvard sentences (IEEE Recommended Practice for Speech Quality Measurements,
 // 1969; public domain): phonetically balanced English, the utterances the
-// measurement tools and the speech tests speak.
+// measurement tools and the speech tests speak. Lists 1 to 3 (sentences 1 to 30); sentences 21
+// to 30 (list 3) are the alignment bench's fresh check (ALIGNMENT_ACCURACY_SENTENCES=third).
 #pragma once
 
 #include <array>
 
 namespace lipsync::testing {
 
-inline constexpr std::array<const char*, 20> kHarvardSentences = {
+inline constexpr std::array<const char*, 30> kHarvardSentences = {
     "The birch canoe slid on the smooth planks.",
     "Glue the sheet to the dark blue background.",
     "It's easy to tell the depth of a well.",
@@ -28,6 +29,16 @@ inline constexpr std::array<const char*, 20> kHarvardSentences = {
     "The soft cushion broke the man's fall.",
     "The salt breeze came across from the sea.",
     "The girl at the booth sold fifty bonds.",
+    "The small pup gnawed a hole in the sock.",
+    "The fish twisted and turned on the bent hook.",
+    "Press the pants and sew a button on the vest.",
+    "The swan dive was far short of perfect.",
+    "The beauty of the view stunned the young boy.",
+    "Two blue fish swam in the tank.",
+    "Her purse was full of useless trash.",
+    "The colt reared and threw the tall rider.",
+    "It snowed, rained, and hailed the same morning.",
+    "Read verse out loud for pleasure.",
 };
 
 }  // namespace lipsync::testing
