@@ -282,30 +282,102 @@ void refine_start(const Levels& levels, std::vector<LabeledInterval>& intervals,
   refined.push_back({i, false, aligned, phone.start_us, std::max(0.0, step.db), moved});
 }
 
-// A /p b/ right after another stop (/t p/, /k b/), no pause between: as across such a pause, the
-// stretch holds the first stop's closure and release, then the second one's closure, which starts
-// at the last fall of the level before its own burst, when the first stop's release (a rise of the
-// level) comes before that fall. With no release heard, the one silence holds both closures and
-// where the lips close in it is not heard: the boundary stays. Russian "ест пирог": the warp put the
-// /pʲ/ 84 ms early, inside the /t/'s closure before its burst; now 8 ms early. After the warp the
-// English "big brown" /g b/ (no release heard) stays 15 ms early, where refining it as any other /b/
-// took the /g/'s closure, 45 ms early. A stop the recogniser hears where none was said holds the /p/
-// too: Festival's "fine punch", heard without a transcript as "find punch", 36 ms late (its middle
-// still shown closed).
+// Moves the end of the lip phone intervals[i] (not the last) to its release, where the level
+// rises again.
+void refine_release(const Levels& levels, std::vector<LabeledInterval>& intervals, std::size_t i,
+                    const ClosureRefinerOptions& options, std::vector<RefinedBoundary>& refined) {
+  LabeledInterval& next = intervals[i + 1];
+  const std::int64_t aligned = intervals[i].end_us;
+  const Step step = best_step(
+      levels.formants, aligned, std::max(aligned - options.search_us, intervals[i].start_us + options.min_phone_us),
+      std::min(aligned + options.search_us, next.end_us - options.min_phone_us), false, options);
+  const std::int64_t at = std::min(step.at_us + options.release_lag_us, next.end_us - options.min_phone_us);
+  const bool moved = step.db >= options.min_step_db && at >= intervals[i].start_us + options.min_phone_us;
+  if (moved) intervals[i].end_us = next.start_us = at;
+  refined.push_back({i, true, aligned, intervals[i].end_us, std::max(0.0, step.db), moved});
+}
+
+// A /p b/ after another stop (/t p/, /k b/), with or without a pause the recogniser heard
+// between them: the stretch before its burst holds the first stop's closure and release, then
+// the /p b/'s own closure. A stop the recogniser hears where none was said holds the /p/ too:
+// Festival's "fine punch", heard without a transcript as "find punch", 36 ms late (its middle
+// still shown closed). Where the /p b/ starts, case by case:
+enum class StartAfterStop {
+  // A pause between the two stops holds both closures: the /p b/'s starts at the pause's last
+  // fall of the level.
+  kPauseLastFall,
+  // A pause, and neither a fall nor the first stop's release heard: one silence holds both
+  // closures, from the first stop's start to the /p b/'s burst, and where the lips close in it
+  // is not heard. Each closure takes half of it. Festival's "get back": 53 ms late at the burst,
+  // now 3 ms late.
+  kPauseMidpoint,
+  // No pause, the first stop's release (a rise of the level) heard before the last fall before
+  // the /p b/'s burst: as across a pause, the /p b/ starts at that fall. Russian "ест пирог": the
+  // warp put the /pʲ/ 84 ms early, inside the /t/'s closure before its burst; now 8 ms early.
+  kReleaseLastFall,
+  // No pause and no release heard: the one silence holds both closures and where the lips close
+  // in it is not heard, so the boundary stays. After the warp the English "big brown" /g b/ stays
+  // 15 ms early, where refining it as any other /b/ took the /g/'s closure, 45 ms early. The
+  // boundary stays too wherever no case above applies: no last fall heard, or one that would
+  // leave the /p b/ shorter than min_phone_us, and no midpoint to take.
+  kStays,
+};
+
+// Which case a /p b/ after a stop is, from what is heard before its burst.
+StartAfterStop start_after_stop(bool pause_between, bool last_fall_fits, bool release_heard, bool midpoint_fits) {
+  if (pause_between) {
+    if (last_fall_fits) return StartAfterStop::kPauseLastFall;
+    if (!release_heard && midpoint_fits) return StartAfterStop::kPauseMidpoint;
+    return StartAfterStop::kStays;
+  }
+  return last_fall_fits && release_heard ? StartAfterStop::kReleaseLastFall : StartAfterStop::kStays;
+}
+
+// Moves the start of the /p b/ intervals[i] after another stop: intervals[i - 1] is that stop,
+// or, when `pause_between`, the pause after it (and the stop is intervals[i - 2]).
 void refine_start_after_stop(const Levels& levels, std::vector<LabeledInterval>& intervals, std::size_t i,
-                             const ClosureRefinerOptions& options, std::vector<RefinedBoundary>& refined) {
-  LabeledInterval& stop = intervals[i - 1];
-  const std::int64_t aligned = intervals[i].start_us;
-  const std::int64_t from = stop.start_us + options.min_phone_us;
-  const Step step =
-      latest_step(levels.formants, from, intervals[i].end_us - options.min_phone_us, true, options.min_step_db);
-  const Step release = best_step(levels.formants, step.at_us, from, step.at_us - kStepWindowUs, false,
-                                 ClosureRefinerOptions{.distance_penalty_db_per_ms = 0});
-  const std::int64_t at = std::max(fall_onset_us(levels.formants, step, from, options) - options.closure_lead_us, from);
-  const bool moved =
-      step.db > 0 && release.db >= options.min_step_db && at <= intervals[i].end_us - options.min_phone_us;
-  if (moved) stop.end_us = intervals[i].start_us = at;
-  refined.push_back({i, false, aligned, intervals[i].start_us, step.db, moved});
+                             bool pause_between, const ClosureRefinerOptions& options,
+                             std::vector<RefinedBoundary>& refined) {
+  LabeledInterval& previous = intervals[i - 1];
+  LabeledInterval& phone = intervals[i];
+  const LabeledInterval& first_stop = pause_between ? intervals[i - 2] : previous;
+  const std::int64_t aligned = phone.start_us;
+  const std::int64_t from = previous.start_us + options.min_phone_us;
+  // The last fall before the burst: the recogniser puts the /p b/ at its burst after a pause;
+  // with none between the warp may put it early, inside the closure ("ест пирог"), so the fall is
+  // looked for up to min_phone_us before its end.
+  const std::int64_t last_fall_by = pause_between ? aligned : phone.end_us - options.min_phone_us;
+  const Step last_fall = latest_step(levels.formants, from, last_fall_by, true, options.min_step_db);
+  const std::int64_t last_fall_at =
+      std::max(fall_onset_us(levels.formants, last_fall, from, options) - options.closure_lead_us, from);
+  // The first stop's release: a rise at least 10 ms before the burst across a pause, before the
+  // last fall with none.
+  const std::int64_t release_before = pause_between ? aligned : last_fall.at_us;
+  const Step release =
+      best_step(levels.formants, release_before, first_stop.start_us + options.min_phone_us,
+                release_before - kStepWindowUs, false, ClosureRefinerOptions{.distance_penalty_db_per_ms = 0});
+  const std::int64_t middle = (first_stop.start_us + aligned) / 2;
+  const StartAfterStop start =
+      start_after_stop(pause_between, last_fall.db > 0 && last_fall_at <= phone.end_us - options.min_phone_us,
+                       release.db >= options.min_step_db, middle >= from);
+  switch (start) {
+    case StartAfterStop::kPauseLastFall:
+    case StartAfterStop::kReleaseLastFall:
+      previous.end_us = phone.start_us = last_fall_at;
+      break;
+    case StartAfterStop::kPauseMidpoint:
+      previous.end_us = phone.start_us = middle;
+      break;
+    case StartAfterStop::kStays:
+      break;
+  }
+  refined.push_back({i, false, aligned, phone.start_us, last_fall.db, start != StartAfterStop::kStays});
+}
+
+// A /p b/ right after a stop other than /p b/, no pause between (/t p/, /k b/).
+bool follows_other_stop(const std::vector<LabeledInterval>& intervals, std::size_t i) {
+  return i > 0 && is_stop(intervals[i - 1].label) && !is_oral_bilabial_stop(intervals[i - 1].label) &&
+         is_oral_bilabial_stop(intervals[i].label);
 }
 
 }  // namespace
@@ -326,32 +398,9 @@ std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtter
   for (std::size_t i = 0; i < intervals.size(); ++i) {
     if (!is_lip_phone(intervals[i].label)) continue;
     const bool after_pause = i > 1 && is_stop_closure_pause(intervals[i - 2], intervals[i - 1], intervals[i], options);
-    if (after_pause && is_stop(intervals[i - 2].label)) {
-      // A pause between two stops holds the first one's closure and release, then the
-      // second one's closure: that starts at the pause's last fall of the level.
-      LabeledInterval& pause = intervals[i - 1];
-      const std::int64_t aligned = intervals[i].start_us;
-      const Step step =
-          latest_step(levels.formants, pause.start_us + options.min_phone_us, aligned, true, options.min_step_db);
-      const std::int64_t onset = fall_onset_us(levels.formants, step, pause.start_us + options.min_phone_us, options);
-      const std::int64_t at = std::max(onset - options.closure_lead_us, pause.start_us + options.min_phone_us);
-      bool moved = step.db > 0 && at <= intervals[i].end_us - options.min_phone_us;
-      if (moved) pause.end_us = intervals[i].start_us = at;
-      const Step release =
-          best_step(levels.formants, aligned, intervals[i - 2].start_us + options.min_phone_us, aligned - kStepWindowUs,
-                    false, ClosureRefinerOptions{.distance_penalty_db_per_ms = 0});
-      const std::int64_t middle = (intervals[i - 2].start_us + aligned) / 2;
-      if (!moved && release.db < options.min_step_db && middle >= pause.start_us + options.min_phone_us) {
-        // Neither a release nor a fall heard: one silence holds both closures, from the first
-        // stop's start to the /p b/'s burst, and where the lips close in it is not heard. Each
-        // closure takes half of it. Festival's "get back": 53 ms late at the burst, now 3 ms late.
-        pause.end_us = intervals[i].start_us = middle;
-        moved = true;
-      }
-      refined.push_back({i, false, aligned, intervals[i].start_us, step.db, moved});
-    } else if (i > 0 && is_stop(intervals[i - 1].label) && !is_oral_bilabial_stop(intervals[i - 1].label) &&
-               is_oral_bilabial_stop(intervals[i].label)) {
-      refine_start_after_stop(levels, intervals, i, options, refined);
+    const bool pause_between_stops = after_pause && is_stop(intervals[i - 2].label);
+    if (pause_between_stops || follows_other_stop(intervals, i)) {
+      refine_start_after_stop(levels, intervals, i, pause_between_stops, options, refined);
     } else {
       if (after_pause && !intervals[i - 2].label.empty()) {
         // The recogniser heard the stop's silent closure as a pause: the closure starts
@@ -363,18 +412,9 @@ std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtter
       }
       if (i > 0) refine_start(levels, intervals, i, options, refined);
     }
-    if (i + 1 < intervals.size() &&
-        !closes_into_stop(intervals[i].label, intervals[i + 1].label)) {  // the release: the level rises again
-      LabeledInterval& next = intervals[i + 1];
-      const std::int64_t aligned = intervals[i].end_us;
-      const Step step = best_step(
-          levels.formants, aligned, std::max(aligned - options.search_us, intervals[i].start_us + options.min_phone_us),
-          std::min(aligned + options.search_us, next.end_us - options.min_phone_us), false, options);
-      const std::int64_t at = std::min(step.at_us + options.release_lag_us, next.end_us - options.min_phone_us);
-      const bool moved = step.db >= options.min_step_db && at >= intervals[i].start_us + options.min_phone_us;
-      if (moved) intervals[i].end_us = next.start_us = at;
-      refined.push_back({i, true, aligned, intervals[i].end_us, std::max(0.0, step.db), moved});
-    }
+    // An /m/ closing into a /p b/ has no release: the lips stay closed into the stop.
+    if (i + 1 < intervals.size() && !closes_into_stop(intervals[i].label, intervals[i + 1].label))
+      refine_release(levels, intervals, i, options, refined);
   }
   return refined;
 }
