@@ -1,7 +1,7 @@
 // alignment_accuracy: how close lipsync::speech's PocketSphinx alignment comes to
 // phoneme boundaries that are known exactly, on synthetic speech.
 //
-// Each sentence (ten Harvard sentences, public domain) is spoken by espeak-ng
+// Each sentence (ten Harvard sentences by default, public domain) is spoken by espeak-ng
 // through lipsync::speech::synthesize, whose phoneme events give the true
 // boundaries (its stops moved from their bursts back to the start of their closures'
 // silence, tests/speech/tts_recordings.hpp), and, when flite is on PATH, by flite's slt voice (`flite -psdur`
@@ -19,16 +19,19 @@
 // its output.
 //
 // Usage: alignment_accuracy [--espeak-only]
-// ALIGNMENT_ACCURACY_SENTENCES chooses the ten sentences: unset, the first ten (what the
+// ALIGNMENT_ACCURACY_SENTENCES chooses the sentences: unset, the first ten (what the
 // refiner was first tuned on); "next", Harvard sentences 11 to 20 (a check on sentences
 // the first rules were not tuned on; later rules were chosen on them); "third", sentences
-// 21 to 30 (Harvard list 3: the fresh check, no rule or setting tuned on them). Any other
-// value is an error.
+// 21 to 30 (Harvard list 3); "FROM-TO", the 1-based inclusive range of Harvard sentence
+// numbers within tests/support/harvard_sentences.hpp (1 to 50), e.g. "31-50" (lists 4 and 5)
+// or "21-50". No rule or setting was tuned on sentences 21 to 50: they are the fresh check.
+// Any other value (a range out of bounds or with FROM > TO included) is an error (exit 2).
 // With ALIGNMENT_ACCURACY_DUMP=DIR it also writes each recording (16 kHz WAV), its
 // reference phones and the raw alignment (label, start µs, end µs per line) to DIR,
 // for trying refiner settings without decoding again.
 #include <unistd.h>
 
+#include <charconv>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -36,10 +39,13 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <span>
 #include <sstream>
 #include <string>
 #include <string_view>
+#include <system_error>
+#include <utility>
 
 #include "../speech/boundary_errors.hpp"
 #include "../speech/tts_recordings.hpp"
@@ -70,6 +76,21 @@ void report(const std::string& name, const testing::BoundaryScore& score, double
       score.other_phonemes, seconds_cpu / seconds_audio);
 }
 
+// "FROM-TO", 1-based and inclusive, within 1..count; nullopt for anything else.
+std::optional<std::pair<std::size_t, std::size_t>> sentence_range(std::string_view value, std::size_t count) {
+  const std::size_t dash = value.find('-');
+  if (dash == std::string_view::npos) return std::nullopt;
+  const auto number = [](std::string_view digits) -> std::optional<std::size_t> {
+    std::size_t n = 0;
+    const auto [end, error] = std::from_chars(digits.data(), digits.data() + digits.size(), n);
+    if (digits.empty() || error != std::errc() || end != digits.data() + digits.size()) return std::nullopt;
+    return n;
+  };
+  const std::optional<std::size_t> from = number(value.substr(0, dash)), to = number(value.substr(dash + 1));
+  if (!from || !to || *from < 1 || *from > *to || *to > count) return std::nullopt;
+  return std::pair(*from, *to);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -84,14 +105,18 @@ int main(int argc, char** argv) {
   std::span<const char* const> sentences = testing::accuracy_sentences();
   if (const char* which = std::getenv("ALIGNMENT_ACCURACY_SENTENCES")) {
     const std::string_view value(which);
+    const std::span<const char* const> all(testing::kHarvardSentences);
     if (value == "next") {
-      sentences = std::span(testing::kHarvardSentences).subspan(10, 10);
+      sentences = all.subspan(10, 10);
     } else if (value == "third") {
-      sentences = std::span(testing::kHarvardSentences).subspan(20, 10);
+      sentences = all.subspan(20, 10);
+    } else if (const std::optional<std::pair<std::size_t, std::size_t>> range = sentence_range(value, all.size())) {
+      sentences = all.subspan(range->first - 1, range->second - range->first + 1);
     } else {
       std::cerr << "alignment_accuracy: ALIGNMENT_ACCURACY_SENTENCES=\"" << value
-                << "\" is not known; use \"next\" (sentences 11 to 20), \"third\" (21 to 30) or leave it unset "
-                   "(the first ten)\n";
+                << "\" is not known; use \"next\" (sentences 11 to 20), \"third\" (21 to 30), a range FROM-TO of "
+                   "Harvard sentence numbers with 1 <= FROM <= TO <= "
+                << all.size() << " (e.g. \"31-50\"), or leave it unset (the first ten)\n";
       return 2;
     }
   }

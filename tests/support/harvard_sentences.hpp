@@ -1,14 +1,16 @@
 // Harvard sentences (IEEE Recommended Practice for Speech Quality Measurements,
 // 1969; public domain): phonetically balanced English, the utterances the
-// measurement tools and the speech tests speak. Lists 1 to 3 (sentences 1 to 30); sentences 21
-// to 30 (list 3) are the alignment bench's fresh check (ALIGNMENT_ACCURACY_SENTENCES=third).
+// measurement tools and the speech tests speak. Lists 1 to 5 (sentences 1 to 50); sentences 21
+// to 50 (lists 3 to 5) are the alignment bench's fresh check, on which no rule was chosen
+// (ALIGNMENT_ACCURACY_SENTENCES=third for 21 to 30, =31-50 or =21-50 for the rest). Users
+// take a fixed prefix (.first(n)) or a chosen range, never the whole array.
 #pragma once
 
 #include <array>
 
 namespace lipsync::testing {
 
-inline constexpr std::array<const char*, 30> kHarvardSentences = {
+inline constexpr std::array<const char*, 50> kHarvardSentences = {
     "The birch canoe slid on the smooth planks.",
     "Glue the sheet to the dark blue background.",
     "It's easy to tell the depth of a well.",
@@ -39,6 +41,26 @@ inline constexpr std::array<const char*, 30> kHarvardSentences = {
     "The colt reared and threw the tall rider.",
     "It snowed, rained, and hailed the same morning.",
     "Read verse out loud for pleasure.",
+    "Hoist the load to your left shoulder.",
+    "Take the winding path to reach the lake.",
+    "Note closely the size of the gas tank.",
+    "Wipe the grease off his dirty face.",
+    "Mend the coat before you go out.",
+    "The wrist was badly strained and hung limp.",
+    "The stray cat gave birth to kittens.",
+    "The young girl gave no clear response.",
+    "The meal was cooked before the bell rang.",
+    "What joy there is in living.",
+    "A king ruled the state in the early days.",
+    "The ship was torn apart on the sharp reef.",
+    "Sickness kept him home the third week.",
+    "The wide road shimmered in the hot sun.",
+    "The lazy cow lay in the cool grass.",
+    "Lift the square stone over the fence.",
+    "The rope will bind the seven books at once.",
+    "Hop over the fence and plunge in.",
+    "The friendly gang left the drug store.",
+    "Mesh wire keeps chicks inside.",
 };
 
 }  // namespace lipsync::testing
