@@ -142,7 +142,7 @@ int main(int argc, char** argv) {
           for (const auto& b : boundaries)
             if (same && !b.release && &refined.intervals[b.phone] == same) step = b.step_db;
           std::printf(
-              "  %s-%d-%s /%s/ truth %.3f-%.3f  raw %s %.3f  refined %.3f (%+.1f ms, step %.1f dB)  middle shows "
+              "  %s-%zu-%s /%s/ truth %.3f-%.3f  raw %s %.3f  refined %.3f (%+.1f ms, step %.1f dB)  middle shows "
               "'%s'\n",
               source.c_str(), n, mode.c_str(), name.c_str(), double(r.start_us) / 1e6, double(r.end_us) / 1e6,
               raw_same ? raw_same->label.c_str() : "-", raw_same ? double(raw_same->start_us) / 1e6 : 0.0,

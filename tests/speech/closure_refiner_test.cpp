@@ -233,6 +233,31 @@ TEST(ClosureRefiner, AShortPauseBeforeAStopIsTakenForItsClosure) {
   EXPECT_EQ(phones.intervals.size(), 4U);
 }
 
+TEST(ClosureRefiner, AShortPauseAfterAStopIsTakenForTheRestOfItsClosure) {
+  // The recogniser put a /p/ on the closing transition (270 to 300 ms) and heard the rest of its
+  // silent closure (300 to 380 ms) as a pause up to the burst, as in espeak-ng's "Wipe the": the /p/
+  // takes the pause over, starts at the closure and ends at the burst.
+  const speech::PcmAudio audio = stop(300'000, 380'000, 700'000, Closure::silent);
+  LabeledUtterance phones = phones_of(
+      {{"AA", 0, 270'000, 1}, {"P", 270'000, 300'000, 2}, {"", 300'000, 375'000, 3}, {"AA", 375'000, 700'000, 4}});
+  speech::refine_closures(audio, phones);
+  ASSERT_EQ(phones.intervals.size(), 3U) << "the pause is gone";
+  EXPECT_EQ(phones.intervals[1].label, "P");
+  EXPECT_NEAR(double(phones.intervals[1].start_us), 294e3, 2e3) << "the closure, its lead before the fall";
+  EXPECT_NEAR(double(phones.intervals[1].end_us), 380e3, 2e3) << "the burst";
+  EXPECT_EQ(phones.intervals[2].start_us, phones.intervals[1].end_us);
+  // A long pause (over longest_closure_pause_us), or one that ends the utterance, stays a pause.
+  for (const std::int64_t pause_end : {480'000, 700'000}) {
+    std::vector<LabeledInterval> intervals = {
+        {"AA", 0, 270'000, 1}, {"P", 270'000, 300'000, 2}, {"", 300'000, pause_end, 3}};
+    if (pause_end < 700'000) intervals.push_back({"AA", pause_end, 700'000, 4});
+    phones = phones_of(intervals);
+    speech::refine_closures(audio, phones);
+    EXPECT_EQ(phones.intervals.size(), intervals.size()) << pause_end;
+    EXPECT_TRUE(phones.intervals[2].label.empty()) << pause_end;
+  }
+}
+
 TEST(ClosureRefiner, APauseBetweenTwoStopsGivesTheSecondItsClosureAtTheLastFall) {
   // /k/ closure 200 to 260 ms, its release 260 to 300 ms, then the /p/'s closure 300 to
   // 380 ms: the pause the recogniser put over both ends where the /p/'s closure starts.

@@ -213,6 +213,21 @@ bool is_stop_closure_pause(const LabeledInterval& before, const LabeledInterval&
   return pause.label.empty() && (phone == "P" || phone == "B") && pause.end_us - pause.start_us <= longest;
 }
 
+// A short pause after a /p b/, before a phone: the rest of the stop's closure, heard as silence.
+// The recogniser labels the stop by its closing transition and the silence after it as a pause, up
+// to the burst (espeak-ng's "Wipe the", "sharp reef", "pup gnawed": a 30 ms /p/, then 100 to 120 ms of
+// pause). The mirror of the pause before a /p b/.
+bool holds_rest_of_closure(const std::vector<LabeledInterval>& intervals, std::size_t i,
+                           const ClosureRefinerOptions& options) {
+  if (!options.pause_after_stop_is_its_closure || !is_oral_bilabial_stop(intervals[i].label) ||
+      i + 2 >= intervals.size()) {
+    return false;
+  }
+  const LabeledInterval& pause = intervals[i + 1];
+  return pause.label.empty() && !intervals[i + 2].label.empty() &&
+         pause.end_us - pause.start_us <= options.longest_closure_pause_us;
+}
+
 // The latest step (down when `falling`) of at least `min_db` within [from_us, to_us]:
 // the last one found walking back from to_us, at its peak.
 Step latest_step(const LevelTrack& levels, std::int64_t from_us, std::int64_t to_us, bool falling, double min_db) {
@@ -397,6 +412,12 @@ std::vector<RefinedBoundary> refine_closures(const PcmAudio& audio, LabeledUtter
   std::vector<LabeledInterval>& intervals = phones.intervals;
   for (std::size_t i = 0; i < intervals.size(); ++i) {
     if (!is_lip_phone(intervals[i].label)) continue;
+    if (holds_rest_of_closure(intervals, i, options)) {
+      // The stop takes the pause over: its release is then refined from the pause's end, and its
+      // closure looked for in its whole span.
+      intervals[i].end_us = intervals[i + 1].end_us;
+      intervals.erase(intervals.begin() + static_cast<std::ptrdiff_t>(i + 1));
+    }
     const bool after_pause = i > 1 && is_stop_closure_pause(intervals[i - 2], intervals[i - 1], intervals[i], options);
     const bool pause_between_stops = after_pause && is_stop(intervals[i - 2].label);
     if (pause_between_stops || follows_other_stop(intervals, i)) {

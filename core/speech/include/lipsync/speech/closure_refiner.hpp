@@ -25,17 +25,19 @@
 // `min_step_db` or more and the formant band falls there too, the closure is at its
 // steepest fall. Where no step is that clear the aligner's boundary stays. An /m/ before a /p b/
 // has no release (the lips stay closed into the stop): its end is left to the stop's closure,
-// where the murmur falls to the stop's silence. Pauses next to lip phones get three rules:
+// where the murmur falls to the stop's silence. Pauses next to lip phones get four rules:
 // a /p b/ after a pause of at most `longest_closure_pause_us` had that silence as its
 // closure (the recogniser hears a silent closure as a pause and puts the stop at its
 // burst), so it takes the pause over and its start is refined from where the pause
 // started; when the phone before that pause is itself a stop, the pause holds that
 // stop's closure and release too (so it may last twice as long), and the /p b/ starts at
 // the pause's last fall of the level instead, or, with neither a fall nor that stop's
-// release heard, halfway between that stop's start and the /p b/'s burst; and an /m f v/ after a pause, with no closing
-// movement to hear, starts at the level's steepest rise (its sound's onset). Neighbouring phones keep at least
-// `min_phone_us` and their order; the utterance still tiles the same span. Pure computation on the samples: the same
-// audio and phones give the same result.
+// release heard, halfway between that stop's start and the /p b/'s burst; a pause of at most
+// `longest_closure_pause_us` after a /p b/ (and before a phone) is the rest of its closure, heard as
+// silence up to the burst, so the stop takes it over too (`pause_after_stop_is_its_closure`); and an /m f v/ after a
+// pause, with no closing movement to hear, starts at the level's steepest rise (its sound's onset). Neighbouring phones
+// keep at least `min_phone_us` and their order; the utterance still tiles the same span. Pure computation on the
+// samples: the same audio and phones give the same result.
 #pragma once
 
 #include <cstddef>
@@ -66,6 +68,10 @@ struct ClosureRefinerOptions {
   /// The longest pause before a /p b/ that is taken for the stop's silent closure, µs
   /// (twice this after another stop: the pause then holds both closures).
   std::int64_t longest_closure_pause_us = 160'000;
+  /// Whether a pause of at most longest_closure_pause_us after a /p b/ (and before a phone) is the
+  /// rest of its closure, as a recogniser hears it; off where the pauses are the phonemes of a
+  /// synthesis that was carried across (dtw_refiner_options).
+  bool pause_after_stop_is_its_closure = true;
   /// The shortest a phone may become, µs.
   std::int64_t min_phone_us = 10'000;
 };

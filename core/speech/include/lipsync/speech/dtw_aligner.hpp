@@ -57,6 +57,9 @@ namespace lipsync::speech {
 inline ClosureRefinerOptions dtw_refiner_options() {
   ClosureRefinerOptions options;
   options.search_us = 50'000;
+  // espeak-ng's pauses are phonemes of its rendering, carried across: one it writes after a /p/
+  // (Italian "compra": p _ r) stays.
+  options.pause_after_stop_is_its_closure = false;
   return options;
 }
 
