@@ -207,10 +207,9 @@ bool is_stop(std::string_view arpabet) {
 // /tʃ/'s frication and the /p/'s closure.
 bool is_stop_closure_pause(const LabeledInterval& before, const LabeledInterval& pause, const LabeledInterval& stop,
                            const ClosureRefinerOptions& options) {
-  const std::string phone = upper_letters(stop.label);
   const std::int64_t longest =
       is_stop(before.label) ? 2 * options.longest_closure_pause_us : options.longest_closure_pause_us;
-  return pause.label.empty() && (phone == "P" || phone == "B") && pause.end_us - pause.start_us <= longest;
+  return pause.label.empty() && is_oral_bilabial_stop(stop.label) && pause.end_us - pause.start_us <= longest;
 }
 
 // A short pause after a /p b/, before a phone: the rest of the stop's closure, heard as silence.
