@@ -106,10 +106,10 @@ void open_closures_after_nasals(std::vector<std::int64_t>& bounds, const std::ve
 // nasal's murmur or the stop's voicing bar, under a closure that espeak-ng's rendering starts
 // softer or later, so that the warp carries its start into the recording's murmur. Such a phone
 // whose carried start is in the recording's speech, with pause-level frames within
-// kClosureAfterPauseUs before it, starts after the last of those. (Russian "Бабушка" after the
-// leading pause: 55 ms late, then 1 ms early; eight other /m/ after a pause, in four voices, move
-// 2 to 11 ms nearer Festival's labels. Applied to every phone after a pause, it moved espeak-ng's
-// own fricatives and vowels before their labels: the 120-wpm test's p95 went 26.7 to 32.3 ms.)
+// kClosureAfterPauseUs before it, starts after the last of those (Russian "Бабушка" after the
+// leading pause: 1 ms early, where kClosureAfterPauseUs before its burst is 55 ms late). Only such
+// phones: applied to every phone after a pause, it moves espeak-ng's own fricatives and vowels
+// before their labels (the 120-wpm test's p95 32.3 ms instead of 26.7).
 void start_at_speech_after_pauses(std::vector<std::int64_t>& bounds, const std::vector<LabeledInterval>& phones,
                                   const std::vector<bool>& recording_quiet) {
   for (std::size_t k = 1; k < phones.size(); ++k) {
@@ -260,16 +260,16 @@ void start_at_closure(std::vector<std::int64_t>& bounds, const std::vector<Label
 // An /m/'s murmur is quieter than the vowel before it in the formant band (400–3500 Hz): the lips are
 // closed and the sound leaves through the nose. espeak-ng's short vowels are farther from a speaker's
 // than its /m/ is, so the warp may match /m/ frames to the end of the recording's vowel (Russian "в
-// большом" /o m/: two /m/ frames took 100 ms of Festival's /o/ in runs of 5 and 8 frames, within the
-// run cost's free frames; the /m/ was 104 ms early). An /m/ after a vowel whose carried start is
+// большом" /o m/: two /m/ frames take 100 ms of Festival's /o/ in runs of 5 and 8 frames, within the
+// run cost's free frames, and the /m/ lands 104 ms early). An /m/ after a vowel whose carried start is
 // inside the vowel (the level there within kMurmurInVowelDb of the loudest from the vowel's carried
 // start to kMurmurInVowelUs after it, and falling by no more than kMurmurSteadyDb over those
 // kMurmurInVowelUs) starts where the level first falls kMurmurFallDb under that loudest, at the steepest 10 ms fall
 // within 10 ms of that, when this is inside its carried interval and within kMurmurSearchUs of its start. The Russian
-// /m/ is then 9 ms late; no other /p b m/ of the seven voices moves (each /m/ there starts at a falling level already;
-// without the check that the level is not falling, Catalan's /ə m/ of "Em poso", whose level falls slowly into the
-// murmur, went from 11 ms early to 72 ms late). Applied to every nasal, it moved Czech "Maminka" /ŋ/ before its /k/
-// from 43 ms early to 46 ms late: a velar nasal's murmur keeps the formant band up until the stop's closure.
+// /m/ is then 9 ms late; every other /p b m/ of the seven voices starts at a falling level already and is left alone
+// (without the check that the level is not falling, Catalan's /ə m/ of "Em poso", whose level falls slowly into the
+// murmur, would start 72 ms late). Only /m/: a velar nasal's murmur keeps the formant band up until the stop's
+// closure (applied to every nasal, the rule starts Czech "Maminka" /ŋ/ before its /k/ 46 ms late).
 constexpr double kMurmurInVowelDb = 4.0;
 constexpr double kMurmurSteadyDb = 2.0;
 constexpr std::int64_t kMurmurInVowelUs = 30'000;
@@ -282,8 +282,8 @@ constexpr std::int64_t kMurmurSearchUs = 150'000;
 // after some consonants) whose carried start lies inside a voiced closure of the recording starts where
 // that closure begins, and the phones of espeak-ng's the warp put inside the closure before it are
 // squeezed against it. Festival's Catalan speaker says "molt bo", "al bosc", "el bon" as [l b] with no
-// /t/ or vowel between: espeak-ng's [l t β], [ɐ l β] and the quiet closure of its /t/ took the start of
-// the recording's closure, and the /β/, a fricative as loud as a vowel in espeak-ng's audio, went to
+// /t/ or vowel between: espeak-ng's [l t β], [ɐ l β] and the quiet closure of its /t/ take the start of
+// the recording's closure, and the /β/, a fricative as loud as a vowel in espeak-ng's audio, goes to
 // the burst, 37 to 66 ms late, out of the closure refiner's reach (it looks 50 ms around the warp's
 // boundary, and not before the phone before). The closure shows in the sound: the formant band falls
 // 13 to 21 dB and stays down to the burst, while the level below 400 Hz (the voicing bar) holds within
@@ -293,17 +293,15 @@ constexpr std::int64_t kMurmurSearchUs = 150'000;
 // that level and the voicing bar holds. It begins at a fall of the formant band (the /b/ starts at that
 // fall's onset, where it is down to 0.4 of its steepest, less 3 ms, as the closure refiner places a
 // closure), or, after a voiceless stop's silence, where the voicing bar rises ("barret blau": Festival
-// says [t b], the /t/'s silence and then 75 ms of voicing bar; the /β/ was 73 ms late). Only stops and
-// sonorants may lie in the closure: a voiced fricative or nasal before the /b/ is low in the formant
-// band and voiced too (Russian "в большом" /v b/). A voiceless closure is left alone: a /p b/ after a
-// stop with no release shares one silence with it (Finnish "menivat puistoon"), where the speaker
-// closes the lips is not heard. A dip shorter than kShortestVoicedClosureMs is a tap's. Measured on
-// Festival's voices (the signed errors against Festival's labels): Catalan held out, all six
-// sentences, 78 -> 89 % of 36 /p b m/ within 30 ms ("al bosc", "molt bo", "el bon" /l b/ +37, +57,
-// +38 -> -2, -4, -4 ms; "barret blau" /t b/ +73 -> +2; p95 58 -> 51 ms), the first two 92 -> 100 %
-// of 12, in sample 93 -> 100 % of 29 ("molt bonica" /l b/ +66 -> -4, "mar blau" /r b/ +32 -> -11);
-// Russian "большой белый" /j bʲ/ +27 -> -1 ms (its median in sample 21 -> 20 ms); no other closure
-// of any voice moves, in sample or held out.
+// says [t b], the /t/'s silence and then 75 ms of voicing bar, where the warp puts the /β/ 73 ms
+// late). Only stops and sonorants may lie in the closure: a voiced fricative or nasal before the /b/
+// is low in the formant band and voiced too (Russian "в большом" /v b/). A voiceless closure is left
+// alone: a /p b/ after a stop with no release shares one silence with it (Finnish "menivat
+// puistoon"), where the speaker closes the lips is not heard. A dip shorter than
+// kShortestVoicedClosureMs is a tap's. On Festival's voices (signed errors against its labels) the
+// rule starts "al bosc", "molt bo", "el bon" /l b/ -2, -4, -4 ms off, "barret blau" /t b/ +2, "molt
+// bonica" /l b/ -4, "mar blau" /r b/ -11 and Russian "большой белый" /j bʲ/ -1 ms; it moves no other
+// closure of any voice, in sample or held out.
 void start_voiced_bilabials_at_closures(std::vector<std::int64_t>& bounds, const std::vector<LabeledInterval>& phones,
                                         const PcmAudio& recording) {
   const BandLevels levels{formant_band_levels_db(recording, 10'000, 1'000),

@@ -322,16 +322,17 @@ enum class StartAfterStop {
   kPauseLastFall,
   // A pause, and neither a fall nor the first stop's release heard: one silence holds both
   // closures, from the first stop's start to the /p b/'s burst, and where the lips close in it
-  // is not heard. Each closure takes half of it. Festival's "get back": 53 ms late at the burst,
-  // now 3 ms late.
+  // is not heard. Each closure takes half of it. Festival's "get back": 3 ms late, where its burst
+  // is 53 ms late.
   kPauseMidpoint,
   // No pause, the first stop's release (a rise of the level) heard before the last fall before
   // the /p b/'s burst: as across a pause, the /p b/ starts at that fall. Russian "ест пирог": the
-  // warp put the /pʲ/ 84 ms early, inside the /t/'s closure before its burst; now 8 ms early.
+  // warp puts the /pʲ/ 84 ms early, inside the /t/'s closure before its burst; this case starts it
+  // 8 ms early.
   kReleaseLastFall,
   // No pause and no release heard: the one silence holds both closures and where the lips close
   // in it is not heard, so the boundary stays. After the warp the English "big brown" /g b/ stays
-  // 15 ms early, where refining it as any other /b/ took the /g/'s closure, 45 ms early. The
+  // 15 ms early; refined as any other /b/, it would take the /g/'s closure, 45 ms early. The
   // boundary stays too wherever no case above applies: no last fall heard, or one that would
   // leave the /p b/ shorter than min_phone_us, and no midpoint to take.
   kStays,

@@ -20,10 +20,9 @@ constexpr std::int64_t kLeastMissingPauseUs = 100'000;
 // from the rendering, µs. espeak-ng pauses between some words where a speaker runs on (110 ms after
 // Catalan "pomes" before "i peres", and after Finnish "maitoa" before "ja banaaneja"); the warp then
 // gives that digital silence to the next closure of the recording as quiet as it, and shifts the
-// phones after by one: the /p/ of "peres" came 193 ms late, the /b/ of "banaaneja" 199 ms. With the
-// pause cut (and the warp done again) they are 2 and 1 ms late, and Catalan's /u b/ of "Obrim" 11 ms
-// early instead of 38; four other closures move 2 to 20 ms, none past 30. espeak-ng's short pauses between words
-// (10 to 25 ms) stay.
+// phones after by one: the /p/ of "peres" lands 193 ms late, the /b/ of "banaaneja" 199 ms. With the
+// pause cut (and the warp done again) they are 2 and 1 ms late. espeak-ng's short pauses between
+// words (10 to 25 ms) stay.
 constexpr std::int64_t kLeastExtraPauseUs = 50'000;
 
 }  // namespace

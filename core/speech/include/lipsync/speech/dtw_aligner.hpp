@@ -34,11 +34,10 @@
 // Bounds: the path is searched in a band around the line from the start of
 // speech in one audio to the start in the other, and from end to end (leading
 // and trailing pauses matched to each other), `band_s` wide on each side of it,
-// so time and memory grow with length × band (a 10-minute file of Italian on one core
-// of this machine: 13 s, 2 s of it the second warp after the pauses put in, and 260 MB at
-// the peak). A recording that does not say the transcript in that voice's language shows
-// as a mean distance along the path near that of unrelated frames, and is an error rather
-// than a guess.
+// so time and memory grow with length × band (docs/languages.md, "Bounds and errors", gives
+// them for a 10-minute file). A recording that does not say the transcript in that voice's
+// language shows as a mean distance along the path near that of unrelated frames, and is an
+// error rather than a guess.
 #pragma once
 
 #include <cstdint>
