@@ -9,10 +9,10 @@
 // plays on the producer's media clock sees no late frame on read speech.
 //
 // The bounds are the largest waits measured by tests/bench/lookahead_error on
-// the first 20 Harvard sentences read by flite (the "max wait" column of
-// docs/streaming.md, 30 and 60 fps), plus a 20 % margin for slower speakers,
-// rounded up to 10 ms. A pause longer than the window in the middle of speech
-// waits longer; the server's per-batch release lag tells players so.
+// the first 20 Harvard sentences read by flite (the larger of the "max wait"
+// columns of docs/streaming.md at 30 and 60 fps), plus a 20 % margin for slower
+// speakers, rounded up to 10 ms. A pause longer than the window in the middle of
+// speech waits longer; the server's per-batch release lag tells players so.
 #pragma once
 
 #include <array>
@@ -25,7 +25,6 @@ namespace lipsync {
 /// Index: lookahead 0..7 (kLookaheadSetting). µs.
 inline constexpr std::array<std::int64_t, 8> kReadSpeechReleaseDelayUs = {
     // lookahead:  0        1        2        3        4          5          6          7
-    // max wait: 289 ms   554      637      771      837       1004       1154       1267
     350'000, 670'000, 770'000, 930'000, 1'010'000, 1'210'000, 1'390'000, 1'530'000,
 };
 
