@@ -23,8 +23,8 @@ TEST(PhoneSet, ANumberThatOverflowsIsAnInputErrorNotACrash) {
   EXPECT_THROW(PhoneSet::from_json(R"({"format": 1E999999})", "big.json", model()), InputError);
 }
 
-// Found by fuzz_phone_set_from_json in CI (2026-11-24): json::value() threw a type_error, not
-// an InputError, for a "format" or "description" of another type than a string.
+// Found by fuzz_phone_set_from_json: json::value() threw a type_error, not an InputError, for a
+// "format" or "description" of another type than a string.
 TEST(PhoneSet, AFieldOfTheWrongTypeIsAnInputErrorNamingIt) {
   const auto message_for = [](const std::string& json) {
     try {

@@ -622,8 +622,7 @@ GlbPoses read_glb_poses(const std::string& bytes) {
 // One input, one face: `lipsync render --mesh` (the real CLI, default settings) writes the poses
 // lipsyncd streams for the same phonemes and settings, and the video's frames are those poses on the
 // --fps grid (face::resample_face_animation, what the CLI's --video and --still draw). Real speech:
-// recorded LibriVox read speech aligned by PocketSphinx (before issue 31: up to 5 mm apart), TTS
-// timings and an aligned TTS sentence.
+// recorded LibriVox read speech aligned by PocketSphinx, TTS timings and an aligned TTS sentence.
 TEST_F(MeshTest, TheGlbTheVideoAndTheStreamedMeshAreOneFaceOnRealSpeech) {
   const auto dir = lipsync::testing::make_temp_dir("lipsync-one-face-");
   std::size_t compared_keys = 0;

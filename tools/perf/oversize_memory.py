@@ -12,7 +12,7 @@ the status each client received. Extra lipsyncd flags follow `--`.
       --lipsyncd build/server/lipsyncd --runs 3 -- --transport-memory-bytes 67108864
 
 lipsyncd's default quota follows the calls in progress (server/src/transport/transport_quota.hpp);
-`-- --transport-memory-bytes 0` runs it without one, as before issue 31.
+`-- --transport-memory-bytes 0` runs it without one.
 
 Figures: docs/server.md, "Memory for oversize messages".
 """
