@@ -41,8 +41,9 @@
 // which is what t_us holds (to within 0.2 ms at 22.05-48 kHz, where the resampler's phase
 // rounding moves it). An "ended" message's t is the window's end, not its middle (no "- 256 /
 // 16000"); it is moved to the middle like the others, so every event sits at the middle of the
-// window that decided it. The message itself is posted a window's half (16 ms) after its t, and
-// the vote means a viseme must win 3 or more of the last 6 windows (up to 96 ms) to show.
+// window that decided it. The message itself is posted half a window (16 ms) after its t, and
+// the viseme it carries is the most frequent nearest prototype of the last six windows (96 ms;
+// a tie goes to the higher index, so sil wins ties), so a change shows some windows late.
 //
 // --node-reading applies the HeadAudio node's own reading of the messages (headaudio.mjs
 // `_onmessage`): it takes a viseme message only `if (viseme)`, so index 0, aa, never becomes the

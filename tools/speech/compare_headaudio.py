@@ -35,7 +35,7 @@ that wants one; --lipsync-args are appended. --lipsync-label names its rows.
 
 Outside the build and CI. Needs /usr/bin/python3, node and npm (or --headaudio-package), and
 festival, flite, libespeak-ng1 and pocketsphinx-testdata for their sources (a missing one is
-skipped with a note); about 2 s per recording and tool.
+skipped with a note); the default set (65 recordings) with both tools takes about 100 s.
 Usage: tools/speech/compare_headaudio.py [--lipsync build/clients/cli/lipsync] [--sentences FROM-TO]
        [--voices festival,flite,espeak] [--no-librivox] [--lipsync-cmd TEMPLATE] [--lipsync-args "ARGS"]
        [--lipsync-label NAME] [--no-headaudio] [--headaudio-node-reading] [--headaudio-advance-ms MS]
@@ -81,7 +81,10 @@ def read_harvard():
 
 
 def run(command, **kwargs):
-    result = subprocess.run(command, capture_output=True, text=True, **kwargs)
+    try:
+        result = subprocess.run(command, capture_output=True, text=True, **kwargs)
+    except OSError as error:  # not there, not executable
+        raise RuntimeError(f"{shlex.join(command)}: {error.strerror}") from error
     if result.returncode != 0:
         raise RuntimeError(f"{shlex.join(command)} failed ({result.returncode}): {result.stderr.strip()[-400:]}")
     return result.stdout
