@@ -1,8 +1,9 @@
 #!/usr/bin/python3
 """lipsyncd's audio path and HeadAudio, the browser's live peer, on the same recorded speech.
 
-Harvard sentences (tests/support/harvard_sentences.hpp; 31-50 by default, which no rule of
-the audio path was chosen on) are spoken by Festival (kal_diphone; its segment relation via
+Harvard sentences (tests/support/harvard_sentences.hpp; 31-50 by default: of the audio path's
+rules only the closure refiner's pause after a /p b/ was chosen on 21-50, on espeak-ng's misses
+with the transcript, and docs/input-formats.md finds it moves nothing without one) are spoken by Festival (kal_diphone; its segment relation via
 utt.save.segs), flite (slt; -psdur) and espeak-ng (en-us at 175 words a minute, the project's
 defaults, through libespeak-ng's phoneme events; its stops moved back to the start of the
 digital silence of their closure, as tests/speech/tts_recordings.hpp does); each synthesiser's
