@@ -23,6 +23,8 @@ packages=(
   clang-format-14 clang-tidy-14
   # TTS front-ends used by the examples and tests (phoneme timings)
   flite festival festvox-kallpc16k
+  # the Python client's Listen example pipes the espeak-ng program's audio (espeak-ng --stdout)
+  espeak-ng
   # lipsync::speech: `lipsync say` (espeak-ng) and `lipsync align` (PocketSphinx and its en-us model)
   libespeak-ng-dev espeak-ng-data libpocketsphinx-dev libsphinxbase-dev pocketsphinx-en-us
   # recorded human speech with transcripts for the speech tests (LibriVox sentences)

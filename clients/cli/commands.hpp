@@ -17,6 +17,7 @@ int run_phone_sets(std::span<const std::string_view> args);
 #ifdef LIPSYNC_WITH_NETWORK
 int run_stream(std::span<const std::string_view> args);
 int run_speak(std::span<const std::string_view> args);
+int run_listen(std::span<const std::string_view> args);
 int run_subscribe(std::span<const std::string_view> args);
 int run_play(std::span<const std::string_view> args);
 int run_loadtest(std::span<const std::string_view> args);

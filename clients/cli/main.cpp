@@ -30,6 +30,7 @@ constexpr Command kCommands[] = {
 #ifdef LIPSYNC_WITH_NETWORK
     {"stream", "stream a phoneme file to lipsyncd and write the frames it sends", run_stream},
     {"speak", "have lipsyncd speak a text (Speak) and write the track (and --wav the speech)", run_speak},
+    {"listen", "send speech (a WAV, or a microphone on stdin) to lipsyncd (Listen) and write the frames", run_listen},
     {"subscribe", "follow a lipsyncd session and write its frames", run_subscribe},
     {"play", "play a lipsyncd session in the terminal in real time", run_play},
     {"loadtest", "load-test a lipsyncd on this machine", run_loadtest},

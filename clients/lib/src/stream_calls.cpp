@@ -1,8 +1,8 @@
-// The client's streams on gRPC's callback API: the Animate and Subscribe reactors behind
-// AnimateCall and SubscribeCall, and AnimationClient's start_animate and start_subscribe that
-// create them.
+// The client's streams on gRPC's callback API: the producer reactor behind AnimateCall and
+// ListenCall, the Subscribe reactor behind SubscribeCall, and AnimationClient's start_animate,
+// start_listen and start_subscribe that create them.
 //
-// An Animate reactor keeps a queue of
+// A producer reactor keeps a queue of
 // requests and at most one write in flight; a hold keeps the call open until
 // the caller has sent the end marker (or the stream has failed), so that a
 // send() from the caller's thread never races the end of the call. gRPC
@@ -11,6 +11,7 @@
 // (HandlerGuard); CallCompletion hands the final status to the threads that wait.
 #include <condition_variable>
 #include <deque>
+#include <functional>
 #include <mutex>
 #include <utility>
 
@@ -90,44 +91,35 @@ class CallCompletion {
   grpc::Status status_;
 };
 
-class AnimateReactor : public HandoffReactor<grpc::ClientBidiReactor<v1::AnimateRequest, v1::TrackMessage>> {
+/// A producer's stream (Animate, Listen): its settings first, then what the caller sends, then
+/// the end marker; TrackMessages come back.
+template <class Request>
+class ProducerReactor : public HandoffReactor<grpc::ClientBidiReactor<Request, v1::TrackMessage>> {
  public:
-  AnimateReactor(v1::LipSync::Stub& stub, const v1::AnimationSettings& settings, MessageHandler handler,
-                 DoneHandler on_done, std::chrono::milliseconds timeout, const std::string& api_key)
+  using Base = HandoffReactor<grpc::ClientBidiReactor<Request, v1::TrackMessage>>;
+  /// Starts the call on `context` and this reactor (the stub's async method).
+  using Start = std::function<void(grpc::ClientContext*, grpc::ClientBidiReactor<Request, v1::TrackMessage>*)>;
+
+  ProducerReactor(const Start& start, Request settings, const std::string& session, MessageHandler handler,
+                  DoneHandler on_done, std::chrono::milliseconds timeout, const std::string& api_key)
       : guard_(std::move(handler)), completion_(std::move(on_done)) {
     context_.set_deadline(deadline_after(timeout));
     add_api_key(context_, api_key);
-    add_session_metadata(context_, settings.session());
-    stub.async()->Animate(&context_, this);
-    AddHold();
+    add_session_metadata(context_, session);
+    start(&context_, this);
+    this->AddHold();
     hold_held_ = true;
-    v1::AnimateRequest first;
-    *first.mutable_settings() = settings;
-    queue_.push_back(std::move(first));
+    queue_.push_back(std::move(settings));
     act(next_action_locked());
-    StartRead(&incoming_);
-    StartCall();
+    this->StartRead(&incoming_);
+    this->StartCall();
   }
 
-  bool send(std::vector<v1::Phoneme> phonemes) {
-    v1::AnimateRequest request;
-    auto* chunk = request.mutable_phonemes();
-    chunk->mutable_phonemes()->Reserve(static_cast<int>(phonemes.size()));
-    for (v1::Phoneme& phoneme : phonemes) *chunk->add_phonemes() = std::move(phoneme);
-    return enqueue(std::move(request), false);
-  }
+  /// Queues `request`; false once the stream has ended.
+  bool send(Request request) { return enqueue(std::move(request), false); }
 
-  bool send_audio(std::string wav_piece) {
-    v1::AnimateRequest request;
-    *request.mutable_audio()->mutable_wav() = std::move(wav_piece);
-    return enqueue(std::move(request), false);
-  }
-
-  void end() {
-    v1::AnimateRequest request;
-    request.mutable_end();
-    enqueue(std::move(request), true);
-  }
+  /// Queues the end marker and closes the sending side.
+  void end(Request end_marker) { enqueue(std::move(end_marker), true); }
 
   void cancel() {
     context_.TryCancel();
@@ -144,9 +136,9 @@ class AnimateReactor : public HandoffReactor<grpc::ClientBidiReactor<v1::Animate
   bool done() const { return completion_.done(); }
 
   void OnReadDone(bool ok) override {
-    const HandoffScope handoff = reaction();
+    const HandoffScope handoff = this->reaction();
     if (ok && guard_.deliver(incoming_, context_)) {
-      StartRead(&incoming_);
+      this->StartRead(&incoming_);
       return;
     }
     Action action = Action::none;
@@ -159,7 +151,7 @@ class AnimateReactor : public HandoffReactor<grpc::ClientBidiReactor<v1::Animate
   }
 
   void OnWriteDone(bool ok) override {
-    const HandoffScope handoff = reaction();
+    const HandoffScope handoff = this->reaction();
     Action action;
     {
       std::lock_guard lock(mutex_);
@@ -172,14 +164,14 @@ class AnimateReactor : public HandoffReactor<grpc::ClientBidiReactor<v1::Animate
 
   // Last: a waiter may destroy this reactor as soon as the call is complete.
   void OnDone(const grpc::Status& status) override {
-    last_reaction();
+    this->last_reaction();
     completion_.complete(guard_.adjust(status));
   }
 
  private:
   enum class Action { none, write, close_and_release, release };
 
-  bool enqueue(v1::AnimateRequest request, bool is_end) {
+  bool enqueue(Request request, bool is_end) {
     Action action = Action::none;
     {
       std::lock_guard lock(mutex_);
@@ -217,14 +209,14 @@ class AnimateReactor : public HandoffReactor<grpc::ClientBidiReactor<v1::Animate
       case Action::none:
         break;
       case Action::write:
-        StartWrite(&current_);
+        this->StartWrite(&current_);
         break;
       case Action::close_and_release:
-        StartWritesDone();
-        RemoveHold();
+        this->StartWritesDone();
+        this->RemoveHold();
         break;
       case Action::release:
-        RemoveHold();
+        this->RemoveHold();
         break;
     }
   }
@@ -233,10 +225,10 @@ class AnimateReactor : public HandoffReactor<grpc::ClientBidiReactor<v1::Animate
   HandlerGuard guard_;
   CallCompletion completion_;
   v1::TrackMessage incoming_;
-  v1::AnimateRequest current_;  // the request being written
+  Request current_;  // the request being written
 
   std::mutex mutex_;  // the write queue
-  std::deque<v1::AnimateRequest> queue_;
+  std::deque<Request> queue_;
   bool writing_ = false;
   bool hold_held_ = false;
   bool end_queued_ = false;
@@ -284,19 +276,56 @@ class SubscribeReactor : public HandoffReactor<grpc::ClientReadReactor<v1::Track
 
 }  // namespace detail
 
-AnimateCall::AnimateCall(std::unique_ptr<detail::AnimateReactor> reactor) : reactor_(std::move(reactor)) {}
+AnimateCall::AnimateCall(std::unique_ptr<detail::ProducerReactor<v1::AnimateRequest>> reactor)
+    : reactor_(std::move(reactor)) {}
 
 AnimateCall::~AnimateCall() {
   if (!reactor_->done()) reactor_->cancel();
   reactor_->wait();
 }
 
-bool AnimateCall::send(std::vector<v1::Phoneme> phonemes) { return reactor_->send(std::move(phonemes)); }
-bool AnimateCall::send_audio(std::string wav_piece) { return reactor_->send_audio(std::move(wav_piece)); }
-void AnimateCall::end() { reactor_->end(); }
+bool AnimateCall::send(std::vector<v1::Phoneme> phonemes) {
+  v1::AnimateRequest request;
+  auto* chunk = request.mutable_phonemes();
+  chunk->mutable_phonemes()->Reserve(static_cast<int>(phonemes.size()));
+  for (v1::Phoneme& phoneme : phonemes) *chunk->add_phonemes() = std::move(phoneme);
+  return reactor_->send(std::move(request));
+}
+bool AnimateCall::send_audio(std::string wav_piece) {
+  v1::AnimateRequest request;
+  *request.mutable_audio()->mutable_wav() = std::move(wav_piece);
+  return reactor_->send(std::move(request));
+}
+void AnimateCall::end() {
+  v1::AnimateRequest request;
+  request.mutable_end();
+  reactor_->end(std::move(request));
+}
 void AnimateCall::cancel() { reactor_->cancel(); }
 grpc::Status AnimateCall::wait() { return reactor_->wait(); }
 bool AnimateCall::done() const { return reactor_->done(); }
+
+ListenCall::ListenCall(std::unique_ptr<detail::ProducerReactor<v1::ListenRequest>> reactor)
+    : reactor_(std::move(reactor)) {}
+
+ListenCall::~ListenCall() {
+  if (!reactor_->done()) reactor_->cancel();
+  reactor_->wait();
+}
+
+bool ListenCall::send_audio(std::string bytes) {
+  v1::ListenRequest request;
+  *request.mutable_audio()->mutable_data() = std::move(bytes);
+  return reactor_->send(std::move(request));
+}
+void ListenCall::end() {
+  v1::ListenRequest request;
+  request.mutable_end();
+  reactor_->end(std::move(request));
+}
+void ListenCall::cancel() { reactor_->cancel(); }
+grpc::Status ListenCall::wait() { return reactor_->wait(); }
+bool ListenCall::done() const { return reactor_->done(); }
 
 SubscribeCall::SubscribeCall(std::unique_ptr<detail::SubscribeReactor> reactor) : reactor_(std::move(reactor)) {}
 
@@ -314,8 +343,28 @@ bool SubscribeCall::done() const { return reactor_->done(); }
 
 std::unique_ptr<AnimateCall> AnimationClient::start_animate(const v1::AnimationSettings& settings,
                                                             MessageHandler handler, DoneHandler on_done) const {
-  return std::unique_ptr<AnimateCall>(new AnimateCall(std::make_unique<detail::AnimateReactor>(
-      *stub_, settings, std::move(handler), std::move(on_done), options_.stream_timeout, options_.api_key)));
+  v1::AnimateRequest first;
+  *first.mutable_settings() = settings;
+  auto* stub = stub_.get();
+  return std::unique_ptr<AnimateCall>(new AnimateCall(std::make_unique<detail::ProducerReactor<v1::AnimateRequest>>(
+      [stub](grpc::ClientContext* context, grpc::ClientBidiReactor<v1::AnimateRequest, v1::TrackMessage>* reactor) {
+        stub->async()->Animate(context, reactor);
+      },
+      std::move(first), settings.session(), std::move(handler), std::move(on_done), options_.stream_timeout,
+      options_.api_key)));
+}
+
+std::unique_ptr<ListenCall> AnimationClient::start_listen(const v1::ListenSettings& settings, MessageHandler handler,
+                                                          DoneHandler on_done) const {
+  v1::ListenRequest first;
+  *first.mutable_settings() = settings;
+  auto* stub = stub_.get();
+  return std::unique_ptr<ListenCall>(new ListenCall(std::make_unique<detail::ProducerReactor<v1::ListenRequest>>(
+      [stub](grpc::ClientContext* context, grpc::ClientBidiReactor<v1::ListenRequest, v1::TrackMessage>* reactor) {
+        stub->async()->Listen(context, reactor);
+      },
+      std::move(first), settings.animation().session(), std::move(handler), std::move(on_done), options_.stream_timeout,
+      options_.api_key)));
 }
 
 std::unique_ptr<SubscribeCall> AnimationClient::start_subscribe(const std::string& session,

@@ -26,7 +26,10 @@ from .tts import (
     timed_phonemes,
 )
 
-_CLIENT_NAMES = ("Client", "make_channel", "Frame", "FrameStream", "Speech", "Track", "make_settings", "KIND_NAMES")
+_CLIENT_NAMES = (
+    "Client", "make_channel", "Frame", "FrameStream", "ListenStream", "BatchArrival", "Speech", "Track",
+    "make_settings", "KIND_NAMES",
+)
 
 __all__ = [
     "TimedPhoneme",

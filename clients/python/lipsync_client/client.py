@@ -8,12 +8,14 @@
             ...
         speech = client.speak("Papa parked the car.", session="demo")   # voice and face
         speech.write_wav("speech.wav"); speech.track.frames ...
+        for frame in client.listen(pcm_pieces(), sample_rate_hz=16000, session="demo"):
+            ...                                                         # audio in, face out
 
 Phonemes may be given as ``(label, start_us, end_us)`` tuples, as objects with
 ``label``, ``start_us`` and ``end_us`` attributes (``lipsync_client.tts.TimedPhoneme``),
 or as ``lipsync_pb2.Phoneme`` messages. Times are integer microseconds.
 
-Settings (keyword arguments of render and animate; all optional, defaults are the server's):
+Settings (keyword arguments of render, animate, speak and listen; all optional, defaults are the server's):
     model (str), fps (int, 1..240), phone_set (str: arpabet, radio, timit, ipa, espeak,
     sampa), lookahead (int, 0..7; unset = 7, exact), fixed_rate (bool),
     closure_fraction (float in (0, 1)), channels (bool), arkit (bool) (which outputs the
@@ -25,6 +27,10 @@ Settings (keyword arguments of render and animate; all optional, defaults are th
     visemes (str: "oculus", "azure", "polly" or "rhubarb": also the viseme weights,
     Frame.visemes, and events, Frame.viseme_event and Track.viseme_events()),
     rhubarb_extended_shapes (str, rhubarb only: Rhubarb's --extendedShapes letters; unset = "GHX").
+
+Listen's own keyword arguments (the audio and how to hear it): sample_rate_hz,
+audio_channels, encoding ("pcm_s16le" or "wav"), transcript, voice, latency_ms, recording;
+see Client.listen. (`channels` stays the output selector above, as in every call.)
 
 Security (docs/security.md): plaintext by default. ``Client(target, ca="ca.pem")``
 (or ``tls=True`` for the system's roots) connects with TLS; ``cert=`` and ``key=``
@@ -39,10 +45,13 @@ the call outlasts its timeout. Every call has a deadline (`timeout`, seconds).
 
 from __future__ import annotations
 
+import bisect
 import collections
 import dataclasses
 import os
 import struct
+import threading
+import time
 import wave
 from typing import Any, Dict, Iterable, Iterator, List, Optional, Tuple
 
@@ -57,7 +66,10 @@ except ImportError as _error:  # pragma: no cover - depends on the environment
         f"(see docs/python-client.md); import failed with: {_error}"
     ) from _error
 
-__all__ = ["Client", "make_channel", "Frame", "FrameStream", "Speech", "Track", "make_settings", "KIND_NAMES", "VISEME_VOCABULARIES"]
+__all__ = [
+    "Client", "make_channel", "Frame", "FrameStream", "ListenStream", "BatchArrival", "Speech", "Track",
+    "make_settings", "KIND_NAMES", "VISEME_VOCABULARIES", "AUDIO_ENCODINGS",
+]
 
 #: FrameKind enum values to the short names used in Frame.kind.
 KIND_NAMES: Dict[int, str] = {
@@ -76,9 +88,16 @@ VISEME_VOCABULARIES: Dict[str, int] = {
     "rhubarb": lipsync_pb2.VISEME_VOCABULARY_RHUBARB,
 }
 
+#: The `encoding` argument of Client.listen to the AudioEncoding enum.
+AUDIO_ENCODINGS: Dict[str, int] = {
+    "pcm_s16le": lipsync_pb2.AUDIO_ENCODING_PCM_S16LE,
+    "wav": lipsync_pb2.AUDIO_ENCODING_WAV,
+}
+
 DEFAULT_TIMEOUT_S = 60.0
 DEFAULT_CHUNK_SIZE = 16
-# Pieces of an attached audio file (animate(audio=...)): within lipsyncd's default message limit (4 MiB).
+# Pieces of an attached audio file (animate(audio=...)), and the largest piece listen() sends (it
+# splits bigger ones): within lipsyncd's default message limit (4 MiB).
 AUDIO_PIECE_BYTES = 1024 * 1024
 
 
@@ -334,9 +353,13 @@ class FrameStream:
             elif kind == "frames":
                 if self._decoder is None:
                     raise ValueError("the server sent frames before the track header")
+                self._on_batch(message.frames)
                 yield from self._decoder.frames(message.frames)
             elif kind == "summary":
                 self.summary = message.summary
+
+    def _on_batch(self, batch: Any) -> None:
+        """Called as each FrameBatch arrives, before its frames are yielded."""
 
     def cancel(self) -> None:
         self._call.cancel()
@@ -345,6 +368,98 @@ class FrameStream:
         """Reads the whole stream into a Track."""
         frames = list(self)
         return Track(self.header, frames, self.summary)
+
+
+@dataclasses.dataclass(frozen=True)
+class BatchArrival:
+    """One frame batch of a Listen stream, as it arrived.
+
+    first_index, count: the batch's frames (Frame.index first_index .. first_index + count - 1);
+    first_t_us, last_t_us: their times; received_s: time.monotonic() when the batch arrived;
+    release_lag_us: the server's FrameBatch.release_lag_us (how far the audio it had decoded
+    reached past first_t_us when it sent the batch).
+    """
+
+    first_index: int
+    count: int
+    first_t_us: int
+    last_t_us: int
+    received_s: float
+    release_lag_us: int
+
+
+class ListenStream(FrameStream):
+    """The frames of a Listen call, as they arrive: a FrameStream (iterate it for Frames;
+    `header`, `summary`, `cancel()`, `collect()`) that also keeps the times for measuring
+    latency on this machine's monotonic clock (time.monotonic()):
+
+    `arrivals`: a BatchArrival per frame batch received, in order;
+    `sent_at(t_us)`: when the audio piece holding utterance time t_us was handed to gRPC
+    (raw PCM only; None for a WAV stream or before that piece was sent);
+    `latency_s(frame)`: from sent_at(frame.t_us) to the arrival of the frame's batch.
+    (About 100 bytes per piece and 250 per batch: some 7 MB for 10 minutes of 20 ms pieces.)
+
+    An exception raised while reading `chunks` (a piece that is not bytes-like: TypeError; the
+    audio source's own error) ends the call and is raised from iteration (gRPC itself would only
+    say "Exception iterating requests!"). The server's errors raise grpc.RpcError.
+    """
+
+    def __init__(self, bytes_per_frame: int, sample_rate_hz: int) -> None:
+        super().__init__(None)
+        self.arrivals: List[BatchArrival] = []
+        self._arrival_firsts: List[int] = []  # arrivals' first_index, for bisect
+        self._bytes_per_frame = bytes_per_frame  # 0: the times of the audio are not known here
+        self._sample_rate_hz = sample_rate_hz
+        self._lock = threading.Lock()
+        self._sent_end_us: List[int] = []  # end of the audio sent so far after each piece, µs
+        self._sent_s: List[float] = []  # when each piece was handed over
+        self._sent_bytes = 0
+        self._request_error: Optional[BaseException] = None
+
+    def _piece_sent(self, size: int) -> None:
+        """On gRPC's request thread: a piece of `size` bytes is being handed over now."""
+        now = time.monotonic()
+        self._sent_bytes += size
+        if not self._bytes_per_frame or not self._sample_rate_hz:
+            return
+        end_us = (self._sent_bytes // self._bytes_per_frame) * 1_000_000 // self._sample_rate_hz
+        with self._lock:
+            self._sent_end_us.append(end_us)
+            self._sent_s.append(now)
+
+    def sent_at(self, t_us: int) -> Optional[float]:
+        """time.monotonic() when the piece holding utterance time t_us left (the last piece
+        for a time past the audio sent); None if unknown."""
+        with self._lock:
+            if not self._sent_s:
+                return None
+            i = bisect.bisect_right(self._sent_end_us, t_us)
+            return self._sent_s[min(i, len(self._sent_s) - 1)]
+
+    def latency_s(self, frame: Frame) -> Optional[float]:
+        """Seconds from sending the audio at frame.t_us to receiving the frame; None if unknown."""
+        sent = self.sent_at(frame.t_us)
+        i = bisect.bisect_right(self._arrival_firsts, frame.index) - 1
+        if sent is None or i < 0 or frame.index >= self.arrivals[i].first_index + self.arrivals[i].count:
+            return None
+        return self.arrivals[i].received_s - sent
+
+    def _on_batch(self, batch: Any) -> None:
+        if len(batch.t_us) == 0:
+            return
+        self._arrival_firsts.append(batch.first_frame)
+        self.arrivals.append(BatchArrival(
+            first_index=batch.first_frame, count=len(batch.t_us), first_t_us=batch.t_us[0],
+            last_t_us=batch.t_us[-1], received_s=time.monotonic(), release_lag_us=batch.release_lag_us,
+        ))
+
+    def __iter__(self) -> Iterator[Frame]:
+        try:
+            yield from super().__iter__()
+        except grpc.RpcError as error:
+            if self._request_error is not None:
+                raise self._request_error from error
+            raise
 
 
 AUTHORIZATION_METADATA_KEY = "authorization"
@@ -552,6 +667,97 @@ class Client:
         if pending:
             yield lipsync_pb2.AnimateRequest(phonemes=lipsync_pb2.PhonemeChunk(phonemes=pending))
         yield lipsync_pb2.AnimateRequest(end=lipsync_pb2.EndOfUtterance())
+
+    def listen(
+        self,
+        chunks: Iterable[Any],
+        *,
+        sample_rate_hz: int = 0,
+        audio_channels: int = 0,
+        encoding: str = "pcm_s16le",
+        transcript: Optional[str] = None,
+        voice: str = "",
+        latency_ms: Optional[int] = None,
+        recording: bool = False,
+        timeout: Optional[float] = None,
+        **settings: Any,
+    ) -> ListenStream:
+        """Sends speech as it is spoken (bidirectional Listen) and returns its ListenStream:
+        the frames of what the server hears, as they arrive, while the audio is still going out.
+
+        `chunks`: an iterable of audio pieces (bytes-like: bytes, bytearray, memoryview,
+        array.array...), read lazily on gRPC's thread and each sent as soon as it is yielded
+        (a generator reading a microphone or a TTS's pipe); or one bytes-like object, sent
+        whole. Pieces over AUDIO_PIECE_BYTES are split; empty ones are skipped; `end` follows
+        the last piece. Raw PCM pieces need not hold whole samples (the server joins them).
+
+        sample_rate_hz: raw PCM's rate, 8000..48000 (required); for a WAV 0 or its header's.
+        audio_channels: raw PCM's channels, 1 or 2 (interleaved, mixed down by the server);
+            0 = 1; for a WAV 0 or its header's.
+        encoding: "pcm_s16le" (raw signed 16-bit little-endian samples) or "wav" (a WAV file
+            in pieces; live: 16-bit PCM, a streaming writer's unknown data size is read to the end).
+        transcript: the words spoken, for forced alignment; None = recognised from the audio.
+        voice: "" or an English espeak-ng voice name ("en", "en-us", "en-gb"...).
+        latency_ms: live only, 100..2000 (None = the server's 200): how far a frame may trail
+            the audio it shows.
+        recording: the audio is a whole recording: frames come after `end`, equal to
+            `lipsync render X.wav` (with latency_ms left None).
+        settings: as for animate (model, fps, channels/arkit, visemes, session, media_clock,
+            lookahead for a recording); phone_set must stay "" or "arpabet"; no mesh.
+
+        The call's deadline (`timeout`, default the client's) covers the whole stream: give a
+        live microphone a long one.
+        """
+        if isinstance(chunks, str):
+            raise TypeError("listen() takes audio as bytes-like pieces, not a str")
+        if isinstance(chunks, (bytes, bytearray, memoryview)):
+            chunks = (chunks,)
+        if encoding not in AUDIO_ENCODINGS:
+            raise ValueError(f"encoding must be one of {', '.join(AUDIO_ENCODINGS)}, not {encoding!r}")
+        listen_settings = lipsync_pb2.ListenSettings(
+            animation=make_settings(**settings),
+            encoding=AUDIO_ENCODINGS[encoding],
+            sample_rate_hz=sample_rate_hz,
+            channels=audio_channels,
+            voice=voice,
+            recording=recording,
+        )
+        if transcript is not None:
+            listen_settings.transcript = transcript
+        if latency_ms is not None:
+            listen_settings.latency_ms = latency_ms
+        raw = encoding == "pcm_s16le"
+        stream = ListenStream(2 * max(audio_channels, 1) if raw else 0, sample_rate_hz if raw else 0)
+        stream._call = self.stub.Listen(
+            self._listen_requests(lipsync_pb2.ListenRequest(settings=listen_settings), chunks, stream),
+            timeout=self.timeout if timeout is None else timeout,
+            metadata=session_metadata(listen_settings.animation.session),
+        )
+        return stream
+
+    @staticmethod
+    def _listen_requests(first: Any, chunks: Iterable[Any], stream: ListenStream) -> Iterator[Any]:
+        yield first
+        try:
+            for index, piece in enumerate(chunks):
+                if isinstance(piece, str):
+                    raise TypeError(f"audio piece {index} is a str: listen() takes bytes-like pieces")
+                try:
+                    view = memoryview(piece)
+                except TypeError:
+                    raise TypeError(
+                        f"audio piece {index} is a {type(piece).__name__}, not bytes-like "
+                        "(bytes, bytearray, memoryview)"
+                    ) from None
+                data = view.cast("B") if view.contiguous else memoryview(view.tobytes())
+                for offset in range(0, len(data), AUDIO_PIECE_BYTES):
+                    part = bytes(data[offset:offset + AUDIO_PIECE_BYTES])
+                    stream._piece_sent(len(part))
+                    yield lipsync_pb2.ListenRequest(audio=lipsync_pb2.ListenAudio(data=part))
+        except Exception as error:  # gRPC would only say "Exception iterating requests!"
+            stream._request_error = error
+            raise
+        yield lipsync_pb2.ListenRequest(end=lipsync_pb2.EndOfUtterance())
 
     def subscribe(
         self, session: str, from_beginning: bool = True, *, timeout: Optional[float] = None

@@ -16,19 +16,18 @@
 
 #include "alignable_audio.hpp"
 #include "lipsync/error.hpp"
+#include "pocketsphinx_words.hpp"
 
 namespace lipsync::speech {
 namespace {
 
+using detail::add_word;
+using detail::kBoundaryOffsetUs;
+using detail::kFrameUs;
+using detail::kPauseWord;
+using detail::phone_of;
+
 constexpr int kRateHz = 16000;
-constexpr std::int64_t kFrameUs = 10'000;  // PocketSphinx's frame step (-frate 100)
-// Frame k analyses the window [k·10 ms, k·10 ms + 25.6 ms] (-wlen 0.025625), centred at
-// k·10 + 12.8 ms. A segment that starts at frame k starts midway between the centres of
-// frames k-1 and k: at k·10 ms + 7.8 ms. (Without this shift the boundaries come out
-// about 9 ms early on synthetic speech with known boundaries, tests/bench/alignment_accuracy.)
-constexpr std::int64_t kBoundaryOffsetUs = 7'800;
-// The grammar's pause between words (PocketSphinx's silence phone).
-constexpr const char* kPauseWord = "pause_";
 // Samples this close to full scale count as clipped; above this share of them a note says so.
 constexpr std::int16_t kClippedLevel = 32700;
 constexpr double kMostClippedShare = 0.001;
@@ -111,23 +110,6 @@ double loud_share_in_pauses(const std::vector<double>& levels, double loudest,
   return loud == 0 ? 0.0 : double(loud_in_pause) / loud;
 }
 
-// Phone label of a recognised "word": "aa_3" → ("AA", 3); a phone from the
-// phonetic LM ("AA") → ("AA", -1); silence and noise fillers → ("", -1).
-std::pair<std::string, int> phone_of(std::string_view word) {
-  if (word.empty() || word.front() == '<' || word.front() == '[' || word.front() == '+' || word == "SIL" ||
-      word == kPauseWord) {
-    return {"", -1};
-  }
-  int index = -1;
-  if (const auto underscore = word.rfind('_'); underscore != std::string_view::npos) {
-    index = std::atoi(std::string(word.substr(underscore + 1)).c_str());
-    word = word.substr(0, underscore);
-  }
-  std::string phone(word);
-  for (char& c : phone) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-  return {phone, index};
-}
-
 std::string join_words(const std::vector<std::string>& words) {
   std::string text;
   for (const std::string& word : words) text += (text.empty() ? "" : " ") + word;
@@ -146,22 +128,11 @@ std::string lower(std::string text) {
 // and after the words, except after word w - 1 where no_pause_before[w] (w from 1).
 std::string build_grammar(ps_decoder_t* decoder, const std::vector<std::string>& words, const std::string& source,
                           const std::vector<bool>& no_pause_before) {
-  if (char* known = ps_lookup_word(decoder, kPauseWord)) {
-    std::free(known);
-  } else {
-    ps_add_word(decoder, kPauseWord, "SIL", FALSE);
-  }
+  add_word(decoder, kPauseWord, "SIL");
   const std::string pause = " [ " + std::string(kPauseWord) + " ]";
   std::string rule = pause;
   for (std::size_t w = 0; w < words.size(); ++w) {
-    std::vector<std::string> pronunciations;
-    for (int variant = 1; variant < 10; ++variant) {
-      const std::string entry = variant == 1 ? words[w] : words[w] + "(" + std::to_string(variant) + ")";
-      char* phones = ps_lookup_word(decoder, entry.c_str());
-      if (phones == nullptr) break;
-      pronunciations.emplace_back(phones);
-      std::free(phones);
-    }
+    const std::vector<std::string> pronunciations = detail::pronunciations(decoder, words[w]);
     if (pronunciations.empty()) {
       throw InputError(source, 0,
                        "transcript word " + std::to_string(w + 1) + " '" + words[w] +
@@ -173,12 +144,8 @@ std::string build_grammar(ps_decoder_t* decoder, const std::vector<std::string>&
       if (p > 0) rule += " |";
       std::istringstream phones(pronunciations[p]);
       for (std::string phone; phones >> phone;) {
-        const std::string word = lower(phone) + "_" + std::to_string(w);
-        if (char* known = ps_lookup_word(decoder, word.c_str())) {
-          std::free(known);
-        } else {
-          ps_add_word(decoder, word.c_str(), phone.c_str(), FALSE);
-        }
+        const std::string word = detail::phone_word(phone, w);
+        add_word(decoder, word, phone);
         rule += " " + word;
       }
     }
@@ -525,5 +492,48 @@ void write_textgrid(std::ostream& out, const Alignment& alignment, std::int64_t 
     }
   }
 }
+
+namespace detail {
+
+// Phone label of a recognised "word": "aa_3" → ("AA", 3); a phone from the
+// phonetic LM ("AA") → ("AA", -1); silence and noise fillers → ("", -1).
+std::pair<std::string, int> phone_of(std::string_view word) {
+  if (word.empty() || word.front() == '<' || word.front() == '[' || word.front() == '+' || word == "SIL" ||
+      word == kPauseWord) {
+    return {"", -1};
+  }
+  int index = -1;
+  if (const auto underscore = word.rfind('_'); underscore != std::string_view::npos) {
+    index = std::atoi(std::string(word.substr(underscore + 1)).c_str());
+    word = word.substr(0, underscore);
+  }
+  std::string phone(word);
+  for (char& c : phone) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return {phone, index};
+}
+
+std::vector<std::string> pronunciations(ps_decoder_t* decoder, const std::string& word) {
+  std::vector<std::string> found;
+  for (int variant = 1; variant < 10; ++variant) {
+    const std::string entry = variant == 1 ? word : word + "(" + std::to_string(variant) + ")";
+    char* phones = ps_lookup_word(decoder, entry.c_str());
+    if (phones == nullptr) break;
+    found.emplace_back(phones);
+    std::free(phones);
+  }
+  return found;
+}
+
+void add_word(ps_decoder_t* decoder, const std::string& word, const std::string& phones) {
+  if (char* known = ps_lookup_word(decoder, word.c_str())) {
+    std::free(known);
+  } else {
+    ps_add_word(decoder, word.c_str(), phones.c_str(), FALSE);
+  }
+}
+
+std::string phone_word(const std::string& phone, std::size_t w) { return lower(phone) + "_" + std::to_string(w); }
+
+}  // namespace detail
 
 }  // namespace lipsync::speech

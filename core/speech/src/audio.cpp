@@ -160,21 +160,123 @@ DecodedWav decode_wav(std::string_view bytes, std::string_view source) {
   return decoded;
 }
 
-PcmAudio resample(const PcmAudio& audio, int rate_hz) {
-  if (audio.sample_rate_hz == rate_hz) return audio;
-  constexpr double kZeroCrossings = 16;
-  const double ratio = double(rate_hz) / audio.sample_rate_hz;  // output samples per input sample
-  const double cutoff = 0.95 * std::min(1.0, ratio);            // of the input's Nyquist frequency
-  const double half_width = kZeroCrossings / cutoff;            // kernel half-width, input samples
-  const auto input_size = static_cast<std::int64_t>(audio.samples.size());
-  PcmAudio out;
-  out.sample_rate_hz = rate_hz;
-  out.samples.resize(static_cast<std::size_t>(std::floor(double(input_size) * ratio)));
-  for (std::size_t n = 0; n < out.samples.size(); ++n) {
+AudioStreamReader::AudioStreamReader(Encoding encoding, int sample_rate_hz, int channels, std::string source)
+    : encoding_(encoding), source_(std::move(source)), wanted_rate_hz_(sample_rate_hz), wanted_channels_(channels) {
+  if (encoding_ == Encoding::pcm_s16le) {
+    layout_ = {sample_rate_hz, channels, 16, false};
+    header_read_ = true;
+  }
+}
+
+void AudioStreamReader::push(std::string_view bytes, std::vector<std::int16_t>& out) {
+  if (header_read_) {
+    read_samples(bytes, out);
+    return;
+  }
+  header_ += bytes;
+  // Is the header complete, i.e. has the 'data' chunk's own header come?
+  bool data_started = false;
+  if (header_.size() >= 12 && looks_like_wav(header_)) {
+    for (std::size_t at = 12; at + 8 <= header_.size();) {
+      if (std::string_view(header_).substr(at, 4) == "data") {
+        data_started = true;
+        break;
+      }
+      const std::size_t size = read_u32(header_, at + 4);
+      at += 8 + size + (size & 1);
+    }
+  } else if (header_.size() >= 12) {
+    find_chunks(header_, source_);  // throws: not a WAV file
+  }
+  if (!data_started) {
+    if (header_.size() > kMaxWavHeaderBytes) {
+      throw InputError(source_, 0,
+                       "the WAV header is longer than " + std::to_string(kMaxWavHeaderBytes) +
+                           " bytes without its 'data' chunk (a live WAV stream must start with its header)");
+    }
+    return;
+  }
+  const WavChunks chunks = find_chunks(header_, source_);
+  layout_ = chunks.layout;
+  if (wanted_rate_hz_ != 0 && layout_.sample_rate_hz != wanted_rate_hz_) {
+    throw InputError(source_, 0,
+                     "the WAV header says " + std::to_string(layout_.sample_rate_hz) + " Hz, but the stream's " +
+                         "sample_rate_hz is " + std::to_string(wanted_rate_hz_));
+  }
+  if (wanted_channels_ != 0 && layout_.channels != wanted_channels_) {
+    throw InputError(source_, 0,
+                     "the WAV header says " + std::to_string(layout_.channels) + " channels, but the stream's " +
+                         "channels is " + std::to_string(wanted_channels_));
+  }
+  const std::uint32_t declared = read_u32(header_, chunks.data_offset - 4);
+  if (declared != 0 && declared != 0xFFFFFFFFU) data_left_ = declared;
+  header_read_ = true;
+  const std::string rest = header_.substr(chunks.data_offset);
+  header_ = std::string();
+  read_samples(rest, out);
+}
+
+void AudioStreamReader::read_samples(std::string_view bytes, std::vector<std::int16_t>& out) {
+  if (data_left_ != UINT64_MAX) {  // bytes after a WAV's declared data are other chunks
+    bytes = bytes.substr(0, static_cast<std::size_t>(std::min<std::uint64_t>(bytes.size(), data_left_)));
+    data_left_ -= bytes.size();
+  }
+  data_bytes_ += bytes.size();
+  const std::size_t sample_bytes = std::size_t(layout_.bits_per_sample / 8);
+  const std::size_t frame_bytes = sample_bytes * std::size_t(layout_.channels);
+  const auto frame = [&](const char* data) {
+    double sum = 0;
+    for (int c = 0; c < layout_.channels; ++c) sum += sample_value(data + std::size_t(c) * sample_bytes, layout_);
+    out.push_back(to_int16(sum / layout_.channels));
+  };
+  if (!partial_frame_.empty()) {
+    const std::size_t missing = std::min(frame_bytes - partial_frame_.size(), bytes.size());
+    partial_frame_.append(bytes.substr(0, missing));
+    bytes.remove_prefix(missing);
+    if (partial_frame_.size() < frame_bytes) return;
+    frame(partial_frame_.data());
+    partial_frame_.clear();
+  }
+  const std::size_t whole = bytes.size() / frame_bytes;
+  for (std::size_t i = 0; i < whole; ++i) frame(bytes.data() + i * frame_bytes);
+  partial_frame_.assign(bytes.substr(whole * frame_bytes));
+}
+
+void AudioStreamReader::finish() const {
+  if (!header_read_) {
+    throw InputError(
+        source_, 0,
+        "the stream ended inside the WAV header (" + std::to_string(header_.size()) + " bytes, no 'data' chunk)");
+  }
+  if (!partial_frame_.empty()) {
+    throw InputError(source_, 0,
+                     "the stream ended inside a sample frame (" + std::to_string(partial_frame_.size()) +
+                         " bytes left over; a frame is " +
+                         std::to_string(layout_.channels * (layout_.bits_per_sample / 8)) + " bytes)");
+  }
+}
+
+namespace {
+
+// The windowed-sinc low-pass kernel both resamplers use: Blackman window, 16 zero crossings of
+// the sinc on each side, cut-off at 0.95 of the lower Nyquist frequency.
+struct SincKernel {
+  explicit SincKernel(int from_hz, int to_hz)
+      : ratio(double(to_hz) / from_hz), cutoff(0.95 * std::min(1.0, ratio)), half_width(16.0 / cutoff) {}
+
+  /// The first and last input sample the output sample `n` reads (unclamped).
+  std::int64_t first_input(std::int64_t n) const {
+    return static_cast<std::int64_t>(std::ceil(double(n) / ratio - half_width));
+  }
+  std::int64_t last_input(std::int64_t n) const {
+    return static_cast<std::int64_t>(std::floor(double(n) / ratio + half_width));
+  }
+
+  /// Output sample `n` from the input samples [first, last] (clamped to what exists), where
+  /// `at(k)` is input sample k.
+  template <class At>
+  std::int16_t output(std::int64_t n, std::int64_t first, std::int64_t last, At at) const {
     const double centre = double(n) / ratio;  // the output sample's time, in input samples
-    const auto first = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::ceil(centre - half_width)));
-    const auto last =
-        std::min<std::int64_t>(input_size - 1, static_cast<std::int64_t>(std::floor(centre + half_width)));
     double sum = 0;
     for (std::int64_t k = first; k <= last; ++k) {
       const double x = double(k) - centre;
@@ -182,11 +284,69 @@ PcmAudio resample(const PcmAudio& audio, int rate_hz) {
       const double sinc = x == 0 ? 1.0 : std::sin(arg) / arg;
       const double phase = std::numbers::pi * (x / half_width + 1.0);  // Blackman window over [-w, w]
       const double window = 0.42 - 0.5 * std::cos(phase) + 0.08 * std::cos(2 * phase);
-      sum += audio.samples[static_cast<std::size_t>(k)] * cutoff * sinc * window;
+      sum += at(k) * cutoff * sinc * window;
     }
-    out.samples[n] = to_int16(sum / 32768.0);
+    return to_int16(sum / 32768.0);
+  }
+
+  double ratio;       // output samples per input sample
+  double cutoff;      // of the input's Nyquist frequency
+  double half_width;  // kernel half-width, input samples
+};
+
+}  // namespace
+
+PcmAudio resample(const PcmAudio& audio, int rate_hz) {
+  if (audio.sample_rate_hz == rate_hz) return audio;
+  const SincKernel kernel(audio.sample_rate_hz, rate_hz);
+  const auto input_size = static_cast<std::int64_t>(audio.samples.size());
+  PcmAudio out;
+  out.sample_rate_hz = rate_hz;
+  out.samples.resize(static_cast<std::size_t>(std::floor(double(input_size) * kernel.ratio)));
+  for (std::size_t n = 0; n < out.samples.size(); ++n) {
+    const auto i = static_cast<std::int64_t>(n);
+    out.samples[n] = kernel.output(i, std::max<std::int64_t>(0, kernel.first_input(i)),
+                                   std::min(input_size - 1, kernel.last_input(i)),
+                                   [&](std::int64_t k) { return audio.samples[static_cast<std::size_t>(k)]; });
   }
   return out;
+}
+
+StreamingResampler::StreamingResampler(int from_hz, int to_hz) : from_hz_(from_hz), to_hz_(to_hz) {}
+
+void StreamingResampler::push(std::span<const std::int16_t> samples, std::vector<std::int16_t>& out) {
+  if (from_hz_ == to_hz_) {
+    out.insert(out.end(), samples.begin(), samples.end());
+    return;
+  }
+  held_.insert(held_.end(), samples.begin(), samples.end());
+  received_ += static_cast<std::int64_t>(samples.size());
+  emit(false, out);
+}
+
+void StreamingResampler::finish(std::vector<std::int16_t>& out) {
+  if (from_hz_ != to_hz_) emit(true, out);
+}
+
+void StreamingResampler::emit(bool finishing, std::vector<std::int16_t>& out) {
+  const SincKernel kernel(from_hz_, to_hz_);
+  // resample() makes floor(input size × ratio) samples; each is made here once every input
+  // sample it reads has come (or, at the end, with the kernel clamped as resample() clamps it).
+  const auto total = static_cast<std::int64_t>(std::floor(double(received_) * kernel.ratio));
+  for (; next_ < total; ++next_) {
+    const std::int64_t last = kernel.last_input(next_);
+    if (!finishing && last >= received_) break;
+    const std::int64_t first = std::max<std::int64_t>(0, kernel.first_input(next_));
+    out.push_back(kernel.output(next_, first, std::min(received_ - 1, last),
+                                [&](std::int64_t k) { return held_[static_cast<std::size_t>(k - held_from_)]; }));
+  }
+  // Drop the input no later output sample reads.
+  const std::int64_t keep_from = std::max<std::int64_t>(held_from_, kernel.first_input(next_));
+  if (keep_from > held_from_) {
+    held_.erase(held_.begin(), held_.begin() + std::min<std::int64_t>(keep_from - held_from_,
+                                                                      static_cast<std::int64_t>(held_.size())));
+    held_from_ = keep_from;
+  }
 }
 
 void write_wav(std::ostream& out, const PcmAudio& audio) {

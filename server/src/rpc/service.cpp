@@ -42,6 +42,9 @@ LipSyncService::LipSyncService(const ServerConfig& config, const ModelCatalog& c
       tenants_(config.api_keys),
       face_capacity_(config.max_mesh_streams_per_face_thread, face_thread_count(config)),
       audio_budget_(std::make_shared<AudioBudget>(config.max_session_audio_bytes)),
+      recognition_workers_(
+          config.listen_threads > 0 ? config.listen_threads : std::max(1u, std::thread::hardware_concurrency()),
+          FaceWorkers::Priority::normal),
       face_workers_(face_thread_count(config), face_priority(config.face_priority)) {
   register_gauges();
 }

@@ -43,6 +43,7 @@ class LipSyncService final : public v1::LipSync::WithRawCallbackMethod_Subscribe
                                                         const grpc::ByteBuffer* request) override;
   grpc::ServerWriteReactor<v1::SpeakResponse>* Speak(grpc::CallbackServerContext* context,
                                                      const v1::SpeakRequest* request) override;
+  grpc::ServerBidiReactor<v1::ListenRequest, v1::TrackMessage>* Listen(grpc::CallbackServerContext* context) override;
   grpc::ServerUnaryReactor* ListModels(grpc::CallbackServerContext* context, const v1::ListModelsRequest* request,
                                        v1::ListModelsResponse* response) override;
   grpc::ServerUnaryReactor* GetModel(grpc::CallbackServerContext* context, const v1::GetModelRequest* request,
@@ -64,6 +65,9 @@ class LipSyncService final : public v1::LipSync::WithRawCallbackMethod_Subscribe
   LiveStreams& live_streams() { return live_streams_; }
   /// The low-priority threads the face runs on.
   FaceWorkers& face_workers() { return face_workers_; }
+  /// The threads Listen streams decode on (--listen-threads), at normal priority; each stream has
+  /// a lane (strand) of its own there.
+  FaceWorkers& recognition_workers() { return recognition_workers_; }
   /// The one thread Speak synthesises on (espeak-ng is not re-entrant).
   SpeechThread& speech_thread() { return speech_thread_; }
   /// API keys, tenants and their quotas (--api-keys; open without).
@@ -102,6 +106,8 @@ class LipSyncService final : public v1::LipSync::WithRawCallbackMethod_Subscribe
   // After what its jobs use, so that it is joined before they go.
   SpeechThread speech_thread_;
   LiveStreams live_streams_;
+  // Before the face's, for the same reason: its destructor runs the Listen jobs still queued.
+  FaceWorkers recognition_workers_;
   // Last, so that it is destroyed first: its destructor runs the jobs still
   // queued, which use the members above.
   FaceWorkers face_workers_;

@@ -61,6 +61,10 @@ struct ServerConfig {
   std::int64_t stalled_subscriber_ms = 5'000;
   std::int64_t session_retention_ms = 10'000;  ///< how long a finished session stays joinable
 
+  // Live audio (Listen).
+  std::int64_t max_listen_ms = 28'800'000;  ///< audio one Listen stream may carry (8 hours)
+  std::size_t listen_threads = 0;           ///< threads that run the recognisers; 0: one per core
+
   // The physics face (mesh output).
   std::size_t face_threads = 0;  ///< threads that run face solvers; 0: one per core
   /// Their scheduling: "idle" (SCHED_IDLE: only CPU time no other thread wants, so channel

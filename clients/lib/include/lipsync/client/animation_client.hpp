@@ -7,6 +7,8 @@
 //   subscribe  follow a session's frames until its producer finishes
 //   speak      text in; the server speaks it (espeak-ng) and returns the audio
 //              and the track of what it spoke, on one utterance clock (blocking)
+//   listen     a Listen stream: settings, audio pieces as they are produced, an
+//              end marker; the frames go to a handler as they arrive
 //
 // Every call that names a session (an Animate with settings.session, a Subscribe)
 // also sends it as the metadata `x-lipsync-session`, on which a load balancer in
@@ -148,7 +150,8 @@ using MessageHandler = std::function<void(const v1::TrackMessage&)>;
 using DoneHandler = std::function<void(const grpc::Status&)>;
 
 namespace detail {
-class AnimateReactor;
+template <class Request>
+class ProducerReactor;
 class SubscribeReactor;
 }  // namespace detail
 
@@ -177,8 +180,32 @@ class AnimateCall {
 
  private:
   friend class AnimationClient;
-  explicit AnimateCall(std::unique_ptr<detail::AnimateReactor> reactor);
-  std::unique_ptr<detail::AnimateReactor> reactor_;
+  explicit AnimateCall(std::unique_ptr<detail::ProducerReactor<v1::AnimateRequest>> reactor);
+  std::unique_ptr<detail::ProducerReactor<v1::AnimateRequest>> reactor_;
+};
+
+/// A running Listen stream: audio in, frames back. Thread-safe as AnimateCall.
+class ListenCall {
+ public:
+  ~ListenCall();  ///< cancels the stream if it is still running, and waits for it
+  ListenCall(const ListenCall&) = delete;
+  ListenCall& operator=(const ListenCall&) = delete;
+
+  /// Queues the next bytes of the audio, in the settings' encoding (each piece within the
+  /// server's message limit). Returns false once the stream has ended (wait() says why).
+  bool send_audio(std::string bytes);
+  /// Queues the end marker (the audio has ended) and closes the sending side.
+  void end();
+  /// Asks the server to drop the stream (it ends with CANCELLED).
+  void cancel();
+  /// Blocks until the stream is over; the final status.
+  grpc::Status wait();
+  bool done() const;
+
+ private:
+  friend class AnimationClient;
+  explicit ListenCall(std::unique_ptr<detail::ProducerReactor<v1::ListenRequest>> reactor);
+  std::unique_ptr<detail::ProducerReactor<v1::ListenRequest>> reactor_;
 };
 
 /// A running Subscribe stream.
@@ -225,6 +252,9 @@ class AnimationClient {
   ReceivedTrack animate(const v1::AnimationSettings& settings, std::span<const std::vector<v1::Phoneme>> chunks,
                         const MessageHandler& handler = {}) const;
 
+  /// Starts a Listen stream and sends `settings`; the frames go to `handler` as they come.
+  std::unique_ptr<ListenCall> start_listen(const v1::ListenSettings& settings, MessageHandler handler,
+                                           DoneHandler on_done = {}) const;
   /// Starts following `session`; messages go to `handler`.
   std::unique_ptr<SubscribeCall> start_subscribe(const std::string& session, v1::SubscribeRequest::Start start,
                                                  MessageHandler handler, DoneHandler on_done = {}) const;

@@ -1,0 +1,143 @@
+// Live audio in: timed phonemes from speech as it arrives, for a face that moves while the
+// speaker is still speaking.
+//
+// The offline aligner (aligner.hpp) hears a whole recording before it says anything. Here the
+// audio comes in pieces and PocketSphinx decodes each piece as it comes (ps_process_raw on an
+// open utterance): its partial hypothesis is the best path through everything heard so far. Its
+// last phones still change as more audio comes, its earlier ones settle. So the recogniser keeps
+// two kinds of phones on one timeline that starts at the first sample:
+//   - final phones, which never change again: those ending at least `commit_us` before the newest
+//     audio decoded, and all of an utterance once it has ended;
+//   - the guess: the partial hypothesis after the final phones, up to the newest audio decoded,
+//     which the caller may show (the live renderer does, up to a settling margin) but which may
+//     change with the next piece.
+// Both are ARPAbet, "" is silence, and the lip phones' boundaries are moved to the energy steps
+// of the signal as the offline path moves them (closure_refiner.hpp), over the audio heard so far.
+//
+// Utterances are cut at pauses, so that the decoder's state does not grow with the stream: a
+// 10 ms frame is voiced when its level is 15 dB over the noise floor (tracked as the quietest
+// recent level) and above -55 dBFS; an utterance opens at the first voiced frame, with
+// `pre_roll_us` of the audio before it, and ends after `end_pause_us` without a voiced frame, or
+// at `max_utterance_us`. Audio outside utterances is never decoded (silence costs almost
+// nothing) and becomes final silence at once.
+//
+// With a transcript the utterance is force-aligned to it as it is heard: a JSGF grammar of the
+// next `transcript_window_words` words, each a prefix of the rest (an utterance may stop after
+// any word), whose one-phone words carry their word's index as in the offline aligner; the next
+// utterance starts after the last word the previous one held. Without one the phones are
+// recognised with the phonetic language model (PocketSphinx's allphone search).
+//
+// Not thread-safe: one stream, one recogniser, one thread at a time. Loading the model takes
+// about half a second; decoding costs about 0.1-0.3 of the audio's real time on one core.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "lipsync/speech/closure_refiner.hpp"
+#include "lipsync/utterance.hpp"
+
+namespace lipsync::speech {
+
+struct LiveRecognitionOptions {
+  /// Words spoken in the audio (punctuation and case ignored); none: recognise phones.
+  std::optional<std::string> transcript;
+  /// The acoustic model directory's parent, holding en-us/, cmudict-en-us.dict, en-us-phone.lm.bin.
+  std::string model_dir = "/usr/share/pocketsphinx/model/en-us";
+  /// Rate of the samples pushed (8000 to 48000); they are resampled to the model's 16 kHz.
+  int sample_rate_hz = 16000;
+  /// Phones ending this long before the newest audio decoded are final, µs.
+  std::int64_t commit_us = 400'000;
+  /// Silence that ends an utterance, µs.
+  std::int64_t end_pause_us = 350'000;
+  /// The longest utterance: one that reaches it is ended there, µs.
+  std::int64_t max_utterance_us = 20'000'000;
+  /// Audio before an utterance's first voiced frame that is decoded with it (a stop's silent
+  /// closure, the decoder's sense of silence), µs.
+  std::int64_t pre_roll_us = 200'000;
+  /// Transcript words one utterance's grammar holds at most.
+  std::size_t transcript_window_words = 40;
+  /// Move the lip phones' boundaries to the signal's energy steps (closure_refiner.hpp).
+  bool refine_closures = true;
+  ClosureRefinerOptions refiner;
+  /// PocketSphinx's beams without a transcript (-beam, -pbeam, -wbeam): narrower is cheaper;
+  /// 1e-6 already loses the path on synthetic speech.
+  double phone_beam = 1e-8;
+};
+
+class LiveRecognizer {
+ public:
+  /// Loads the model. `source` names the stream in errors. Throws InputError: a missing model, a
+  /// sample rate outside 8000-48000, a transcript without words or with a word the dictionary lacks.
+  LiveRecognizer(const LiveRecognitionOptions& options, std::string source);
+  ~LiveRecognizer();
+  LiveRecognizer(const LiveRecognizer&) = delete;
+  LiveRecognizer& operator=(const LiveRecognizer&) = delete;
+
+  /// Decodes the next samples (at options.sample_rate_hz).
+  void push(std::span<const std::int16_t> samples);
+  /// The audio has ended: the open utterance is decoded to its end and every phone is final.
+  void finish();
+
+  /// Phones that became final since the last call, in order, contiguous with the ones taken before:
+  /// together they tile [0, taken_us()). A final silence at the end is held back until something
+  /// follows it or the audio ends (a pause arrives as one silence, not one per piece of audio).
+  std::vector<LabeledInterval> take_final();
+  /// Everything after the phones taken, up to the newest audio decoded: the final silence held
+  /// back, then the guess; tiles [taken_us(), heard_us()) (empty when they meet).
+  std::vector<LabeledInterval> guess() const;
+  /// How far the phones taken so far reach, µs.
+  std::int64_t taken_us() const { return taken_us_; }
+  /// How far the final phones reach, µs.
+  std::int64_t final_us() const { return final_us_; }
+  /// How far the audio has been decoded (or, outside utterances, classified), µs.
+  std::int64_t heard_us() const { return heard_us_; }
+  /// Utterances ended so far.
+  std::size_t utterances() const { return utterances_; }
+  /// Things the user should know about the stream ("a word not heard", ...), since the last call.
+  std::vector<std::string> take_notes();
+
+ private:
+  struct Decoder;
+
+  void process_frame(std::span<const std::int16_t> frame);
+  void open_utterance();
+  void close_utterance();
+  void update_phones(bool ended);
+  std::int64_t sample_us(std::int64_t sample) const;
+
+  LiveRecognitionOptions options_;
+  std::string source_;
+  std::unique_ptr<Decoder> decoder_;
+  std::vector<std::string> words_;  // the transcript's, empty without one
+  std::size_t next_word_ = 0;       // the first word the next utterance may hold
+
+  std::vector<std::int16_t> resampled_;  // scratch: this push's audio at 16 kHz
+  std::vector<std::int16_t> frame_;      // the 10 ms frame being filled
+  std::vector<std::int16_t> pre_roll_;   // the last pre_roll_us of audio outside utterances
+  std::int64_t samples_seen_ = 0;        // 16 kHz samples classified so far
+  double noise_floor_db_ = 0;
+  bool noise_floor_known_ = false;
+
+  bool open_ = false;
+  std::int64_t utterance_first_sample_ = 0;    // where the open utterance's audio starts
+  std::vector<std::int16_t> utterance_audio_;  // all of it, for the closure refiner
+  std::int64_t silent_samples_ = 0;            // since its last voiced frame
+  std::vector<std::int16_t> decode_queue_;     // its audio not yet handed to the decoder
+  int max_word_heard_ = -1;                    // the last transcript word its hypothesis holds
+
+  std::vector<LabeledInterval> final_;  // final, not yet taken
+  std::vector<LabeledInterval> guess_;
+  std::int64_t final_us_ = 0;
+  std::int64_t taken_us_ = 0;
+  std::int64_t heard_us_ = 0;
+  bool finished_ = false;
+  std::size_t utterances_ = 0;
+  std::vector<std::string> notes_;
+};
+
+}  // namespace lipsync::speech

@@ -1,0 +1,566 @@
+// Listen: audio in, as it is spoken or as a whole recording; frames back while the speaker is
+// still speaking. Settings first, then audio pieces, then `end`; back come a header, frame
+// batches and a summary, and with a session name its subscribers get the same messages.
+//
+// Two ways through, chosen by `settings.recording`:
+//   - live (the default): each piece goes through the stream's AudioStreamReader (raw PCM or a
+//     WAV file, mixed down to mono) into its LiveRecognizer (PocketSphinx decoding the open
+//     utterance as it arrives, utterances cut at pauses, closures refined from the signal), whose
+//     final phonemes feed a LiveRenderer; after each piece the frames up to the audio decoded less
+//     the settling margin leave, rendered over the final phonemes and the recogniser's guess
+//     (docs/streaming.md, "Live audio"). The margin is the latency budget less kProcessingMarginUs.
+//   - a recording: the pieces are gathered until `end`, aligned whole with the offline aligner
+//     and rendered with the streaming renderer at the settings' lookahead, so that the frames are
+//     exactly those of `lipsync render X.wav` (with `--text-file`: the transcript).
+//
+// Decoding costs a tenth to a third of the audio's duration, far too long for a reaction: every
+// piece is handed to the stream's lane on the recognition workers (a strand: its jobs run in
+// order, one at a time; lanes run in parallel), which owns the reader, the recogniser and the
+// renderer. The reactions only check the messages, queue the audio and read on; while more than
+// kReadPauseBytes of audio wait for the lane the stream reads no more, so HTTP/2 flow control holds
+// back a client that sends faster than the server decodes ("as fast as the server takes it").
+// Everything after the header leaves from the lane, through the Outbox (one write in flight). The
+// reactor deletes itself through the lane (retire), after the jobs queued before OnDone; a job of a
+// stream that failed or was cancelled does nothing.
+//
+// The audio is kept for the session's viewers (/audio?session=NAME) under the server's audio
+// budget: a recording's before its first frame, a live stream's once it ends.
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <atomic>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "call_log.hpp"
+#include "lipsync/error.hpp"
+#include "lipsync/live_renderer.hpp"
+#include "lipsync/renderer.hpp"
+#include "lipsync/setting_ranges.hpp"
+#include "lipsync/speech/aligner.hpp"
+#include "lipsync/speech/audio.hpp"
+#include "lipsync/speech/live_recognizer.hpp"
+#include "lipsync/tsan_handoff.hpp"
+#include "rpc/outbox.hpp"
+#include "rpc/plan.hpp"
+#include "rpc/service.hpp"
+#include "rpc/wire.hpp"
+#include "sessions/live_streams.hpp"
+
+namespace lipsync::server {
+namespace {
+
+/// The latency budget's range and default, ms.
+constexpr std::uint32_t kMinLatencyMs = 100;
+constexpr std::uint32_t kMaxLatencyMs = 2000;
+constexpr std::uint32_t kDefaultLatencyMs = 200;
+/// The part of the budget kept for decoding a piece, rendering and sending its frames; the rest is
+/// how much audio the recogniser hears after a frame's time before the frame leaves.
+constexpr std::int64_t kProcessingMarginUs = 50'000;
+/// Audio waiting for the lane above which the stream stops reading (about 4 s of 48 kHz stereo).
+constexpr std::size_t kReadPauseBytes = 768 * 1024;
+/// The longest transcript, bytes.
+constexpr std::size_t kMaxTranscriptBytes = 16 * 1024;
+/// The source name errors in the audio are reported under.
+constexpr const char* kAudioSource = "audio";
+
+class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::ListenRequest, v1::TrackMessage>>,
+                            public OutboxTarget,
+                            public AbortableStream {
+ public:
+  ListenReactor(LipSyncService& service, grpc::CallbackServerContext* context)
+      : service_(service),
+        context_(context),
+        outbox_(*this),
+        log_("Listen", *context, &service.metrics()),
+        frames_counter_(service.metrics().frames_sent.with({"Listen"})),
+        lane_(service.recognition_workers()) {
+    const grpc::Status admission = service_.admission().admit_stream(context_->peer());
+    if (!admission.ok()) {
+      outbox_.close(admission);
+      return;
+    }
+    admitted_ = true;
+    service_.live_streams().add(*this);
+    outbox_.measure(service_.metrics().write_latency, service_.metrics().queued_messages);
+    if (auto status = service_.tenants().authenticate(*context_, "Listen", caller_); !status.ok()) {
+      outbox_.close(status);
+      return;
+    }
+    log_.set_tenant(caller_.tenant());
+    if (auto status = caller_.hold(Quota::streams, stream_hold_); !status.ok()) {
+      outbox_.close(status);
+      return;
+    }
+    StartRead(&request_);
+  }
+
+  ~ListenReactor() override {
+    if (kept_reserved_bytes_ > 0) service_.audio_budget().release(kept_reserved_bytes_);
+  }
+
+  void OnReadDone(bool ok) override {
+    const HandoffScope handoff = reaction();
+    if (!ok) {
+      if (phase_ != Phase::ended) {
+        fail(invalid("the request stream ended before `end` after " + std::to_string(bytes_received_) +
+                     " bytes of audio: the client closed its side, or sent a message that is not a ListenRequest"),
+             "producer disconnected before the end of the audio");
+      }
+      return;  // after `end` the lane finishes the call
+    }
+    grpc::Status status;
+    try {
+      status = handle(request_);
+    } catch (const std::exception& error) {
+      status = grpc::Status(grpc::StatusCode::INTERNAL, error.what());
+    }
+    if (!status.ok()) {
+      fail(status, "producer failed: " + status.error_message());
+      return;
+    }
+    std::lock_guard lock(audio_mutex_);
+    if (pending_.size() > kReadPauseBytes) {
+      read_paused_ = true;  // the lane resumes reading once it has caught up
+      return;
+    }
+    StartRead(&request_);
+  }
+
+  void OnWriteDone(bool ok) override {
+    const HandoffScope handoff = reaction();
+    outbox_.on_write_done(ok);
+  }
+
+  void OnCancel() override {
+    const HandoffScope handoff = reaction();
+    cancelled_ = true;
+    stopped_ = true;
+    outbox_.abort(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled"));
+    fail_session("producer disconnected: the stream was cancelled");
+  }
+
+  void OnDone() override {
+    last_reaction();
+    if (admitted_) service_.live_streams().remove(*this);
+    const auto status = cancelled_ ? cancelled_status() : outbox_.final_status().value_or(grpc::Status::OK);
+    log_.ended(status, {{"audio_bytes", bytes_received_.load()}, {"frames", frames_sent_.load()}});
+    if (admitted_) service_.admission().release_stream();
+    stopped_ = true;
+    service_.call_ended();
+    lane_.retire([this] { delete this; });  // after the jobs still queued
+  }
+
+  void start_write(const OutgoingMessage& message) override {
+    if (message.message().has_frames()) {
+      frames_counter_.add(static_cast<std::uint64_t>(message.message().frames().t_us_size()));
+    }
+    StartWrite(&message.message());
+  }
+  void finish(const grpc::Status& status) override { Finish(status); }
+
+  void abort_stream(const grpc::Status& status) override {
+    stopped_ = true;
+    outbox_.abort(status);
+    fail_session("the server shut down: " + status.error_message());
+  }
+
+ private:
+  enum class Phase { awaiting_settings, streaming, ended };
+
+  grpc::Status handle(const v1::ListenRequest& request) {
+    switch (phase_) {
+      case Phase::awaiting_settings:
+        if (!request.has_settings()) return invalid("first message must be settings");
+        return start(request.settings());
+      case Phase::streaming:
+        if (request.has_audio()) return queue_audio(request.audio().data());
+        if (request.has_end()) {
+          phase_ = Phase::ended;
+          lane_.post([this] { on_lane([this] { return finish_audio(); }); });
+          return grpc::Status();
+        }
+        if (request.has_settings()) return invalid("settings sent twice: only the first message may be settings");
+        return invalid("empty ListenRequest after " + std::to_string(bytes_received_) + " bytes of audio");
+      case Phase::ended:
+        if (request.has_audio()) {
+          return invalid("audio: " + std::to_string(request.audio().data().size()) +
+                         " bytes received after `end` (the stream had " + std::to_string(bytes_received_) +
+                         " bytes of audio)");
+        }
+        return invalid("message received after `end`");
+    }
+    return grpc::Status();
+  }
+
+  /// Checks the settings (on the reaction: quick), opens the session, sends the header and
+  /// queues the recogniser's start on the lane.
+  grpc::Status start(const v1::ListenSettings& settings) {
+    const v1::AnimationSettings& animation = settings.animation();
+    log_.set_session(animation.session());
+    log_.started_line();
+    if (!animation.phone_set().empty() && animation.phone_set() != "arpabet") {
+      return invalid("settings.animation.phone_set: '" + animation.phone_set() +
+                     "' given, but Listen animates the recogniser's ARPAbet phonemes (leave it empty or 'arpabet')");
+    }
+    if (wants_mesh(animation)) {
+      return invalid("settings.animation.outputs.mesh: not offered by Listen yet (Render the phonemes with the mesh)");
+    }
+    const std::string& voice = settings.voice();
+    if (!voice.empty() && voice != "en" && voice.rfind("en-", 0) != 0) {
+      return invalid("settings.voice: '" + voice +
+                     "': Listen hears English only for now (\"\", \"en\" or an English espeak-ng voice such as "
+                     "\"en-us\"); other languages go through `lipsync align --voice` offline");
+    }
+    if (settings.has_transcript() && settings.transcript().size() > kMaxTranscriptBytes) {
+      return invalid("settings.transcript: " + std::to_string(settings.transcript().size()) +
+                     " bytes, longer than the limit of " + std::to_string(kMaxTranscriptBytes));
+    }
+    if (settings.has_latency_ms() && (settings.latency_ms() < kMinLatencyMs || settings.latency_ms() > kMaxLatencyMs)) {
+      return invalid(out_of_range_text("settings.latency_ms", std::to_string(settings.latency_ms()),
+                                       std::to_string(kMinLatencyMs) + " to " + std::to_string(kMaxLatencyMs) +
+                                           ", default " + std::to_string(kDefaultLatencyMs)));
+    }
+    if (settings.recording() && settings.has_latency_ms()) {
+      return invalid("settings.latency_ms: a recording's frames come after its last piece; leave it unset");
+    }
+    speech::AudioStreamReader::Encoding encoding = speech::AudioStreamReader::Encoding::pcm_s16le;
+    switch (settings.encoding()) {
+      case v1::AUDIO_ENCODING_UNSPECIFIED:
+      case v1::AUDIO_ENCODING_PCM_S16LE:
+        break;
+      case v1::AUDIO_ENCODING_WAV:
+        encoding = speech::AudioStreamReader::Encoding::wav;
+        break;
+      default:
+        return invalid("settings.encoding: " + std::to_string(settings.encoding()) +
+                       " is not an encoding Listen reads (PCM_S16LE or WAV)");
+    }
+    const std::uint32_t rate = settings.sample_rate_hz();
+    const std::uint32_t channels = settings.channels();
+    if (encoding == speech::AudioStreamReader::Encoding::pcm_s16le) {
+      if (rate == 0) return invalid("settings.sample_rate_hz: required for PCM_S16LE audio (8000 to 48000)");
+      if (channels > 2) {
+        return invalid(out_of_range_text("settings.channels", std::to_string(channels), "1 or 2; 0 = 1"));
+      }
+    }
+    if (rate != 0 && (rate < 8000 || rate > 48000)) {
+      return invalid(out_of_range_text("settings.sample_rate_hz", std::to_string(rate), "8000 to 48000"));
+    }
+    if (auto status = service_.routing().check_metadata(*context_, animation.session()); !status.ok()) return status;
+    if (auto status = resolve_settings(animation, service_.catalog(), true, plan_); !status.ok()) return status;
+    recording_ = settings.recording();
+    if (settings.has_transcript()) transcript_ = settings.transcript();
+    const std::uint32_t latency_ms = settings.has_latency_ms() ? settings.latency_ms() : kDefaultLatencyMs;
+    settle_us_ = std::int64_t{latency_ms} * 1000 - kProcessingMarginUs;
+    plan_.header.set_release_delay_us(recording_ ? 0 : std::int64_t{latency_ms} * 1000);
+
+    v1::TrackMessage header_message;
+    *header_message.mutable_header() = plan_.header;
+    const Message header = make_message(std::move(header_message));
+    if (!animation.session().empty()) {
+      if (auto status = caller_.hold(Quota::sessions, session_hold_); !status.ok()) return status;
+      std::shared_ptr<Session> session;
+      if (auto status =
+              service_.sessions().open(animation.session(), header, session, caller_.session_key(animation.session()));
+          !status.ok()) {
+        return status;
+      }
+      std::lock_guard lock(session_mutex_);
+      session_ = std::move(session);
+    }
+    reader_.emplace(encoding, static_cast<int>(rate), static_cast<int>(channels == 0 && rate != 0 ? 1 : channels),
+                    kAudioSource);
+    outbox_.push(header);
+    phase_ = Phase::streaming;
+    if (!recording_) lane_.post([this] { on_lane([this] { return start_recognizer(); }); });
+    return grpc::Status();
+  }
+
+  /// On the reaction: queues a piece for the lane.
+  grpc::Status queue_audio(const std::string& data) {
+    bytes_received_ += data.size();
+    std::lock_guard lock(audio_mutex_);
+    pending_ += data;
+    if (!job_posted_) {
+      job_posted_ = true;
+      lane_.post([this] { on_lane([this] { return decode_pending(); }); });
+    }
+    return grpc::Status();
+  }
+
+  /// Runs `step` on the lane unless the stream has stopped; a failure ends the call and the session.
+  template <class Step>
+  void on_lane(Step step) {
+    if (stopped_) return;
+    grpc::Status status;
+    try {
+      status = step();
+    } catch (const InputError& error) {
+      status = invalid(error.what());
+    } catch (const std::exception& error) {
+      status = grpc::Status(grpc::StatusCode::INTERNAL, error.what());
+    }
+    if (!status.ok()) fail(status, "producer failed: " + status.error_message());
+  }
+
+  /// On the lane, first: the renderer, and the recogniser once the audio's rate is known (raw
+  /// PCM's from the settings; a WAV's from its header, with its first samples).
+  grpc::Status start_recognizer() {
+    recognizer_options_.transcript = transcript_;
+    recognizer_options_.commit_us = std::max(recognizer_options_.commit_us, settle_us_ + 100'000);
+    live_.emplace(plan_.model->tables, *plan_.model->model, *plan_.phone_set, "recogniser", plan_.engine.segments,
+                  plan_.engine.render);
+    track_.channel_count = plan_.model->model->channel_count();
+    track_.fps = plan_.engine.render.fps;
+    if (reader_->sample_rate_hz() != 0) make_recognizer(reader_->sample_rate_hz());
+    return grpc::Status();
+  }
+
+  /// Loads the recogniser for audio at `rate_hz` (about half a second). A transcript word the
+  /// dictionary lacks is an InputError naming `settings.transcript`.
+  void make_recognizer(int rate_hz) {
+    recognizer_options_.sample_rate_hz = rate_hz;
+    recognizer_.emplace(recognizer_options_, transcript_ ? "settings.transcript" : "settings");
+  }
+
+  /// On the lane: the audio queued so far, decoded (live) or gathered (a recording).
+  grpc::Status decode_pending() {
+    std::string bytes;
+    {
+      std::lock_guard lock(audio_mutex_);
+      bytes.swap(pending_);
+      job_posted_ = false;
+      if (read_paused_) {
+        read_paused_ = false;
+        StartRead(&request_);
+      }
+    }
+    samples_.clear();
+    reader_->push(bytes, samples_);
+    if (samples_.empty()) return grpc::Status();
+    const int rate = reader_->sample_rate_hz();
+    samples_read_ += samples_.size();
+    const std::int64_t heard_ms = static_cast<std::int64_t>(samples_read_ * 1000 / static_cast<std::uint64_t>(rate));
+    if (heard_ms > service_.config().max_listen_ms) {
+      return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+              "audio: the stream reaches " + std::to_string(heard_ms) +
+                  " ms, longer than --max-listen-ms=" + std::to_string(service_.config().max_listen_ms)};
+    }
+    keep_audio(rate);
+    if (recording_) {
+      if (heard_ms > static_cast<std::int64_t>(speech::AlignmentOptions{}.max_duration_s * 1000)) {
+        return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+                "audio: the recording reaches " + std::to_string(heard_ms) + " ms, longer than the " +
+                    std::to_string(static_cast<int>(speech::AlignmentOptions{}.max_duration_s)) +
+                    " s a recording is aligned whole (send it live instead: recording false)"};
+      }
+      recording_audio_.sample_rate_hz = rate;
+      recording_audio_.samples.insert(recording_audio_.samples.end(), samples_.begin(), samples_.end());
+      return grpc::Status();
+    }
+    if (!recognizer_) make_recognizer(rate);
+    recognizer_->push(samples_);
+    render_live(false);
+    return grpc::Status();
+  }
+
+  /// On the lane: the final phonemes into the renderer, then the frames due.
+  void render_live(bool ended) {
+    for (const LabeledInterval& phoneme : recognizer_->take_final()) live_->push_final(phoneme, track_);
+    if (ended) {
+      live_->finish(track_);
+    } else {
+      const std::vector<LabeledInterval> guess = recognizer_->guess();
+      live_->emit_until(recognizer_->heard_us() - settle_us_, guess, track_);
+    }
+    for (const std::string& note : recognizer_->take_notes()) log_.line(spdlog::level::info, "listen note", note);
+    publish(recognizer_->heard_us());
+  }
+
+  /// On the lane, after `end`: the rest of the frames, the summary, OK.
+  grpc::Status finish_audio() {
+    grpc::Status status = decode_pending();
+    if (!status.ok()) return status;
+    reader_->finish();
+    std::size_t phonemes = 0;
+    std::int64_t duration_us = 0;
+    if (recording_) {
+      if (auto kept = kept_audio(); kept) set_session_audio(std::move(kept));
+      if (auto rendered = render_recording(phonemes, duration_us); !rendered.ok()) return rendered;
+    } else {
+      if (samples_read_ == 0)
+        return invalid("audio: the stream ended without audio (send ListenAudio pieces before `end`)");
+      recognizer_->finish();
+      render_live(true);
+      phonemes = live_->final_count();
+      duration_us = live_->final_end_us();
+      if (auto kept = kept_audio(); kept) set_session_audio(std::move(kept));
+    }
+    v1::TrackMessage summary_message;
+    encode_summary(frames_sent_, phonemes, duration_us, *summary_message.mutable_summary());
+    const Message summary = make_message(std::move(summary_message));
+    if (auto session = current_session()) session->finish(summary);
+    outbox_.push(summary);
+    outbox_.close(grpc::Status::OK);
+    return grpc::Status();
+  }
+
+  /// A recording, aligned whole and rendered as `lipsync render X.wav` renders it.
+  grpc::Status render_recording(std::size_t& phonemes, std::int64_t& duration_us) {
+    if (recording_audio_.samples.empty()) {
+      return invalid("audio: the recording has no samples (send ListenAudio pieces before `end`)");
+    }
+    speech::AlignmentOptions options;
+    options.transcript = transcript_;
+    const speech::Alignment alignment = speech::align_speech(recording_audio_, kAudioSource, options);
+    for (const std::string& note : alignment.notes) log_.line(spdlog::level::info, "listen note", note);
+    LabeledUtterance utterance = alignment.phones;
+    speech::cover_audio(utterance, recording_audio_.duration_us(), plan_.engine.render.fps);
+    SegmentBuilder builder(*plan_.model->model, *plan_.phone_set, kAudioSource, plan_.engine.segments);
+    StreamingRenderer renderer(plan_.model->tables, plan_.engine.render);
+    track_.channel_count = plan_.model->model->channel_count();
+    track_.fps = plan_.engine.render.fps;
+    std::vector<Segment> segments;
+    for (const LabeledInterval& phoneme : utterance.intervals) {
+      segments.clear();
+      builder.push(phoneme, segments);
+      for (const Segment& segment : segments) renderer.push(segment, track_);
+    }
+    renderer.finish(track_);
+    phonemes = utterance.intervals.size();
+    duration_us = builder.end_us();
+    publish(duration_us);
+    return grpc::Status();
+  }
+
+  /// On the lane: sends the frames in track_ (and clears it), `heard_us` being how far the
+  /// audio decoded reached when they left.
+  void publish(std::int64_t heard_us) {
+    for (std::size_t begin = 0; begin < track_.frame_count(); begin += kMaxFramesPerBatch) {
+      const std::size_t end = std::min(track_.frame_count(), begin + kMaxFramesPerBatch);
+      v1::TrackMessage batch;
+      encode_frames(plan_, track_, begin, end, frames_sent_, *batch.mutable_frames(), encoder_);
+      batch.mutable_frames()->set_release_lag_us(heard_us - track_.t_us[begin]);
+      const Message message = make_message(std::move(batch));
+      frames_sent_ += end - begin;
+      if (auto session = current_session()) session->publish(message, end - begin);
+      outbox_.push(message, end - begin);
+    }
+    track_.clear();
+  }
+
+  /// On the lane: keeps this piece's samples for the session's viewers while the budget allows.
+  void keep_audio(int rate) {
+    if (!keeping_audio_ || !current_session()) return;
+    const std::size_t bytes = samples_.size() * 2 + (kept_samples_.empty() ? 44 : 0);
+    if (!service_.audio_budget().try_reserve(bytes)) {
+      log_.line(spdlog::level::warn, "audio not kept",
+                "the session's sound would be over --max-session-audio-bytes " +
+                    std::to_string(service_.audio_budget().limit_bytes()));
+      service_.audio_budget().release(kept_reserved_bytes_);
+      kept_reserved_bytes_ = 0;
+      kept_samples_ = {};
+      keeping_audio_ = false;
+      return;
+    }
+    kept_reserved_bytes_ += bytes;
+    kept_rate_hz_ = rate;
+    kept_samples_.insert(kept_samples_.end(), samples_.begin(), samples_.end());
+  }
+
+  /// The kept audio as a WAV file under the budget (null when none was kept).
+  std::shared_ptr<const std::string> kept_audio() {
+    if (!keeping_audio_ || kept_samples_.empty()) return nullptr;
+    speech::PcmAudio audio;
+    audio.sample_rate_hz = kept_rate_hz_;
+    audio.samples = std::move(kept_samples_);
+    std::ostringstream wav;
+    speech::write_wav(wav, audio);
+    kept_reserved_bytes_ = 0;  // the kept string gives them back
+    keeping_audio_ = false;
+    return service_.audio_budget().keep(std::move(wav).str());
+  }
+
+  void set_session_audio(std::shared_ptr<const std::string> wav) {
+    if (auto session = current_session()) session->set_audio_wav(std::move(wav));
+  }
+
+  void fail(const grpc::Status& status, const std::string& reason) {
+    stopped_ = true;
+    outbox_.close(status);
+    fail_session(reason);
+  }
+
+  void fail_session(const std::string& reason) {
+    if (auto session = current_session()) session->fail(reason);
+  }
+
+  std::shared_ptr<Session> current_session() {
+    std::lock_guard lock(session_mutex_);
+    return session_;
+  }
+
+ private:
+  LipSyncService& service_;
+  grpc::CallbackServerContext* context_;
+  Caller caller_;  // the tenant; its quotas are held until the reactor is deleted
+  QuotaHold stream_hold_, session_hold_;
+  Outbox outbox_;
+  CallLog log_;
+  Counter& frames_counter_;
+  FaceLane lane_;  // on the recognition workers: everything after the header runs here
+  bool admitted_ = false;
+  std::atomic<bool> cancelled_ = false;
+  std::atomic<bool> stopped_ = false;  // failed, cancelled or done: queued lane jobs do nothing
+  Phase phase_ = Phase::awaiting_settings;
+  v1::ListenRequest request_;
+  std::atomic<std::uint64_t> bytes_received_ = 0;
+
+  // Set by start() on the reaction before the lane's first job, then the lane's.
+  Plan plan_;
+  bool recording_ = false;
+  std::optional<std::string> transcript_;
+  std::int64_t settle_us_ = 0;
+  std::optional<speech::AudioStreamReader> reader_;
+
+  // Between the reactions and the lane.
+  std::mutex audio_mutex_;
+  std::string pending_;      // audio bytes received and not yet taken by the lane
+  bool job_posted_ = false;  // a decode job is queued for pending_
+  bool read_paused_ = false;
+
+  // The lane's.
+  speech::LiveRecognitionOptions recognizer_options_;
+  std::optional<speech::LiveRecognizer> recognizer_;
+  std::optional<LiveRenderer> live_;
+  speech::PcmAudio recording_audio_;
+  std::vector<std::int16_t> samples_;  // this piece's, mono
+  std::uint64_t samples_read_ = 0;
+  Track track_;
+  StreamEncoder encoder_;
+  std::atomic<std::uint64_t> frames_sent_ = 0;
+  bool keeping_audio_ = true;
+  std::vector<std::int16_t> kept_samples_;
+  int kept_rate_hz_ = 16000;
+  std::size_t kept_reserved_bytes_ = 0;
+
+  std::mutex session_mutex_;
+  std::shared_ptr<Session> session_;
+};
+
+}  // namespace
+
+grpc::ServerBidiReactor<v1::ListenRequest, v1::TrackMessage>* LipSyncService::Listen(
+    grpc::CallbackServerContext* context) {
+  handoff_acquire(this);  // the service as built before the server started (tsan_handoff.hpp)
+  auto* reactor = new ListenReactor(*this, context);
+  reactor->handed_off();
+  return reactor;
+}
+
+}  // namespace lipsync::server

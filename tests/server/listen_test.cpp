@@ -1,0 +1,365 @@
+// The Listen RPC on a real lipsyncd (127.0.0.1:0) with real TTS speech (flite, Festival) and the
+// real PocketSphinx: a recording sent whole gives the frames of the offline audio path (what
+// `lipsync render X.wav` renders), frame for frame; a live stream's frames leave in time order,
+// cover the audio and show the synthesisers' own /p b m/ closed (Oculus PP) at their middles; a
+// subscriber of the session gets the same frames; bad settings and bad audio get the right status
+// naming the field; a producer that vanishes mid-word ends its session for the subscribers.
+#include <gmock/gmock.h>
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "../speech/tts_recordings.hpp"
+#include "../support/harvard_sentences.hpp"
+#include "../support/server_harness.hpp"
+#include "lipsync/client/animation_client.hpp"
+#include "lipsync/model.hpp"
+#include "lipsync/phone_set.hpp"
+#include "lipsync/renderer.hpp"
+#include "lipsync/segment.hpp"
+#include "lipsync/speech/aligner.hpp"
+#include "lipsync/speech/audio.hpp"
+#include "lipsync/v1/lipsync.grpc.pb.h"
+
+namespace lipsync::server {
+namespace {
+
+using namespace harness;
+using ::testing::ElementsAreArray;
+using ::testing::HasSubstr;
+
+struct Spoken {
+  std::string wav;               // the file's bytes
+  testing::Recording recording;  // its samples and the synthesiser's own phonemes
+};
+
+Spoken speak(bool festival, const std::string& text) {
+  const auto path = std::filesystem::temp_directory_path() /
+                    ("listen_test-" + std::to_string(::getpid()) + (festival ? "-festival" : "-flite") + ".wav");
+  auto recording = festival ? testing::festival_recording(text, path) : testing::flite_recording(text, path);
+  EXPECT_TRUE(recording) << text;
+  std::ifstream in(path, std::ios::binary);
+  Spoken spoken{std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>()),
+                recording.value_or(testing::Recording{})};
+  std::filesystem::remove(path);
+  return spoken;
+}
+
+std::string pcm_bytes(std::span<const std::int16_t> samples) {
+  std::string bytes;
+  for (const std::int16_t s : samples) {
+    bytes.push_back(static_cast<char>(static_cast<std::uint16_t>(s) & 0xFF));
+    bytes.push_back(static_cast<char>(static_cast<std::uint16_t>(s) >> 8));
+  }
+  return bytes;
+}
+
+/// What one Listen call returned.
+struct Listened {
+  client::ReceivedTrack track;
+  grpc::Status status;
+};
+
+class ListenTest : public LiveServerTest {
+ protected:
+  /// Sends `audio` live as 20 ms PCM pieces, as fast as the server takes them.
+  Listened listen_live(const speech::PcmAudio& audio, v1::ListenSettings settings) {
+    settings.set_encoding(v1::AUDIO_ENCODING_PCM_S16LE);
+    settings.set_sample_rate_hz(static_cast<std::uint32_t>(audio.sample_rate_hz));
+    std::vector<std::string> pieces;
+    const std::size_t piece = static_cast<std::size_t>(audio.sample_rate_hz) / 50;
+    for (std::size_t at = 0; at < audio.samples.size(); at += piece) {
+      pieces.push_back(pcm_bytes(std::span(audio.samples).subspan(at, std::min(piece, audio.samples.size() - at))));
+    }
+    return listen(settings, pieces);
+  }
+
+  Listened listen(const v1::ListenSettings& settings, const std::vector<std::string>& pieces, bool end = true) {
+    Listened result;
+    std::mutex mutex;
+    const client::AnimationClient connection(server_->address());
+    auto call = connection.start_listen(settings, [&](const v1::TrackMessage& message) {
+      std::lock_guard lock(mutex);
+      result.track.add(message);
+    });
+    for (const std::string& bytes : pieces) {
+      if (!call->send_audio(bytes)) break;
+    }
+    if (end) call->end();
+    result.status = call->wait();
+    return result;
+  }
+};
+
+TEST_F(ListenTest, ARecordingSentWholeGivesTheFramesOfTheOfflineAudioPath) {
+  // `lipsync render X.wav [--text-file F]`: decode_wav, align_speech, cover_audio, render.
+  const ArticulationModel& model = ArticulationModel::builtin();
+  const PhoneSet arpabet = *PhoneSet::builtin("arpabet", model);
+  const std::string text = testing::kHarvardSentences[12];
+  const Spoken spoken = speak(false, text);
+  for (const bool with_transcript : {false, true}) {
+    SCOPED_TRACE(with_transcript ? "with the transcript" : "from the audio alone");
+    speech::AlignmentOptions options;
+    if (with_transcript) options.transcript = text;
+    speech::Alignment alignment = speech::align_speech(speech::decode_wav(spoken.wav, "x.wav").audio, "x", options);
+    speech::cover_audio(alignment.phones, spoken.recording.audio.duration_us(), 30);
+    const Track offline = render_track(model, build_segments(alignment.phones, model, arpabet));
+
+    v1::ListenSettings settings;
+    settings.set_encoding(v1::AUDIO_ENCODING_WAV);
+    settings.set_recording(true);
+    if (with_transcript) settings.set_transcript(text);
+    std::vector<std::string> pieces;
+    for (std::size_t at = 0; at < spoken.wav.size(); at += 7000) pieces.push_back(spoken.wav.substr(at, 7000));
+    const Listened listened = listen(settings, pieces);
+    ASSERT_TRUE(listened.status.ok()) << listened.status.error_message();
+    EXPECT_THAT(listened.track.track.t_us, ElementsAreArray(offline.t_us));
+    EXPECT_THAT(listened.track.track.values, ElementsAreArray(offline.values));
+    ASSERT_TRUE(listened.track.summary.has_value());
+    EXPECT_EQ(listened.track.summary->frames(), offline.frame_count());
+  }
+}
+
+/// The Oculus viseme a player shows at `t_us`: that of the last frame at or before it.
+std::string viseme_at(const client::ReceivedTrack& track, std::int64_t t_us) {
+  const auto& times = track.track.t_us;
+  const auto after = std::upper_bound(times.begin(), times.end(), t_us);
+  if (after == times.begin()) return "";
+  const std::size_t frame = static_cast<std::size_t>(after - times.begin()) - 1;
+  const std::size_t n = static_cast<std::size_t>(track.header.viseme_names_size());
+  const auto weights = std::span(track.viseme_weights).subspan(frame * n, n);
+  const auto best = std::max_element(weights.begin(), weights.end()) - weights.begin();
+  return track.header.viseme_names(static_cast<int>(best));
+}
+
+TEST_F(ListenTest, LiveFramesLeaveInOrderCoverTheAudioAndShowRealSpeechsClosures) {
+  // Sentences 11-15 spoken by flite and Festival, sent live with the transcript at the default
+  // budget: the frames are in time order, reach past the audio's end, and at the middle of each
+  // /p b m/ the synthesiser spoke the face shows Oculus PP (docs/streaming.md, "Live audio").
+  int bilabials = 0, closed = 0;
+  for (const bool festival : {false, true}) {
+    for (std::size_t s = 10; s < 15; ++s) {
+      const std::string text = testing::kHarvardSentences[s];
+      SCOPED_TRACE((festival ? "festival: " : "flite: ") + text);
+      const Spoken spoken = speak(festival, text);
+      v1::ListenSettings settings;
+      settings.set_transcript(text);
+      settings.mutable_animation()->mutable_outputs()->mutable_visemes()->set_enabled(true);
+      const Listened listened = listen_live(spoken.recording.audio, settings);
+      ASSERT_TRUE(listened.status.ok()) << listened.status.error_message();
+      const auto& t_us = listened.track.track.t_us;
+      ASSERT_FALSE(t_us.empty());
+      EXPECT_TRUE(std::adjacent_find(t_us.begin(), t_us.end(), std::greater_equal<>()) == t_us.end());
+      EXPECT_EQ(t_us.front(), 0);
+      EXPECT_GE(t_us.back(), spoken.recording.audio.duration_us() - 34'000);
+      ASSERT_TRUE(listened.track.summary.has_value());
+      for (const LabeledInterval& phoneme : spoken.recording.phonemes.intervals) {
+        if (phoneme.label != "p" && phoneme.label != "b" && phoneme.label != "m") continue;
+        ++bilabials;
+        const bool shown = viseme_at(listened.track, (phoneme.start_us + phoneme.end_us) / 2) == "PP";
+        closed += shown ? 1 : 0;
+        if (!shown) std::cerr << "  not closed: /" << phoneme.label << "/ at " << phoneme.start_us << " us\n";
+      }
+    }
+  }
+  std::cerr << "live, with the transcript: " << closed << " of " << bilabials << " bilabials shown closed\n";
+  EXPECT_GE(closed * 10, bilabials * 9) << closed << " of " << bilabials;
+}
+
+TEST_F(ListenTest, ASubscriberOfTheSessionGetsTheSameFrames) {
+  const Spoken spoken = speak(false, "Papa bought five more big maps.");
+  ASSERT_EQ(spoken.recording.audio.sample_rate_hz, 16000);
+  v1::ListenSettings settings;
+  settings.set_sample_rate_hz(16000);
+  settings.mutable_animation()->set_session("listener");
+  Received subscribed;
+  std::thread subscriber;
+  Listened listened;
+  {
+    std::mutex mutex;
+    const client::AnimationClient connection(server_->address());
+    auto call = connection.start_listen(settings, [&](const v1::TrackMessage& message) {
+      std::lock_guard lock(mutex);
+      listened.track.add(message);
+    });
+    // The session is open once the header has come back.
+    for (int i = 0; i < 500; ++i) {
+      {
+        std::lock_guard lock(mutex);
+        if (listened.track.header.session() == "listener") break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    subscriber = std::thread([&] { subscribed = subscribe_all(*stub_, "listener"); });
+    const auto& samples = spoken.recording.audio.samples;
+    for (std::size_t at = 0; at < samples.size(); at += 320) {
+      const bool sent =
+          call->send_audio(pcm_bytes(std::span(samples).subspan(at, std::min<std::size_t>(320, samples.size() - at))));
+      EXPECT_TRUE(sent);
+      if (!sent) break;
+    }
+    call->end();
+    listened.status = call->wait();
+  }
+  subscriber.join();
+  ASSERT_TRUE(listened.status.ok()) << listened.status.error_message();
+  ASSERT_TRUE(subscribed.status.ok()) << subscribed.status.error_message();
+  EXPECT_THAT(subscribed.frames.t_us, ElementsAreArray(listened.track.track.t_us));
+  EXPECT_THAT(subscribed.frames.values, ElementsAreArray(listened.track.track.values));
+  ASSERT_TRUE(subscribed.summary.has_value());
+}
+
+struct BadListen {
+  const char* what;
+  v1::ListenSettings settings;
+  std::vector<std::string> pieces;
+  grpc::StatusCode code;
+  const char* says;
+};
+
+TEST_F(ListenTest, BadSettingsAndBadAudioAreRefusedNamingTheField) {
+  const auto pcm = [](std::uint32_t rate) {
+    v1::ListenSettings settings;
+    settings.set_encoding(v1::AUDIO_ENCODING_PCM_S16LE);
+    settings.set_sample_rate_hz(rate);
+    return settings;
+  };
+  const std::string second_of_silence(32000, '\0');
+  std::vector<BadListen> cases;
+  cases.push_back({"no rate",
+                   pcm(0),
+                   {second_of_silence},
+                   grpc::StatusCode::INVALID_ARGUMENT,
+                   "settings.sample_rate_hz: required for PCM_S16LE audio"});
+  cases.push_back({"a rate too low",
+                   pcm(4000),
+                   {second_of_silence},
+                   grpc::StatusCode::INVALID_ARGUMENT,
+                   "settings.sample_rate_hz: '4000' is out of range (8000 to 48000)"});
+  auto three = pcm(16000);
+  three.set_channels(3);
+  cases.push_back({"three channels",
+                   three,
+                   {second_of_silence},
+                   grpc::StatusCode::INVALID_ARGUMENT,
+                   "settings.channels: '3' is out of range"});
+  auto unknown = pcm(16000);
+  unknown.set_encoding(static_cast<v1::AudioEncoding>(9));
+  cases.push_back({"an unknown encoding",
+                   unknown,
+                   {second_of_silence},
+                   grpc::StatusCode::INVALID_ARGUMENT,
+                   "settings.encoding: 9 is not an encoding Listen reads"});
+  auto fast = pcm(16000);
+  fast.set_latency_ms(50);
+  cases.push_back({"a budget too short",
+                   fast,
+                   {second_of_silence},
+                   grpc::StatusCode::INVALID_ARGUMENT,
+                   "settings.latency_ms: '50' is out of range (100 to 2000"});
+  auto french = pcm(16000);
+  french.set_voice("fr");
+  cases.push_back({"another language",
+                   french,
+                   {second_of_silence},
+                   grpc::StatusCode::INVALID_ARGUMENT,
+                   "settings.voice: 'fr': Listen hears English only for now"});
+  auto ipa = pcm(16000);
+  ipa.mutable_animation()->set_phone_set("ipa");
+  cases.push_back({"a phone set",
+                   ipa,
+                   {second_of_silence},
+                   grpc::StatusCode::INVALID_ARGUMENT,
+                   "settings.animation.phone_set: 'ipa' given"});
+  auto unknown_word = pcm(16000);
+  unknown_word.set_transcript("papa zqxwv");
+  cases.push_back({"a word the dictionary lacks",
+                   unknown_word,
+                   {second_of_silence},
+                   grpc::StatusCode::INVALID_ARGUMENT,
+                   "settings.transcript: transcript word 2 'zqxwv'"});
+  v1::ListenSettings wav;
+  wav.set_encoding(v1::AUDIO_ENCODING_WAV);
+  cases.push_back({"not a WAV",
+                   wav,
+                   {"OggS and then some bytes"},
+                   grpc::StatusCode::INVALID_ARGUMENT,
+                   "audio: not a WAV file (expected a RIFF/WAVE header, found 'OggS')"});
+  cases.push_back(
+      {"no audio", pcm(16000), {}, grpc::StatusCode::INVALID_ARGUMENT, "audio: the stream ended without audio"});
+  cases.push_back({"half a sample",
+                   pcm(16000),
+                   {"abc"},
+                   grpc::StatusCode::INVALID_ARGUMENT,
+                   "audio: the stream ended inside a sample frame"});
+  for (const BadListen& bad : cases) {
+    SCOPED_TRACE(bad.what);
+    const Listened listened = listen(bad.settings, bad.pieces);
+    EXPECT_EQ(listened.status.error_code(), bad.code);
+    EXPECT_THAT(listened.status.error_message(), HasSubstr(bad.says));
+  }
+}
+
+TEST_F(ListenTest, AudioAfterTheEndAndAPieceOverTheMessageLimitAreRefused) {
+  ServerConfig config;
+  config.max_message_bytes = 64 * 1024;
+  server_->shutdown(std::chrono::milliseconds(0));
+  start(config);
+  v1::ListenSettings settings;
+  settings.set_sample_rate_hz(16000);
+  {
+    grpc::ClientContext context;
+    set_deadline(context);
+    auto stream = stub_->Listen(&context);
+    v1::ListenRequest request;
+    *request.mutable_settings() = settings;
+    ASSERT_TRUE(stream->Write(request));
+    request.mutable_end();
+    ASSERT_TRUE(stream->Write(request));
+    request.mutable_audio()->set_data(std::string(640, '\0'));
+    stream->Write(request);
+    stream->WritesDone();
+    v1::TrackMessage message;
+    while (stream->Read(&message)) {
+    }
+    const grpc::Status status = stream->Finish();
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_THAT(status.error_message(), HasSubstr("audio: 640 bytes received after `end`"));
+  }
+  const Listened big = listen(settings, {std::string(100 * 1024, '\0')});
+  EXPECT_EQ(big.status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << big.status.error_message();
+}
+
+TEST_F(ListenTest, AProducerThatVanishesMidWordEndsItsSessionForTheSubscribers) {
+  const Spoken spoken = speak(false, "Papa bought five more big maps.");
+  v1::ListenSettings settings;
+  settings.set_sample_rate_hz(16000);
+  settings.mutable_animation()->set_session("vanishing");
+  const client::AnimationClient connection(server_->address());
+  std::atomic<bool> header = false;
+  auto call = connection.start_listen(settings, [&](const v1::TrackMessage& message) {
+    if (message.has_header()) header = true;
+  });
+  for (int i = 0; i < 500 && !header; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_TRUE(header);
+  Received subscribed;
+  std::thread subscriber([&] { subscribed = subscribe_all(*stub_, "vanishing"); });
+  const auto& samples = spoken.recording.audio.samples;
+  call->send_audio(pcm_bytes(std::span(samples).first(samples.size() / 2)));  // mid-word
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  call->cancel();
+  call->wait();
+  subscriber.join();
+  EXPECT_EQ(subscribed.status.error_code(), grpc::StatusCode::ABORTED) << subscribed.status.error_message();
+  EXPECT_THAT(subscribed.status.error_message(), HasSubstr("producer disconnected"));
+}
+
+}  // namespace
+}  // namespace lipsync::server

@@ -1,0 +1,267 @@
+// Live audio in, below the server: the streaming resampler equals the whole-buffer one, the
+// stream reader equals decode_wav however the bytes are split and names what is wrong, and the
+// live recogniser, fed real TTS speech (flite, Festival) in 20 ms pieces, gives final phones that
+// tile the audio, cuts utterances at pauses and skips the silence between them, and labels the
+// synthesisers' own /p b m/ at their middles as the offline aligner does.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "../support/harvard_sentences.hpp"
+#include "boundary_errors.hpp"
+#include "lipsync/error.hpp"
+#include "lipsync/speech/audio.hpp"
+#include "lipsync/speech/live_recognizer.hpp"
+#include "tts_recordings.hpp"
+
+namespace lipsync::speech {
+namespace {
+
+std::vector<std::int16_t> noise_like_speech(std::size_t n, std::uint32_t seed) {
+  std::mt19937 random(seed);
+  std::normal_distribution<double> gauss(0, 3000);
+  std::vector<std::int16_t> samples(n);
+  double low = 0;
+  for (std::int16_t& s : samples) {
+    low = 0.9 * low + 0.1 * gauss(random);  // some low-pass, so that the resampler's band matters
+    s = static_cast<std::int16_t>(std::clamp(low * 3, -32768.0, 32767.0));
+  }
+  return samples;
+}
+
+TEST(StreamingResampler, GivesResampleOfTheWholeInputHoweverItIsCut) {
+  for (const int rate : {8000, 11025, 22050, 44100, 48000, 16000}) {
+    SCOPED_TRACE(rate);
+    PcmAudio whole;
+    whole.sample_rate_hz = rate;
+    whole.samples = noise_like_speech(static_cast<std::size_t>(rate) / 3 + 17, static_cast<std::uint32_t>(rate));
+    const PcmAudio expected = resample(whole, 16000);
+    std::mt19937 random(7);
+    std::vector<std::int16_t> streamed;
+    StreamingResampler resampler(rate, 16000);
+    for (std::size_t at = 0; at < whole.samples.size();) {
+      const std::size_t n = std::min<std::size_t>(whole.samples.size() - at, 1 + random() % 700);
+      resampler.push(std::span(whole.samples).subspan(at, n), streamed);
+      at += n;
+    }
+    resampler.finish(streamed);
+    EXPECT_EQ(streamed, expected.samples);
+  }
+}
+
+/// A WAV file's bytes, written by hand: `channels` interleaved 16-bit channels, the data size as
+/// `declared` (a streaming writer's 0xFFFFFFFF, or the real one), a LIST chunk before the data.
+std::string stereo_wav(const std::vector<std::int16_t>& left, const std::vector<std::int16_t>& right,
+                       std::uint32_t declared) {
+  std::string b;
+  const auto u32 = [&](std::uint32_t v) {
+    for (int i = 0; i < 4; ++i) b.push_back(static_cast<char>((v >> (8 * i)) & 0xFF));
+  };
+  const auto u16 = [&](std::uint16_t v) {
+    b.push_back(static_cast<char>(v & 0xFF));
+    b.push_back(static_cast<char>(v >> 8));
+  };
+  b += "RIFF";
+  u32(0xFFFFFFFF);
+  b += "WAVEfmt ";
+  u32(16);
+  u16(1);
+  u16(2);
+  u32(22050);
+  u32(22050 * 4);
+  u16(4);
+  u16(16);
+  b += "LIST";
+  u32(5);
+  b += "odd!!";
+  b.push_back('\0');  // the pad byte of an odd-sized chunk
+  b += "data";
+  u32(declared);
+  for (std::size_t i = 0; i < left.size(); ++i) {
+    u16(static_cast<std::uint16_t>(left[i]));
+    u16(static_cast<std::uint16_t>(right[i]));
+  }
+  return b;
+}
+
+TEST(AudioStreamReader, ReadsAWavSplitAnywhereAsDecodeWavReadsItWhole) {
+  const std::vector<std::int16_t> left = noise_like_speech(3001, 1), right = noise_like_speech(3001, 2);
+  for (const std::uint32_t declared : {0xFFFFFFFFU, 3001U * 4}) {
+    std::string wav = stereo_wav(left, right, declared);
+    const DecodedWav expected = decode_wav(wav, "x.wav");
+    if (declared != 0xFFFFFFFFU) wav += "JUNKtrailing chunk";  // bytes after the declared data are not samples
+    std::mt19937 random(declared);
+    AudioStreamReader reader(AudioStreamReader::Encoding::wav, 0, 0, "audio");
+    std::vector<std::int16_t> samples;
+    for (std::size_t at = 0; at < wav.size();) {
+      const std::size_t n = std::min<std::size_t>(wav.size() - at, 1 + random() % 9);
+      reader.push(std::string_view(wav).substr(at, n), samples);
+      at += n;
+    }
+    EXPECT_NO_THROW(reader.finish());
+    EXPECT_EQ(reader.sample_rate_hz(), 22050);
+    EXPECT_EQ(reader.layout().channels, 2);
+    EXPECT_EQ(samples, expected.audio.samples);
+  }
+}
+
+TEST(AudioStreamReader, RawStereoPcmIsMixedDownAcrossPiecesThatSplitASample) {
+  const std::vector<std::int16_t> left = noise_like_speech(500, 3), right = noise_like_speech(500, 4);
+  const std::string wav = stereo_wav(left, right, 2000);
+  const std::string pcm = wav.substr(wav.size() - 2000);
+  AudioStreamReader reader(AudioStreamReader::Encoding::pcm_s16le, 22050, 2, "audio");
+  std::vector<std::int16_t> samples;
+  for (std::size_t at = 0; at < pcm.size(); at += 3) reader.push(std::string_view(pcm).substr(at, 3), samples);
+  reader.finish();
+  EXPECT_EQ(samples, decode_wav(wav, "x.wav").audio.samples);
+}
+
+std::string error_of(const std::function<void()>& action) {
+  try {
+    action();
+  } catch (const InputError& error) {
+    return error.what();
+  }
+  return "no error";
+}
+
+TEST(AudioStreamReader, NamesWhatIsWrongWithTheStream) {
+  std::vector<std::int16_t> out;
+  EXPECT_EQ(error_of([&] {
+              AudioStreamReader reader(AudioStreamReader::Encoding::wav, 0, 0, "audio");
+              reader.push(std::string("OggS\0\0\0\0\0\0\0\0\0\0\0\0", 16), out);
+            }),
+            "audio: not a WAV file (expected a RIFF/WAVE header, found 'OggS')");
+  const std::string wav = stereo_wav({1, 2}, {3, 4}, 8);
+  EXPECT_EQ(error_of([&] {
+              AudioStreamReader reader(AudioStreamReader::Encoding::wav, 16000, 0, "audio");
+              reader.push(wav, out);
+            }),
+            "audio: the WAV header says 22050 Hz, but the stream's sample_rate_hz is 16000");
+  EXPECT_EQ(error_of([&] {
+              AudioStreamReader reader(AudioStreamReader::Encoding::wav, 0, 0, "audio");
+              reader.push(wav.substr(0, 30), out);
+              reader.finish();
+            }),
+            "audio: the stream ended inside the WAV header (30 bytes, no 'data' chunk)");
+  EXPECT_EQ(error_of([&] {
+              AudioStreamReader reader(AudioStreamReader::Encoding::pcm_s16le, 16000, 2, "audio");
+              reader.push("abcde", out);
+              reader.finish();
+            }),
+            "audio: the stream ended inside a sample frame (1 bytes left over; a frame is 4 bytes)");
+  std::string endless_header = wav.substr(0, 36) + "LIST";
+  endless_header += std::string("\xff\xff\x00\x00", 4) + std::string(70'000, 'x');
+  EXPECT_NE(error_of([&] {
+              AudioStreamReader reader(AudioStreamReader::Encoding::wav, 0, 0, "audio");
+              reader.push(endless_header, out);
+            }).find("longer than 65536 bytes without its 'data' chunk"),
+            std::string::npos);
+}
+
+/// Feeds `audio` to `recognizer` in 20 ms pieces; returns every final phone, in order.
+std::vector<LabeledInterval> recognise_in_pieces(const PcmAudio& audio, LiveRecognizer& recognizer) {
+  std::vector<LabeledInterval> phones;
+  const std::size_t piece = static_cast<std::size_t>(audio.sample_rate_hz) / 50;
+  for (std::size_t at = 0; at < audio.samples.size(); at += piece) {
+    recognizer.push(std::span(audio.samples).subspan(at, std::min(piece, audio.samples.size() - at)));
+    for (LabeledInterval& phone : recognizer.take_final()) phones.push_back(std::move(phone));
+    const std::vector<LabeledInterval> guess = recognizer.guess();
+    // The guess always continues the phones taken, up to what was heard.
+    if (!guess.empty()) {
+      EXPECT_EQ(guess.front().start_us, recognizer.taken_us());
+      EXPECT_EQ(guess.back().end_us, recognizer.heard_us());
+    }
+  }
+  recognizer.finish();
+  for (LabeledInterval& phone : recognizer.take_final()) phones.push_back(std::move(phone));
+  return phones;
+}
+
+void expect_tiles(const std::vector<LabeledInterval>& phones, std::int64_t end_us) {
+  ASSERT_FALSE(phones.empty());
+  EXPECT_EQ(phones.front().start_us, 0);
+  for (std::size_t i = 1; i < phones.size(); ++i) {
+    EXPECT_EQ(phones[i].start_us, phones[i - 1].end_us) << "phone " << i;
+    EXPECT_LT(phones[i].start_us, phones[i].end_us) << "phone " << i;
+    EXPECT_FALSE(phones[i].label.empty() && phones[i - 1].label.empty()) << "two silences in a row at " << i;
+  }
+  EXPECT_EQ(phones.back().end_us, end_us);
+}
+
+TEST(LiveRecognizer, FinalPhonesTileTheAudioAndShowFlitesAndFestivalsClosuresAtTheirMiddles) {
+  // Sentences 11-20 of the Harvard lists, spoken by flite and Festival and heard in 20 ms
+  // pieces with the transcript: every final phone follows the last, the whole audio is
+  // covered, and the synthesisers' own /p b m/ are labelled /p b m/ at their middles.
+  const ArticulationModel& model = ArticulationModel::builtin();
+  const PhoneSet radio = *PhoneSet::builtin("radio", model);
+  const PhoneSet arpabet = *PhoneSet::builtin("arpabet", model);
+  const auto wav = std::filesystem::temp_directory_path() / ("live_audio_test-" + std::to_string(::getpid()) + ".wav");
+  for (const bool festival : {false, true}) {
+    testing::BoundaryScore score;
+    for (std::size_t s = 10; s < 20; ++s) {
+      const char* sentence = testing::kHarvardSentences[s];
+      const auto recording =
+          festival ? testing::festival_recording(sentence, wav) : testing::flite_recording(sentence, wav);
+      ASSERT_TRUE(recording) << sentence;
+      LiveRecognitionOptions options;
+      options.transcript = sentence;
+      options.sample_rate_hz = recording->audio.sample_rate_hz;
+      LiveRecognizer recognizer(options, "live");
+      LabeledUtterance heard;
+      heard.phone_set = "arpabet";
+      heard.intervals = recognise_in_pieces(recording->audio, recognizer);
+      SCOPED_TRACE(sentence);
+      expect_tiles(heard.intervals, recording->audio.duration_us());
+      testing::score_alignment(recording->phonemes, radio, heard, arpabet, model, score);
+    }
+    // Measured: see docs/streaming.md, "Live audio".
+    EXPECT_GE(score.bilabials_closed_at_middle * 10, score.bilabials * 9) << (festival ? "festival" : "flite");
+  }
+  std::filesystem::remove(wav);
+}
+
+TEST(LiveRecognizer, CutsUtterancesAtPausesAndTakesTheSilenceBetweenThemAsOne) {
+  const auto wav =
+      std::filesystem::temp_directory_path() / ("live_audio_test-cut-" + std::to_string(::getpid()) + ".wav");
+  const auto recording = testing::flite_recording("Papa bought five more big maps.", wav);
+  std::filesystem::remove(wav);
+  ASSERT_TRUE(recording);
+  PcmAudio audio = recording->audio;
+  const std::size_t speech = audio.samples.size();
+  audio.samples.insert(audio.samples.end(), static_cast<std::size_t>(audio.sample_rate_hz) * 3, 0);
+  audio.samples.insert(audio.samples.end(), recording->audio.samples.begin(), recording->audio.samples.end());
+  LiveRecognitionOptions options;
+  options.sample_rate_hz = audio.sample_rate_hz;
+  LiveRecognizer recognizer(options, "live");
+  const std::vector<LabeledInterval> phones = recognise_in_pieces(audio, recognizer);
+  expect_tiles(phones, audio.duration_us());
+  EXPECT_EQ(recognizer.utterances(), 2U);
+  // One silence holds the three seconds between the two sentences.
+  const std::int64_t gap_middle_us = (static_cast<std::int64_t>(speech) * 1'000'000 / audio.sample_rate_hz) + 1'500'000;
+  const auto holding = std::find_if(phones.begin(), phones.end(), [&](const LabeledInterval& phone) {
+    return phone.start_us <= gap_middle_us && gap_middle_us < phone.end_us;
+  });
+  ASSERT_NE(holding, phones.end());
+  EXPECT_TRUE(holding->label.empty());
+  EXPECT_GE(holding->end_us - holding->start_us, 2'800'000);
+}
+
+TEST(LiveRecognizer, RefusesWhatItCannotHearNamingIt) {
+  LiveRecognitionOptions options;
+  options.sample_rate_hz = 4000;
+  EXPECT_EQ(error_of([&] { LiveRecognizer recognizer(options, "settings"); }),
+            "settings: sample rate 4000 Hz: live audio takes 8000 to 48000 Hz");
+  options.sample_rate_hz = 16000;
+  options.transcript = "the zqxwv parked";
+  EXPECT_EQ(error_of([&] { LiveRecognizer recognizer(options, "settings.transcript"); }),
+            "settings.transcript: transcript word 2 'zqxwv' is not in the pronouncing dictionary (write numbers and "
+            "abbreviations out as words)");
+}
+
+}  // namespace
+}  // namespace lipsync::speech
