@@ -21,7 +21,7 @@ source deploy/asan-build.sh
 
 all_targets=(fuzz_parse_json fuzz_parse_textgrid fuzz_parse_timit fuzz_parse_lab fuzz_parse_pho fuzz_parse_flite
              fuzz_detect_input_format fuzz_model_from_json fuzz_phone_set_from_json fuzz_face_rig_from_json
-             fuzz_render_request fuzz_animate_stream fuzz_decode_wav)
+             fuzz_render_request fuzz_animate_stream fuzz_decode_wav fuzz_audio_stream)
 read -r -a targets <<<"${FUZZ_TARGETS:-${all_targets[*]}}"
 
 echo "fuzz: building ${#targets[@]} target(s) in build-fuzz/"
@@ -44,6 +44,7 @@ seeds_for() {
     fuzz_face_rig_from_json) ls data/face/rig.json ;;
     fuzz_render_request) ;;  # written by make_render_request_seeds
     fuzz_decode_wav) ls tests/data/speech/*.wav ;;
+    fuzz_audio_stream) ls tests/data/speech/*.wav ;;  # the last two bytes pick WAV or PCM and the cuts
     fuzz_animate_stream) ls tests/data/closures/* tests/data/formats/* | grep -v '\.sh$' ;;  # made programs of by make_animate_stream_seeds
   esac
 }

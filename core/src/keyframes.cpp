@@ -7,7 +7,7 @@
 namespace lipsync {
 
 FrameScheduler::FrameScheduler(const ArticulationModel& model, ScheduleOptions options)
-    : model_(model), options_(options) {
+    : model_(&model), options_(options) {
   checked_fps(options_.fps, "fps");
 }
 
@@ -48,7 +48,7 @@ void FrameScheduler::add_segment(const Segment& segment, std::size_t index, std:
   if (out.size() == before && !options_.fixed_rate) {
     // A segment shorter than the sampling interval: one frame at the peak of
     // its dominance, clamped into the segment (Section 3.3, Fig. 4).
-    const PhonemeSpec& spec = model_.phoneme(segment.phoneme);
+    const PhonemeSpec& spec = model_->phoneme(segment.phoneme);
     std::int64_t peak_us = segment.start_us;
     if (segment.phoneme_class != PhonemeClass::release) {
       peak_us = (segment.start_us + segment.end_us) / 2 - std::llround(spec.keyframe_t_off_s * 1e6);

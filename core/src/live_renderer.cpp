@@ -10,7 +10,10 @@ namespace lipsync {
 LiveRenderer::LiveRenderer(std::shared_ptr<const CoarticulationTables> tables, const ArticulationModel& model,
                            const PhoneSet& phone_set, std::string source, SegmentOptions segment_options,
                            const RenderOptions& options)
-    : builder_(model, phone_set, std::move(source), segment_options), renderer_(std::move(tables), options) {
+    : builder_(model, phone_set, std::move(source), segment_options),
+      renderer_(std::move(tables), options),
+      guess_builder_(builder_),
+      guess_renderer_(renderer_) {
   released_.channel_count = model.channel_count();
   released_.fps = options.fps;
 }
@@ -26,19 +29,21 @@ void LiveRenderer::push_final(const LabeledInterval& phoneme, Track& out) {
 
 void LiveRenderer::emit_until(std::int64_t until_us, std::span<const LabeledInterval> guess, Track& out) {
   if (until_us <= emitted_until_us_) return;
-  SegmentBuilder builder = builder_;
-  StreamingRenderer renderer = renderer_;
+  // Assigned, not constructed: their vectors keep their room, so a deadline allocates nothing once
+  // the stream has warmed up (a stream of hours would otherwise fragment the heap).
+  guess_builder_ = builder_;
+  guess_renderer_ = renderer_;
   released_.clear();
   for (const LabeledInterval& phoneme : guess) {
     segments_.clear();
     try {
-      builder.push(phoneme, segments_);
+      guess_builder_.push(phoneme, segments_);
     } catch (const InputError&) {
       break;  // a guess the phone set cannot take ends the guess
     }
-    for (const Segment& segment : segments_) renderer.push(segment, released_);
+    for (const Segment& segment : segments_) guess_renderer_.push(segment, released_);
   }
-  renderer.finish(released_);
+  guess_renderer_.finish(released_);
   take_frames(released_, until_us, out);
 }
 

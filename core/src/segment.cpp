@@ -19,7 +19,7 @@ std::string seconds(std::int64_t time_us) { return format_seconds(time_us) + " s
 
 SegmentBuilder::SegmentBuilder(const ArticulationModel& model, const PhoneSet& phone_set, std::string source,
                                SegmentOptions options)
-    : model_(model), phone_set_(phone_set), source_(std::move(source)), options_(options) {
+    : model_(&model), phone_set_(&phone_set), source_(std::move(source)), options_(options) {
   checked_closure_fraction(options_.closure_fraction, "closure_fraction");
 }
 
@@ -43,13 +43,13 @@ void SegmentBuilder::push(std::string_view label, std::int64_t start_us, std::in
     fail("starts at " + seconds(start_us) + ", before the previous phoneme" + previous + " ends at " +
          seconds(end_us_) + ": phonemes must be in time order and must not overlap");
   }
-  const auto phoneme = phone_set_.lookup(label);
-  if (!phoneme) fail("unknown label in phone set '" + phone_set_.name() + "'");
+  const auto phoneme = phone_set_->lookup(label);
+  if (!phoneme) fail("unknown label in phone set '" + phone_set_->name() + "'");
 
-  const PhonemeSpec& spec = model_.phoneme(*phoneme);
+  const PhonemeSpec& spec = model_->phoneme(*phoneme);
   if (start_us > end_us_) {
-    out.push_back({model_.silence_phoneme(), PhonemeClass::silence, end_us_, start_us, 0});
-    last_phoneme_ = model_.silence_phoneme();
+    out.push_back({model_->silence_phoneme(), PhonemeClass::silence, end_us_, start_us, 0});
+    last_phoneme_ = model_->silence_phoneme();
   }
   std::int64_t phoneme_start_us = start_us;  // after its closure, if one is split off
   const std::int64_t duration_us = end_us - start_us;

@@ -54,6 +54,8 @@ const std::map<std::string, std::string> kValues = {
     {"--metrics-listen", "127.0.0.1:9464"},
     {"--transport-memory-bytes", "1048576"},
     {"--max-session-audio-bytes", "1048577"},
+    {"--max-listen-ms", "3600001"},
+    {"--listen-threads", "3"},
 };
 
 std::vector<std::string> flags_in_help() {

@@ -12,11 +12,13 @@
 #include <fstream>
 #include <iterator>
 #include <mutex>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "../speech/tts_recordings.hpp"
+#include "../support/child_process.hpp"
 #include "../support/harvard_sentences.hpp"
 #include "../support/server_harness.hpp"
 #include "lipsync/client/animation_client.hpp"
@@ -359,6 +361,81 @@ TEST_F(ListenTest, AProducerThatVanishesMidWordEndsItsSessionForTheSubscribers) 
   subscriber.join();
   EXPECT_EQ(subscribed.status.error_code(), grpc::StatusCode::ABORTED) << subscribed.status.error_message();
   EXPECT_THAT(subscribed.status.error_message(), HasSubstr("producer disconnected"));
+}
+
+/// A field of /proc/PID/status ("VmRSS") in kB; -1 if absent.
+long status_kib(pid_t pid, const std::string& field) {
+  std::istringstream status(lipsync::testing::read_text("/proc/" + std::to_string(pid) + "/status"));
+  for (std::string line; std::getline(status, line);) {
+    if (line.rfind(field + ":", 0) == 0) return std::stol(line.substr(field.size() + 1));
+  }
+  return -1;
+}
+
+TEST(ListenLongStream, AnHourOfSpeechAndSilenceKeepsTheServersMemoryFlat) {
+  // A kiosk's hour: a sentence every minute, silence between, sent as fast as lipsyncd takes it,
+  // from a lipsyncd of its own; its resident memory sampled every ten minutes of audio. Utterances
+  // end at the pauses, so the recogniser's state does not grow with the stream.
+  const Spoken spoken = speak(false, "Papa bought five more big maps.");
+  ASSERT_EQ(spoken.recording.audio.sample_rate_hz, 16000);
+  const auto dir = lipsync::testing::make_temp_dir("lipsyncd-listen-hour-");
+  lipsync::testing::ChildProcess child({LIPSYNCD_PATH, "--listen", "127.0.0.1:0", "--log-level", "warn"}, dir,
+                                       dir / "out", dir / "err");
+  const std::string address = lipsync::testing::wait_for_listening_address(dir / "out");
+  ASSERT_FALSE(address.empty());
+  auto stub = v1::LipSync::NewStub(connect(address));
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::minutes(15));
+  auto stream = stub->Listen(&context);
+  v1::ListenRequest request;
+  request.mutable_settings()->set_sample_rate_hz(16000);
+  ASSERT_TRUE(stream->Write(request));
+  // Frames are counted as they come (a reader of its own, so that the server is never held back).
+  std::atomic<std::uint64_t> frames = 0;
+  std::int64_t last_t_us = -1;
+  bool in_order = true;
+  std::thread reader([&] {
+    v1::TrackMessage message;
+    while (stream->Read(&message)) {
+      if (!message.has_frames()) continue;
+      for (const std::int64_t t : message.frames().t_us()) {
+        in_order = in_order && t > last_t_us;
+        last_t_us = t;
+      }
+      frames += static_cast<std::uint64_t>(message.frames().t_us_size());
+    }
+  });
+  const std::string speech = pcm_bytes(spoken.recording.audio.samples);
+  const std::string minute_of_silence(2 * 16000 * 60 - speech.size(), '\0');
+  std::vector<long> rss_kib;
+  constexpr std::size_t kPiece = 3200;  // 100 ms
+  for (int minute = 0; minute < 60; ++minute) {
+    for (const std::string* part : {&speech, &minute_of_silence}) {
+      for (std::size_t at = 0; at < part->size(); at += kPiece) {
+        request.mutable_audio()->set_data(part->substr(at, kPiece));
+        ASSERT_TRUE(stream->Write(request)) << "minute " << minute;
+      }
+    }
+    if (minute % 10 == 9) rss_kib.push_back(status_kib(child.pid(), "VmRSS"));
+  }
+  request.mutable_end();
+  ASSERT_TRUE(stream->Write(request));
+  stream->WritesDone();
+  reader.join();
+  const grpc::Status status = stream->Finish();
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  EXPECT_TRUE(in_order);
+  EXPECT_GE(last_t_us, 3'600'000'000 - 34'000);  // the frames reach the hour's end
+  EXPECT_GE(frames.load(), 3600U * 29U);         // about 30 a second throughout (the grid restarts at closures)
+  std::printf("[ measured ] resident memory after 10, 20, ... 60 minutes of audio (MB):");
+  for (const long kib : rss_kib) std::printf(" %ld", kib / 1024);
+  std::printf("\n");
+  // Flat: after the first ten minutes (buffers warmed up), at most 8 MB more by the end.
+  ASSERT_EQ(rss_kib.size(), 6U);
+  EXPECT_LT(rss_kib.back() - rss_kib.front(), 8 * 1024)
+      << "grew from " << rss_kib.front() << " to " << rss_kib.back() << " kB";
+  child.terminate();
+  child.wait();
 }
 
 }  // namespace

@@ -225,7 +225,7 @@ TEST(LiveRecognizer, FinalPhonesTileTheAudioAndShowFlitesAndFestivalsClosuresAtT
   std::filesystem::remove(wav);
 }
 
-TEST(LiveRecognizer, CutsUtterancesAtPausesAndTakesTheSilenceBetweenThemAsOne) {
+TEST(LiveRecognizer, CutsUtterancesAtPausesTakesTheSilenceBetweenThemAsOneAndHearsEachAsTheFirst) {
   const auto wav =
       std::filesystem::temp_directory_path() / ("live_audio_test-cut-" + std::to_string(::getpid()) + ".wav");
   const auto recording = testing::flite_recording("Papa bought five more big maps.", wav);
@@ -249,6 +249,20 @@ TEST(LiveRecognizer, CutsUtterancesAtPausesAndTakesTheSilenceBetweenThemAsOne) {
   ASSERT_NE(holding, phones.end());
   EXPECT_TRUE(holding->label.empty());
   EXPECT_GE(holding->end_us - holding->start_us, 2'800'000);
+  // The second sentence is heard as the first was: each utterance starts from the model's own
+  // state (its frames counted from its start, the cepstral means the model begins with), however
+  // much audio came before it.
+  std::vector<LabeledInterval> first(phones.begin(), holding), second(holding + 1, phones.end());
+  const std::int64_t offset_us = holding->end_us;
+  ASSERT_FALSE(first.empty());
+  while (!first.empty() && first.front().label.empty()) first.erase(first.begin());
+  while (!first.empty() && first.back().label.empty()) first.pop_back();
+  while (!second.empty() && second.back().label.empty()) second.pop_back();
+  ASSERT_EQ(first.size(), second.size());
+  for (std::size_t i = 0; i < first.size(); ++i) {
+    EXPECT_EQ(second[i].label, first[i].label) << "phone " << i;
+  }
+  EXPECT_GT(offset_us, 0);
 }
 
 TEST(LiveRecognizer, RefusesWhatItCannotHearNamingIt) {

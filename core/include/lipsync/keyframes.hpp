@@ -47,7 +47,7 @@ class FrameScheduler {
  private:
   std::int64_t grid_time(std::int64_t i) const;
 
-  const ArticulationModel& model_;
+  const ArticulationModel* model_;  // a pointer, so that a scheduler can be assigned (LiveRenderer reuses one)
   ScheduleOptions options_;
   std::int64_t anchor_us_ = 0;   // grid restart point
   std::int64_t next_index_ = 0;  // next grid index not yet emitted

@@ -20,8 +20,8 @@
 // sent faster than it is decoded, the end of the stream) the stream is the exact render.
 //
 // Cost per deadline: one copy of the streaming renderer's window (15 segments and the frames
-// waiting for their lookahead) and the evaluation of those frames, about a microsecond each.
-// Pure computation, no allocation beyond the copies' vectors.
+// waiting for their lookahead), into a copy kept for the purpose, so that its vectors keep their
+// room, and the evaluation of those frames, about a microsecond each. Pure computation.
 #pragma once
 
 #include <cstdint>
@@ -66,6 +66,9 @@ class LiveRenderer {
 
   SegmentBuilder builder_;
   StreamingRenderer renderer_;
+  // The final state copied at each deadline and fed the guess.
+  SegmentBuilder guess_builder_;
+  StreamingRenderer guess_renderer_;
   std::vector<Segment> segments_;  // scratch
   Track released_;                 // scratch: what a renderer released
   std::int64_t emitted_until_us_ = -1;

@@ -62,8 +62,9 @@ class SegmentBuilder {
   std::int64_t end_us() const { return end_us_; }
 
  private:
-  const ArticulationModel& model_;
-  const PhoneSet& phone_set_;
+  // Pointers, so that a builder can be assigned (LiveRenderer reuses one).
+  const ArticulationModel* model_;
+  const PhoneSet* phone_set_;
   std::string source_;
   SegmentOptions options_;
   std::int64_t end_us_ = 0;

@@ -2,7 +2,9 @@
 #include "lipsync/speech/live_recognizer.hpp"
 
 #include <pocketsphinx.h>
+#include <sphinxbase/cmn.h>
 #include <sphinxbase/err.h>
+#include <sphinxbase/feat.h>
 #include <sys/stat.h>
 
 #include <algorithm>
@@ -54,6 +56,18 @@ std::string beam_text(double beam) {
 struct LiveRecognizer::Decoder {
   ps_decoder_t* ps = nullptr;
   StreamingResampler resampler;
+  // The cepstral means the model starts with. PocketSphinx carries its running means from one
+  // utterance to the next, and the digital silence a synthesiser leaves at an utterance's end drags
+  // them far from speech: the next utterance then decodes to silence. Each utterance starts from
+  // these, as the first does, so that each is decoded as if it were the stream's first.
+  std::vector<mfcc_t> initial_means;
+
+  void remember_means() {
+    feat_t* feat = ps_get_feat(ps);
+    initial_means.assign(static_cast<std::size_t>(feat_cepsize(feat)), 0);
+    cmn_live_get(feat->cmn_struct, initial_means.data());
+  }
+  void restore_means() { cmn_live_set(ps_get_feat(ps)->cmn_struct, initial_means.data()); }
   // Two grammar names, used in turn: replacing the search in use would free it under the decoder.
   int grammar_turn = 0;
 
@@ -113,6 +127,7 @@ LiveRecognizer::LiveRecognizer(const LiveRecognitionOptions& options, std::strin
     }
   }
   ps_set_search(decoder_->ps, "phones");
+  decoder_->remember_means();
   frame_.reserve(kFrameSamples);
 }
 
@@ -242,6 +257,10 @@ void LiveRecognizer::open_utterance() {
   pre_roll_.clear();
   silent_samples_ = 0;
   max_word_heard_ = -1;
+  decoder_->restore_means();
+  // A stream of its own per utterance: PocketSphinx numbers an utterance's frames from the start of
+  // its stream, and the segments' frames are read as counted from the utterance's first sample.
+  ps_start_stream(ps);
   ps_start_utt(ps);
 }
 

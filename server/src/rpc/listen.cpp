@@ -24,7 +24,8 @@
 // stream that failed or was cancelled does nothing.
 //
 // The audio is kept for the session's viewers (/audio?session=NAME) under the server's audio
-// budget: a recording's before its first frame, a live stream's once it ends.
+// budget, at most kMaxKeptAudioBytes of it: a recording's before its first frame, a live stream's
+// once it ends.
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -63,6 +64,9 @@ constexpr std::uint32_t kDefaultLatencyMs = 200;
 constexpr std::int64_t kProcessingMarginUs = 50'000;
 /// Audio waiting for the lane above which the stream stops reading (about 4 s of 48 kHz stereo).
 constexpr std::size_t kReadPauseBytes = 768 * 1024;
+/// The most of a stream's audio its session keeps for /audio (about 17 minutes of 16 kHz mono):
+/// a stream of hours keeps its first minutes, not hours of samples.
+constexpr std::size_t kMaxKeptAudioBytes = 32 * 1024 * 1024;
 /// The longest transcript, bytes.
 constexpr std::size_t kMaxTranscriptBytes = 16 * 1024;
 /// The source name errors in the audio are reported under.
@@ -456,8 +460,15 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
 
   /// On the lane: keeps this piece's samples for the session's viewers while the budget allows.
   void keep_audio(int rate) {
-    if (!keeping_audio_ || !current_session()) return;
+    if (!keeping_audio_ || kept_full_ || !current_session()) return;
     const std::size_t bytes = samples_.size() * 2 + (kept_samples_.empty() ? 44 : 0);
+    if (kept_reserved_bytes_ + bytes > kMaxKeptAudioBytes) {
+      kept_full_ = true;  // the session keeps the audio so far
+      log_.line(spdlog::level::info, "audio kept in part",
+                "the session keeps the first " + std::to_string(kept_samples_.size() * 1000 / std::size_t(rate)) +
+                    " ms of the stream's audio (" + std::to_string(kMaxKeptAudioBytes) + " bytes)");
+      return;
+    }
     if (!service_.audio_budget().try_reserve(bytes)) {
       log_.line(spdlog::level::warn, "audio not kept",
                 "the session's sound would be over --max-session-audio-bytes " +
@@ -545,6 +556,7 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
   StreamEncoder encoder_;
   std::atomic<std::uint64_t> frames_sent_ = 0;
   bool keeping_audio_ = true;
+  bool kept_full_ = false;  // kMaxKeptAudioBytes reached: nothing more is kept
   std::vector<std::int16_t> kept_samples_;
   int kept_rate_hz_ = 16000;
   std::size_t kept_reserved_bytes_ = 0;
