@@ -235,6 +235,7 @@ TEST(LiveRecognizer, CutsUtterancesAtPausesTakesTheSilenceBetweenThemAsOneAndHea
   const std::size_t speech = audio.samples.size();
   audio.samples.insert(audio.samples.end(), static_cast<std::size_t>(audio.sample_rate_hz) * 3, 0);
   audio.samples.insert(audio.samples.end(), recording->audio.samples.begin(), recording->audio.samples.end());
+  audio.samples.insert(audio.samples.end(), static_cast<std::size_t>(audio.sample_rate_hz), 0);  // a pause ends it too
   LiveRecognitionOptions options;
   options.sample_rate_hz = audio.sample_rate_hz;
   LiveRecognizer recognizer(options, "live");

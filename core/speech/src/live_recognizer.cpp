@@ -32,6 +32,11 @@ constexpr double kDigitalSilenceDbfs = -120.0;
 // Audio before the first final phone still open to the closure refiner, so that a boundary just
 // behind the final ones is refined with the signal on both sides of it.
 constexpr std::int64_t kRefinerContextUs = 300'000;
+// Silence after the last voiced frame: once it lasts this long it is no stop's closure, and the
+// phones the decoder stretched over it end this long after the voice did (the grammar of a
+// transcript has no pause between words; the phone loop's silence comes late).
+constexpr std::int64_t kTrailingSilenceUs = 100'000;
+constexpr std::int64_t kVoiceDecayUs = 30'000;
 
 bool is_file(const std::string& path) {
   struct stat info {};
@@ -70,6 +75,7 @@ struct LiveRecognizer::Decoder {
   void restore_means() { cmn_live_set(ps_get_feat(ps)->cmn_struct, initial_means.data()); }
   // Two grammar names, used in turn: replacing the search in use would free it under the decoder.
   int grammar_turn = 0;
+  bool phone_loop_built = false;
 
   Decoder(int rate_hz) : resampler(rate_hz, kModelRateHz) {}
   ~Decoder() {
@@ -113,9 +119,9 @@ LiveRecognizer::LiveRecognizer(const LiveRecognitionOptions& options, std::strin
   cmd_ln_free_r(config);
   if (decoder_->ps == nullptr)
     throw InputError(source_, 0, "cannot load the PocketSphinx model from " + options_.model_dir);
-  if (ps_set_allphone_file(decoder_->ps, "phones", phone_lm.c_str()) != 0) {
-    throw InputError(source_, 0, "cannot load the phonetic language model " + phone_lm);
-  }
+  // The phone loop costs about a quarter of a second to build: with a transcript it is built only
+  // if the speech outlasts the transcript's words.
+  if (!forced) use_phone_loop();
   if (forced) {
     detail::add_word(decoder_->ps, detail::kPauseWord, "SIL");
     for (std::size_t w = 0; w < words_.size(); ++w) {
@@ -126,12 +132,22 @@ LiveRecognizer::LiveRecognizer(const LiveRecognitionOptions& options, std::strin
       }
     }
   }
-  ps_set_search(decoder_->ps, "phones");
   decoder_->remember_means();
   frame_.reserve(kFrameSamples);
 }
 
 LiveRecognizer::~LiveRecognizer() = default;
+
+void LiveRecognizer::use_phone_loop() {
+  if (!decoder_->phone_loop_built) {
+    const std::string phone_lm = options_.model_dir + "/en-us-phone.lm.bin";
+    if (ps_set_allphone_file(decoder_->ps, "phones", phone_lm.c_str()) != 0) {
+      throw InputError(source_, 0, "cannot load the phonetic language model " + phone_lm);
+    }
+    decoder_->phone_loop_built = true;
+  }
+  ps_set_search(decoder_->ps, "phones");
+}
 
 std::int64_t LiveRecognizer::sample_us(std::int64_t sample) const { return sample * 1'000'000 / kModelRateHz; }
 
@@ -220,7 +236,12 @@ void LiveRecognizer::process_frame(std::span<const std::int16_t> frame) {
 void LiveRecognizer::open_utterance() {
   ps_decoder_t* ps = decoder_->ps;
   if (!words_.empty() && next_word_ < words_.size()) {
-    // The next words, each a prefix of the rest: "[pause] [ (w1 [pause] [ (w2 [pause] [ ... ]) ]) ]".
+    // The next words, each a prefix of the rest: "[pause] [ (w1 [ (w2 [ ... [pause] ]) ]) ]". No pause
+    // between two words: the partial hypothesis is the best path ending at the newest frame that
+    // has a word exit, and a pause, which may exit at every frame, would win it over the words
+    // whenever the voice is far from the model's (espeak-ng's); a pause long enough to matter ends
+    // the utterance instead, and a shorter silence after the last voiced frame is cut off the
+    // phones below (trailing_silence_from).
     const std::size_t last = std::min(words_.size(), next_word_ + options_.transcript_window_words);
     const std::string pause = std::string(detail::kPauseWord);
     std::string tail;
@@ -235,7 +256,7 @@ void LiveRecognizer::open_utterance() {
           alternatives += " " + word;
         }
       }
-      tail = "( (" + alternatives + " ) [ " + pause + " ]" + (tail.empty() ? "" : " [ " + tail + " ]") + " )";
+      tail = "( (" + alternatives + " )" + (tail.empty() ? " [ " + pause + " ]" : " [ " + tail + " ]") + " )";
     }
     const std::string grammar =
         "#JSGF V1.0;\ngrammar transcript;\npublic <utterance> = [ " + pause + " ] [ " + tail + " ] ;\n";
@@ -248,7 +269,7 @@ void LiveRecognizer::open_utterance() {
       notes_.push_back("speech after the transcript's last word: its phones are recognised without it");
       next_word_ = words_.size() + 1;  // say it once
     }
-    ps_set_search(ps, "phones");
+    use_phone_loop();
   }
   open_ = true;
   utterance_first_sample_ = samples_seen_ - static_cast<std::int64_t>(pre_roll_.size());
@@ -313,6 +334,21 @@ void LiveRecognizer::update_phones(bool ended) {
       phones.back().end_us = heard_us_;
     } else {
       phones.push_back({"", begin, heard_us_, 0});
+    }
+  }
+
+  // A silence heard after the last voiced frame is silence, whatever the decoder stretched over it.
+  const std::int64_t silent_us = sample_us(silent_samples_);
+  if (silent_us >= kTrailingSilenceUs) {
+    const std::int64_t voice_end_us = std::max(start_us, end_us - silent_us + kVoiceDecayUs);
+    if (voice_end_us < heard_us_) {
+      while (!phones.empty() && phones.back().start_us >= voice_end_us) phones.pop_back();
+      if (!phones.empty() && phones.back().label.empty()) {
+        phones.back().end_us = heard_us_;
+      } else {
+        if (!phones.empty()) phones.back().end_us = voice_end_us;
+        phones.push_back({"", phones.empty() ? start_us : voice_end_us, heard_us_, 0});
+      }
     }
   }
 

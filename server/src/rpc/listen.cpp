@@ -59,9 +59,10 @@ namespace {
 constexpr std::uint32_t kMinLatencyMs = 100;
 constexpr std::uint32_t kMaxLatencyMs = 2000;
 constexpr std::uint32_t kDefaultLatencyMs = 200;
-/// The part of the budget kept for decoding a piece, rendering and sending its frames; the rest is
+/// The part of the budget kept for the piece itself (20 ms from a microphone), the frames the
+/// decoder holds back for its features (about 30 ms), decoding, rendering and sending; the rest is
 /// how much audio the recogniser hears after a frame's time before the frame leaves.
-constexpr std::int64_t kProcessingMarginUs = 50'000;
+constexpr std::int64_t kProcessingMarginUs = 90'000;
 /// Audio waiting for the lane above which the stream stops reading (about 4 s of 48 kHz stereo).
 constexpr std::size_t kReadPauseBytes = 768 * 1024;
 /// The most of a stream's audio its session keeps for /audio (about 17 minutes of 16 kHz mono):

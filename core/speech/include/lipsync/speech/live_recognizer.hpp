@@ -104,6 +104,7 @@ class LiveRecognizer {
  private:
   struct Decoder;
 
+  void use_phone_loop();
   void process_frame(std::span<const std::int16_t> frame);
   void open_utterance();
   void close_utterance();
