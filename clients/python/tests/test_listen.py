@@ -16,7 +16,6 @@ Run by hand (from clients/python/tests):
 """
 
 import os
-import queue
 import re
 import shutil
 import subprocess
@@ -29,16 +28,13 @@ import wave
 
 import grpc
 
-from lipsync_client import Client
+from lipsyncd_test_server import RPC_TIMEOUT_S, LipsyncdTestCase
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 EXAMPLE = os.path.join(HERE, os.pardir, "examples", "listen.py")
 TEXT = "Papa bought five more big maps."
 PIECE_MS = 20
-STARTUP_TIMEOUT_S = 30.0
-RPC_TIMEOUT_S = 30.0
 EXAMPLE_TIMEOUT_S = 60.0
-LISTENING = re.compile(r"lipsyncd listening on (\S+):(\d+)")
 
 
 def flite_wav(text, path):
@@ -53,92 +49,11 @@ def flite_wav(text, path):
         return wav.readframes(wav.getnframes()), wav.getframerate(), wav.getnchannels()
 
 
-class ListenTest(unittest.TestCase):
-    server = None
-    address = ""
-
+class ListenTest(LipsyncdTestCase):
     @classmethod
-    def setUpClass(cls):
-        path = os.environ.get("LIPSYNCD", "")
-        if not path:
-            raise AssertionError(
-                "LIPSYNCD is not set: it must name the lipsyncd binary (ctest sets it from the "
-                "CMake target lipsyncd)"
-            )
-        if not (os.path.isfile(path) and os.access(path, os.X_OK)):
-            raise AssertionError(
-                f"lipsyncd binary not found or not executable at {path!r}: build the CMake target "
-                "lipsyncd first (cmake --build <build> --target lipsyncd)"
-            )
+    def set_up_class(cls):
         with tempfile.TemporaryDirectory() as directory:
             cls.pcm, cls.rate_hz, cls.channels = flite_wav(TEXT, os.path.join(directory, "speech.wav"))
-        cls.stderr_file = tempfile.TemporaryFile(mode="w+")
-        cls.server = subprocess.Popen(
-            [path, "--listen", "127.0.0.1:0"],
-            stdin=subprocess.DEVNULL,
-            stdout=subprocess.PIPE,
-            stderr=cls.stderr_file,
-            text=True,
-        )
-        lines = queue.Queue()
-
-        def drain():  # keeps reading so that the server never blocks on a full pipe
-            for line in cls.server.stdout:
-                lines.put(line)
-            lines.put(None)
-
-        threading.Thread(target=drain, daemon=True).start()
-        deadline = time.monotonic() + STARTUP_TIMEOUT_S
-        seen = []
-        while True:
-            remaining = deadline - time.monotonic()
-            try:
-                line = lines.get(timeout=max(remaining, 0.01))
-            except queue.Empty:
-                line = ""
-            if line is None or (line == "" and remaining <= 0):
-                output = "".join(seen) + cls._server_stderr()
-                cls._stop_server()
-                raise AssertionError(
-                    f"lipsyncd ({path}) did not print 'lipsyncd listening on HOST:PORT' within "
-                    f"{STARTUP_TIMEOUT_S:g} s (exit status {cls.server.returncode}); its output:\n"
-                    f"{output}"
-                )
-            seen.append(line)
-            match = LISTENING.search(line)
-            if match:
-                cls.address = f"{match.group(1)}:{match.group(2)}"
-                break
-        cls.client = Client(cls.address, timeout=RPC_TIMEOUT_S)
-        try:
-            cls.client.wait_ready(timeout=RPC_TIMEOUT_S)
-        except grpc.FutureTimeoutError:
-            cls._stop_server()
-            raise AssertionError(f"could not connect to lipsyncd at {cls.address}") from None
-
-    @classmethod
-    def _server_stderr(cls):
-        cls.stderr_file.seek(0)
-        return cls.stderr_file.read()
-
-    @classmethod
-    def _stop_server(cls):
-        if cls.server is None or cls.server.poll() is not None:
-            return
-        cls.server.terminate()
-        try:
-            cls.server.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            cls.server.kill()
-            cls.server.wait(timeout=10)
-
-    @classmethod
-    def tearDownClass(cls):
-        if getattr(cls, "client", None) is not None:
-            cls.client.close()
-        cls._stop_server()
-        if cls.server is not None and cls.server.stdout is not None:
-            cls.server.stdout.close()
 
     def spoken_pieces(self, first_frame, waits):
         """The speech in PIECE_MS pieces, piece k leaving k x PIECE_MS after the first (a speaker's
