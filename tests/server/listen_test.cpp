@@ -12,6 +12,7 @@
 #include <fstream>
 #include <iterator>
 #include <mutex>
+#include <random>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -173,6 +174,34 @@ TEST_F(ListenTest, LiveFramesLeaveInOrderCoverTheAudioAndShowRealSpeechsClosures
   }
   std::cerr << "live, with the transcript: " << closed << " of " << bilabials << " bilabials shown closed\n";
   EXPECT_GE(closed * 10, bilabials * 9) << closed << " of " << bilabials;
+}
+
+TEST_F(ListenTest, SteadyNoiseAndMinutesOfSilenceGiveAMouthAtRest) {
+  // A kiosk between visitors: half a minute of a room's white noise at -30 dBFS (a fan), then a
+  // minute of digital silence (a TTS between sentences). Neither is speech: the mouth rests (Oculus
+  // sil) at every frame but for the first two seconds, while the voice detector learns the noise as
+  // its floor (1.5 s) and the utterance it opened ends at a pause (350 ms).
+  speech::PcmAudio audio;
+  audio.sample_rate_hz = 16000;
+  std::mt19937 random(5);
+  std::uniform_int_distribution<int> noise(-1800, 1800);  // RMS about -30 dBFS
+  for (int i = 0; i < 16000 * 30; ++i) audio.samples.push_back(static_cast<std::int16_t>(noise(random)));
+  audio.samples.insert(audio.samples.end(), 16000 * 60, 0);
+  v1::ListenSettings settings;
+  settings.mutable_animation()->mutable_outputs()->mutable_visemes()->set_enabled(true);
+  const Listened listened = listen_live(audio, settings);
+  ASSERT_TRUE(listened.status.ok()) << listened.status.error_message();
+  const auto& t_us = listened.track.track.t_us;
+  ASSERT_FALSE(t_us.empty());
+  EXPECT_GE(t_us.back(), audio.duration_us() - 34'000);
+  int not_at_rest = 0;
+  for (const std::int64_t t : t_us) {
+    if (t < 2'000'000) continue;
+    const std::string shown = viseme_at(listened.track, t);
+    if (shown != "sil" && not_at_rest < 5) std::cerr << "  " << shown << " at " << t << " us\n";
+    not_at_rest += shown == "sil" ? 0 : 1;
+  }
+  EXPECT_EQ(not_at_rest, 0) << "of " << t_us.size() << " frames";
 }
 
 TEST_F(ListenTest, ASubscriberOfTheSessionGetsTheSameFrames) {

@@ -23,11 +23,12 @@ namespace {
 constexpr int kModelRateHz = 16000;
 constexpr std::int64_t kFrameSamples = kModelRateHz * detail::kFrameUs / 1'000'000;  // 160
 // Voice activity (see the header): a frame is voiced this far over the noise floor and above the
-// absolute level; the floor follows a quieter frame at once and a louder one by this much per frame
-// (2 dB a second), so a speaker's own level never becomes the floor within an utterance.
+// absolute level. The floor is the quietest frame of the last kFloorWindowFrames (1.5 s): speech
+// always dips within that (closures, gaps between words), so the floor under speech is the room's,
+// while a steady noise becomes the floor itself within 1.5 s of its start.
 constexpr double kVoiceOverFloorDb = 15.0;
 constexpr double kQuietestVoiceDbfs = -55.0;
-constexpr double kFloorRiseDbPerFrame = 0.02;
+constexpr std::size_t kFloorWindowFrames = 150;
 constexpr double kDigitalSilenceDbfs = -120.0;
 // Audio before the first final phone still open to the closure refiner, so that a boundary just
 // behind the final ones is refined with the signal on both sides of it.
@@ -193,13 +194,16 @@ void LiveRecognizer::finish() {
 
 void LiveRecognizer::process_frame(std::span<const std::int16_t> frame) {
   const double level = level_dbfs(frame);
-  if (!noise_floor_known_ || level < noise_floor_db_) {
-    noise_floor_db_ = level;
-    noise_floor_known_ = true;
-  } else {
-    noise_floor_db_ = std::min(level, noise_floor_db_ + kFloorRiseDbPerFrame);
+  // The floor: the minimum of the window's levels, kept as a deque of (frame, level) whose levels
+  // rise from front to back (each level is dropped once a later one is as quiet).
+  while (!floor_window_.empty() && floor_window_.back().second >= level) floor_window_.pop_back();
+  floor_window_.emplace_back(frames_classified_, level);
+  if (floor_window_.front().first + static_cast<std::int64_t>(kFloorWindowFrames) <= frames_classified_) {
+    floor_window_.pop_front();
   }
-  const bool voiced = level > kQuietestVoiceDbfs && level > noise_floor_db_ + kVoiceOverFloorDb;
+  ++frames_classified_;
+  const double noise_floor_db = floor_window_.front().second;
+  const bool voiced = level > kQuietestVoiceDbfs && level > noise_floor_db + kVoiceOverFloorDb;
   const auto frame_size = static_cast<std::int64_t>(frame.size());
   if (!open_ && voiced) open_utterance();
   if (!open_) {

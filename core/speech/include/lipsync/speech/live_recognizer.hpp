@@ -15,11 +15,11 @@
 // of the signal as the offline path moves them (closure_refiner.hpp), over the audio heard so far.
 //
 // Utterances are cut at pauses, so that the decoder's state does not grow with the stream: a
-// 10 ms frame is voiced when its level is 15 dB over the noise floor (tracked as the quietest
-// recent level) and above -55 dBFS; an utterance opens at the first voiced frame, with
-// `pre_roll_us` of the audio before it, and ends after `end_pause_us` without a voiced frame, or
-// at `max_utterance_us`. Audio outside utterances is never decoded (silence costs almost
-// nothing) and becomes final silence at once.
+// 10 ms frame is voiced when its level is 15 dB over the noise floor (the quietest frame of the
+// last 1.5 s, so that a steady noise is the floor within 1.5 s of its start) and above -55 dBFS; an utterance opens at
+// the first voiced frame, with `pre_roll_us` of the audio before it, and ends after `end_pause_us` without a voiced
+// frame, or at `max_utterance_us`. Audio outside utterances is never decoded (silence costs almost nothing) and becomes
+// final silence at once.
 //
 // With a transcript the utterance is force-aligned to it as it is heard: a JSGF grammar of the
 // next `transcript_window_words` words, each a prefix of the rest (an utterance may stop after
@@ -32,6 +32,7 @@
 #pragma once
 
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <optional>
 #include <span>
@@ -117,12 +118,12 @@ class LiveRecognizer {
   std::vector<std::string> words_;  // the transcript's, empty without one
   std::size_t next_word_ = 0;       // the first word the next utterance may hold
 
-  std::vector<std::int16_t> resampled_;  // scratch: this push's audio at 16 kHz
-  std::vector<std::int16_t> frame_;      // the 10 ms frame being filled
-  std::vector<std::int16_t> pre_roll_;   // the last pre_roll_us of audio outside utterances
-  std::int64_t samples_seen_ = 0;        // 16 kHz samples classified so far
-  double noise_floor_db_ = 0;
-  bool noise_floor_known_ = false;
+  std::vector<std::int16_t> resampled_;                       // scratch: this push's audio at 16 kHz
+  std::vector<std::int16_t> frame_;                           // the 10 ms frame being filled
+  std::vector<std::int16_t> pre_roll_;                        // the last pre_roll_us of audio outside utterances
+  std::int64_t samples_seen_ = 0;                             // 16 kHz samples classified so far
+  std::deque<std::pair<std::int64_t, double>> floor_window_;  // (frame, level dBFS): the floor's candidates
+  std::int64_t frames_classified_ = 0;
 
   bool open_ = false;
   std::int64_t utterance_first_sample_ = 0;    // where the open utterance's audio starts
