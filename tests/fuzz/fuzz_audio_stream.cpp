@@ -3,7 +3,8 @@
 // WAV file (the input's last two bytes choose which, and the cuts), then the streaming resampler
 // over what it read.
 // Contract: push and finish return or throw InputError; where the whole bytes also decode with
-// decode_wav and the stream ends cleanly, the samples are decode_wav's; the streaming resampler's
+// decode_wav to samples and the stream ends cleanly, the samples are decode_wav's (a declared data
+// size of 0 is read to the end by the stream, as nothing by decode_wav); the streaming resampler's
 // samples are resample()'s of the whole.
 #include <algorithm>
 #include <cstddef>
@@ -36,8 +37,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   if (wav) {
     try {
+      // A data size of 0 is a streaming writer's "unknown" to the stream (read to its end) and an
+      // empty file to decode_wav: they agree wherever decode_wav reads samples.
       const speech::DecodedWav whole = speech::decode_wav(content, "audio");
-      fuzz::check(whole.audio.samples == samples, "the stream reads the samples decode_wav reads");
+      if (!whole.audio.samples.empty()) {
+        fuzz::check(whole.audio.samples == samples, "the stream reads the samples decode_wav reads");
+      }
     } catch (const InputError&) {
     }
   }

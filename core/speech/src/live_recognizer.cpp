@@ -245,7 +245,7 @@ void LiveRecognizer::open_utterance() {
     // has a word exit, and a pause, which may exit at every frame, would win it over the words
     // whenever the voice is far from the model's (espeak-ng's); a pause long enough to matter ends
     // the utterance instead, and a shorter silence after the last voiced frame is cut off the
-    // phones below (trailing_silence_from).
+    // phones (update_phones).
     const std::size_t last = std::min(words_.size(), next_word_ + options_.transcript_window_words);
     const std::string pause = std::string(detail::kPauseWord);
     std::string tail;
