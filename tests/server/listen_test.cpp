@@ -392,6 +392,48 @@ TEST_F(ListenTest, AProducerThatVanishesMidWordEndsItsSessionForTheSubscribers) 
   EXPECT_THAT(subscribed.status.error_message(), HasSubstr("producer disconnected"));
 }
 
+TEST(ListenCli, LipsyncListenWritesWhatLipsyncRenderWritesForARecordingAndReadsAMicrophoneFromStandardInput) {
+  // As a user runs them: lipsyncd on a port of its own; `lipsync listen X.wav --recording` writes
+  // the same file, byte for byte, as `lipsync render X.wav`; raw PCM on standard input (what
+  // `arecord -f S16_LE -r 16000 -c 1` gives) comes back as a track, with the latency it saw printed.
+  const auto dir = lipsync::testing::make_temp_dir("lipsync-listen-cli-");
+  const std::string text = "Papa bought five more big maps.";
+  const Spoken spoken = speak(false, text);
+  lipsync::testing::write_text(dir / "papa.wav", spoken.wav);
+  lipsync::testing::write_text(dir / "papa.raw", pcm_bytes(spoken.recording.audio.samples));
+  lipsync::testing::ChildProcess server({LIPSYNCD_PATH, "--listen", "127.0.0.1:0", "--log-level", "warn"}, dir,
+                                        dir / "server.out", dir / "server.err");
+  const std::string address = lipsync::testing::wait_for_listening_address(dir / "server.out");
+  ASSERT_FALSE(address.empty());
+
+  const auto rendered = lipsync::testing::run_program(
+      {LIPSYNC_CLI_BINARY, "render", "papa.wav", "--text", text, "-o", "rendered.json"}, dir, dir);
+  ASSERT_EQ(rendered.status, 0) << rendered.err;
+  const auto listened = lipsync::testing::run_program({LIPSYNC_CLI_BINARY, "listen", "papa.wav", "--recording",
+                                                       "--text", text, "--server", address, "-o", "listened.json"},
+                                                      dir, dir);
+  ASSERT_EQ(listened.status, 0) << listened.err;
+  EXPECT_EQ(lipsync::testing::read_text(dir / "listened.json"), lipsync::testing::read_text(dir / "rendered.json"));
+
+  const auto microphone =
+      lipsync::testing::run_program({LIPSYNC_CLI_BINARY, "listen", "-", "--rate", "16000", "--text", text, "--server",
+                                     address, "--format", "csv", "-o", "live.csv"},
+                                    dir, dir, {.stdin_file = dir / "papa.raw"});
+  ASSERT_EQ(microphone.status, 0) << microphone.err;
+  EXPECT_THAT(microphone.err, HasSubstr("lipsync: listen: latency from the end of the piece holding a frame's time"));
+  const std::string csv = lipsync::testing::read_text(dir / "live.csv");
+  EXPECT_GT(std::count(csv.begin(), csv.end(), '\n'), 55);  // about 2 s at 30 frames a second
+
+  const auto bad =
+      lipsync::testing::run_program({LIPSYNC_CLI_BINARY, "listen", "-", "--rate", "4000", "--server", address}, dir,
+                                    dir, {.stdin_file = dir / "papa.raw"});
+  EXPECT_EQ(bad.status, 2);
+  EXPECT_THAT(bad.err, HasSubstr("--rate"));
+  server.terminate();
+  server.wait();
+  std::filesystem::remove_all(dir);
+}
+
 /// A field of /proc/PID/status ("VmRSS") in kB; -1 if absent.
 long status_kib(pid_t pid, const std::string& field) {
   std::istringstream status(lipsync::testing::read_text("/proc/" + std::to_string(pid) + "/status"));
