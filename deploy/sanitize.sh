@@ -25,7 +25,7 @@ shift
 # what TSan is for. Every one links the server; each more costs its own compile only (those
 # that start lipsyncd as a child build its TSan binary through their dependency on it).
 tsan_tests=(server_test server_limits_test face_workers_test outbox_test server_shutdown_test tenants_test
-            session_routing_test)
+            session_routing_test listen_test)
 
 # run_tests DIR TEST...: ctest over the tests of those executables (with none named, all tests but
 # the soak, whose RSS judge ASan's quarantine and shadow memory defeat, and those labelled no_asan,
