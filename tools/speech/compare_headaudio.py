@@ -93,30 +93,8 @@ def run(command, **kwargs):
 
 # ---- Sources: a WAV and its reference phones [(label, start_s, end_s)] -------------------------
 
-def festival(text, wav):
-    out = run(["festival", "-b", "(voice_kal_diphone)", f'(set! u (SynthText "{text}"))',
-               f'(utt.save.wave u "{wav}")', '(utt.save.segs u "-")'])
-    phones, start, past_header = [], 0.0, False
-    for line in out.splitlines():
-        if line.strip() == "#":
-            past_header = True
-            continue
-        fields = line.split()
-        if past_header and len(fields) == 3:
-            end = float(fields[0])
-            phones.append((fields[2], start, end))
-            start = end
-    return phones
-
-
-def flite(text, wav):
-    out = run(["flite", "-voice", "slt", "-psdur", "-t", text, "-o", wav])
-    phones, start = [], 0.0
-    for pair in out.split():
-        name, end = pair.rsplit(":", 1)
-        phones.append((name, start, float(end)))
-        start = float(end)
-    return phones
+# Festival's and flite's speech with their own phone timings: compare_rhubarb.py's, the same truth.
+from compare_rhubarb import festival, flite  # noqa: E402  (beside this script)
 
 
 class EspeakEvent(ctypes.Structure):
