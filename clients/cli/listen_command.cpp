@@ -11,6 +11,11 @@
 // the server aligns it as `lipsync render X.wav` does and the track equals that command's, frame
 // for frame.
 //
+// --word-times reads a TTS's word marks (Amazon Polly speech marks, an ElevenLabs alignment, Azure
+// word boundaries: lipsync/word_marks.hpp): the stream starts with an empty transcript and each
+// word goes as a ListenWords message kWordLeadUs before the audio reaches its start, as a TTS
+// hands out its marks with (or before) the audio; with --recording the words are the transcript.
+//
 // With --pace realtime (or standard input) the latency a user sees is measured here: for each
 // frame, from the moment the piece of audio that holds its time was sent to the moment the frame
 // arrived; its median, 95th percentile and maximum go to standard error when the stream ends.
@@ -33,6 +38,7 @@
 #include "lipsync/speech/audio.hpp"
 #include "lipsync/viseme_writer.hpp"
 #include "lipsync/visemes.hpp"
+#include "lipsync/word_marks.hpp"
 #include "network.hpp"
 #include "pipeline.hpp"
 #include "received_track_writer.hpp"
@@ -51,6 +57,10 @@ constexpr IntSetting kPieceSetting = {5, 1000, 20};
 constexpr IntSetting kSampleRateSetting = {8000, 48000, 16000};
 /// A --recording WAV goes in pieces of this size: within lipsyncd's default message limit (4 MiB).
 constexpr std::size_t kRecordingPieceBytes = 1024 * 1024;
+/// --word-times: a word goes this long before the audio reaches its start.
+constexpr std::int64_t kWordLeadUs = 1'000'000;
+/// --word-times: the most bytes of words one ListenWords message holds (the server's limit).
+constexpr std::size_t kWordsMessageBytes = 16 * 1024;
 
 constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     kTrackOutputOption,
@@ -67,6 +77,10 @@ constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     {"channels", 0, "N", "channels of raw audio on standard input, 1 or 2 (mixed down by the server)", "1"},
     kTextOption,
     kTextFileOption,
+    {"word-times", 0, "FILE",
+     "the words with the times a TTS gave them (Amazon Polly speech marks, an ElevenLabs alignment, Azure word "
+     "boundaries), sent as the audio goes",
+     "none"},
     {"voice", 0, "NAME", "language of the speech: English only for now (\"en\", \"en-us\", ...)", "English"},
     {"latency-ms", 0, "MS",
      kRangedHelp<"how far a frame may trail the audio it shows (the server's latency budget)", kLatencySetting>
@@ -178,6 +192,16 @@ int run_listen(std::span<const std::string_view> args) {
   animation.set_fps(static_cast<std::uint32_t>(parse_render_plan(arguments).render.fps));
   set_track_request_options(arguments, format, animation);
   if (const auto transcript = transcript_option(arguments)) settings.set_transcript(*transcript);
+  std::vector<TimedWord> marks;
+  if (const auto marks_file = arguments.value("word-times")) {
+    if (settings.has_transcript()) throw UsageError("--word-times: the words are the transcript; leave out --text");
+    marks = read_word_marks(read_file(*marks_file), *marks_file);
+    settings.set_transcript("");
+    if (recording) {
+      for (const TimedWord& mark : marks) settings.mutable_transcript()->append(mark.text + " ");
+      marks.clear();
+    }
+  }
   if (const auto voice = arguments.value("voice")) settings.set_voice(*voice);
   if (arguments.value("latency-ms")) {
     settings.set_latency_ms(static_cast<std::uint32_t>(parse_setting_option(arguments, "latency-ms", kLatencySetting)));
@@ -230,8 +254,27 @@ int run_listen(std::span<const std::string_view> args) {
     received.add(message);
   });
 
+  // The words starting before `audio_end_us` plus the lead, not sent yet, in messages within the limit.
+  std::size_t next_mark = 0;
+  const auto send_words_before = [&](std::int64_t audio_end_us) {
+    while (next_mark < marks.size() && marks[next_mark].start_us < audio_end_us + kWordLeadUs) {
+      client::v1::ListenWords words;
+      std::size_t bytes = 0;
+      for (; next_mark < marks.size() && marks[next_mark].start_us < audio_end_us + kWordLeadUs; ++next_mark) {
+        if (words.timed_size() > 0 && bytes + marks[next_mark].text.size() > kWordsMessageBytes) break;
+        bytes += marks[next_mark].text.size();
+        client::v1::TimedWord& word = *words.add_timed();
+        word.set_text(marks[next_mark].text);
+        word.set_start_us(marks[next_mark].start_us);
+      }
+      if (!call->send_words(std::move(words))) return false;
+    }
+    return true;
+  };
+
   const auto piece_samples = static_cast<std::size_t>(std::max(1, audio.sample_rate_hz * piece_ms / 1000));
   const auto start = std::chrono::steady_clock::now();
+  send_words_before(0);  // a stream that has ended already fails its first audio below
   if (recording && !from_stdin) {
     for (std::size_t offset = 0; offset < wav_bytes.size(); offset += kRecordingPieceBytes) {
       if (!call->send_audio(wav_bytes.substr(offset, kRecordingPieceBytes))) break;
@@ -253,7 +296,7 @@ int run_listen(std::span<const std::string_view> args) {
       const auto end_us =
           static_cast<std::int64_t>(frames_sent * 1'000'000 / static_cast<std::uint64_t>(audio.sample_rate_hz));
       meter.sent(end_us);
-      if (!call->send_audio(piece.substr(0, filled))) break;
+      if (!send_words_before(end_us) || !call->send_audio(piece.substr(0, filled))) break;
       if (filled < piece_bytes) break;
     }
   } else {
@@ -263,7 +306,9 @@ int run_listen(std::span<const std::string_view> args) {
           static_cast<std::int64_t>((first + count) * 1'000'000 / static_cast<std::size_t>(audio.sample_rate_hz));
       if (pace == "realtime") std::this_thread::sleep_until(start + std::chrono::microseconds(end_us));
       meter.sent(end_us);
-      if (!call->send_audio(pcm_bytes(std::span(audio.samples).subspan(first, count)))) break;
+      if (!send_words_before(end_us) || !call->send_audio(pcm_bytes(std::span(audio.samples).subspan(first, count)))) {
+        break;
+      }
     }
   }
   call->end();
@@ -276,6 +321,9 @@ int run_listen(std::span<const std::string_view> args) {
     }
   }
   std::lock_guard lock(received_mutex);
+  if (received.summary) {
+    for (const std::string& note : received.summary->notes()) std::cerr << "lipsync: listen: note: " << note << '\n';
+  }
   if (output_format.visemes) {
     // The visemes of the frames received, classified as `lipsync render` classifies its own.
     const ArticulationModel& model = ArticulationModel::builtin();

@@ -12,6 +12,7 @@
 #include <fstream>
 #include <iterator>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <sstream>
 #include <string>
@@ -35,6 +36,7 @@ namespace lipsync::server {
 namespace {
 
 using namespace harness;
+using ::testing::ElementsAre;
 using ::testing::ElementsAreArray;
 using ::testing::HasSubstr;
 
@@ -85,6 +87,44 @@ class ListenTest : public LiveServerTest {
   }
 
   Listened listen(const v1::ListenSettings& settings, const std::vector<std::string>& pieces, bool end = true) {
+    return run_listen(settings, end, [&](client::ListenCall& call) {
+      for (const std::string& bytes : pieces) {
+        if (!call.send_audio(bytes)) break;
+      }
+    });
+  }
+
+  /// Sends `audio` live as 20 ms PCM pieces, and before each piece the words whose time (plus
+  /// `lead_us`) it reaches: as timed words, or their text alone.
+  Listened listen_with_words(const speech::PcmAudio& audio, v1::ListenSettings settings,
+                             const std::vector<TimedWord>& words, std::int64_t lead_us, bool timed) {
+    settings.set_encoding(v1::AUDIO_ENCODING_PCM_S16LE);
+    settings.set_sample_rate_hz(static_cast<std::uint32_t>(audio.sample_rate_hz));
+    return run_listen(settings, true, [&](client::ListenCall& call) {
+      const std::size_t piece = static_cast<std::size_t>(audio.sample_rate_hz) / 50;
+      std::size_t next = 0;
+      for (std::size_t at = 0; at < audio.samples.size(); at += piece) {
+        const std::size_t count = std::min(piece, audio.samples.size() - at);
+        const std::int64_t end_us = static_cast<std::int64_t>(at + count) * 1'000'000 / audio.sample_rate_hz;
+        v1::ListenWords message;
+        for (; next < words.size() && words[next].start_us < end_us + lead_us; ++next) {
+          if (timed) {
+            v1::TimedWord& word = *message.add_timed();
+            word.set_text(words[next].text);
+            word.set_start_us(words[next].start_us);
+          } else {
+            message.set_text(message.text() + " " + words[next].text);
+          }
+        }
+        if ((message.timed_size() > 0 || !message.text().empty()) && !call.send_words(message)) break;
+        if (!call.send_audio(pcm_bytes(std::span(audio.samples).subspan(at, count)))) break;
+      }
+    });
+  }
+
+  /// A Listen call whose requests `send` makes (after the settings), then `end` if asked.
+  template <class Send>
+  Listened run_listen(const v1::ListenSettings& settings, bool end, Send send) {
     Listened result;
     std::mutex mutex;
     const client::AnimationClient connection(server_->address());
@@ -92,9 +132,7 @@ class ListenTest : public LiveServerTest {
       std::lock_guard lock(mutex);
       result.track.add(message);
     });
-    for (const std::string& bytes : pieces) {
-      if (!call->send_audio(bytes)) break;
-    }
+    send(*call);
     if (end) call->end();
     result.status = call->wait();
     return result;
@@ -338,6 +376,139 @@ TEST_F(ListenTest, BadSettingsAndBadAudioAreRefusedNamingTheField) {
   }
 }
 
+TEST_F(ListenTest, WordsSentAsATtsGivesThemShowRealSpeechsClosures) {
+  // Harvard sentences 21-25 spoken by Festival, each a stream: with the whole transcript in the
+  // settings, and with an empty one whose words come in ListenWords as a TTS hands them out: with
+  // their times a second ahead of their audio (as `lipsync listen --word-times` sends them), or
+  // as bare text only as their audio starts (the latest they can come: the recogniser decodes
+  // again as they arrive). Every way, the face shows Festival's own /p b m/ closed (Oculus PP) at
+  // their middles.
+  enum class Words { whole, timed_ahead, as_spoken };
+  for (const Words way : {Words::whole, Words::timed_ahead, Words::as_spoken}) {
+    const char* name = way == Words::whole         ? "the whole transcript first"
+                       : way == Words::timed_ahead ? "timed words a second ahead"
+                                                   : "words as they are spoken";
+    SCOPED_TRACE(name);
+    int bilabials = 0, closed = 0;
+    for (std::size_t s = 20; s < 25; ++s) {
+      const std::string text = testing::kHarvardSentences[s];
+      SCOPED_TRACE(text);
+      const Spoken spoken = speak(true, text);
+      const std::vector<TimedWord> words = testing::festival_word_starts(text);
+      ASSERT_FALSE(words.empty());
+      v1::ListenSettings settings;
+      settings.set_transcript(way == Words::whole ? text : "");
+      settings.mutable_animation()->mutable_outputs()->mutable_visemes()->set_enabled(true);
+      const Listened listened =
+          way == Words::whole ? listen_live(spoken.recording.audio, settings)
+                              : listen_with_words(spoken.recording.audio, settings, words,
+                                                  way == Words::timed_ahead ? 1'000'000 : 0, way == Words::timed_ahead);
+      ASSERT_TRUE(listened.status.ok()) << listened.status.error_message();
+      for (const LabeledInterval& phoneme : spoken.recording.phonemes.intervals) {
+        if (phoneme.label != "p" && phoneme.label != "b" && phoneme.label != "m") continue;
+        ++bilabials;
+        closed += viseme_at(listened.track, (phoneme.start_us + phoneme.end_us) / 2) == "PP" ? 1 : 0;
+      }
+    }
+    std::cerr << name << ": " << closed << " of " << bilabials << " bilabials shown closed\n";
+    EXPECT_GE(closed * 10, bilabials * 9) << closed << " of " << bilabials;
+  }
+}
+
+TEST_F(ListenTest, SpeechAfterTheTranscriptsLastWordIsNotedInTheSummary) {
+  // Two sentences a second apart and a transcript of the first: the second is recognised from
+  // the audio alone, and the summary says so, naming where.
+  const Spoken first = speak(false, "Papa bought five more big maps.");
+  speech::PcmAudio audio = first.recording.audio;
+  audio.samples.insert(audio.samples.end(), static_cast<std::size_t>(audio.sample_rate_hz), 0);
+  audio.samples.insert(audio.samples.end(), first.recording.audio.samples.begin(), first.recording.audio.samples.end());
+  v1::ListenSettings settings;
+  settings.set_transcript("Papa bought five more big maps.");
+  const Listened listened = listen_live(audio, settings);
+  ASSERT_TRUE(listened.status.ok()) << listened.status.error_message();
+  ASSERT_TRUE(listened.track.summary.has_value());
+  EXPECT_THAT(listened.track.summary->notes(),
+              ElementsAre(::testing::MatchesRegex(
+                  "the speech at [0-9]+\\.[0-9]{3} s comes after the transcript's last word: its phones are "
+                  "recognised without it")));
+}
+
+TEST_F(ListenTest, WordsThatCannotBePlacedAreRefusedNamingThem) {
+  struct BadWords {
+    const char* what;
+    bool transcript;  // settings.transcript set ("")
+    bool recording;
+    v1::ListenWords words;
+    grpc::StatusCode code;
+    const char* says;
+  };
+  const auto text = [](const std::string& words) {
+    v1::ListenWords message;
+    message.set_text(words);
+    return message;
+  };
+  const auto timed = [](const std::vector<TimedWord>& words) {
+    v1::ListenWords message;
+    for (const TimedWord& word : words) {
+      v1::TimedWord& added = *message.add_timed();
+      added.set_text(word.text);
+      added.set_start_us(word.start_us);
+    }
+    return message;
+  };
+  v1::ListenWords both = text("papa");
+  *both.add_timed() = timed({{"maps", 0}}).timed(0);
+  std::vector<BadWords> cases = {
+      {"words without a transcript", false, false, text("papa"), grpc::StatusCode::INVALID_ARGUMENT,
+       "words: the settings have no transcript, so the stream is recognised from the audio alone"},
+      {"words for a recording", true, true, text("papa"), grpc::StatusCode::INVALID_ARGUMENT,
+       "words: a recording is aligned whole with settings.transcript"},
+      {"text and timed words at once", true, false, both, grpc::StatusCode::INVALID_ARGUMENT,
+       "words: both text and timed words in one message"},
+      {"a word the dictionary lacks", true, false, text("papa bought zqxwv"), grpc::StatusCode::INVALID_ARGUMENT,
+       "words: transcript word 3 'zqxwv' is not in the pronouncing dictionary"},
+      {"times that go back", true, false, timed({{"papa", 500'000}, {"bought", 400'000}}),
+       grpc::StatusCode::INVALID_ARGUMENT,
+       "words: timed word 2 'bought' starts at 400000 us, before the word before it"},
+      {"more than a message may hold", true, false, text(std::string(20'000, 'a')), grpc::StatusCode::INVALID_ARGUMENT,
+       "words: 20000 bytes of words in one message, more than the limit of 16384"},
+  };
+  std::string many;
+  for (int i = 0; i < 1200; ++i) many += "papa ";
+  v1::ListenWords ahead = text(many);
+  for (const BadWords& bad : cases) {
+    SCOPED_TRACE(bad.what);
+    v1::ListenSettings settings;
+    settings.set_encoding(v1::AUDIO_ENCODING_PCM_S16LE);
+    settings.set_sample_rate_hz(16000);
+    if (bad.transcript) settings.set_transcript("");
+    settings.set_recording(bad.recording);
+    if (bad.recording) settings.clear_sample_rate_hz();
+    if (bad.recording) settings.set_encoding(v1::AUDIO_ENCODING_WAV);
+    const client::AnimationClient connection(server_->address());
+    auto call = connection.start_listen(settings, [](const v1::TrackMessage&) {});
+    call->send_audio(std::string(3200, '\0'));
+    call->send_words(bad.words);
+    call->send_audio(std::string(3200, '\0'));
+    call->end();
+    const grpc::Status status = call->wait();
+    EXPECT_EQ(status.error_code(), bad.code);
+    EXPECT_THAT(status.error_message(), HasSubstr(bad.says));
+  }
+  // A transcript may run ahead of the speech by 8192 words, no more.
+  v1::ListenSettings settings;
+  settings.set_sample_rate_hz(16000);
+  settings.set_transcript("");
+  const client::AnimationClient connection(server_->address());
+  auto call = connection.start_listen(settings, [](const v1::TrackMessage&) {});
+  for (int i = 0; i < 7 && call->send_words(ahead); ++i) {
+  }
+  call->end();
+  const grpc::Status status = call->wait();
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_THAT(status.error_message(), HasSubstr("words: 8400 words ahead of the speech, more than 8192"));
+}
+
 TEST_F(ListenTest, AudioAfterTheEndAndAPieceOverTheMessageLimitAreRefused) {
   ServerConfig config;
   config.max_message_bytes = 64 * 1024;
@@ -441,6 +612,71 @@ long status_kib(pid_t pid, const std::string& field) {
     if (line.rfind(field + ":", 0) == 0) return std::stol(line.substr(field.size() + 1));
   }
   return -1;
+}
+
+TEST(ListenCli, LipsyncListenSendsATtsWordMarksAsItsTranscript) {
+  // Festival speaks a sentence and says when each word starts; written as Amazon Polly's speech
+  // marks, `lipsync listen --word-times` sends them as the audio goes and the face shows Festival's
+  // own /p b m/ closed (Oculus PP) at their middles; with --recording the marks' words are the
+  // transcript, and the file equals `lipsync render X.wav --text WORDS`; a broken marks file is
+  // refused naming its line and field.
+  const auto dir = lipsync::testing::make_temp_dir("lipsync-listen-marks-");
+  const std::string text = "Papa bought five more big maps.";
+  const Spoken spoken = speak(true, text);
+  const std::vector<TimedWord> words = testing::festival_word_starts(text);
+  ASSERT_FALSE(words.empty());
+  std::string marks, joined;
+  for (const TimedWord& word : words) {
+    marks += "{\"time\":" + std::to_string(word.start_us / 1000) +
+             ",\"type\":\"word\",\"start\":0,\"end\":0,\"value\":\"" + word.text + "\"}\n";
+    joined += (joined.empty() ? "" : " ") + word.text;
+  }
+  lipsync::testing::write_text(dir / "papa.wav", spoken.wav);
+  lipsync::testing::write_text(dir / "papa.marks", marks);
+  lipsync::testing::write_text(dir / "broken.marks", marks + "{\"time\":\"soon\",\"type\":\"word\",\"value\":\"x\"}\n");
+  lipsync::testing::ChildProcess server({LIPSYNCD_PATH, "--listen", "127.0.0.1:0", "--log-level", "warn"}, dir,
+                                        dir / "server.out", dir / "server.err");
+  const std::string address = lipsync::testing::wait_for_listening_address(dir / "server.out");
+  ASSERT_FALSE(address.empty());
+
+  const auto live =
+      lipsync::testing::run_program({LIPSYNC_CLI_BINARY, "listen", "papa.wav", "--word-times", "papa.marks", "--pace",
+                                     "realtime", "--server", address, "--format", "visemes-oculus", "-o", "live.json"},
+                                    dir, dir);
+  ASSERT_EQ(live.status, 0) << live.err;
+  EXPECT_THAT(live.err, HasSubstr("lipsync: listen: latency from the end of the piece holding a frame's time"));
+  const nlohmann::json track = nlohmann::json::parse(lipsync::testing::read_text(dir / "live.json"));
+  const auto& frames = track.at("frames");
+  int bilabials = 0, closed = 0;
+  for (const LabeledInterval& phoneme : spoken.recording.phonemes.intervals) {
+    if (phoneme.label != "p" && phoneme.label != "b" && phoneme.label != "m") continue;
+    ++bilabials;
+    const std::int64_t middle_us = (phoneme.start_us + phoneme.end_us) / 2;
+    std::size_t shown = 0;
+    for (std::size_t f = 0; f < frames.size() && frames[f].at("t_us").get<std::int64_t>() <= middle_us; ++f) shown = f;
+    closed += track.at("visemes").at(frames[shown].at("viseme").get<std::size_t>()) == "PP" ? 1 : 0;
+  }
+  EXPECT_GE(bilabials, 6);
+  EXPECT_GE(closed * 10, bilabials * 9) << closed << " of " << bilabials;
+
+  const auto rendered = lipsync::testing::run_program(
+      {LIPSYNC_CLI_BINARY, "render", "papa.wav", "--text", joined, "-o", "rendered.json"}, dir, dir);
+  ASSERT_EQ(rendered.status, 0) << rendered.err;
+  const auto recorded =
+      lipsync::testing::run_program({LIPSYNC_CLI_BINARY, "listen", "papa.wav", "--recording", "--word-times",
+                                     "papa.marks", "--server", address, "-o", "recorded.json"},
+                                    dir, dir);
+  ASSERT_EQ(recorded.status, 0) << recorded.err;
+  EXPECT_EQ(lipsync::testing::read_text(dir / "recorded.json"), lipsync::testing::read_text(dir / "rendered.json"));
+
+  const auto broken = lipsync::testing::run_program(
+      {LIPSYNC_CLI_BINARY, "listen", "papa.wav", "--word-times", "broken.marks", "--server", address}, dir, dir);
+  EXPECT_EQ(broken.status, 1);
+  EXPECT_THAT(broken.err, HasSubstr("broken.marks:" + std::to_string(words.size() + 1) +
+                                    ": \"time\" of a Polly word mark is \"soon\", not a whole number"));
+  server.terminate();
+  server.wait();
+  std::filesystem::remove_all(dir);
 }
 
 TEST(ListenLongStream, AnHourOfSpeechAndSilenceKeepsTheServersMemoryFlat) {

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <functional>
 #include <random>
 #include <string>
 #include <vector>
@@ -163,11 +164,16 @@ TEST(AudioStreamReader, NamesWhatIsWrongWithTheStream) {
             std::string::npos);
 }
 
-/// Feeds `audio` to `recognizer` in 20 ms pieces; returns every final phone, in order.
-std::vector<LabeledInterval> recognise_in_pieces(const PcmAudio& audio, LiveRecognizer& recognizer) {
+/// Feeds `audio` to `recognizer` in 20 ms pieces, calling `before_piece` with each piece's end
+/// (µs) before it; returns every final phone, in order.
+std::vector<LabeledInterval> recognise_in_pieces(
+    const PcmAudio& audio, LiveRecognizer& recognizer,
+    const std::function<void(std::int64_t)>& before_piece = [](std::int64_t) {}) {
   std::vector<LabeledInterval> phones;
   const std::size_t piece = static_cast<std::size_t>(audio.sample_rate_hz) / 50;
   for (std::size_t at = 0; at < audio.samples.size(); at += piece) {
+    before_piece(static_cast<std::int64_t>(std::min(at + piece, audio.samples.size())) * 1'000'000 /
+                 audio.sample_rate_hz);
     recognizer.push(std::span(audio.samples).subspan(at, std::min(piece, audio.samples.size() - at)));
     for (LabeledInterval& phone : recognizer.take_final()) phones.push_back(std::move(phone));
     const std::vector<LabeledInterval> guess = recognizer.guess();
@@ -264,6 +270,148 @@ TEST(LiveRecognizer, CutsUtterancesAtPausesTakesTheSilenceBetweenThemAsOneAndHea
     EXPECT_EQ(second[i].label, first[i].label) << "phone " << i;
   }
   EXPECT_GT(offset_us, 0);
+}
+
+/// The bilabials of `truth` (the synthesiser's phones) that `heard` labels /p b m/ at their middles.
+testing::BoundaryScore closures_of(const testing::Recording& truth, const std::vector<LabeledInterval>& heard) {
+  const ArticulationModel& model = ArticulationModel::builtin();
+  LabeledUtterance utterance;
+  utterance.phone_set = "arpabet";
+  utterance.intervals = heard;
+  testing::BoundaryScore score;
+  testing::score_alignment(truth.phonemes, *PhoneSet::builtin("radio", model), utterance,
+                           *PhoneSet::builtin("arpabet", model), model, score);
+  return score;
+}
+
+TEST(LiveRecognizer, WordsThatComeOnlyAsTheyAreSpokenAreDecodedAgainAndCloseTheLipsAsTheWholeTranscriptDoes) {
+  // A TTS that hands out each word just as its audio starts (the latest a transcript can come):
+  // the stream starts with an empty transcript, so each utterance opens on the phone loop and
+  // runs out of words again and again; each time it is decoded again with the words known. The
+  // phones tile the audio and Festival's own /p b m/ (Harvard sentences 21-25) are labelled
+  // /p b m/ at their middles as often as with the whole transcript given first.
+  const auto wav =
+      std::filesystem::temp_directory_path() / ("live_audio_test-grow-" + std::to_string(::getpid()) + ".wav");
+  testing::BoundaryScore growing, whole;
+  std::size_t redecodes = 0;
+  for (std::size_t s = 20; s < 25; ++s) {
+    const char* sentence = testing::kHarvardSentences[s];
+    SCOPED_TRACE(sentence);
+    const auto recording = testing::festival_recording(sentence, wav);
+    const std::vector<TimedWord> words = testing::festival_word_starts(sentence);
+    ASSERT_TRUE(recording);
+    ASSERT_FALSE(words.empty());
+    LiveRecognitionOptions options;
+    options.sample_rate_hz = recording->audio.sample_rate_hz;
+    options.transcript = sentence;
+    LiveRecognizer given_first(options, "live");
+    const testing::BoundaryScore with_whole =
+        closures_of(*recording, recognise_in_pieces(recording->audio, given_first));
+    whole.bilabials += with_whole.bilabials;
+    whole.bilabials_closed_at_middle += with_whole.bilabials_closed_at_middle;
+
+    options.transcript = "";
+    LiveRecognizer as_spoken(options, "live");
+    std::size_t next = 0;
+    const std::vector<LabeledInterval> phones =
+        recognise_in_pieces(recording->audio, as_spoken, [&](std::int64_t piece_end_us) {
+          for (; next < words.size() && words[next].start_us < piece_end_us; ++next)
+            as_spoken.add_words(words[next].text);
+        });
+    expect_tiles(phones, recording->audio.duration_us());
+    const testing::BoundaryScore with_growing = closures_of(*recording, phones);
+    growing.bilabials += with_growing.bilabials;
+    growing.bilabials_closed_at_middle += with_growing.bilabials_closed_at_middle;
+    redecodes += as_spoken.redecodes();
+  }
+  std::filesystem::remove(wav);
+  std::cerr << "closed at their middles: " << growing.bilabials_closed_at_middle << " of " << growing.bilabials
+            << " with the words as spoken (" << redecodes << " decodes again), " << whole.bilabials_closed_at_middle
+            << " with the whole transcript first\n";
+  EXPECT_GT(redecodes, 5U);
+  EXPECT_GE(growing.bilabials_closed_at_middle * 10, growing.bilabials * 9);
+  EXPECT_GE(growing.bilabials_closed_at_middle + 1, whole.bilabials_closed_at_middle);
+}
+
+TEST(LiveRecognizer, TimedWordsPlaceAnUtteranceInTheTranscriptAfterSpeechThatDidNotFollowIt) {
+  // Festival speaks Harvard sentence 26, a second of silence, then sentence 23; the transcript's
+  // first words are two other sentences (a TTS that normalised its text differently from what it
+  // was given), then sentence 23's. Without times the second utterance starts wherever the forced
+  // alignment of the first left off, inside the wrong words, and must pass through the rest of
+  // them; with the TTS's times it starts at sentence 23's first word, and more of its phones are
+  // heard as they were spoken.
+  const auto wav =
+      std::filesystem::temp_directory_path() / ("live_audio_test-timed-" + std::to_string(::getpid()) + ".wav");
+  const char* spoken_first = testing::kHarvardSentences[25];
+  const char* spoken_second = testing::kHarvardSentences[22];
+  const auto first = testing::festival_recording(spoken_first, wav);
+  const auto second = testing::festival_recording(spoken_second, wav);
+  std::filesystem::remove(wav);
+  const std::vector<TimedWord> second_words = testing::festival_word_starts(spoken_second);
+  ASSERT_TRUE(first && second);
+  ASSERT_FALSE(second_words.empty());
+  PcmAudio audio = first->audio;
+  audio.samples.insert(audio.samples.end(), static_cast<std::size_t>(audio.sample_rate_hz), 0);
+  const std::int64_t second_start_us = audio.duration_us();
+  audio.samples.insert(audio.samples.end(), second->audio.samples.begin(), second->audio.samples.end());
+  testing::Recording second_truth = *second;
+  for (LabeledInterval& phone : second_truth.phonemes.intervals) {
+    phone.start_us += second_start_us;
+    phone.end_us += second_start_us;
+  }
+  std::vector<TimedWord> transcript;
+  std::int64_t at_us = 200'000;
+  for (const std::string word : {"a", "large", "size", "in", "stockings", "is", "hard", "to", "sell", "the", "boy",
+                                 "was", "there", "when", "the", "sun", "rose"}) {
+    transcript.push_back({word, at_us});
+    at_us += 120'000;  // (a TTS in a hurry: all before the second sentence)
+  }
+  for (const TimedWord& word : second_words) transcript.push_back({word.text, word.start_us + second_start_us});
+
+  const auto closed_in_second = [&](bool timed) {
+    LiveRecognitionOptions options;
+    options.sample_rate_hz = audio.sample_rate_hz;
+    options.transcript = "";
+    LiveRecognizer recognizer(options, "live");
+    if (timed) {
+      recognizer.add_timed_words(transcript);
+    } else {
+      for (const TimedWord& word : transcript) recognizer.add_words(word.text);
+    }
+    const std::vector<LabeledInterval> phones = recognise_in_pieces(audio, recognizer);
+    expect_tiles(phones, audio.duration_us());
+    EXPECT_EQ(recognizer.utterances(), 2U);
+    return closures_of(second_truth, phones);
+  };
+  const testing::BoundaryScore timed = closed_in_second(true);
+  const testing::BoundaryScore untimed = closed_in_second(false);
+  std::cerr << "sentence 23's phones heard as spoken: " << timed.matched_phonemes << " of " << timed.reference_phonemes
+            << " with times, " << untimed.matched_phonemes
+            << " without; its bilabials closed at their middles: " << timed.bilabials_closed_at_middle << " of "
+            << timed.bilabials << " with times, " << untimed.bilabials_closed_at_middle << " without\n";
+  EXPECT_GT(timed.matched_phonemes, untimed.matched_phonemes);
+  EXPECT_GE(timed.matched_phonemes * 4, timed.reference_phonemes * 3);
+  EXPECT_GE(timed.bilabials_closed_at_middle, untimed.bilabials_closed_at_middle);
+}
+
+TEST(LiveRecognizer, RefusesWordsItCannotPlaceNamingThem) {
+  LiveRecognitionOptions options;
+  LiveRecognizer without(options, "settings");
+  EXPECT_EQ(error_of([&] { without.add_words("papa"); }),
+            "settings: word 'papa' given to a stream without a transcript (a stream whose words come later starts "
+            "with an empty transcript)");
+  options.transcript = "papa bought";
+  LiveRecognizer with(options, "words");
+  EXPECT_EQ(error_of([&] { with.add_words("five zqxwv maps"); }),
+            "words: transcript word 4 'zqxwv' is not in the pronouncing dictionary (write numbers and abbreviations "
+            "out as words)");
+  EXPECT_EQ(with.words_ahead(), 3U);  // the words before it were added
+  const std::vector<TimedWord> timed = {{"big", 900'000}, {"maps", 800'000}};
+  EXPECT_EQ(error_of([&] { with.add_timed_words(timed); }),
+            "words: timed word 5 'maps' starts at 800000 us, before the word before it (900000 us): timed words come "
+            "in the order they are spoken, on the stream's clock");
+  const std::vector<TimedWord> punctuation = {{"--", 1'000'000}};
+  EXPECT_EQ(error_of([&] { with.add_timed_words(punctuation); }), "words: timed word 5 '--' has no letters or digits");
 }
 
 TEST(LiveRecognizer, RefusesWhatItCannotHearNamingIt) {

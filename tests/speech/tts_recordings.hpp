@@ -20,9 +20,12 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "lipsync/formats.hpp"
 #include "lipsync/speech/audio.hpp"
+#include "lipsync/time.hpp"
+#include "lipsync/word_marks.hpp"
 
 namespace lipsync::testing {
 
@@ -59,6 +62,25 @@ inline std::optional<Recording> festival_recording(const std::string& text, cons
   return run_recording("festival -b '(voice_kal_diphone)' '(set! u (SynthText \"" + quoted +
                            "\"))' '(utt.save.wave u \"" + wav.string() + "\")' '(utt.save.segs u \"-\")' 2>/dev/null",
                        wav, InputFormat::lab, "festival");
+}
+
+/// The words of `text` as Festival's kal_diphone voice speaks them in festival_recording, each with
+/// the start of its first phone (the word marks a TTS gives), µs; empty when Festival is missing.
+inline std::vector<TimedWord> festival_word_starts(const std::string& text) {
+  std::string quoted;  // inside the shell's single quotes: ' is written '\''
+  for (const char c : text) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  const std::string command = "festival -b '(voice_kal_diphone)' '(set! u (SynthText \"" + quoted +
+                              "\"))' '(mapcar (lambda (w) (format t \"%s %f\\n\" (item.name w) (item.feat w "
+                              "\"word_start\"))) (utt.relation.items u (quote Word)))' 2>/dev/null";
+  std::unique_ptr<FILE, int (*)(FILE*)> pipe(::popen(command.c_str(), "r"), ::pclose);
+  std::vector<TimedWord> words;
+  if (!pipe) return words;
+  char name[256];
+  char seconds[64];
+  while (std::fscanf(pipe.get(), "%255s %63s", name, seconds) == 2) {
+    words.push_back({name, parse_seconds_to_us(seconds).value_or(0)});
+  }
+  return words;
 }
 
 /// The stops of espeak-ng's phonemes (`espeak` phone set, as synthesize reports them for

@@ -318,6 +318,11 @@ bool ListenCall::send_audio(std::string bytes) {
   *request.mutable_audio()->mutable_data() = std::move(bytes);
   return reactor_->send(std::move(request));
 }
+bool ListenCall::send_words(v1::ListenWords words) {
+  v1::ListenRequest request;
+  *request.mutable_words() = std::move(words);
+  return reactor_->send(std::move(request));
+}
 void ListenCall::end() {
   v1::ListenRequest request;
   request.mutable_end();

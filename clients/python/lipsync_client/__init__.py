@@ -27,7 +27,7 @@ from .tts import (
 )
 
 _CLIENT_NAMES = (
-    "Client", "make_channel", "Frame", "FrameStream", "ListenStream", "BatchArrival", "Speech", "Track",
+    "Client", "make_channel", "Frame", "FrameStream", "ListenStream", "BatchArrival", "Speech", "Track", "Words",
     "make_settings", "KIND_NAMES",
 )
 

@@ -53,7 +53,7 @@ import struct
 import threading
 import time
 import wave
-from typing import Any, Dict, Iterable, Iterator, List, Optional, Tuple
+from typing import Any, Dict, Iterable, Iterator, List, Optional, Sequence, Tuple
 
 import grpc
 
@@ -388,6 +388,25 @@ class BatchArrival:
     release_lag_us: int
 
 
+@dataclasses.dataclass(frozen=True)
+class Words:
+    """More of a Listen stream's transcript, yielded among its audio pieces (a TTS that speaks an
+    LLM's reply sentence by sentence): `text`, words as written, or `timed`, (word, start_us)
+    pairs with the times the TTS gave them (µs from the stream's first sample, in order). The
+    stream's `transcript` must be set ("" when every word comes this way)."""
+
+    text: str = ""
+    timed: Sequence[Tuple[str, int]] = ()
+
+    def request(self) -> Any:
+        if self.text and self.timed:
+            raise ValueError("Words takes text or timed words, not both")
+        return lipsync_pb2.ListenRequest(words=lipsync_pb2.ListenWords(
+            text=self.text,
+            timed=[lipsync_pb2.TimedWord(text=word, start_us=int(start_us)) for word, start_us in self.timed],
+        ))
+
+
 class ListenStream(FrameStream):
     """The frames of a Listen call, as they arrive: a FrameStream (iterate it for Frames;
     `header`, `summary`, `cancel()`, `collect()`) that also keeps the times for measuring
@@ -690,13 +709,16 @@ class Client:
         (a generator reading a microphone or a TTS's pipe); or one bytes-like object, sent
         whole. Pieces over AUDIO_PIECE_BYTES are split; empty ones are skipped; `end` follows
         the last piece. Raw PCM pieces need not hold whole samples (the server joins them).
+        Among the pieces, Words items add to the transcript as the TTS produces it (send
+        them ahead of their audio: docs/streaming.md, "Transcripts that grow").
 
         sample_rate_hz: raw PCM's rate, 8000..48000 (required); for a WAV 0 or its header's.
         audio_channels: raw PCM's channels, 1 or 2 (interleaved, mixed down by the server);
             0 = 1; for a WAV 0 or its header's.
         encoding: "pcm_s16le" (raw signed 16-bit little-endian samples) or "wav" (a WAV file
             in pieces; live: 16-bit PCM, a streaming writer's unknown data size is read to the end).
-        transcript: the words spoken, for forced alignment; None = recognised from the audio.
+        transcript: the words spoken, for forced alignment; None = recognised from the audio;
+            "" = the words come later, as Words among the chunks.
         voice: "" or an English espeak-ng voice name ("en", "en-us", "en-gb"...).
         latency_ms: live only, 100..2000 (None = the server's 200): how far a frame may trail
             the audio it shows.
@@ -740,6 +762,9 @@ class Client:
         yield first
         try:
             for index, piece in enumerate(chunks):
+                if isinstance(piece, Words):
+                    yield piece.request()
+                    continue
                 if isinstance(piece, str):
                     raise TypeError(f"audio piece {index} is a str: listen() takes bytes-like pieces")
                 try:

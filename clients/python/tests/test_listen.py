@@ -28,6 +28,7 @@ import wave
 
 import grpc
 
+from lipsync_client import Words
 from lipsyncd_test_server import RPC_TIMEOUT_S, LipsyncdTestCase
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -112,6 +113,34 @@ class ListenTest(LipsyncdTestCase):
                         "the first frames arrived only after the last piece of audio was sent")
         self.assertEqual(sum(a.count for a in stream.arrivals), len(frames))
         self.assertTrue(all(stream.latency_s(f) is not None for f in frames))
+
+    def test_words_among_the_pieces_grow_an_empty_transcript_and_reach_the_recogniser(self):
+        # The sentence's words come as Words: the first three before any audio, the rest timed
+        # (at made-up but ordered times) a third of the way in. Speech that outlasted the words
+        # would be noted in the summary ("after the transcript's last word"): none is.
+        piece_bytes = self.rate_hz * PIECE_MS // 1000 * 2 * self.channels
+        words = TEXT.rstrip(".").split()
+
+        def pieces():
+            yield Words(text=" ".join(words[:3]))
+            for k, offset in enumerate(range(0, len(self.pcm), piece_bytes)):
+                if k == 30:
+                    yield Words(timed=[(word, 600_000 + 150_000 * i) for i, word in enumerate(words[3:])])
+                yield self.pcm[offset:offset + piece_bytes]
+
+        stream = self.client.listen(pieces(), sample_rate_hz=self.rate_hz, audio_channels=self.channels,
+                                    transcript="")
+        frames = stream.collect()
+        self.assertTrue(frames, "no frames")
+        self.assertIsNotNone(stream.summary)
+        self.assertEqual(list(stream.summary.notes), [])
+        self.assertGreater(stream.summary.phonemes, 10)
+
+    def test_words_on_a_stream_without_a_transcript_are_invalid_argument_naming_them(self):
+        with self.assertRaises(grpc.RpcError) as caught:
+            self.client.listen([self.pcm[:640], Words(text="papa")], sample_rate_hz=self.rate_hz).collect()
+        self.assertEqual(caught.exception.code(), grpc.StatusCode.INVALID_ARGUMENT)
+        self.assertIn("words: the settings have no transcript", caught.exception.details())
 
     def test_bad_sample_rate_is_invalid_argument_naming_the_field(self):
         with self.assertRaises(grpc.RpcError) as caught:

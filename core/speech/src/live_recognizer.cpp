@@ -38,6 +38,11 @@ constexpr std::int64_t kRefinerContextUs = 300'000;
 // transcript has no pause between words; the phone loop's silence comes late).
 constexpr std::int64_t kTrailingSilenceUs = 100'000;
 constexpr std::int64_t kVoiceDecayUs = 30'000;
+// A grammar whose hypothesis has come within this many words of its end is decoded again when
+// words have come since: the partial hypothesis trails the speech by a word or so.
+constexpr std::int64_t kWordsLeftForAnotherDecode = 3;
+// The most audio decoded at once (a push of seconds, as fast as a client sends, is decoded in steps).
+constexpr std::size_t kDecodeStepSamples = kModelRateHz / 10;
 
 bool is_file(const std::string& path) {
   struct stat info {};
@@ -49,6 +54,14 @@ double level_dbfs(std::span<const std::int16_t> frame) {
   for (const std::int16_t s : frame) energy += double(s) * double(s);
   const double rms = std::sqrt(energy / double(frame.size())) / 32768.0;
   return rms > 0 ? std::max(kDigitalSilenceDbfs, 20.0 * std::log10(rms)) : kDigitalSilenceDbfs;
+}
+
+/// "12.345 s".
+std::string time_text(std::int64_t us) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%lld.%03lld s", static_cast<long long>(us / 1'000'000),
+                static_cast<long long>(us / 1000 % 1000));
+  return text;
 }
 
 std::string beam_text(double beam) {
@@ -101,14 +114,11 @@ LiveRecognizer::LiveRecognizer(const LiveRecognitionOptions& options, std::strin
           "the PocketSphinx model is missing (" + path + "; install it with 'apt-get install pocketsphinx-en-us')");
     }
   }
-  if (options_.transcript) {
-    words_ = transcript_words(*options_.transcript);
-    if (words_.empty()) throw InputError(source_, 0, "the transcript has no words");
-  }
+  has_transcript_ = options_.transcript.has_value();
   err_set_logfp(nullptr);  // PocketSphinx logs to stderr by default
   // The phone loop as the offline aligner runs it (the phonetic LM at weight 2) with narrower beams;
   // the transcript's grammar as the offline forced alignment runs it (beams all but open, weight 6.5).
-  const bool forced = !words_.empty();
+  const bool forced = has_transcript_;
   const std::string beam = forced ? "1e-200" : beam_text(options_.phone_beam);
   cmd_ln_t* config =
       cmd_ln_init(nullptr, ps_args(), TRUE, "-hmm", hmm.c_str(), "-dict", dict.c_str(), "-samprate", "16000",
@@ -125,19 +135,56 @@ LiveRecognizer::LiveRecognizer(const LiveRecognitionOptions& options, std::strin
   if (!forced) use_phone_loop();
   if (forced) {
     detail::add_word(decoder_->ps, detail::kPauseWord, "SIL");
-    for (std::size_t w = 0; w < words_.size(); ++w) {
-      if (detail::pronunciations(decoder_->ps, words_[w]).empty()) {
-        throw InputError(source_, 0,
-                         "transcript word " + std::to_string(w + 1) + " '" + words_[w] +
-                             "' is not in the pronouncing dictionary (write numbers and abbreviations out as words)");
-      }
-    }
+    add_words(*options_.transcript);
   }
   decoder_->remember_means();
   frame_.reserve(kFrameSamples);
 }
 
 LiveRecognizer::~LiveRecognizer() = default;
+
+void LiveRecognizer::add_words(std::string_view text) {
+  for (std::string& word : transcript_words(text)) add_word(std::move(word), -1);
+}
+
+void LiveRecognizer::add_timed_words(std::span<const TimedWord> words) {
+  std::int64_t previous_us = 0;
+  for (auto w = words_.rbegin(); w != words_.rend(); ++w) {
+    if (w->start_us >= 0) {
+      previous_us = w->start_us;
+      break;
+    }
+  }
+  for (const TimedWord& timed : words) {
+    const std::vector<std::string> split = transcript_words(timed.text);
+    const std::string number = "timed word " + std::to_string(words_end() + 1) + " '" + timed.text + "'";
+    if (split.empty()) throw InputError(source_, 0, number + " has no letters or digits");
+    if (timed.start_us < previous_us) {
+      throw InputError(source_, 0,
+                       number + " starts at " + std::to_string(timed.start_us) + " us, before the word before it (" +
+                           std::to_string(previous_us) +
+                           " us): timed words come in the order they are spoken, on the stream's clock");
+    }
+    previous_us = timed.start_us;
+    // "state-of-the-art" is several dictionary words: the first carries the time.
+    for (std::size_t i = 0; i < split.size(); ++i) add_word(split[i], i == 0 ? timed.start_us : -1);
+  }
+}
+
+void LiveRecognizer::add_word(std::string text, std::int64_t start_us) {
+  if (!has_transcript_) {
+    throw InputError(source_, 0,
+                     "word '" + text +
+                         "' given to a stream without a transcript (a stream whose words come later starts "
+                         "with an empty transcript)");
+  }
+  if (detail::pronunciations(decoder_->ps, text).empty()) {
+    throw InputError(source_, 0,
+                     "transcript word " + std::to_string(words_end() + 1) + " '" + text +
+                         "' is not in the pronouncing dictionary (write numbers and abbreviations out as words)");
+  }
+  words_.push_back({std::move(text), start_us});
+}
 
 void LiveRecognizer::use_phone_loop() {
   if (!decoder_->phone_loop_built) {
@@ -160,13 +207,18 @@ void LiveRecognizer::push(std::span<const std::int16_t> samples) {
     if (frame_.size() == static_cast<std::size_t>(kFrameSamples)) {
       process_frame(frame_);
       frame_.clear();
+      // A long push is decoded in steps, so that the phones and the grammar's words keep up within it.
+      if (open_ && decode_queue_.size() >= kDecodeStepSamples) decode_queued();
     }
   }
-  if (open_ && !decode_queue_.empty()) {
-    ps_process_raw(decoder_->ps, decode_queue_.data(), decode_queue_.size(), FALSE, FALSE);
-    decode_queue_.clear();
-    update_phones(false);
-  }
+  if (open_ && !decode_queue_.empty()) decode_queued();
+}
+
+void LiveRecognizer::decode_queued() {
+  ps_process_raw(decoder_->ps, decode_queue_.data(), decode_queue_.size(), FALSE, FALSE);
+  decode_queue_.clear();
+  update_phones(false);
+  redecode_if_words_ran_out();
 }
 
 void LiveRecognizer::finish() {
@@ -231,6 +283,7 @@ void LiveRecognizer::process_frame(std::span<const std::int16_t> frame) {
   decode_queue_.insert(decode_queue_.end(), frame.begin(), frame.end());
   samples_seen_ += frame_size;
   silent_samples_ = voiced ? 0 : silent_samples_ + frame_size;
+  if (voiced) voiced_samples_ += frame_size;
   const std::int64_t length_us = sample_us(static_cast<std::int64_t>(utterance_audio_.size()));
   if (sample_us(silent_samples_) >= options_.end_pause_us || length_us >= options_.max_utterance_us) {
     close_utterance();
@@ -238,26 +291,54 @@ void LiveRecognizer::process_frame(std::span<const std::int16_t> frame) {
 }
 
 void LiveRecognizer::open_utterance() {
+  utterance_voice_us_ = sample_us(samples_seen_);
+  grammar_first_ = first_word_of_utterance();
+  start_search();
+  open_ = true;
+  utterance_first_sample_ = samples_seen_ - static_cast<std::int64_t>(pre_roll_.size());
+  utterance_audio_ = pre_roll_;
+  decode_queue_ = pre_roll_;
+  pre_roll_.clear();
+  silent_samples_ = 0;
+  voiced_samples_ = 0;
+}
+
+std::size_t LiveRecognizer::first_word_of_utterance() const {
+  // The words' times, where a TTS gave them, place the utterance in the transcript: its first word
+  // is the first to start after the middle of the pause before it (the first utterance's, the
+  // first word); a word's onset may be too quiet for the voice detector, and marks are a little off.
+  const std::int64_t from_us = utterances_ == 0 ? 0 : (last_voice_end_us_ + utterance_voice_us_) / 2;
+  for (std::size_t w = words_base_; w < words_end(); ++w) {
+    if (word(w).start_us >= 0 && word(w).start_us >= from_us) return w;
+  }
+  return std::min(next_word_, words_end());
+}
+
+void LiveRecognizer::start_search() {
   ps_decoder_t* ps = decoder_->ps;
-  if (!words_.empty() && next_word_ < words_.size()) {
+  grammar_end_ = std::min(words_end(), grammar_first_ + options_.transcript_window_words);
+  max_word_heard_ = -1;
+
+  if (grammar_end_ > grammar_first_) {
     // The next words, each a prefix of the rest: "[pause] [ (w1 [ (w2 [ ... [pause] ]) ]) ]". No pause
     // between two words: the partial hypothesis is the best path ending at the newest frame that
     // has a word exit, and a pause, which may exit at every frame, would win it over the words
     // whenever the voice is far from the model's (espeak-ng's); a pause long enough to matter ends
     // the utterance instead, and a shorter silence after the last voiced frame is cut off the
     // phones (update_phones).
-    const std::size_t last = std::min(words_.size(), next_word_ + options_.transcript_window_words);
+    // Its one-phone words carry their word's place in the grammar (so the dictionary holds at most
+    // the window's length of each phone, however long the stream).
     const std::string pause = std::string(detail::kPauseWord);
     std::string tail;
-    for (std::size_t w = last; w-- > next_word_;) {
+    for (std::size_t w = grammar_end_; w-- > grammar_first_;) {
       std::string alternatives;
-      for (const std::string& pronunciation : detail::pronunciations(ps, words_[w])) {
+      for (const std::string& pronunciation : detail::pronunciations(ps, word(w).text)) {
         if (!alternatives.empty()) alternatives += " |";
         std::istringstream phones(pronunciation);
         for (std::string phone; phones >> phone;) {
-          const std::string word = detail::phone_word(phone, w);
-          detail::add_word(ps, word, phone);
-          alternatives += " " + word;
+          const std::string phone_word = detail::phone_word(phone, w - grammar_first_);
+          detail::add_word(ps, phone_word, phone);
+          alternatives += " " + phone_word;
         }
       }
       tail = "( (" + alternatives + " )" + (tail.empty() ? " [ " + pause + " ]" : " [ " + tail + " ]") + " )";
@@ -269,24 +350,48 @@ void LiveRecognizer::open_utterance() {
       throw InputError(source_, 0, "PocketSphinx rejected the transcript's grammar");
     }
   } else {
-    if (!words_.empty() && next_word_ >= words_.size() && utterances_ > 0) {
-      notes_.push_back("speech after the transcript's last word: its phones are recognised without it");
-      next_word_ = words_.size() + 1;  // say it once
-    }
     use_phone_loop();
   }
-  open_ = true;
-  utterance_first_sample_ = samples_seen_ - static_cast<std::int64_t>(pre_roll_.size());
-  utterance_audio_ = pre_roll_;
-  decode_queue_ = pre_roll_;
-  pre_roll_.clear();
-  silent_samples_ = 0;
-  max_word_heard_ = -1;
   decoder_->restore_means();
   // A stream of its own per utterance: PocketSphinx numbers an utterance's frames from the start of
   // its stream, and the segments' frames are read as counted from the utterance's first sample.
   ps_start_stream(ps);
   ps_start_utt(ps);
+}
+
+void LiveRecognizer::redecode_if_words_ran_out() {
+  if (!open_ || !has_transcript_) return;
+  const bool on_phone_loop = grammar_end_ == grammar_first_;
+  if (!on_phone_loop && max_word_heard_ + kWordsLeftForAnotherDecode < static_cast<std::int64_t>(grammar_end_)) {
+    return;  // words enough left
+  }
+  const std::size_t first = on_phone_loop ? first_word_of_utterance() : grammar_first_;
+  if (std::min(words_end(), first + options_.transcript_window_words) <= grammar_end_) return;  // none came
+  ps_end_utt(decoder_->ps);
+  ++redecodes_;
+  grammar_first_ = first;
+  start_search();
+  decode_queue_.clear();
+  ps_process_raw(decoder_->ps, utterance_audio_.data(), utterance_audio_.size(), FALSE, FALSE);
+  update_phones(false);
+}
+
+void LiveRecognizer::note_how_the_transcript_went() {
+  const std::string at = "the speech at " + time_text(utterance_voice_us_);
+  if (grammar_end_ == grammar_first_) {
+    if (!said_words_ran_out_) {
+      notes_.push_back(at + " comes after the transcript's last word: its phones are recognised without it");
+      said_words_ran_out_ = true;  // once for a run of such utterances
+    }
+    return;
+  }
+  said_words_ran_out_ = false;
+  if (max_word_heard_ < 0 && sample_us(voiced_samples_) >= options_.mismatch_voiced_us) {
+    notes_.push_back(at + " (" + std::to_string(sample_us(voiced_samples_) / 1000) +
+                     " ms of voice) holds none of the transcript's words from word " +
+                     std::to_string(grammar_first_ + 1) + " '" + word(grammar_first_).text +
+                     "' on: it does not follow the transcript there");
+  }
 }
 
 void LiveRecognizer::close_utterance() {
@@ -296,8 +401,13 @@ void LiveRecognizer::close_utterance() {
   }
   ps_end_utt(decoder_->ps);
   update_phones(true);
-  if (!words_.empty() && max_word_heard_ >= 0) {
-    next_word_ = std::max(next_word_, static_cast<std::size_t>(max_word_heard_) + 1);
+  last_voice_end_us_ = sample_us(samples_seen_ - silent_samples_);
+  if (has_transcript_) note_how_the_transcript_went();
+  if (max_word_heard_ >= 0) next_word_ = static_cast<std::size_t>(max_word_heard_) + 1;
+  // Words far behind the speech are not needed again.
+  while (words_base_ + options_.transcript_window_words < next_word_ && !words_.empty()) {
+    words_.pop_front();
+    ++words_base_;
   }
   open_ = false;
   ++utterances_;
@@ -318,7 +428,7 @@ void LiveRecognizer::update_phones(bool ended) {
     const std::string_view word = ps_seg_word(seg);
     if (word == "(NULL)") continue;
     const auto [phone, index] = detail::phone_of(word);
-    max_word_heard_ = std::max(max_word_heard_, index);
+    if (index >= 0) max_word_heard_ = std::max(max_word_heard_, static_cast<std::int64_t>(grammar_first_) + index);
     const std::int64_t from =
         first_frame == 0 ? start_us : start_us + first_frame * detail::kFrameUs + detail::kBoundaryOffsetUs;
     const std::int64_t to =

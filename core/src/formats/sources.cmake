@@ -9,4 +9,5 @@ set(LIPSYNC_FORMAT_SOURCES
   src/formats/text.cpp
   src/formats/textgrid.cpp
   src/formats/timit.cpp
+  src/formats/word_marks.cpp
 )

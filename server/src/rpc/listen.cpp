@@ -13,6 +13,10 @@
 //     and rendered with the streaming renderer at the settings' lookahead, so that the frames are
 //     exactly those of `lipsync render X.wav` (with `--text-file`: the transcript).
 //
+// More words of a live stream's transcript (ListenWords, from a TTS as it produces them) go to the
+// lane in the same queue as the audio, so that the recogniser gets them after the audio received
+// before them.
+//
 // Decoding costs a tenth to a third of the audio's duration, far too long for a reaction: every
 // piece is handed to the stream's lane on the recognition workers (a strand: its jobs run in
 // order, one at a time; lanes run in parallel), which owns the reader, the recogniser and the
@@ -30,11 +34,13 @@
 
 #include <algorithm>
 #include <atomic>
+#include <deque>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <sstream>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include "call_log.hpp"
@@ -68,8 +74,12 @@ constexpr std::size_t kReadPauseBytes = 768 * 1024;
 /// The most of a stream's audio its session keeps for /audio (about 17 minutes of 16 kHz mono):
 /// a stream of hours keeps its first minutes, not hours of samples.
 constexpr std::size_t kMaxKeptAudioBytes = 32 * 1024 * 1024;
-/// The longest transcript, bytes.
+/// The longest transcript in the settings, and the most words' bytes in one ListenWords.
 constexpr std::size_t kMaxTranscriptBytes = 16 * 1024;
+/// The most transcript words a stream may hold ahead of the speech.
+constexpr std::size_t kMaxWordsAhead = 8192;
+/// The most notes a summary carries; the rest are counted.
+constexpr std::size_t kMaxNotes = 32;
 /// The source name errors in the audio are reported under.
 constexpr const char* kAudioSource = "audio";
 
@@ -129,7 +139,7 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
       return;
     }
     std::lock_guard lock(audio_mutex_);
-    if (pending_.size() > kReadPauseBytes) {
+    if (pending_bytes_ > kReadPauseBytes) {
       read_paused_ = true;  // the lane resumes reading once it has caught up
       return;
     }
@@ -184,6 +194,7 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
         return start(request.settings());
       case Phase::streaming:
         if (request.has_audio()) return queue_audio(request.audio().data());
+        if (request.has_words()) return queue_words(request.words());
         if (request.has_end()) {
           phase_ = Phase::ended;
           lane_.post([this] { on_lane([this] { return finish_audio(); }); });
@@ -290,10 +301,69 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
   grpc::Status queue_audio(const std::string& data) {
     bytes_received_ += data.size();
     std::lock_guard lock(audio_mutex_);
-    pending_ += data;
+    if (pending_.empty() || !std::holds_alternative<std::string>(pending_.back())) pending_.emplace_back(std::string());
+    std::get<std::string>(pending_.back()) += data;
+    pending_bytes_ += data.size();
+    post_pending();
+    return grpc::Status();
+  }
+
+  /// Posts a job that takes what is pending, unless one is queued already (it will take it too).
+  void post_pending() {
     if (!job_posted_) {
       job_posted_ = true;
       lane_.post([this] { on_lane([this] { return decode_pending(); }); });
+    }
+  }
+
+  /// On the reaction: checks more words of the transcript and queues them for the lane, after the
+  /// audio received before them.
+  grpc::Status queue_words(const v1::ListenWords& words) {
+    if (recording_) {
+      return invalid("words: a recording is aligned whole with settings.transcript; send its words there");
+    }
+    if (!transcript_) {
+      return invalid(
+          "words: the settings have no transcript, so the stream is recognised from the audio alone; set "
+          "settings.transcript (to \"\" when every word comes in ListenWords)");
+    }
+    if (!words.text().empty() && words.timed_size() > 0) {
+      return invalid("words: both text and timed words in one message; send one or the other");
+    }
+    std::size_t bytes = words.text().size();
+    for (const v1::TimedWord& word : words.timed()) bytes += word.text().size();
+    if (bytes > kMaxTranscriptBytes) {
+      return invalid("words: " + std::to_string(bytes) + " bytes of words in one message, more than the limit of " +
+                     std::to_string(kMaxTranscriptBytes));
+    }
+    std::lock_guard lock(audio_mutex_);
+    pending_.emplace_back(words);
+    post_pending();
+    return grpc::Status();
+  }
+
+  /// On the lane: words into the recogniser, or kept for it until the audio's rate makes it.
+  grpc::Status add_words(const v1::ListenWords& words) {
+    if (!recognizer_) {
+      early_words_.push_back(words);
+      return grpc::Status();
+    }
+    try {
+      if (words.timed_size() > 0) {
+        std::vector<TimedWord> timed;
+        timed.reserve(static_cast<std::size_t>(words.timed_size()));
+        for (const v1::TimedWord& word : words.timed()) timed.push_back({word.text(), word.start_us()});
+        recognizer_->add_timed_words(timed);
+      } else {
+        recognizer_->add_words(words.text());
+      }
+    } catch (const InputError& error) {
+      return invalid("words: " + error.message());
+    }
+    if (recognizer_->words_ahead() > kMaxWordsAhead) {
+      return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+              "words: " + std::to_string(recognizer_->words_ahead()) + " words ahead of the speech, more than " +
+                  std::to_string(kMaxWordsAhead) + " (send the transcript as the speech goes)"};
     }
     return grpc::Status();
   }
@@ -322,29 +392,46 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
                   plan_.engine.render);
     track_.channel_count = plan_.model->model->channel_count();
     track_.fps = plan_.engine.render.fps;
-    if (reader_->sample_rate_hz() != 0) make_recognizer(reader_->sample_rate_hz());
+    if (reader_->sample_rate_hz() != 0) return make_recognizer(reader_->sample_rate_hz());
     return grpc::Status();
   }
 
   /// Loads the recogniser for audio at `rate_hz` (about half a second). A transcript word the
   /// dictionary lacks is an InputError naming `settings.transcript`.
-  void make_recognizer(int rate_hz) {
+  grpc::Status make_recognizer(int rate_hz) {
     recognizer_options_.sample_rate_hz = rate_hz;
     recognizer_.emplace(recognizer_options_, transcript_ ? "settings.transcript" : "settings");
+    for (const v1::ListenWords& words : early_words_) {
+      if (auto status = add_words(words); !status.ok()) return status;
+    }
+    early_words_.clear();
+    return grpc::Status();
   }
 
-  /// On the lane: the audio queued so far, decoded (live) or gathered (a recording).
+  /// On the lane: the audio and words queued so far, in the order they came; reading resumes if
+  /// it waited for the lane.
   grpc::Status decode_pending() {
-    std::string bytes;
+    std::deque<std::variant<std::string, v1::ListenWords>> taken;
     {
       std::lock_guard lock(audio_mutex_);
-      bytes.swap(pending_);
+      taken.swap(pending_);
+      pending_bytes_ = 0;
       job_posted_ = false;
       if (read_paused_) {
         read_paused_ = false;
         StartRead(&request_);
       }
     }
+    for (auto& item : taken) {
+      grpc::Status status = std::holds_alternative<std::string>(item) ? decode(std::get<std::string>(item))
+                                                                      : add_words(std::get<v1::ListenWords>(item));
+      if (!status.ok()) return status;
+    }
+    return grpc::Status();
+  }
+
+  /// On the lane: `bytes` of audio decoded (live) or gathered (a recording).
+  grpc::Status decode(const std::string& bytes) {
     samples_.clear();
     reader_->push(bytes, samples_);
     if (samples_.empty()) return grpc::Status();
@@ -368,7 +455,9 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
       recording_audio_.samples.insert(recording_audio_.samples.end(), samples_.begin(), samples_.end());
       return grpc::Status();
     }
-    if (!recognizer_) make_recognizer(rate);
+    if (!recognizer_) {
+      if (auto status = make_recognizer(rate); !status.ok()) return status;
+    }
     recognizer_->push(samples_);
     render_live(false);
     return grpc::Status();
@@ -383,7 +472,7 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
       const std::vector<LabeledInterval> guess = recognizer_->guess();
       live_->emit_until(recognizer_->heard_us() - settle_us_, guess, track_);
     }
-    for (const std::string& note : recognizer_->take_notes()) log_.line(spdlog::level::info, "listen note", note);
+    for (std::string& note : recognizer_->take_notes()) keep_note(std::move(note));
     publish(recognizer_->heard_us());
   }
 
@@ -408,6 +497,11 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
     }
     v1::TrackMessage summary_message;
     encode_summary(frames_sent_, phonemes, duration_us, *summary_message.mutable_summary());
+    for (const std::string& note : notes_) summary_message.mutable_summary()->add_notes(note);
+    if (notes_dropped_ > 0) {
+      summary_message.mutable_summary()->add_notes("and " + std::to_string(notes_dropped_) +
+                                                   " more notes (the server's log has them all)");
+    }
     const Message summary = make_message(std::move(summary_message));
     if (auto session = current_session()) session->finish(summary);
     outbox_.push(summary);
@@ -423,7 +517,7 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
     speech::AlignmentOptions options;
     options.transcript = transcript_;
     const speech::Alignment alignment = speech::align_speech(recording_audio_, kAudioSource, options);
-    for (const std::string& note : alignment.notes) log_.line(spdlog::level::info, "listen note", note);
+    for (const std::string& note : alignment.notes) keep_note(note);
     LabeledUtterance utterance = alignment.phones;
     speech::cover_audio(utterance, recording_audio_.duration_us(), plan_.engine.render.fps);
     SegmentBuilder builder(*plan_.model->model, *plan_.phone_set, kAudioSource, plan_.engine.segments);
@@ -457,6 +551,16 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
       outbox_.push(message, end - begin);
     }
     track_.clear();
+  }
+
+  /// On the lane: a note for the log now and for the summary at the end (the first kMaxNotes).
+  void keep_note(std::string note) {
+    log_.line(spdlog::level::info, "listen note", note);
+    if (notes_.size() < kMaxNotes) {
+      notes_.push_back(std::move(note));
+    } else {
+      ++notes_dropped_;
+    }
   }
 
   /// On the lane: keeps this piece's samples for the session's viewers while the budget allows.
@@ -542,14 +646,19 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
 
   // Between the reactions and the lane.
   std::mutex audio_mutex_;
-  std::string pending_;      // audio bytes received and not yet taken by the lane
-  bool job_posted_ = false;  // a decode job is queued for pending_
+  // Audio (its bytes) and words received and not yet taken by the lane, in the order they came.
+  std::deque<std::variant<std::string, v1::ListenWords>> pending_;
+  std::size_t pending_bytes_ = 0;  // of audio in pending_
+  bool job_posted_ = false;        // a job is queued that will take pending_
   bool read_paused_ = false;
 
   // The lane's.
   speech::LiveRecognitionOptions recognizer_options_;
   std::optional<speech::LiveRecognizer> recognizer_;
   std::optional<LiveRenderer> live_;
+  std::vector<v1::ListenWords> early_words_;  // words that came before the recogniser
+  std::vector<std::string> notes_;
+  std::size_t notes_dropped_ = 0;
   speech::PcmAudio recording_audio_;
   std::vector<std::int16_t> samples_;  // this piece's, mono
   std::uint64_t samples_read_ = 0;

@@ -194,6 +194,9 @@ class ListenCall {
   /// Queues the next bytes of the audio, in the settings' encoding (each piece within the
   /// server's message limit). Returns false once the stream has ended (wait() says why).
   bool send_audio(std::string bytes);
+  /// Queues more words of the transcript (`text`, or `timed` words: ListenWords); the settings
+  /// must have a transcript. Returns false once the stream has ended.
+  bool send_words(v1::ListenWords words);
   /// Queues the end marker (the audio has ended) and closes the sending side.
   void end();
   /// Asks the server to drop the stream (it ends with CANCELLED).

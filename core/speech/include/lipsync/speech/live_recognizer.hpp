@@ -23,9 +23,24 @@
 //
 // With a transcript the utterance is force-aligned to it as it is heard: a JSGF grammar of the
 // next `transcript_window_words` words, each a prefix of the rest (an utterance may stop after
-// any word), whose one-phone words carry their word's index as in the offline aligner; the next
-// utterance starts after the last word the previous one held. Without one the phones are
-// recognised with the phonetic language model (PocketSphinx's allphone search).
+// any word), whose one-phone words carry their word's place in the window; the next utterance
+// starts after the last word the previous one held. Without one the phones are recognised with
+// the phonetic language model (PocketSphinx's allphone search).
+//
+// The transcript may grow while the audio comes (a TTS that speaks an LLM's reply sentence by
+// sentence): add_words() appends words. A grammar is fixed once its utterance opens, so when the
+// hypothesis nears the last words of its grammar and more words have come since (or the
+// utterance opened before any word had come and runs on the phone loop), the utterance so far is
+// decoded again with a grammar of the words known now; phones already final stay as they are.
+// That costs the utterance's audio again (a few ms per second of it): send the words ahead of
+// their audio and it never happens. Words may carry times (add_timed_words: from a TTS's word
+// marks): then an utterance starts its grammar at the first timed word that starts after the
+// middle of the pause before it, so a stream finds its place in the transcript again after a
+// stretch the recogniser got wrong. The times say where
+// the words are, the audio where the phones are.
+//
+// A grammar utterance with `mismatch_voiced_us` of voice in which not one word was heard is
+// reported in the notes: the speech does not follow the transcript there.
 //
 // Not thread-safe: one stream, one recogniser, one thread at a time. Loading the model takes
 // about half a second; decoding costs about 0.1-0.3 of the audio's real time on one core.
@@ -37,15 +52,18 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "lipsync/speech/closure_refiner.hpp"
 #include "lipsync/utterance.hpp"
+#include "lipsync/word_marks.hpp"
 
 namespace lipsync::speech {
 
 struct LiveRecognitionOptions {
-  /// Words spoken in the audio (punctuation and case ignored); none: recognise phones.
+  /// Words spoken in the audio (punctuation and case ignored); none: recognise phones. Set to ""
+  /// when the words come later (add_words, add_timed_words).
   std::optional<std::string> transcript;
   /// The acoustic model directory's parent, holding en-us/, cmudict-en-us.dict, en-us-phone.lm.bin.
   std::string model_dir = "/usr/share/pocketsphinx/model/en-us";
@@ -62,6 +80,8 @@ struct LiveRecognitionOptions {
   std::int64_t pre_roll_us = 200'000;
   /// Transcript words one utterance's grammar holds at most.
   std::size_t transcript_window_words = 40;
+  /// Voice in a grammar utterance without a word heard that is reported as a mismatch, µs.
+  std::int64_t mismatch_voiced_us = 1'000'000;
   /// Move the lip phones' boundaries to the signal's energy steps (closure_refiner.hpp).
   bool refine_closures = true;
   ClosureRefinerOptions refiner;
@@ -73,11 +93,20 @@ struct LiveRecognitionOptions {
 class LiveRecognizer {
  public:
   /// Loads the model. `source` names the stream in errors. Throws InputError: a missing model, a
-  /// sample rate outside 8000-48000, a transcript without words or with a word the dictionary lacks.
+  /// sample rate outside 8000-48000, a word the dictionary lacks.
   LiveRecognizer(const LiveRecognitionOptions& options, std::string source);
   ~LiveRecognizer();
   LiveRecognizer(const LiveRecognizer&) = delete;
   LiveRecognizer& operator=(const LiveRecognizer&) = delete;
+
+  /// More words of the transcript, after those given so far. Throws InputError naming the word
+  /// (its number in the whole transcript) when the dictionary lacks it, or when the recogniser was
+  /// made without a transcript; the words before it are added.
+  void add_words(std::string_view text);
+  /// The same for words with times; a word's start_us must not be before the previous timed word's.
+  void add_timed_words(std::span<const TimedWord> words);
+  /// Words added and not yet reached by an utterance (the transcript ahead of the speech).
+  std::size_t words_ahead() const { return words_base_ + words_.size() - std::min(next_word_, words_end()); }
 
   /// Decodes the next samples (at options.sample_rate_hz).
   void push(std::span<const std::int16_t> samples);
@@ -99,15 +128,30 @@ class LiveRecognizer {
   std::int64_t heard_us() const { return heard_us_; }
   /// Utterances ended so far.
   std::size_t utterances() const { return utterances_; }
+  /// Times an open utterance was decoded again because its grammar's words ran out.
+  std::size_t redecodes() const { return redecodes_; }
   /// Things the user should know about the stream ("a word not heard", ...), since the last call.
   std::vector<std::string> take_notes();
 
  private:
   struct Decoder;
 
+  struct Word {
+    std::string text;
+    std::int64_t start_us = -1;  // -1: untimed
+  };
+
+  void add_word(std::string text, std::int64_t start_us);
+  std::size_t words_end() const { return words_base_ + words_.size(); }
+  const Word& word(std::size_t w) const { return words_[w - words_base_]; }
   void use_phone_loop();
   void process_frame(std::span<const std::int16_t> frame);
   void open_utterance();
+  std::size_t first_word_of_utterance() const;
+  void start_search();
+  void decode_queued();
+  void redecode_if_words_ran_out();
+  void note_how_the_transcript_went();
   void close_utterance();
   void update_phones(bool ended);
   std::int64_t sample_us(std::int64_t sample) const;
@@ -115,8 +159,13 @@ class LiveRecognizer {
   LiveRecognitionOptions options_;
   std::string source_;
   std::unique_ptr<Decoder> decoder_;
-  std::vector<std::string> words_;  // the transcript's, empty without one
-  std::size_t next_word_ = 0;       // the first word the next utterance may hold
+  bool has_transcript_ = false;
+  // The transcript's words from words_base_ on (those far behind the speech are dropped, so that a
+  // transcript growing for hours keeps a flat memory), numbered from the stream's first word.
+  std::deque<Word> words_;
+  std::size_t words_base_ = 0;
+  std::size_t next_word_ = 0;  // the first word the next utterance may hold
+  bool said_words_ran_out_ = false;
 
   std::vector<std::int16_t> resampled_;                       // scratch: this push's audio at 16 kHz
   std::vector<std::int16_t> frame_;                           // the 10 ms frame being filled
@@ -127,10 +176,15 @@ class LiveRecognizer {
 
   bool open_ = false;
   std::int64_t utterance_first_sample_ = 0;    // where the open utterance's audio starts
+  std::int64_t utterance_voice_us_ = 0;        // where its first voiced frame starts
+  std::int64_t last_voice_end_us_ = 0;         // where the last utterance's last voiced frame ended
   std::vector<std::int16_t> utterance_audio_;  // all of it, for the closure refiner
   std::int64_t silent_samples_ = 0;            // since its last voiced frame
   std::vector<std::int16_t> decode_queue_;     // its audio not yet handed to the decoder
-  int max_word_heard_ = -1;                    // the last transcript word its hypothesis holds
+  std::size_t grammar_first_ = 0;              // its grammar's words: [grammar_first_, grammar_end_);
+  std::size_t grammar_end_ = 0;                //   empty: the phone loop
+  std::int64_t max_word_heard_ = -1;           // the last transcript word its hypothesis holds
+  std::int64_t voiced_samples_ = 0;            // its voiced frames' samples
 
   std::vector<LabeledInterval> final_;  // final, not yet taken
   std::vector<LabeledInterval> guess_;
@@ -139,6 +193,7 @@ class LiveRecognizer {
   std::int64_t heard_us_ = 0;
   bool finished_ = false;
   std::size_t utterances_ = 0;
+  std::size_t redecodes_ = 0;
   std::vector<std::string> notes_;
 };
 
