@@ -274,7 +274,14 @@ def main():
         fail(f"the add-on's zip {zip_path} is missing: build the target lipsync_blender_addon")
     with tempfile.TemporaryDirectory(prefix=f"lipsync-blender-{group}-") as work:
         config = make_speech(work, lipsync, source_dir)
-        config.update(group=group, work=work, addon_zip=zip_path,
+        formats = os.path.join(source_dir, "tests/data/formats")
+        config["phoneme_files"] = {
+            "flite": config["psdur"], "json": config["phonemes_json"],
+            "textgrid": os.path.join(formats, "speech_long.TextGrid"),
+            "textgrid_utf16": os.path.join(formats, "ipa_utf16be.TextGrid"),
+            "timit": os.path.join(formats, "speech.PHN"), "lab": os.path.join(formats, "festival_mama.lab"),
+            "pho": os.path.join(formats, "speech.pho")}
+        config.update(group=group, work=work, addon_zip=zip_path, lipsync=lipsync,
                       face_json=os.path.join(source_dir, "data/face/viewer_face.json"),
                       glb=os.path.join(work, "face.glb"))
         server = None

@@ -12,7 +12,10 @@ operator's report. A failing check makes Blender exit 1.
 
 import json
 import os
+import re
+import shlex
 import struct
+import subprocess
 import sys
 import tempfile
 import unittest
@@ -243,8 +246,35 @@ class BadInputChecks(unittest.TestCase):
         self.assertEqual(snapshot(self.scene), before, "the failed import changed the scene")
         return str(raised.exception)
 
-    def test_a_phoneme_file_is_named_as_such(self):
-        self.assert_refused("but a phoneme file", filepath=CONFIG["phonemes_json"])
+    def test_a_phoneme_file_of_every_format_lipsync_reads_is_named_as_such(self):
+        described = {"flite": "`flite -psdur` output", "json": "lipsync utterance JSON",
+                     "textgrid": "a Praat TextGrid", "textgrid_utf16": "a Praat TextGrid",
+                     "timit": "a TIMIT .PHN file", "lab": "a Festival .lab file", "pho": "an MBROLA .pho file"}
+        self.assertEqual(sorted(CONFIG["phoneme_files"]), sorted(described))
+        for kind, path in CONFIG["phoneme_files"].items():
+            with self.subTest(kind=kind):
+                text = self.assert_refused(f"{path}: not a lipsyncd track but a phoneme file ({described[kind]}: "
+                                           "lipsyncd's input, not its output): render it (`lipsync render "
+                                           f"{os.path.basename(path)} -o ", filepath=path)
+                live = kind in ("flite", "json")
+                self.assertEqual("or use Render Phonemes with lipsyncd" in text, live, text)
+
+    def test_the_render_command_a_flite_file_is_answered_with_gives_a_track_that_imports(self):
+        text = self.assert_refused("not a lipsyncd track but a phoneme file", filepath=CONFIG["psdur"])
+        command = re.search(r"\(`(lipsync render [^`]*)`\) and import (\S+),", text)
+        self.assertIsNotNone(command, text)
+        self.assertEqual(command.groups(), ("lipsync render papa.psdur -o papa.json", "papa.json"))
+        folder = os.path.dirname(CONFIG["psdur"])
+        subprocess.run([CONFIG["lipsync"], *shlex.split(command.group(1))[1:]], cwd=folder, check=True,
+                       capture_output=True)
+        result, output = capture_stdout(lambda: bpy.ops.lipsync.import_track(
+            filepath=os.path.join(folder, command.group(2))))
+        self.assertEqual(result, {"FINISHED"}, output)
+        self.assertIn("Keyed 52 shape keys of 'Face'", output)
+
+    def test_a_wav_given_as_the_track_is_named_as_such(self):
+        self.assert_refused(f"{CONFIG['wav']}: not a lipsyncd track but a WAV file (audio): give it as the "
+                            "Audio (WAV)", filepath=CONFIG["wav"])
 
     def test_rhubarb_cues_are_named_as_such(self):
         self.assert_refused("Rhubarb mouth cues", filepath=CONFIG["rhubarb_json"])
