@@ -281,7 +281,7 @@ def main():
             "textgrid_utf16": os.path.join(formats, "ipa_utf16be.TextGrid"),
             "timit": os.path.join(formats, "speech.PHN"), "lab": os.path.join(formats, "festival_mama.lab"),
             "pho": os.path.join(formats, "speech.pho")}
-        config.update(group=group, work=work, addon_zip=zip_path, lipsync=lipsync,
+        config.update(group=group, work=work, addon_zip=zip_path, lipsync=lipsync, source_dir=source_dir,
                       face_json=os.path.join(source_dir, "data/face/viewer_face.json"),
                       glb=os.path.join(work, "face.glb"))
         server = None

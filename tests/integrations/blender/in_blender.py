@@ -18,6 +18,7 @@ import struct
 import subprocess
 import sys
 import tempfile
+import time
 import unittest
 
 import bpy
@@ -389,6 +390,26 @@ class LiveChecks(KeyedTrackChecks):
         self.assertIn("closure key frames", output)
         closures = int(output.split(" closure key frames")[0].rsplit("(", 1)[1])
         self.assertGreaterEqual(closures, 6, "/p b m f v/ in the text give closure key frames")
+
+    def test_the_preferences_a_script_sets_as_documented_choose_the_server_and_the_deadline(self):
+        with open(os.path.join(CONFIG["source_dir"], "docs/integrations.md"), encoding="utf-8") as stream:
+            snippet = re.search(r'```python\n(prefs = bpy\.context\.preferences\.addons\["lipsync_blender"\]'
+                                r'\.preferences\n.*?)```', stream.read(), re.S)
+        self.assertIsNotNone(snippet, "docs/integrations.md shows no preferences snippet")
+        exec(snippet.group(1), {"bpy": bpy})
+        prefs = bpy.context.preferences.addons["lipsync_blender"].preferences
+        self.assertEqual((prefs.server, prefs.timeout_s), ("render-host:50051", 120))
+        # timeout_s bounds the wait for a server that does not answer (5 s at most without it).
+        prefs.server, prefs.timeout_s = CONFIG["dead_server"], 1
+        started = time.monotonic()
+        with self.assertRaises(RuntimeError) as raised:
+            bpy.ops.lipsync.render_phonemes(filepath=CONFIG["psdur"])
+        waited = time.monotonic() - started
+        self.assertIn(f"No lipsyncd answers at {CONFIG['dead_server']}", str(raised.exception))
+        self.assertLess(waited, 3.0, "the deadline in the preferences was not used")
+        prefs.server = CONFIG["server"]
+        self.assertEqual(bpy.ops.lipsync.render_phonemes(filepath=CONFIG["psdur"]), {"FINISHED"})
+        self.assert_keys_equal_track(self.face, self.track, 1, 24)
 
     def test_no_lipsyncd_is_an_error_that_leaves_the_scene(self):
         prefs = bpy.context.preferences.addons["lipsync_blender"].preferences
