@@ -193,7 +193,9 @@ def f32(value):
     return struct.unpack("<f", struct.pack("<f", value))[0]
 
 
-def check_glb(glb, track, fps):
+def check_glb(glb, track, fps, start_frame=0):
+    """The GLB's morph-weight animation is the track's, its times shifted by start_frame / fps:
+    the exporter writes a key at frame f as f / fps seconds, counting from frame 0."""
     document, binary = read_glb(glb)
     meshes = [(n, node) for n, node in enumerate(document["nodes"]) if "mesh" in node]
     if len(meshes) != 1:
@@ -219,12 +221,12 @@ def check_glb(glb, track, fps):
     index = {n: i for i, n in enumerate(track["arkit_names"])}
     worst_time = worst_weight = 0.0
     for i, frame in enumerate(frames):
-        # Blender: frame = t_us x fps / 1e6 from frame 0; the exporter writes frame / fps seconds.
-        worst_time = max(worst_time, abs(times[i] - frame["t_us"] / 1e6))
+        # Blender: frame = start_frame + t_us x fps / 1e6; the exporter writes frame / fps seconds.
+        worst_time = max(worst_time, abs(times[i] - (start_frame / fps + frame["t_us"] / 1e6)))
         for k, name in enumerate(names):
             worst_weight = max(worst_weight, abs(weights[i * len(names) + k] - f32(frame["arkit"][index[name]])))
     closures = sum(1 for f in frames if f["kind"] in ("closure_start", "closure_end"))
-    print(f"GLB: {len(frames)} key times ({closures} closure key frames) x {len(names)} targets; "
+    print(f"GLB keyed from frame {start_frame}: first key at {times[0] * 1e3:.3f} ms; {len(frames)} key times ({closures} closure key frames) x {len(names)} targets; "
           f"largest time error {worst_time * 1e6:.3f} µs, largest weight error {worst_weight:.2e}")
     if worst_time > 2e-6:
         fail(f"a key time differs from the track's by {worst_time * 1e6:.3f} µs")
@@ -283,7 +285,7 @@ def main():
             "pho": os.path.join(formats, "speech.pho")}
         config.update(group=group, work=work, addon_zip=zip_path, lipsync=lipsync, source_dir=source_dir,
                       face_json=os.path.join(source_dir, "data/face/viewer_face.json"),
-                      glb=os.path.join(work, "face.glb"))
+                      glb=os.path.join(work, "face.glb"), glb_frame1=os.path.join(work, "face_frame1.glb"))
         server = None
         try:
             if group == "live":
@@ -295,7 +297,10 @@ def main():
                 server.stop()
         if group == "gltf":
             with open(config["track_json"], encoding="utf-8") as stream:
-                check_glb(config["glb"], json.load(stream), 24)
+                track = json.load(stream)
+            check_glb(config["glb"], track, 24)
+            # Blender's default start frame, 1: the whole animation one frame (1/24 s) late.
+            check_glb(config["glb_frame1"], track, 24, start_frame=1)
             run_validator(config["glb"], os.environ.get("WORK_DIR", work))
     print(f"blender_test {group}: passed")
 

@@ -330,17 +330,23 @@ class BadInputChecks(unittest.TestCase):
 
 
 class GltfExport(unittest.TestCase):
-    """Keys the track from frame 0 and exports a GLB; blender_test.py reads it back."""
+    """Keys the track and exports a GLB, as docs/integrations.md says; blender_test.py reads it back."""
 
-    def test_export(self):
+    def export(self, glb, **import_options):
         reset_scene(fps=24)
         track = load_json(CONFIG["track_json"])
         face_scene.build_face(CONFIG["face_json"], track["arkit_names"])
-        self.assertEqual(bpy.ops.lipsync.import_track(filepath=CONFIG["track_json"], start_frame=0),
+        self.assertEqual(bpy.ops.lipsync.import_track(filepath=CONFIG["track_json"], **import_options),
                          {"FINISHED"})
-        bpy.ops.export_scene.gltf(filepath=CONFIG["glb"], export_format="GLB", export_animations=True,
+        bpy.ops.export_scene.gltf(filepath=glb, export_format="GLB", export_animations=True,
                                   export_morph=True, export_force_sampling=False, export_apply=False)
-        self.assertTrue(os.path.getsize(CONFIG["glb"]) > 0)
+        self.assertTrue(os.path.getsize(glb) > 0)
+
+    def test_export_keyed_from_frame_0(self):
+        self.export(CONFIG["glb"], start_frame=0)
+
+    def test_export_keyed_from_the_default_start_frame_1(self):
+        self.export(CONFIG["glb_frame1"])
 
 
 class LiveChecks(KeyedTrackChecks):
