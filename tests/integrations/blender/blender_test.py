@@ -10,6 +10,9 @@ channel CSV, Rhubarb JSON, a track of a model with a renamed channel), Festival'
 timings of tests/data/closures/festival_1.lab are rendered too, lipsyncd runs on 127.0.0.1:0
 for the live group, and the add-on is installed into Blender from its zip.
 
+The import group also makes the demo face's .blend with the command docs/integrations.md gives
+(clients/blender/demo_face.py) and, in a second Blender that opens it, imports a track on it.
+
 The gltf group has Blender export the animated face as GLB, then reads the GLB back here with
 an independent reader (struct over the JSON and BIN chunks), compares the morph-weight
 animation with the track, and runs the Khronos glTF validator (npm gltf-validator, pinned by
@@ -23,6 +26,7 @@ import json
 import os
 import queue
 import re
+import shlex
 import shutil
 import struct
 import subprocess
@@ -133,16 +137,21 @@ def unused_port():
         return probe.getsockname()[1]
 
 
-def run_blender(config, work, user_dir):
-    path = os.path.join(work, f"config_{config['group']}.json")
-    with open(path, "w", encoding="utf-8") as out:
-        json.dump(config, out)
+def blender_environment(user_dir):
     # Debian's Blender embeds the system Python and takes its prefix from the `python3` first on
     # PATH: a pyenv or venv python3 there would hide Debian's numpy and grpc from it.
     search_path = os.pathsep.join([os.path.dirname(shutil.which("blender")), os.environ.get("PATH", "")])
-    env = dict(os.environ, PATH=search_path, BLENDER_USER_SCRIPTS=os.path.join(user_dir, "scripts"),
-               BLENDER_USER_CONFIG=os.path.join(user_dir, "config"), PYTHONDONTWRITEBYTECODE="1")
-    command = ["blender", "-b", "--factory-startup", "--python-exit-code", "1",
+    return dict(os.environ, PATH=search_path, BLENDER_USER_SCRIPTS=os.path.join(user_dir, "scripts"),
+                BLENDER_USER_CONFIG=os.path.join(user_dir, "config"), PYTHONDONTWRITEBYTECODE="1")
+
+
+def run_blender(config, work, user_dir, blend=None):
+    """in_blender.py's checks of config's group, in a fresh Blender (on the .blend file `blend`)."""
+    path = os.path.join(work, f"config_{config['group']}.json")
+    with open(path, "w", encoding="utf-8") as out:
+        json.dump(config, out)
+    env = blender_environment(user_dir)
+    command = ["blender", "-b", "--factory-startup", *([blend] if blend else []), "--python-exit-code", "1",
                "--python", os.path.join(HERE, "in_blender.py"), "--", path]
     started = time.monotonic()
     result = subprocess.run(command, capture_output=True, text=True, timeout=240, env=env)
@@ -263,6 +272,18 @@ def run_validator(glb, work):
         fail("the validator found problems: " + json.dumps(issues["messages"][:10], indent=1))
 
 
+def make_demo_face(source_dir, work):
+    """The demo face's .blend, made by the command docs/integrations.md gives, as it gives it."""
+    with open(os.path.join(source_dir, "docs/integrations.md"), encoding="utf-8") as stream:
+        step = re.search(r"^(blender -b .*demo_face\.py -- )face\.blend\b", stream.read(), re.M)
+    if step is None:
+        fail("docs/integrations.md no longer shows the demo face's command (blender ... demo_face.py -- face.blend)")
+    blend = os.path.join(work, "face.blend")
+    run(shlex.split(step.group(1)) + [blend], cwd=source_dir,
+        env=blender_environment(os.path.join(work, "blender-user")))
+    return blend
+
+
 def main():
     if len(sys.argv) != 2 or sys.argv[1] not in ("import", "gltf", "live"):
         fail("usage: blender_test.py import|gltf|live")
@@ -292,6 +313,9 @@ def main():
                 server = Server(lipsyncd)
                 config.update(server=server.address, dead_server=f"127.0.0.1:{unused_port()}")
             run_blender(config, work, os.path.join(work, "blender-user"))
+            if group == "import":
+                config.update(group="demo", demo_blend=make_demo_face(source_dir, work))
+                run_blender(config, work, os.path.join(work, "blender-user"), blend=config["demo_blend"])
         finally:
             if server:
                 server.stop()

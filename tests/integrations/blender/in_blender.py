@@ -2,7 +2,7 @@
 
 blender -b --factory-startup --python-exit-code 1 --python in_blender.py -- CONFIG.json
 
-CONFIG names the group of checks ("import", "gltf" or "live") and the files the harness made
+CONFIG names the group of checks ("import", "demo", "gltf" or "live") and the files the harness made
 from real speech (flite's timings and WAV, tracks rendered by the built `lipsync`). The add-on
 is installed from the zip the build makes, as a user does (Preferences > Add-ons > Install),
 into the throw-away user folder the harness points BLENDER_USER_SCRIPTS at. Every check runs
@@ -10,6 +10,7 @@ its operator through bpy.ops, as the UI does: errors arrive as RuntimeError carr
 operator's report. A failing check makes Blender exit 1.
 """
 
+import importlib.util
 import json
 import os
 import re
@@ -23,8 +24,19 @@ import unittest
 
 import bpy
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import face_scene  # noqa: E402
+
+def _load_demo_face():
+    """clients/blender/demo_face.py, by its path: that folder on sys.path would hide the add-on
+    installed from the zip behind its sources."""
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..", "clients", "blender",
+                        "demo_face.py")
+    spec = importlib.util.spec_from_file_location("demo_face", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+demo_face = _load_demo_face()
 
 CONFIG = json.load(open(sys.argv[sys.argv.index("--") + 1], encoding="utf-8"))
 CLOSURE_KINDS = ("closure_start", "closure_end")
@@ -162,7 +174,7 @@ class ImportChecks(KeyedTrackChecks):
     def setUp(self):
         self.scene = reset_scene(fps=24)
         self.track = load_json(CONFIG["track_json"])
-        self.face = face_scene.build_face(CONFIG["face_json"], self.track["arkit_names"])
+        self.face = demo_face.build_face(CONFIG["face_json"], self.track["arkit_names"])
 
     def test_json_track_keys_every_frame_at_its_time_with_the_audio_at_its_start(self):
         result, output = capture_stdout(lambda: bpy.ops.lipsync.import_track(
@@ -231,7 +243,7 @@ class BadInputChecks(unittest.TestCase):
     def setUp(self):
         self.scene = reset_scene(fps=24)
         self.track = load_json(CONFIG["track_json"])
-        self.face = face_scene.build_face(CONFIG["face_json"], self.track["arkit_names"])
+        self.face = demo_face.build_face(CONFIG["face_json"], self.track["arkit_names"])
         # A previous animation that must survive every failure.
         self.face.data.shape_keys.animation_data_create()
         previous = bpy.data.actions.new("Hand keyed")
@@ -335,7 +347,7 @@ class GltfExport(unittest.TestCase):
     def export(self, glb, **import_options):
         reset_scene(fps=24)
         track = load_json(CONFIG["track_json"])
-        face_scene.build_face(CONFIG["face_json"], track["arkit_names"])
+        demo_face.build_face(CONFIG["face_json"], track["arkit_names"])
         self.assertEqual(bpy.ops.lipsync.import_track(filepath=CONFIG["track_json"], **import_options),
                          {"FINISHED"})
         bpy.ops.export_scene.gltf(filepath=glb, export_format="GLB", export_animations=True,
@@ -353,7 +365,7 @@ class LiveChecks(KeyedTrackChecks):
     def setUp(self):
         self.scene = reset_scene(fps=24)
         self.track = load_json(CONFIG["track_json"])
-        self.face = face_scene.build_face(CONFIG["face_json"], self.track["arkit_names"])
+        self.face = demo_face.build_face(CONFIG["face_json"], self.track["arkit_names"])
         prefs = bpy.context.preferences.addons["lipsync_blender"].preferences
         prefs.server, prefs.timeout_s = CONFIG["server"], 60
 
@@ -454,7 +466,33 @@ class LiveChecks(KeyedTrackChecks):
         self.assertEqual(snapshot(self.scene), before)
 
 
-GROUPS = {"import": [ImportChecks, BadInputChecks], "gltf": [GltfExport], "live": [LiveChecks]}
+class DemoFaceChecks(KeyedTrackChecks):
+    """The demo face's .blend (clients/blender/demo_face.py), opened as docs/integrations.md says."""
+
+    def test_the_demo_face_blend_opens_ready_to_import_a_track_with_its_audio(self):
+        self.assertEqual(os.path.realpath(bpy.data.filepath), os.path.realpath(CONFIG["demo_blend"]))
+        face = bpy.context.active_object
+        self.assertIsNotNone(face, "the demo face's .blend opens with no active object")
+        self.assertEqual((face.name, face.type, face.select_get()), ("Face", "MESH", True))
+        track = load_json(CONFIG["track_json"])
+        names = [kb.name for kb in face.data.shape_keys.key_blocks]
+        self.assertEqual(names, ["Basis"] + track["arkit_names"])
+        moving = [kb.name for kb in face.data.shape_keys.key_blocks[1:]
+                  if any(a.co != b.co for a, b in zip(kb.data, face.data.shape_keys.reference_key.data))]
+        self.assertIn("jawOpen", moving)
+        self.assertIn("mouthClose", moving)
+        scene = bpy.context.scene
+        self.assertEqual(scene.camera.name, "Camera")
+        result, output = capture_stdout(lambda: bpy.ops.lipsync.import_track(
+            filepath=CONFIG["track_json"], audio_path=CONFIG["wav"]))
+        self.assertEqual(result, {"FINISHED"}, output)
+        self.assertIn("Keyed 52 shape keys of 'Face'", output)
+        self.assert_keys_equal_track(face, track, 1, scene.render.fps)
+        self.assertEqual([(s.type, s.frame_start) for s in scene.sequence_editor.sequences_all], [("SOUND", 1)])
+
+
+GROUPS = {"import": [ImportChecks, BadInputChecks], "demo": [DemoFaceChecks], "gltf": [GltfExport],
+          "live": [LiveChecks]}
 
 if __name__ == "__main__":
     install_addon()
