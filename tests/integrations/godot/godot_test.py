@@ -13,7 +13,8 @@ real lipsyncd (--http-listen on port 0) fed in real time by `lipsync stream`.
   * live: a lipsyncd session followed over the viewer's WebSocket with the media-clock anchor, the
     follower started before the session (it asks again until the session exists); a session that
     never starts is reported after live_wait_ms;
-  * no_server: following a viewer address where nothing listens reports it.
+  * no_server: following a viewer address where nothing listens reports it; bad_address: an address
+    that is not a viewer's is answered with the http://HOST:PORT/view address lipsyncd prints.
 
 Usage: godot_test.py LIPSYNC LIPSYNCD SOURCE_DIR. Exits 77 (skipped) without godot3-server.
 """
@@ -126,7 +127,8 @@ class GodotAddOn(unittest.TestCase):
                                      "--log-level", "warn"], stdout=subprocess.PIPE, text=True)
         try:
             grpc_address = re.match(r"lipsyncd listening on (\S+)", lipsyncd.stdout.readline()).group(1)
-            viewer = re.match(r"lipsyncd viewer on (http://\S+)/view", lipsyncd.stdout.readline()).group(1)
+            # Followed at the address lipsyncd prints, as a user copies it.
+            viewer = re.match(r"lipsyncd viewer on (http://\S+/view)", lipsyncd.stdout.readline()).group(1)
             # Godot first: it waits for the session (asking every 250 ms) as the producer starts.
             # The producer starts after the follower has found no session (>= 1 s later): it waits.
             environment = self.environment("live", LIPSYNC_WS=viewer, LIPSYNC_SESSION="godot-live",
@@ -149,11 +151,19 @@ class GodotAddOn(unittest.TestCase):
             lipsyncd.wait()
             lipsyncd.stdout.close()
 
+    def test_a_bad_viewer_address_is_answered_with_the_address_lipsyncd_prints(self):
+        run = self.godot("test_live.gd", "bad_address", LIPSYNC_WS="127.0.0.1:8080", LIPSYNC_SESSION="demo",
+                         LIPSYNC_EXPECTED=self.tracks[0])
+        self.assertPassed(run)
+        self.assertIn("follow(): '127.0.0.1:8080' is not the viewer's address; give the http://HOST:PORT/view "
+                      "address lipsyncd prints at start ('lipsyncd viewer on http://...'", run.stderr)
+
     def test_following_without_a_lipsyncd_says_to_start_one(self):
         run = self.godot("test_live.gd", "no_server", LIPSYNC_WS=f"ws://127.0.0.1:{free_port()}",
                          LIPSYNC_SESSION="nobody", LIPSYNC_EXPECTED=self.tracks[0])
         self.assertPassed(run)
-        self.assertIn("start lipsyncd with --http-listen HOST:PORT", run.stderr)
+        self.assertIn("start lipsyncd with --http-listen HOST:PORT and follow the http://HOST:PORT/view address it "
+                      "prints", run.stderr)
 
 
 if __name__ == "__main__":

@@ -316,7 +316,7 @@ func follow(url, session, start = "beginning"):
 	if cut >= 0:
 		base = base.substr(0, cut)
 	if not base.begins_with("ws://"):
-		return _fail(ERR_INVALID_PARAMETER, "follow(): '%s' is not the viewer's address; give ws://HOST:PORT as lipsyncd --http-listen prints it" % url)
+		return _fail(ERR_INVALID_PARAMETER, "follow(): '%s' is not the viewer's address; give the http://HOST:PORT/view address lipsyncd prints at start ('lipsyncd viewer on http://...', with --http-listen HOST:PORT), or ws://HOST:PORT" % url)
 	_live_url = base + "/ws?session=" + session.percent_encode() + ("&start=now" if start == "now" else "")
 	_live_session = session
 	_live_start = start
@@ -342,7 +342,7 @@ func _connect_live():
 	var error = _socket.connect_to_url(_live_url)
 	if error != OK:
 		_socket = null
-		return _live_fail(error, "cannot connect to %s (error %d); start lipsyncd with --http-listen HOST:PORT and follow that address" % [_live_url, error])
+		return _live_fail(error, "cannot connect to %s (error %d); start lipsyncd with --http-listen HOST:PORT and follow the http://HOST:PORT/view address it prints" % [_live_url, error])
 	return OK
 
 
@@ -376,7 +376,7 @@ func _poll_live():
 func _on_socket_error():
 	_retire_socket()
 	if _live_header == null:
-		_live_fail(ERR_CANT_CONNECT, "no lipsyncd viewer answered at %s; start lipsyncd with --http-listen HOST:PORT and follow that address" % _live_url)
+		_live_fail(ERR_CANT_CONNECT, "no lipsyncd viewer answered at %s; start lipsyncd with --http-listen HOST:PORT and follow the http://HOST:PORT/view address it prints" % _live_url)
 	elif not live_done:
 		_end_live(1006, "the connection was lost")
 
