@@ -8,7 +8,8 @@ real lipsyncd (--http-listen on port 0) fed in real time by `lipsync stream`.
     shapes equal the track's ARKit weights, and between frames their interpolation (test_player.gd);
   * audio: an AudioStreamPlayer's clock drives the face (pause freezes it, seek moves it);
   * bad_input: a track of another model (rendered with `lipsync model dump` renamed), a mesh
-    without the shape keys, wrong mappings, a viseme file: refused, push_error saying what to do,
+    without the shape keys, wrong mappings, a viseme file, a phoneme file, flite's WAV, bytes that
+    are not UTF-8: refused, push_error saying what to do (and no line of Godot's own before it),
     the scene untouched;
   * live: a lipsyncd session followed over the viewer's WebSocket with the media-clock anchor, the
     follower started before the session (it asks again until the session exists); a session that
@@ -71,6 +72,18 @@ class GodotAddOn(unittest.TestCase):
         cls.visemes = os.path.join(cls.workdir, "visemes.json")
         subprocess.run([LIPSYNC, "render", os.path.join(CLOSURES, "flite_1.psdur"), "--format", "visemes-oculus",
                         "-o", cls.visemes], check=True)
+        # The speech itself, given where the track goes.
+        cls.wav = os.path.join(cls.workdir, "papa.wav")
+        subprocess.run(["flite", "-voice", "slt", "-t", "Papa bought five more big maps.", "-o", cls.wav], check=True)
+        cls.not_utf8 = os.path.join(cls.workdir, "latin1.json")
+        with open(cls.not_utf8, "wb") as out:
+            out.write('{"format": "lipsync-track", "text": "caf\u00e9"}\n'.encode("latin-1"))
+        with open(cls.tracks[0], encoding="utf-8") as track:
+            document = json.load(track)
+        document["text"] = "Papa bought five more big maps. \u2014 caf\u00e9"
+        cls.bom_track = os.path.join(cls.workdir, "bom_track.json")
+        with open(cls.bom_track, "w", encoding="utf-8-sig") as out:
+            json.dump(document, out, ensure_ascii=False)
 
     @classmethod
     def tearDownClass(cls):
@@ -108,10 +121,20 @@ class GodotAddOn(unittest.TestCase):
 
     def test_bad_input_is_refused_with_what_to_do_and_the_scene_untouched(self):
         run = self.godot("test_player.gd", "bad_input", LIPSYNC_TRACKS=self.tracks[0],
-                         LIPSYNC_OTHER_MODEL_TRACK=self.other_track, LIPSYNC_NOT_A_TRACK=self.visemes)
+                         LIPSYNC_OTHER_MODEL_TRACK=self.other_track, LIPSYNC_NOT_A_TRACK=self.visemes,
+                         LIPSYNC_WAV=self.wav, LIPSYNC_NOT_UTF8=self.not_utf8, LIPSYNC_BOM_TRACK=self.bom_track,
+                         LIPSYNC_PHONEMES=os.path.join(CLOSURES, "flite_1.psdur"))
         self.assertPassed(run)
+        # No flood of Godot's own decoding errors before the add-on's message (a WAV read as text
+        # gave one per line), nor the JSON parser's error for a phoneme file.
+        self.assertNotIn("Unicode error", run.stdout + run.stderr)
+        self.assertNotIn("Error parsing JSON", run.stderr)
         # push_error's messages, as a Godot user sees them.
-        for expected in ["a track of model 'other-rig', but this LipsyncPlayer's mapping is for model 'default'; "
+        for expected in [f"{self.wav}: a WAV file (audio), not a track; give it to the AudioStreamPlayer",
+                         f"{self.not_utf8}: not a text file (byte 40 is not UTF-8)",
+                         "flite_1.psdur: not a lipsyncd track: not JSON (it begins 'pau:0.",
+                         "'lipsync render flite_1.psdur -o flite_1.json'",
+                         "a track of model 'other-rig', but this LipsyncPlayer's mapping is for model 'default'; "
                          "render the track with that model",
                          "not a lipsyncd track (no \"format\": \"lipsync-track\"); render one with 'lipsync render",
                          "cannot open the track",

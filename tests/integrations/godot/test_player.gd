@@ -9,8 +9,10 @@
 #              position + time since the last mix − output latency; pausing the audio freezes the
 #              face, seeking it moves the face, its end ends the playback.
 #   bad_input  a track of another model, a mesh without the shape keys, a mapping to missing shapes,
-#              a file that is not a track: an error code (push_error says what to do, the harness
-#              reads stderr) and the scene as it was.
+#              a file that is not a track (a viseme file, a phoneme file, a WAV, bytes that are not
+#              UTF-8): an error code (push_error says what to do, the
+#              harness reads stderr) and the scene as it was. A track with a byte order mark and
+#              non-ASCII text loads.
 #
 # Prints "ok: ..." per check passed and "FAIL: ..." per failure; exits 0 only when all passed.
 extends SceneTree
@@ -37,6 +39,7 @@ func _init():
 	elif mode == "bad_input":
 		_run_bad_input()
 		_finish()
+
 	else:
 		_fail("unknown LIPSYNC_GODOT_TEST '%s'" % mode)
 		_finish()
@@ -320,6 +323,13 @@ func _run_bad_input():
 	# Not a track at all.
 	_check(player.load_track(OS.get_environment("LIPSYNC_NOT_A_TRACK")) == ERR_INVALID_DATA, "a viseme file is not a track")
 	_check(player.load_track("/nonexistent/track.json") == ERR_FILE_CANT_OPEN, "a missing file is reported")
+	_check(player.load_track(OS.get_environment("LIPSYNC_WAV")) == ERR_INVALID_DATA, "a WAV is not a track")
+	_check(player.load_track(OS.get_environment("LIPSYNC_NOT_UTF8")) == ERR_INVALID_DATA, "bytes that are not UTF-8 are not a track")
+	_check(player.load_track(OS.get_environment("LIPSYNC_PHONEMES")) == ERR_PARSE_ERROR, "a phoneme file is not a track")
+	_check(player.frame_times_us.size() == frames, "the good track stays after refused files")
+	# UTF-8 with a byte order mark and text beyond ASCII is a track like any other.
+	_check(player.load_track(OS.get_environment("LIPSYNC_BOM_TRACK")) == OK, "a track with a byte order mark and non-ASCII text loads")
+	_check(player.frame_times_us.size() == frames, "it has the good track's frames")
 
 	# A mesh without the shape keys.
 	var cube = Fixture.make_face(["Key 1", "Smile"], "Cube")

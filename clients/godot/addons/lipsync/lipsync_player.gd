@@ -94,12 +94,57 @@ func load_track(path):
 	var opened = file.open(path, File.READ)
 	if opened != OK:
 		return _fail(ERR_FILE_CANT_OPEN, "%s: cannot open the track (error %d); render one with 'lipsync render speech.lab -o %s'" % [path, opened, path.get_file()])
-	var text = file.get_as_text()
+	var bytes = file.get_buffer(file.get_len())
 	file.close()
+	# The bytes are checked before they are decoded: Godot prints a "Unicode error" line for each
+	# line of a file that is not UTF-8 (thousands for a WAV) before the caller could say anything.
+	if bytes.size() >= 12 and bytes.subarray(0, 3).get_string_from_ascii() == "RIFF" and bytes.subarray(8, 11).get_string_from_ascii() == "WAVE":
+		return _fail(ERR_INVALID_DATA, "%s: a WAV file (audio), not a track; give it to the AudioStreamPlayer (audio_player_path) and load the track 'lipsync render INPUT --format json' wrote for that speech" % path)
+	if bytes.size() >= 3 and bytes[0] == 0xEF and bytes[1] == 0xBB and bytes[2] == 0xBF:
+		bytes = bytes.subarray(3, bytes.size() - 1) if bytes.size() > 3 else PoolByteArray()
+	var text = bytes.get_string_from_ascii()
+	if text.to_utf8().size() != bytes.size():  # not plain ASCII: a NUL or a byte of 0x80 or more
+		var bad = _first_byte_not_utf8(bytes)
+		if bad >= 0:
+			return _fail(ERR_INVALID_DATA, "%s: not a text file (byte %d is not UTF-8); a lipsyncd track is the JSON 'lipsync render INPUT --format json' writes" % [path, bad])
+		text = bytes.get_string_from_utf8()
+	var start = text.strip_edges()
+	if not start.begins_with("{"):
+		# Not JSON (Godot's parser would print an error of its own first): a phoneme file, most often.
+		return _fail(ERR_PARSE_ERROR, "%s: not a lipsyncd track: not JSON (it begins '%s'); render one with 'lipsync render INPUT --format json' (a phoneme file, such as flite -psdur output or a TextGrid, is lipsyncd's input: 'lipsync render %s -o %s.json')" % [path, start.substr(0, 30).replace("\n", " "), path.get_file(), path.get_file().get_basename()])
 	var parsed = JSON.parse(text)
 	if parsed.error != OK:
 		return _fail(ERR_PARSE_ERROR, "%s:%d: not JSON (%s); give a track written by 'lipsync render --format json'" % [path, parsed.error_line, parsed.error_string])
 	return set_track(parsed.result, path)
+
+
+# The offset of the first byte of `bytes` that does not belong to a UTF-8 sequence (NUL counts as
+# such: a text file has none), or -1.
+static func _first_byte_not_utf8(bytes):
+	var i = 0
+	var count = bytes.size()
+	while i < count:
+		var lead = bytes[i]
+		var extra = 0
+		if lead == 0:
+			return i
+		elif lead < 0x80:
+			extra = 0
+		elif lead >= 0xC2 and lead <= 0xDF:
+			extra = 1
+		elif lead >= 0xE0 and lead <= 0xEF:
+			extra = 2
+		elif lead >= 0xF0 and lead <= 0xF4:
+			extra = 3
+		else:
+			return i
+		if i + extra >= count:
+			return i
+		for k in range(1, extra + 1):
+			if bytes[i + k] & 0xC0 != 0x80:
+				return i
+		i += extra + 1
+	return -1
 
 
 # Takes a parsed lipsyncd track (the JSON document as a Dictionary); `source` names it in messages.
