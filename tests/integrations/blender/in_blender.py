@@ -237,6 +237,50 @@ class ImportChecks(KeyedTrackChecks):
         self.assertNotIn("eyeBlinkLeft,", output, "a name mapped to null is not reported")
 
 
+class MappingRuleChecks(KeyedTrackChecks):
+    """One rule for names, the Godot add-on's too (docs/integrations.md, "Mapping file")."""
+
+    def setUp(self):
+        self.scene = reset_scene(fps=24)
+        self.track = load_json(CONFIG["track_json"])
+
+    def test_a_partial_mapping_overrides_the_names_it_lists_and_the_rest_drive_their_own_shape_keys(self):
+        face = demo_face.build_face(CONFIG["face_json"], self.track["arkit_names"] + ["JawDrop", "CheekRaise_L"])
+        mapping_path = os.path.join(CONFIG["work"], "partial_mapping.json")
+        with open(mapping_path, "w", encoding="utf-8") as out:
+            json.dump({"shape_keys": {"jawOpen": "JawDrop", "mouthSmileLeft": ["mouthSmileLeft", "CheekRaise_L"],
+                                      "eyeBlinkLeft": None}}, out)
+        result, output = capture_stdout(lambda: bpy.ops.lipsync.import_track(
+            filepath=CONFIG["track_json"], mapping_path=mapping_path, start_frame=1))
+        self.assertEqual(result, {"FINISHED"}, output)
+        driven = {"JawDrop": "jawOpen", "CheekRaise_L": "mouthSmileLeft"}
+        driven.update({n: n for n in self.track["arkit_names"] if n not in ("jawOpen", "eyeBlinkLeft")})
+        self.assertEqual(sorted(self.fcurves_by_key(face)), sorted(driven),
+                         "the shape keys keyed: the mapping's for the names it lists, the ARKit-named for the rest")
+        self.assert_keys_equal_track(face, self.track, 1, 24, names=list(driven), mapping=driven)
+        self.assertNotIn("Warning", output, "every ARKit weight is keyed or mapped to null")
+
+    def test_a_mapping_that_drives_one_shape_key_from_two_names_is_refused(self):
+        demo_face.build_face(CONFIG["face_json"], self.track["arkit_names"])
+        mapping_path = os.path.join(CONFIG["work"], "crossed_mapping.json")
+        with open(mapping_path, "w", encoding="utf-8") as out:
+            json.dump({"shape_keys": {"jawOpen": "mouthClose"}}, out)
+        with self.assertRaises(RuntimeError) as raised:
+            bpy.ops.lipsync.import_track(filepath=CONFIG["track_json"], mapping_path=mapping_path)
+        self.assertIn("shape key 'mouthClose' would be driven by both 'jawOpen' and 'mouthClose': map one of them "
+                      "elsewhere or to null", str(raised.exception))
+
+    def test_a_mapping_to_a_shape_key_the_mesh_lacks_names_that_shape_key(self):
+        demo_face.build_face(CONFIG["face_json"], self.track["arkit_names"])
+        mapping_path = os.path.join(CONFIG["work"], "missing_mapping.json")
+        with open(mapping_path, "w", encoding="utf-8") as out:
+            json.dump({"shape_keys": {"jawOpen": "MouthOpen"}}, out)
+        with self.assertRaises(RuntimeError) as raised:
+            bpy.ops.lipsync.import_track(filepath=CONFIG["track_json"], mapping_path=mapping_path)
+        self.assertIn("'jawOpen' maps to shape key 'MouthOpen', which the mesh does not have",
+                      str(raised.exception))
+
+
 class BadInputChecks(unittest.TestCase):
     """Each bad input: an ERROR report saying what to do, and the scene as it was."""
 
@@ -491,7 +535,7 @@ class DemoFaceChecks(KeyedTrackChecks):
         self.assertEqual([(s.type, s.frame_start) for s in scene.sequence_editor.sequences_all], [("SOUND", 1)])
 
 
-GROUPS = {"import": [ImportChecks, BadInputChecks], "demo": [DemoFaceChecks], "gltf": [GltfExport],
+GROUPS = {"import": [ImportChecks, MappingRuleChecks, BadInputChecks], "demo": [DemoFaceChecks], "gltf": [GltfExport],
           "live": [LiveChecks]}
 
 if __name__ == "__main__":

@@ -11,6 +11,8 @@ real lipsyncd (--http-listen on port 0) fed in real time by `lipsync stream`.
     without the shape keys, wrong mappings, a viseme file, a phoneme file, flite's WAV, bytes that
     are not UTF-8: refused, push_error saying what to do (and no line of Godot's own before it),
     the scene untouched;
+  * mapping: a partial mapping overrides the names it lists and the other ARKit names drive their
+    namesakes (the Blender add-on's rule);
   * live: a lipsyncd session followed over the viewer's WebSocket with the media-clock anchor, the
     follower started before the session (it asks again until the session exists); a session that
     never starts is reported after live_wait_ms;
@@ -126,14 +128,20 @@ class GodotAddOn(unittest.TestCase):
                          LIPSYNC_PHONEMES=os.path.join(CLOSURES, "flite_1.psdur"))
         self.assertPassed(run)
         # No flood of Godot's own decoding errors before the add-on's message (a WAV read as text
-        # gave one per line), nor the JSON parser's error for a phoneme file.
+        # gave one per line), nor the JSON parser's error for a phoneme file; and the mesh's lack of
+        # shapes is said only where it lacks them all.
         self.assertNotIn("Unicode error", run.stdout + run.stderr)
         self.assertNotIn("Error parsing JSON", run.stderr)
+        self.assertEqual(run.stderr.count("has none of the blend shapes"), 1, run.stderr[-4000:])
         # push_error's messages, as a Godot user sees them.
         for expected in [f"{self.wav}: a WAV file (audio), not a track; give it to the AudioStreamPlayer",
                          f"{self.not_utf8}: not a text file (byte 40 is not UTF-8)",
                          "flite_1.psdur: not a lipsyncd track: not JSON (it begins 'pau:0.",
                          "'lipsync render flite_1.psdur -o flite_1.json'",
+                         "has no blend shapes [MouthOpen] that `mapping` names (it has [Key 1, Smile])",
+                         "`mapping`['jawOpen'] is 5; give a blend shape name, an array of names, or null",
+                         "blend shape 'mouthClose' would be driven by both 'jawOpen' and 'mouthClose'; map one of "
+                         "them elsewhere or to null",
                          "a track of model 'other-rig', but this LipsyncPlayer's mapping is for model 'default'; "
                          "render the track with that model",
                          "not a lipsyncd track (no \"format\": \"lipsync-track\"); render one with 'lipsync render",
@@ -144,6 +152,11 @@ class GodotAddOn(unittest.TestCase):
                          "mesh_path '/root/Nowhere' is not a MeshInstance",
                          "play(): no track; call load_track()"]:
             self.assertIn(expected, run.stderr)
+
+    def test_a_partial_mapping_overrides_its_names_and_the_rest_drive_their_own_shapes(self):
+        run = self.godot("test_player.gd", "mapping", LIPSYNC_TRACKS=self.tracks[0])
+        self.assertPassed(run)
+        self.assertNotIn("ERROR", run.stderr, run.stderr[-4000:])
 
     def test_a_live_session_is_followed_with_the_media_clock_anchor(self):
         lipsyncd = subprocess.Popen([LIPSYNCD, "--listen", "127.0.0.1:0", "--http-listen", "127.0.0.1:0",

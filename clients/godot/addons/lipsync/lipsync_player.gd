@@ -41,7 +41,8 @@ const TrackDecoder = preload("track_decoder.gd")
 export(NodePath) var mesh_path = NodePath()
 export(NodePath) var audio_player_path = NodePath()
 export(String, FILE, "*.json") var track_file = ""
-# {ARKit name: blend shape name}. Empty: the mesh's shapes carry the ARKit names.
+# {ARKit name: blend shape name, [names], or null (not driven)}: overrides the names it lists;
+# every other ARKit name drives the blend shape of its own name (see _bind).
 export(Dictionary) var mapping = {}
 # The model the track must come from ("" accepts any): a mapping made for one model's rig.
 export(String) var model = ""
@@ -194,37 +195,66 @@ func _adopt(names, times, weights, source):
 
 
 # [[index, property], ...] and the mesh, or an error code after push_error.
+#
+# Which ARKit name drives which blend shape (the Blender add-on's rule too, docs/integrations.md):
+# an ARKit name that `mapping` lists drives the shapes it maps it to (a name, an array of names, or
+# null: none); every other ARKit name drives the blend shape of its own name, or, failing that, the
+# one shape whose name matches it but for case (`JawOpen`), and nothing where the mesh has neither.
+# A mapping that names an ARKit name the track lacks, a shape the mesh lacks, or makes two ARKit
+# names drive one shape is refused.
 func _bind(names, source):
 	var mesh_instance = get_node_or_null(mesh_path) if not mesh_path.is_empty() else null
 	if not (mesh_instance is MeshInstance):
 		return _fail(ERR_UNCONFIGURED, "mesh_path '%s' is not a MeshInstance; point it at the face's MeshInstance" % str(mesh_path))
 	var shapes = []
+	var by_lowercase = {}  # lowercase name -> the shapes of that name
 	var mesh = mesh_instance.mesh
 	if mesh is ArrayMesh:
 		for i in range(mesh.get_blend_shape_count()):
-			shapes.append(str(mesh.get_blend_shape_name(i)))
-	var bindings = []
-	var missing = []
+			var shape_name = str(mesh.get_blend_shape_name(i))
+			shapes.append(shape_name)
+			if not by_lowercase.has(shape_name.to_lower()):
+				by_lowercase[shape_name.to_lower()] = []
+			by_lowercase[shape_name.to_lower()].append(shape_name)
+	var targets = {}  # ARKit name -> the shapes `mapping` names for it
 	var unknown = []
-	var pairs = mapping if not mapping.empty() else {}
-	if mapping.empty():
-		for name in names:
-			pairs[name] = name
-	for arkit_name in pairs:
-		var shape = str(pairs[arkit_name])
-		var index = names.find(arkit_name)
-		if index < 0:
+	var missing = []
+	for arkit_name in mapping:
+		var value = mapping[arkit_name]
+		var listed = [value] if typeof(value) == TYPE_STRING else (value if typeof(value) == TYPE_ARRAY else [])
+		var usable = typeof(value) == TYPE_NIL or not listed.empty()
+		for shape in listed:
+			usable = usable and typeof(shape) == TYPE_STRING and shape != ""
+		if not usable:
+			return _fail(ERR_INVALID_DATA, "%s: `mapping`['%s'] is %s; give a blend shape name, an array of names, or null (not driven)" % [source, str(arkit_name), JSON.print(value)])
+		if names.find(arkit_name) < 0:
 			unknown.append(arkit_name)
-		elif shapes.has(shape):
-			bindings.append([index, "blend_shapes/" + shape])
-		else:
-			missing.append(shape)
+		for shape in listed:
+			if not shapes.has(shape) and not missing.has(shape):
+				missing.append(shape)
+		targets[arkit_name] = listed
 	if not unknown.empty():
 		return _fail(ERR_INVALID_DATA, "%s: `mapping` names %s, which the track does not have (it has the ARKit names %s...); fix the mapping's keys" % [source, str(unknown), str(names.slice(0, 4))])
+	if not missing.empty():
+		return _fail(ERR_DOES_NOT_EXIST, "%s: the mesh of '%s' has no blend shapes %s that `mapping` names (it has %s); fix the mapping's values or add the shape keys" % [source, mesh_instance.name, str(missing), str(shapes)])
+	var bindings = []
+	var driven = {}  # blend shape -> the ARKit name driving it
+	for index in range(names.size()):
+		var arkit_name = names[index]
+		var own = []
+		if targets.has(arkit_name):
+			own = targets[arkit_name]
+		elif shapes.has(arkit_name):
+			own = [arkit_name]
+		elif by_lowercase.get(str(arkit_name).to_lower(), []).size() == 1:
+			own = by_lowercase[str(arkit_name).to_lower()]
+		for shape in own:
+			if driven.has(shape):
+				return _fail(ERR_INVALID_DATA, "%s: blend shape '%s' would be driven by both '%s' and '%s'; map one of them elsewhere or to null in `mapping`" % [source, shape, driven[shape], arkit_name])
+			driven[shape] = arkit_name
+			bindings.append([index, "blend_shapes/" + shape])
 	if bindings.empty():
 		return _fail(ERR_DOES_NOT_EXIST, "%s: the mesh of '%s' has none of the blend shapes to animate (it has %s); give it ARKit-named shape keys (jawOpen, mouthClose, ...) or set `mapping` to {ARKit name: your shape name}" % [source, mesh_instance.name, str(shapes)])
-	if not mapping.empty() and not missing.empty():
-		return _fail(ERR_DOES_NOT_EXIST, "%s: the mesh of '%s' has no blend shapes %s that `mapping` names (it has %s); fix the mapping's values or add the shape keys" % [source, mesh_instance.name, str(missing), str(shapes)])
 	return [bindings, mesh_instance]
 
 
