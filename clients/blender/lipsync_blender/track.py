@@ -14,8 +14,9 @@ values. This module reads the three layouts lipsyncd writes that carry such curv
 * ``csv`` (model channels): times from ``t_us``, kinds, the channels.
 
 Everything wrong with a file is a TrackError naming the file, line or frame and field, with
-what to do about it; a file of another kind (phonemes, visemes, Rhubarb cues) is named as
-such. Values stay Python floats (the float32 text reads back to the same float32 in Blender).
+what to do about it; a file of another kind (a WAV, Rhubarb cues, other JSON, and a phoneme
+file in any of the six formats lipsync reads, told apart by lipsync's own content rules,
+docs/input-formats.md "Detection") is named as such. Values stay Python floats (the float32 text reads back to the same float32 in Blender).
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ import io
 import json
 import os
 import re
+import shlex
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Tuple
 
@@ -37,6 +39,22 @@ ROTATION_COLUMNS = (
 
 _TIMECODE = re.compile(r"^(\d+):(\d{2}):(\d{2}):(\d+)(?:\.(\d{1,3}))?$")
 _RENDER_HINT = "render one with `lipsync render INPUT --format json` (or arkit-csv)"
+
+#: The phoneme formats lipsync reads (docs/input-formats.md), as the messages name them.
+PHONEME_FORMATS = {
+    "json": "lipsync utterance JSON",
+    "textgrid": "a Praat TextGrid",
+    "timit": "a TIMIT .PHN file",
+    "lab": "a Festival .lab file",
+    "pho": "an MBROLA .pho file",
+    "flite": "`flite -psdur` output",
+}
+#: The ones Render Phonemes with lipsyncd reads itself (live.read_phonemes).
+_LIVE_PHONEME_FORMATS = ("json", "flite")
+_PHONEME_EXTENSIONS = {".textgrid": "textgrid", ".phn": "timit", ".lab": "lab",
+                       ".pho": "pho", ".psdur": "flite", ".flite": "flite"}
+_DECIMAL = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
+_INTEGER = re.compile(r"[+-]?\d+")
 
 
 class TrackError(ValueError):
@@ -91,13 +109,78 @@ def _number(source: str, where: str, text: str) -> float:
     return value
 
 
+def _is_timit_line(line: str) -> bool:
+    fields = line.split()
+    return len(fields) == 3 and bool(_INTEGER.fullmatch(fields[0]) and _INTEGER.fullmatch(fields[1]))
+
+
+def _is_lab_line(line: str) -> bool:
+    fields = line.split()
+    return len(fields) == 3 and bool(_DECIMAL.fullmatch(fields[0]) and _INTEGER.fullmatch(fields[1]))
+
+
+def _is_flite_line(line: str) -> bool:
+    return all(token.rfind(":") > 0 for token in line.split())
+
+
+def _has_flite_time(line: str) -> bool:
+    return any(":" in token and _DECIMAL.fullmatch(token.rsplit(":", 1)[1]) for token in line.split())
+
+
+def _is_pho_line(line: str) -> bool:
+    fields = line.split(";", 1)[0].split()
+    if not fields or fields == ["#"]:
+        return True
+    return len(fields) >= 2 and len(fields) % 2 == 0 and \
+        all(_DECIMAL.fullmatch(f[:-1] if f.endswith("%") else f) for f in fields[1:])
+
+
+def phoneme_format(text: str, path: str = "") -> Optional[str]:
+    """The phoneme format lipsync would read `text`, which is not JSON, as (a key of
+    PHONEME_FORMATS), or None: lipsync's own detection (core/src/formats/detect.cpp), on the
+    first 40 non-blank lines, the content first, then the file name's extension."""
+    start = text.strip()
+    first_line = re.split(r"\r\n|\r|\n", start, maxsplit=1)[0]
+    if '"ooTextFile' in first_line or '"Praat chronological TextGrid text file"' in first_line:
+        return "textgrid"
+    lines = re.split(r"\r\n|\r|\n", text)
+
+    def sample(begin=0):
+        return [line for line in lines[begin:] if line.strip()][:40]
+
+    head = sample()
+    if head and all(_is_timit_line(line) for line in head):
+        return "timit"
+    hashes = [i for i, line in enumerate(lines) if line.strip() == "#"]
+    if hashes and hashes[0] < 40:
+        after = sample(hashes[0] + 1)
+        if after and all(_is_lab_line(line) for line in after):
+            return "lab"
+    if head and all(_is_lab_line(line) for line in head) and any("." in line.split()[0] for line in head):
+        return "lab"
+    if head and all(_is_flite_line(line) for line in head) and any(_has_flite_time(line) for line in head):
+        return "flite"
+    if any(len(line.split(";", 1)[0].split()) >= 2 for line in head) and all(_is_pho_line(line) for line in head):
+        return "pho"
+    return _PHONEME_EXTENSIONS.get(os.path.splitext(path)[1].lower()) if path else None
+
+
+def phoneme_file_error(source: str, phoneme_format: str) -> TrackError:
+    """The error for a phoneme file given as a track: what it is, and how to get its track."""
+    name = os.path.basename(source)
+    stem, extension = os.path.splitext(name)
+    out = stem + ("_track.json" if extension.lower() == ".json" else ".json")
+    way = f"render it (`lipsync render {shlex.quote(name)} -o {shlex.quote(out)}`) and import {out}"
+    if phoneme_format in _LIVE_PHONEME_FORMATS:
+        way += ", or use Render Phonemes with lipsyncd"
+    return TrackError(f"{source}: not a lipsyncd track but a phoneme file "
+                      f"({PHONEME_FORMATS[phoneme_format]}: lipsyncd's input, not its output): {way}")
+
+
 def _other_json_kind(document) -> Optional[str]:
     """What a JSON document is when it is not a track (None if unrecognised)."""
     if not isinstance(document, dict):
         return None
-    if "phonemes" in document:
-        return ("a phoneme file (lipsyncd's input, not its output): render it first with "
-                "`lipsync render FILE --format json`, or use Render from lipsyncd")
     if "mouthCues" in document:
         return "Rhubarb mouth cues (visemes A-H, X), which have no blendshape weights"
     if isinstance(document.get("format"), str) and document["format"] != "lipsync-track":
@@ -111,9 +194,9 @@ def parse_json_track(text: str, source: str) -> Track:
     except json.JSONDecodeError as error:
         raise TrackError(f"{source}:{error.lineno}: not valid JSON ({error.msg})") from None
     if not isinstance(document, dict) or document.get("format") != "lipsync-track":
+        if isinstance(document, dict) and "phonemes" in document:
+            raise phoneme_file_error(source, "json")
         kind = _other_json_kind(document)
-        if kind and kind.startswith("a phoneme file"):
-            raise TrackError(f"{source}: not a lipsyncd track but {kind}")
         found = kind or "JSON without \"format\": \"lipsync-track\""
         raise TrackError(f"{source}: not a lipsyncd track but {found}; {_RENDER_HINT}")
     if document.get("version") != 1:
@@ -202,10 +285,20 @@ def _check_rate(source: str, body, timecodes, csv_fps: int) -> int:
 
 
 def parse_csv_track(text: str, source: str, csv_fps: int = 60) -> Track:
-    rows = list(csv.reader(io.StringIO(text)))
-    if not rows or not rows[0]:
+    if not text.strip():
         raise TrackError(f"{source}: empty file; {_RENDER_HINT}")
+    try:
+        rows = list(csv.reader(io.StringIO(text)))
+    except csv.Error as error:
+        raise TrackError(f"{source}: not a lipsyncd track: not CSV ({error}); {_RENDER_HINT}") from None
     header = [h.strip() for h in rows[0]]
+    if header[:2] != ["Timecode", "BlendShapeCount"] and header[:3] != ["t", "t_us", "kind"]:
+        found = phoneme_format(text, source)
+        if found:
+            raise phoneme_file_error(source, found)
+        raise TrackError(f"{source}:1: not a lipsyncd track: expected the header of a Live Link Face "
+                         f"CSV (Timecode,BlendShapeCount,...) or a channel CSV (t,t_us,kind,...), found "
+                         f"{','.join(header[:3])!r}...; {_RENDER_HINT}")
     body = [(n + 2, r) for n, r in enumerate(rows[1:]) if r]
     if not body:
         raise TrackError(f"{source}: a header and no frames")
@@ -224,23 +317,19 @@ def parse_csv_track(text: str, source: str, csv_fps: int = 60) -> Track:
         times = [_timecode_to_us(timecode, fps) for timecode in timecodes]
         _check_times(source, times, lambda i: f"line {body[i][0]}")
         return Track(source, "arkit-csv", times, [None] * len(times), arkit, {}, None, fps)
-    if header[:3] == ["t", "t_us", "kind"]:
-        channels = {name: [] for name in header[3:]}
-        times, kinds = [], []
-        for line, row in body:
-            if len(row) != len(header):
-                raise TrackError(f"{source}:{line}: {len(row)} columns, the header has {len(header)}")
-            if not re.fullmatch(r"\d+", row[1].strip()):
-                raise TrackError(f"{source}:{line}: t_us {row[1]!r} is not an integer number of µs")
-            times.append(int(row[1]))
-            kinds.append(row[2].strip())
-            for name, value in zip(header[3:], row[3:]):
-                channels[name].append(_number(source, f"line {line}, column {name}", value))
-        _check_times(source, times, lambda i: f"line {body[i][0]}")
-        return Track(source, "csv", times, kinds, {}, channels, None, None)
-    raise TrackError(f"{source}:1: not a lipsyncd track: expected the header of a Live Link Face "
-                     f"CSV (Timecode,BlendShapeCount,...) or a channel CSV (t,t_us,kind,...), found "
-                     f"{','.join(header[:3])!r}...; {_RENDER_HINT}")
+    channels = {name: [] for name in header[3:]}
+    times, kinds = [], []
+    for line, row in body:
+        if len(row) != len(header):
+            raise TrackError(f"{source}:{line}: {len(row)} columns, the header has {len(header)}")
+        if not re.fullmatch(r"\d+", row[1].strip()):
+            raise TrackError(f"{source}:{line}: t_us {row[1]!r} is not an integer number of µs")
+        times.append(int(row[1]))
+        kinds.append(row[2].strip())
+        for name, value in zip(header[3:], row[3:]):
+            channels[name].append(_number(source, f"line {line}, column {name}", value))
+    _check_times(source, times, lambda i: f"line {body[i][0]}")
+    return Track(source, "csv", times, kinds, {}, channels, None, None)
 
 
 def read_track(path: str, csv_fps: int = 60) -> Track:
@@ -251,10 +340,15 @@ def read_track(path: str, csv_fps: int = 60) -> Track:
             data = stream.read()
     except OSError as error:
         raise TrackError(f"{path}: cannot read the track: {error.strerror}") from None
+    if data[:4] == b"RIFF" and data[8:12] == b"WAVE":
+        raise TrackError(f"{path}: not a lipsyncd track but a WAV file (audio): give it as the Audio "
+                         "(WAV) and, as the file, the track `lipsync render` wrote for that speech")
     try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise TrackError(f"{path}: not a text file (a lipsyncd track is JSON or CSV); {_RENDER_HINT}") from None
+        # Praat writes UTF-16 TextGrids (with a byte order mark): still named as phoneme files.
+        text = data.decode("utf-16" if data[:2] in (b"\xff\xfe", b"\xfe\xff") else "utf-8-sig")
+    except UnicodeDecodeError as error:
+        raise TrackError(f"{path}: not a text file (byte {error.start} is not UTF-8; a lipsyncd "
+                         f"track is JSON or CSV); {_RENDER_HINT}") from None
     if text.lstrip().startswith(("{", "[")):
         return parse_json_track(text, path)
     return parse_csv_track(text, path, csv_fps)

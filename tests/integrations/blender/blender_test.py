@@ -10,6 +10,9 @@ channel CSV, Rhubarb JSON, a track of a model with a renamed channel), Festival'
 timings of tests/data/closures/festival_1.lab are rendered too, lipsyncd runs on 127.0.0.1:0
 for the live group, and the add-on is installed into Blender from its zip.
 
+The import group also makes the demo face's .blend with the command docs/integrations.md gives
+(clients/blender/demo_face.py) and, in a second Blender that opens it, imports a track on it.
+
 The gltf group has Blender export the animated face as GLB, then reads the GLB back here with
 an independent reader (struct over the JSON and BIN chunks), compares the morph-weight
 animation with the track, and runs the Khronos glTF validator (npm gltf-validator, pinned by
@@ -23,6 +26,7 @@ import json
 import os
 import queue
 import re
+import shlex
 import shutil
 import struct
 import subprocess
@@ -133,16 +137,21 @@ def unused_port():
         return probe.getsockname()[1]
 
 
-def run_blender(config, work, user_dir):
-    path = os.path.join(work, f"config_{config['group']}.json")
-    with open(path, "w", encoding="utf-8") as out:
-        json.dump(config, out)
+def blender_environment(user_dir):
     # Debian's Blender embeds the system Python and takes its prefix from the `python3` first on
     # PATH: a pyenv or venv python3 there would hide Debian's numpy and grpc from it.
     search_path = os.pathsep.join([os.path.dirname(shutil.which("blender")), os.environ.get("PATH", "")])
-    env = dict(os.environ, PATH=search_path, BLENDER_USER_SCRIPTS=os.path.join(user_dir, "scripts"),
-               BLENDER_USER_CONFIG=os.path.join(user_dir, "config"), PYTHONDONTWRITEBYTECODE="1")
-    command = ["blender", "-b", "--factory-startup", "--python-exit-code", "1",
+    return dict(os.environ, PATH=search_path, BLENDER_USER_SCRIPTS=os.path.join(user_dir, "scripts"),
+                BLENDER_USER_CONFIG=os.path.join(user_dir, "config"), PYTHONDONTWRITEBYTECODE="1")
+
+
+def run_blender(config, work, user_dir, blend=None):
+    """in_blender.py's checks of config's group, in a fresh Blender (on the .blend file `blend`)."""
+    path = os.path.join(work, f"config_{config['group']}.json")
+    with open(path, "w", encoding="utf-8") as out:
+        json.dump(config, out)
+    env = blender_environment(user_dir)
+    command = ["blender", "-b", "--factory-startup", *([blend] if blend else []), "--python-exit-code", "1",
                "--python", os.path.join(HERE, "in_blender.py"), "--", path]
     started = time.monotonic()
     result = subprocess.run(command, capture_output=True, text=True, timeout=240, env=env)
@@ -193,7 +202,9 @@ def f32(value):
     return struct.unpack("<f", struct.pack("<f", value))[0]
 
 
-def check_glb(glb, track, fps):
+def check_glb(glb, track, fps, start_frame=0):
+    """The GLB's morph-weight animation is the track's, its times shifted by start_frame / fps:
+    the exporter writes a key at frame f as f / fps seconds, counting from frame 0."""
     document, binary = read_glb(glb)
     meshes = [(n, node) for n, node in enumerate(document["nodes"]) if "mesh" in node]
     if len(meshes) != 1:
@@ -219,12 +230,12 @@ def check_glb(glb, track, fps):
     index = {n: i for i, n in enumerate(track["arkit_names"])}
     worst_time = worst_weight = 0.0
     for i, frame in enumerate(frames):
-        # Blender: frame = t_us x fps / 1e6 from frame 0; the exporter writes frame / fps seconds.
-        worst_time = max(worst_time, abs(times[i] - frame["t_us"] / 1e6))
+        # Blender: frame = start_frame + t_us x fps / 1e6; the exporter writes frame / fps seconds.
+        worst_time = max(worst_time, abs(times[i] - (start_frame / fps + frame["t_us"] / 1e6)))
         for k, name in enumerate(names):
             worst_weight = max(worst_weight, abs(weights[i * len(names) + k] - f32(frame["arkit"][index[name]])))
     closures = sum(1 for f in frames if f["kind"] in ("closure_start", "closure_end"))
-    print(f"GLB: {len(frames)} key times ({closures} closure key frames) x {len(names)} targets; "
+    print(f"GLB keyed from frame {start_frame}: first key at {times[0] * 1e3:.3f} ms; {len(frames)} key times ({closures} closure key frames) x {len(names)} targets; "
           f"largest time error {worst_time * 1e6:.3f} µs, largest weight error {worst_weight:.2e}")
     if worst_time > 2e-6:
         fail(f"a key time differs from the track's by {worst_time * 1e6:.3f} µs")
@@ -261,6 +272,18 @@ def run_validator(glb, work):
         fail("the validator found problems: " + json.dumps(issues["messages"][:10], indent=1))
 
 
+def make_demo_face(source_dir, work):
+    """The demo face's .blend, made by the command docs/integrations.md gives, as it gives it."""
+    with open(os.path.join(source_dir, "docs/integrations.md"), encoding="utf-8") as stream:
+        step = re.search(r"^(blender -b .*demo_face\.py -- )face\.blend\b", stream.read(), re.M)
+    if step is None:
+        fail("docs/integrations.md no longer shows the demo face's command (blender ... demo_face.py -- face.blend)")
+    blend = os.path.join(work, "face.blend")
+    run(shlex.split(step.group(1)) + [blend], cwd=source_dir,
+        env=blender_environment(os.path.join(work, "blender-user")))
+    return blend
+
+
 def main():
     if len(sys.argv) != 2 or sys.argv[1] not in ("import", "gltf", "live"):
         fail("usage: blender_test.py import|gltf|live")
@@ -274,21 +297,34 @@ def main():
         fail(f"the add-on's zip {zip_path} is missing: build the target lipsync_blender_addon")
     with tempfile.TemporaryDirectory(prefix=f"lipsync-blender-{group}-") as work:
         config = make_speech(work, lipsync, source_dir)
-        config.update(group=group, work=work, addon_zip=zip_path,
+        formats = os.path.join(source_dir, "tests/data/formats")
+        config["phoneme_files"] = {
+            "flite": config["psdur"], "json": config["phonemes_json"],
+            "textgrid": os.path.join(formats, "speech_long.TextGrid"),
+            "textgrid_utf16": os.path.join(formats, "ipa_utf16be.TextGrid"),
+            "timit": os.path.join(formats, "speech.PHN"), "lab": os.path.join(formats, "festival_mama.lab"),
+            "pho": os.path.join(formats, "speech.pho")}
+        config.update(group=group, work=work, addon_zip=zip_path, lipsync=lipsync, source_dir=source_dir,
                       face_json=os.path.join(source_dir, "data/face/viewer_face.json"),
-                      glb=os.path.join(work, "face.glb"))
+                      glb=os.path.join(work, "face.glb"), glb_frame1=os.path.join(work, "face_frame1.glb"))
         server = None
         try:
             if group == "live":
                 server = Server(lipsyncd)
                 config.update(server=server.address, dead_server=f"127.0.0.1:{unused_port()}")
             run_blender(config, work, os.path.join(work, "blender-user"))
+            if group == "import":
+                config.update(group="demo", demo_blend=make_demo_face(source_dir, work))
+                run_blender(config, work, os.path.join(work, "blender-user"), blend=config["demo_blend"])
         finally:
             if server:
                 server.stop()
         if group == "gltf":
             with open(config["track_json"], encoding="utf-8") as stream:
-                check_glb(config["glb"], json.load(stream), 24)
+                track = json.load(stream)
+            check_glb(config["glb"], track, 24)
+            # Blender's default start frame, 1: the whole animation one frame (1/24 s) late.
+            check_glb(config["glb_frame1"], track, 24, start_frame=1)
             run_validator(config["glb"], os.environ.get("WORK_DIR", work))
     print(f"blender_test {group}: passed")
 

@@ -2,7 +2,7 @@
 
 blender -b --factory-startup --python-exit-code 1 --python in_blender.py -- CONFIG.json
 
-CONFIG names the group of checks ("import", "gltf" or "live") and the files the harness made
+CONFIG names the group of checks ("import", "demo", "gltf" or "live") and the files the harness made
 from real speech (flite's timings and WAV, tracks rendered by the built `lipsync`). The add-on
 is installed from the zip the build makes, as a user does (Preferences > Add-ons > Install),
 into the throw-away user folder the harness points BLENDER_USER_SCRIPTS at. Every check runs
@@ -10,17 +10,33 @@ its operator through bpy.ops, as the UI does: errors arrive as RuntimeError carr
 operator's report. A failing check makes Blender exit 1.
 """
 
+import importlib.util
 import json
 import os
+import re
+import shlex
 import struct
+import subprocess
 import sys
 import tempfile
+import time
 import unittest
 
 import bpy
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import face_scene  # noqa: E402
+
+def _load_demo_face():
+    """clients/blender/demo_face.py, by its path: that folder on sys.path would hide the add-on
+    installed from the zip behind its sources."""
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..", "clients", "blender",
+                        "demo_face.py")
+    spec = importlib.util.spec_from_file_location("demo_face", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+demo_face = _load_demo_face()
 
 CONFIG = json.load(open(sys.argv[sys.argv.index("--") + 1], encoding="utf-8"))
 CLOSURE_KINDS = ("closure_start", "closure_end")
@@ -158,7 +174,7 @@ class ImportChecks(KeyedTrackChecks):
     def setUp(self):
         self.scene = reset_scene(fps=24)
         self.track = load_json(CONFIG["track_json"])
-        self.face = face_scene.build_face(CONFIG["face_json"], self.track["arkit_names"])
+        self.face = demo_face.build_face(CONFIG["face_json"], self.track["arkit_names"])
 
     def test_json_track_keys_every_frame_at_its_time_with_the_audio_at_its_start(self):
         result, output = capture_stdout(lambda: bpy.ops.lipsync.import_track(
@@ -221,13 +237,57 @@ class ImportChecks(KeyedTrackChecks):
         self.assertNotIn("eyeBlinkLeft,", output, "a name mapped to null is not reported")
 
 
+class MappingRuleChecks(KeyedTrackChecks):
+    """One rule for names, the Godot add-on's too (docs/integrations.md, "Mapping file")."""
+
+    def setUp(self):
+        self.scene = reset_scene(fps=24)
+        self.track = load_json(CONFIG["track_json"])
+
+    def test_a_partial_mapping_overrides_the_names_it_lists_and_the_rest_drive_their_own_shape_keys(self):
+        face = demo_face.build_face(CONFIG["face_json"], self.track["arkit_names"] + ["JawDrop", "CheekRaise_L"])
+        mapping_path = os.path.join(CONFIG["work"], "partial_mapping.json")
+        with open(mapping_path, "w", encoding="utf-8") as out:
+            json.dump({"shape_keys": {"jawOpen": "JawDrop", "mouthSmileLeft": ["mouthSmileLeft", "CheekRaise_L"],
+                                      "eyeBlinkLeft": None}}, out)
+        result, output = capture_stdout(lambda: bpy.ops.lipsync.import_track(
+            filepath=CONFIG["track_json"], mapping_path=mapping_path, start_frame=1))
+        self.assertEqual(result, {"FINISHED"}, output)
+        driven = {"JawDrop": "jawOpen", "CheekRaise_L": "mouthSmileLeft"}
+        driven.update({n: n for n in self.track["arkit_names"] if n not in ("jawOpen", "eyeBlinkLeft")})
+        self.assertEqual(sorted(self.fcurves_by_key(face)), sorted(driven),
+                         "the shape keys keyed: the mapping's for the names it lists, the ARKit-named for the rest")
+        self.assert_keys_equal_track(face, self.track, 1, 24, names=list(driven), mapping=driven)
+        self.assertNotIn("Warning", output, "every ARKit weight is keyed or mapped to null")
+
+    def test_a_mapping_that_drives_one_shape_key_from_two_names_is_refused(self):
+        demo_face.build_face(CONFIG["face_json"], self.track["arkit_names"])
+        mapping_path = os.path.join(CONFIG["work"], "crossed_mapping.json")
+        with open(mapping_path, "w", encoding="utf-8") as out:
+            json.dump({"shape_keys": {"jawOpen": "mouthClose"}}, out)
+        with self.assertRaises(RuntimeError) as raised:
+            bpy.ops.lipsync.import_track(filepath=CONFIG["track_json"], mapping_path=mapping_path)
+        self.assertIn("shape key 'mouthClose' would be driven by both 'jawOpen' and 'mouthClose': map one of them "
+                      "elsewhere or to null", str(raised.exception))
+
+    def test_a_mapping_to_a_shape_key_the_mesh_lacks_names_that_shape_key(self):
+        demo_face.build_face(CONFIG["face_json"], self.track["arkit_names"])
+        mapping_path = os.path.join(CONFIG["work"], "missing_mapping.json")
+        with open(mapping_path, "w", encoding="utf-8") as out:
+            json.dump({"shape_keys": {"jawOpen": "MouthOpen"}}, out)
+        with self.assertRaises(RuntimeError) as raised:
+            bpy.ops.lipsync.import_track(filepath=CONFIG["track_json"], mapping_path=mapping_path)
+        self.assertIn("'jawOpen' maps to shape key 'MouthOpen', which the mesh does not have",
+                      str(raised.exception))
+
+
 class BadInputChecks(unittest.TestCase):
     """Each bad input: an ERROR report saying what to do, and the scene as it was."""
 
     def setUp(self):
         self.scene = reset_scene(fps=24)
         self.track = load_json(CONFIG["track_json"])
-        self.face = face_scene.build_face(CONFIG["face_json"], self.track["arkit_names"])
+        self.face = demo_face.build_face(CONFIG["face_json"], self.track["arkit_names"])
         # A previous animation that must survive every failure.
         self.face.data.shape_keys.animation_data_create()
         previous = bpy.data.actions.new("Hand keyed")
@@ -243,8 +303,35 @@ class BadInputChecks(unittest.TestCase):
         self.assertEqual(snapshot(self.scene), before, "the failed import changed the scene")
         return str(raised.exception)
 
-    def test_a_phoneme_file_is_named_as_such(self):
-        self.assert_refused("but a phoneme file", filepath=CONFIG["phonemes_json"])
+    def test_a_phoneme_file_of_every_format_lipsync_reads_is_named_as_such(self):
+        described = {"flite": "`flite -psdur` output", "json": "lipsync utterance JSON",
+                     "textgrid": "a Praat TextGrid", "textgrid_utf16": "a Praat TextGrid",
+                     "timit": "a TIMIT .PHN file", "lab": "a Festival .lab file", "pho": "an MBROLA .pho file"}
+        self.assertEqual(sorted(CONFIG["phoneme_files"]), sorted(described))
+        for kind, path in CONFIG["phoneme_files"].items():
+            with self.subTest(kind=kind):
+                text = self.assert_refused(f"{path}: not a lipsyncd track but a phoneme file ({described[kind]}: "
+                                           "lipsyncd's input, not its output): render it (`lipsync render "
+                                           f"{os.path.basename(path)} -o ", filepath=path)
+                live = kind in ("flite", "json")
+                self.assertEqual("or use Render Phonemes with lipsyncd" in text, live, text)
+
+    def test_the_render_command_a_flite_file_is_answered_with_gives_a_track_that_imports(self):
+        text = self.assert_refused("not a lipsyncd track but a phoneme file", filepath=CONFIG["psdur"])
+        command = re.search(r"\(`(lipsync render [^`]*)`\) and import (\S+),", text)
+        self.assertIsNotNone(command, text)
+        self.assertEqual(command.groups(), ("lipsync render papa.psdur -o papa.json", "papa.json"))
+        folder = os.path.dirname(CONFIG["psdur"])
+        subprocess.run([CONFIG["lipsync"], *shlex.split(command.group(1))[1:]], cwd=folder, check=True,
+                       capture_output=True)
+        result, output = capture_stdout(lambda: bpy.ops.lipsync.import_track(
+            filepath=os.path.join(folder, command.group(2))))
+        self.assertEqual(result, {"FINISHED"}, output)
+        self.assertIn("Keyed 52 shape keys of 'Face'", output)
+
+    def test_a_wav_given_as_the_track_is_named_as_such(self):
+        self.assert_refused(f"{CONFIG['wav']}: not a lipsyncd track but a WAV file (audio): give it as the "
+                            "Audio (WAV)", filepath=CONFIG["wav"])
 
     def test_rhubarb_cues_are_named_as_such(self):
         self.assert_refused("Rhubarb mouth cues", filepath=CONFIG["rhubarb_json"])
@@ -299,24 +386,30 @@ class BadInputChecks(unittest.TestCase):
 
 
 class GltfExport(unittest.TestCase):
-    """Keys the track from frame 0 and exports a GLB; blender_test.py reads it back."""
+    """Keys the track and exports a GLB, as docs/integrations.md says; blender_test.py reads it back."""
 
-    def test_export(self):
+    def export(self, glb, **import_options):
         reset_scene(fps=24)
         track = load_json(CONFIG["track_json"])
-        face_scene.build_face(CONFIG["face_json"], track["arkit_names"])
-        self.assertEqual(bpy.ops.lipsync.import_track(filepath=CONFIG["track_json"], start_frame=0),
+        demo_face.build_face(CONFIG["face_json"], track["arkit_names"])
+        self.assertEqual(bpy.ops.lipsync.import_track(filepath=CONFIG["track_json"], **import_options),
                          {"FINISHED"})
-        bpy.ops.export_scene.gltf(filepath=CONFIG["glb"], export_format="GLB", export_animations=True,
+        bpy.ops.export_scene.gltf(filepath=glb, export_format="GLB", export_animations=True,
                                   export_morph=True, export_force_sampling=False, export_apply=False)
-        self.assertTrue(os.path.getsize(CONFIG["glb"]) > 0)
+        self.assertTrue(os.path.getsize(glb) > 0)
+
+    def test_export_keyed_from_frame_0(self):
+        self.export(CONFIG["glb"], start_frame=0)
+
+    def test_export_keyed_from_the_default_start_frame_1(self):
+        self.export(CONFIG["glb_frame1"])
 
 
 class LiveChecks(KeyedTrackChecks):
     def setUp(self):
         self.scene = reset_scene(fps=24)
         self.track = load_json(CONFIG["track_json"])
-        self.face = face_scene.build_face(CONFIG["face_json"], self.track["arkit_names"])
+        self.face = demo_face.build_face(CONFIG["face_json"], self.track["arkit_names"])
         prefs = bpy.context.preferences.addons["lipsync_blender"].preferences
         prefs.server, prefs.timeout_s = CONFIG["server"], 60
 
@@ -360,6 +453,26 @@ class LiveChecks(KeyedTrackChecks):
         closures = int(output.split(" closure key frames")[0].rsplit("(", 1)[1])
         self.assertGreaterEqual(closures, 6, "/p b m f v/ in the text give closure key frames")
 
+    def test_the_preferences_a_script_sets_as_documented_choose_the_server_and_the_deadline(self):
+        with open(os.path.join(CONFIG["source_dir"], "docs/integrations.md"), encoding="utf-8") as stream:
+            snippet = re.search(r'```python\n(prefs = bpy\.context\.preferences\.addons\["lipsync_blender"\]'
+                                r'\.preferences\n.*?)```', stream.read(), re.S)
+        self.assertIsNotNone(snippet, "docs/integrations.md shows no preferences snippet")
+        exec(snippet.group(1), {"bpy": bpy})
+        prefs = bpy.context.preferences.addons["lipsync_blender"].preferences
+        self.assertEqual((prefs.server, prefs.timeout_s), ("render-host:50051", 120))
+        # timeout_s bounds the wait for a server that does not answer (5 s at most without it).
+        prefs.server, prefs.timeout_s = CONFIG["dead_server"], 1
+        started = time.monotonic()
+        with self.assertRaises(RuntimeError) as raised:
+            bpy.ops.lipsync.render_phonemes(filepath=CONFIG["psdur"])
+        waited = time.monotonic() - started
+        self.assertIn(f"No lipsyncd answers at {CONFIG['dead_server']}", str(raised.exception))
+        self.assertLess(waited, 3.0, "the deadline in the preferences was not used")
+        prefs.server = CONFIG["server"]
+        self.assertEqual(bpy.ops.lipsync.render_phonemes(filepath=CONFIG["psdur"]), {"FINISHED"})
+        self.assert_keys_equal_track(self.face, self.track, 1, 24)
+
     def test_no_lipsyncd_is_an_error_that_leaves_the_scene(self):
         prefs = bpy.context.preferences.addons["lipsync_blender"].preferences
         prefs.server, prefs.timeout_s = CONFIG["dead_server"], 2
@@ -397,7 +510,33 @@ class LiveChecks(KeyedTrackChecks):
         self.assertEqual(snapshot(self.scene), before)
 
 
-GROUPS = {"import": [ImportChecks, BadInputChecks], "gltf": [GltfExport], "live": [LiveChecks]}
+class DemoFaceChecks(KeyedTrackChecks):
+    """The demo face's .blend (clients/blender/demo_face.py), opened as docs/integrations.md says."""
+
+    def test_the_demo_face_blend_opens_ready_to_import_a_track_with_its_audio(self):
+        self.assertEqual(os.path.realpath(bpy.data.filepath), os.path.realpath(CONFIG["demo_blend"]))
+        face = bpy.context.active_object
+        self.assertIsNotNone(face, "the demo face's .blend opens with no active object")
+        self.assertEqual((face.name, face.type, face.select_get()), ("Face", "MESH", True))
+        track = load_json(CONFIG["track_json"])
+        names = [kb.name for kb in face.data.shape_keys.key_blocks]
+        self.assertEqual(names, ["Basis"] + track["arkit_names"])
+        moving = [kb.name for kb in face.data.shape_keys.key_blocks[1:]
+                  if any(a.co != b.co for a, b in zip(kb.data, face.data.shape_keys.reference_key.data))]
+        self.assertIn("jawOpen", moving)
+        self.assertIn("mouthClose", moving)
+        scene = bpy.context.scene
+        self.assertEqual(scene.camera.name, "Camera")
+        result, output = capture_stdout(lambda: bpy.ops.lipsync.import_track(
+            filepath=CONFIG["track_json"], audio_path=CONFIG["wav"]))
+        self.assertEqual(result, {"FINISHED"}, output)
+        self.assertIn("Keyed 52 shape keys of 'Face'", output)
+        self.assert_keys_equal_track(face, track, 1, scene.render.fps)
+        self.assertEqual([(s.type, s.frame_start) for s in scene.sequence_editor.sequences_all], [("SOUND", 1)])
+
+
+GROUPS = {"import": [ImportChecks, MappingRuleChecks, BadInputChecks], "demo": [DemoFaceChecks], "gltf": [GltfExport],
+          "live": [LiveChecks]}
 
 if __name__ == "__main__":
     install_addon()

@@ -11,15 +11,26 @@ frame that starts the first /p/ (lips sealed) and the middle of the /aa/ after i
 as blender-closure-p.png and blender-open-aa.png. Not a test: the pictures are for the docs.
 """
 
+import importlib.util
 import json
-import math
 import os
 import sys
 
 import bpy
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import face_scene  # noqa: E402
+
+def _load_demo_face():
+    """clients/blender/demo_face.py, by its path: that folder on sys.path would hide the add-on
+    installed from the zip behind its sources."""
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..", "clients", "blender",
+                        "demo_face.py")
+    spec = importlib.util.spec_from_file_location("demo_face", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+demo_face = _load_demo_face()
 
 args = sys.argv[sys.argv.index("--") + 1:]
 addon_zip, track_path, face_json, out_dir = args[:4]
@@ -33,43 +44,8 @@ scene.render.fps = 1000
 
 with open(track_path, encoding="utf-8") as stream:
     track = json.load(stream)
-face = face_scene.build_face(face_json, track["arkit_names"])
-face.rotation_euler = (math.radians(90), 0, 0)  # the face's +y is up, +z its front: Blender's z up, -y front
-for polygon in face.data.polygons:
-    polygon.use_smooth = True
-
-# One material per part of the face asset (skin, inner lip, cavity, teeth, tongue), by the part
-# most of a triangle's vertices belong to.
-with open(face_json, encoding="utf-8") as stream:
-    parts = json.load(stream)["parts"]
-colours = [(0.80, 0.55, 0.45), (0.62, 0.22, 0.22), (0.20, 0.03, 0.04), (0.92, 0.90, 0.85),
-           (0.92, 0.90, 0.85), (0.75, 0.30, 0.32)]
-for index, colour in enumerate(colours):
-    material = bpy.data.materials.new(f"part{index}")
-    material.use_nodes = True
-    bsdf = material.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (*colour, 1.0)
-    bsdf.inputs["Roughness"].default_value = 0.55
-    face.data.materials.append(material)
-for polygon in face.data.polygons:
-    votes = [parts[v] for v in polygon.vertices]
-    polygon.material_index = max(set(votes), key=votes.count)
-
-camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-camera.location = (0.0, -0.42, 0.0)
-camera.rotation_euler = (math.radians(90), 0, 0)
-camera.data.lens = 50
-scene.collection.objects.link(camera)
-scene.camera = camera
-for name, location, energy in (("Key", (-0.3, -0.5, 0.35), 14.0), ("Fill", (0.4, -0.4, 0.0), 5.0)):
-    light = bpy.data.objects.new(name, bpy.data.lights.new(name, "POINT"))
-    light.data.energy = energy
-    light.location = location
-    scene.collection.objects.link(light)
-world = bpy.data.worlds.new("World")
-world.use_nodes = True
-world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.18, 0.2, 0.24, 1.0)
-scene.world = world
+face = demo_face.build_face(face_json, track["arkit_names"])
+demo_face.dress(face, face_json)
 
 result = bpy.ops.lipsync.import_track(filepath=track_path, start_frame=0)
 assert result == {"FINISHED"}, result

@@ -8,12 +8,16 @@ real lipsyncd (--http-listen on port 0) fed in real time by `lipsync stream`.
     shapes equal the track's ARKit weights, and between frames their interpolation (test_player.gd);
   * audio: an AudioStreamPlayer's clock drives the face (pause freezes it, seek moves it);
   * bad_input: a track of another model (rendered with `lipsync model dump` renamed), a mesh
-    without the shape keys, wrong mappings, a viseme file: refused, push_error saying what to do,
+    without the shape keys, wrong mappings, a viseme file, a phoneme file, flite's WAV, bytes that
+    are not UTF-8: refused, push_error saying what to do (and no line of Godot's own before it),
     the scene untouched;
+  * mapping: a partial mapping overrides the names it lists and the other ARKit names drive their
+    namesakes (the Blender add-on's rule);
   * live: a lipsyncd session followed over the viewer's WebSocket with the media-clock anchor, the
     follower started before the session (it asks again until the session exists); a session that
     never starts is reported after live_wait_ms;
-  * no_server: following a viewer address where nothing listens reports it.
+  * no_server: following a viewer address where nothing listens reports it; bad_address: an address
+    that is not a viewer's is answered with the http://HOST:PORT/view address lipsyncd prints.
 
 Usage: godot_test.py LIPSYNC LIPSYNCD SOURCE_DIR. Exits 77 (skipped) without godot3-server.
 """
@@ -70,6 +74,18 @@ class GodotAddOn(unittest.TestCase):
         cls.visemes = os.path.join(cls.workdir, "visemes.json")
         subprocess.run([LIPSYNC, "render", os.path.join(CLOSURES, "flite_1.psdur"), "--format", "visemes-oculus",
                         "-o", cls.visemes], check=True)
+        # The speech itself, given where the track goes.
+        cls.wav = os.path.join(cls.workdir, "papa.wav")
+        subprocess.run(["flite", "-voice", "slt", "-t", "Papa bought five more big maps.", "-o", cls.wav], check=True)
+        cls.not_utf8 = os.path.join(cls.workdir, "latin1.json")
+        with open(cls.not_utf8, "wb") as out:
+            out.write('{"format": "lipsync-track", "text": "caf\u00e9"}\n'.encode("latin-1"))
+        with open(cls.tracks[0], encoding="utf-8") as track:
+            document = json.load(track)
+        document["text"] = "Papa bought five more big maps. \u2014 caf\u00e9"
+        cls.bom_track = os.path.join(cls.workdir, "bom_track.json")
+        with open(cls.bom_track, "w", encoding="utf-8-sig") as out:
+            json.dump(document, out, ensure_ascii=False)
 
     @classmethod
     def tearDownClass(cls):
@@ -107,10 +123,26 @@ class GodotAddOn(unittest.TestCase):
 
     def test_bad_input_is_refused_with_what_to_do_and_the_scene_untouched(self):
         run = self.godot("test_player.gd", "bad_input", LIPSYNC_TRACKS=self.tracks[0],
-                         LIPSYNC_OTHER_MODEL_TRACK=self.other_track, LIPSYNC_NOT_A_TRACK=self.visemes)
+                         LIPSYNC_OTHER_MODEL_TRACK=self.other_track, LIPSYNC_NOT_A_TRACK=self.visemes,
+                         LIPSYNC_WAV=self.wav, LIPSYNC_NOT_UTF8=self.not_utf8, LIPSYNC_BOM_TRACK=self.bom_track,
+                         LIPSYNC_PHONEMES=os.path.join(CLOSURES, "flite_1.psdur"))
         self.assertPassed(run)
+        # No flood of Godot's own decoding errors before the add-on's message (a WAV read as text
+        # gave one per line), nor the JSON parser's error for a phoneme file; and the mesh's lack of
+        # shapes is said only where it lacks them all.
+        self.assertNotIn("Unicode error", run.stdout + run.stderr)
+        self.assertNotIn("Error parsing JSON", run.stderr)
+        self.assertEqual(run.stderr.count("has none of the blend shapes"), 1, run.stderr[-4000:])
         # push_error's messages, as a Godot user sees them.
-        for expected in ["a track of model 'other-rig', but this LipsyncPlayer's mapping is for model 'default'; "
+        for expected in [f"{self.wav}: a WAV file (audio), not a track; give it to the AudioStreamPlayer",
+                         f"{self.not_utf8}: not a text file (byte 40 is not UTF-8)",
+                         "flite_1.psdur: not a lipsyncd track: not JSON (it begins 'pau:0.",
+                         "'lipsync render flite_1.psdur -o flite_1.json'",
+                         "has no blend shapes [MouthOpen] that `mapping` names (it has [Key 1, Smile])",
+                         "`mapping`['jawOpen'] is 5; give a blend shape name, an array of names, or null",
+                         "blend shape 'mouthClose' would be driven by both 'jawOpen' and 'mouthClose'; map one of "
+                         "them elsewhere or to null",
+                         "a track of model 'other-rig', but this LipsyncPlayer's mapping is for model 'default'; "
                          "render the track with that model",
                          "not a lipsyncd track (no \"format\": \"lipsync-track\"); render one with 'lipsync render",
                          "cannot open the track",
@@ -121,12 +153,18 @@ class GodotAddOn(unittest.TestCase):
                          "play(): no track; call load_track()"]:
             self.assertIn(expected, run.stderr)
 
+    def test_a_partial_mapping_overrides_its_names_and_the_rest_drive_their_own_shapes(self):
+        run = self.godot("test_player.gd", "mapping", LIPSYNC_TRACKS=self.tracks[0])
+        self.assertPassed(run)
+        self.assertNotIn("ERROR", run.stderr, run.stderr[-4000:])
+
     def test_a_live_session_is_followed_with_the_media_clock_anchor(self):
         lipsyncd = subprocess.Popen([LIPSYNCD, "--listen", "127.0.0.1:0", "--http-listen", "127.0.0.1:0",
                                      "--log-level", "warn"], stdout=subprocess.PIPE, text=True)
         try:
             grpc_address = re.match(r"lipsyncd listening on (\S+)", lipsyncd.stdout.readline()).group(1)
-            viewer = re.match(r"lipsyncd viewer on (http://\S+)/view", lipsyncd.stdout.readline()).group(1)
+            # Followed at the address lipsyncd prints, as a user copies it.
+            viewer = re.match(r"lipsyncd viewer on (http://\S+/view)", lipsyncd.stdout.readline()).group(1)
             # Godot first: it waits for the session (asking every 250 ms) as the producer starts.
             # The producer starts after the follower has found no session (>= 1 s later): it waits.
             environment = self.environment("live", LIPSYNC_WS=viewer, LIPSYNC_SESSION="godot-live",
@@ -149,11 +187,19 @@ class GodotAddOn(unittest.TestCase):
             lipsyncd.wait()
             lipsyncd.stdout.close()
 
+    def test_a_bad_viewer_address_is_answered_with_the_address_lipsyncd_prints(self):
+        run = self.godot("test_live.gd", "bad_address", LIPSYNC_WS="127.0.0.1:8080", LIPSYNC_SESSION="demo",
+                         LIPSYNC_EXPECTED=self.tracks[0])
+        self.assertPassed(run)
+        self.assertIn("follow(): '127.0.0.1:8080' is not the viewer's address; give the http://HOST:PORT/view "
+                      "address lipsyncd prints at start ('lipsyncd viewer on http://...'", run.stderr)
+
     def test_following_without_a_lipsyncd_says_to_start_one(self):
         run = self.godot("test_live.gd", "no_server", LIPSYNC_WS=f"ws://127.0.0.1:{free_port()}",
                          LIPSYNC_SESSION="nobody", LIPSYNC_EXPECTED=self.tracks[0])
         self.assertPassed(run)
-        self.assertIn("start lipsyncd with --http-listen HOST:PORT", run.stderr)
+        self.assertIn("start lipsyncd with --http-listen HOST:PORT and follow the http://HOST:PORT/view address it "
+                      "prints", run.stderr)
 
 
 if __name__ == "__main__":

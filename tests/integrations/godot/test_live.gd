@@ -7,7 +7,8 @@
 #   - the session's end arrives (live_ended, code 1000).
 # With LIPSYNC_GODOT_TEST=no_server, follow() of an address where nothing listens reports an error
 # and leaves the face untouched; with no_session, a session that never starts is reported after
-# live_wait_ms (lipsyncd's NOT_FOUND, asked again every 250 ms until then).
+# live_wait_ms (lipsyncd's NOT_FOUND, asked again every 250 ms until then); with bad_address,
+# follow() of something that is not a viewer address is refused at once.
 extends SceneTree
 
 const Fixture = preload("res://face_fixture.gd")
@@ -50,10 +51,16 @@ func _init():
 		audio.stream = Fixture.make_silence(end_us / 1000000.0 + 0.5)
 		get_root().add_child(audio)
 		player.audio_player_path = player.get_path_to(audio)
-	if mode == "no_server" or mode == "no_session":
+	if mode == "no_server" or mode == "no_session" or mode == "bad_address":
 		face.set("blend_shapes/jawOpen", 0.5)
 		player.live_wait_ms = 1000
 	var error = player.follow(OS.get_environment("LIPSYNC_WS"), OS.get_environment("LIPSYNC_SESSION"))
+	if mode == "bad_address":
+		_check(error == ERR_INVALID_PARAMETER, "follow() of '%s' is refused at once (error %d)" % [OS.get_environment("LIPSYNC_WS"), error])
+		_check(face.get("blend_shapes/jawOpen") == 0.5 and player.frame_times_us.empty(), "the face is untouched")
+		print("ok: a bad viewer address is refused")
+		_finish()
+		return
 	_check(error == OK, "follow() starts (error %d)" % error)
 
 

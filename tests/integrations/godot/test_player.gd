@@ -9,8 +9,13 @@
 #              position + time since the last mix − output latency; pausing the audio freezes the
 #              face, seeking it moves the face, its end ends the playback.
 #   bad_input  a track of another model, a mesh without the shape keys, a mapping to missing shapes,
-#              a file that is not a track: an error code (push_error says what to do, the harness
-#              reads stderr) and the scene as it was.
+#              a mapping that drives one shape from two names, a file that is not a track (a viseme
+#              file, a phoneme file, a WAV, bytes that are not UTF-8): an error code (push_error says what to do, the
+#              harness reads stderr) and the scene as it was. A track with a byte order mark and
+#              non-ASCII text loads.
+#   mapping    the one rule for names (the Blender add-on's too): a partial mapping overrides the
+#              ARKit names it lists (a shape, several, or null: none) and every other ARKit name
+#              drives the blend shape of its own name (or the one that matches it but for case).
 #
 # Prints "ok: ..." per check passed and "FAIL: ..." per failure; exits 0 only when all passed.
 extends SceneTree
@@ -36,6 +41,9 @@ func _init():
 		_setup_audio()
 	elif mode == "bad_input":
 		_run_bad_input()
+		_finish()
+	elif mode == "mapping":
+		_run_mapping()
 		_finish()
 	else:
 		_fail("unknown LIPSYNC_GODOT_TEST '%s'" % mode)
@@ -320,6 +328,13 @@ func _run_bad_input():
 	# Not a track at all.
 	_check(player.load_track(OS.get_environment("LIPSYNC_NOT_A_TRACK")) == ERR_INVALID_DATA, "a viseme file is not a track")
 	_check(player.load_track("/nonexistent/track.json") == ERR_FILE_CANT_OPEN, "a missing file is reported")
+	_check(player.load_track(OS.get_environment("LIPSYNC_WAV")) == ERR_INVALID_DATA, "a WAV is not a track")
+	_check(player.load_track(OS.get_environment("LIPSYNC_NOT_UTF8")) == ERR_INVALID_DATA, "bytes that are not UTF-8 are not a track")
+	_check(player.load_track(OS.get_environment("LIPSYNC_PHONEMES")) == ERR_PARSE_ERROR, "a phoneme file is not a track")
+	_check(player.frame_times_us.size() == frames, "the good track stays after refused files")
+	# UTF-8 with a byte order mark and text beyond ASCII is a track like any other.
+	_check(player.load_track(OS.get_environment("LIPSYNC_BOM_TRACK")) == OK, "a track with a byte order mark and non-ASCII text loads")
+	_check(player.frame_times_us.size() == frames, "it has the good track's frames")
 
 	# A mesh without the shape keys.
 	var cube = Fixture.make_face(["Key 1", "Smile"], "Cube")
@@ -333,12 +348,22 @@ func _run_bad_input():
 	_check(cube.get("blend_shapes/Smile") == 0.25 and cube.get("blend_shapes/Key 1") == 0.0, "the mesh without shape keys is untouched")
 	_check(on_cube.play() == ERR_UNCONFIGURED, "play() without a track is refused")
 
-	# A mapping to shapes the mesh lacks, and one from names the track lacks.
+	# A mapping to shapes the mesh lacks (with and without one it has), one from names the track
+	# lacks, one that is not a shape name.
 	on_cube.mapping = {"jawOpen": "Smile", "mouthClose": "MouthClosed"}
 	_check(on_cube.load_track(good) == ERR_DOES_NOT_EXIST, "a mapping to a missing shape is refused")
+	on_cube.mapping = {"jawOpen": "MouthOpen"}
+	_check(on_cube.load_track(good) == ERR_DOES_NOT_EXIST, "a mapping whose only shape is missing is refused")
 	on_cube.mapping = {"jawOpenWide": "Smile"}
 	_check(on_cube.load_track(good) == ERR_INVALID_DATA, "a mapping from a name the track lacks is refused")
+	on_cube.mapping = {"jawOpen": 5}
+	_check(on_cube.load_track(good) == ERR_INVALID_DATA, "a mapping to a number is refused")
 	_check(cube.get("blend_shapes/Smile") == 0.25, "the mesh is untouched after refused mappings")
+	# Two ARKit names onto one shape: jawOpen mapped to mouthClose, which mouthClose drives itself.
+	var crossed = _new_player(face, "")
+	crossed.mapping = {"jawOpen": "mouthClose"}
+	_check(crossed.load_track(good) == ERR_INVALID_DATA, "a mapping that drives one shape from two names is refused")
+	_check(face.get("blend_shapes/jawOpen") == 0.5, "the face is untouched after the refused mapping")
 	# A mapping that fits animates the rig's own names.
 	on_cube.mapping = {"jawOpen": "Smile"}
 	_check(on_cube.load_track(good) == OK, "a mapping onto the rig's own names loads")
@@ -361,6 +386,54 @@ func _run_bad_input():
 	_check(configured.frame_times_us.size() == frames and configured.is_playing(), "track_file and autoplay load and play in _ready")
 	_check(face.get("blend_shapes/jawOpen") != 0.5, "the configured player keyed the face")
 	print("ok: track_file and autoplay play on _ready")
+
+
+# --- mapping: one rule for names ------------------------------------------------------------------
+
+func _run_mapping():
+	var good = OS.get_environment("LIPSYNC_TRACKS").split(";")[0]
+	var names = _arkit_names()
+	var face = Fixture.make_face(names + ["JawDrop", "CheekRaise_L"])
+	get_root().add_child(face)
+	for shape in ["jawOpen", "eyeBlinkLeft"]:
+		face.set("blend_shapes/" + shape, 0.5)
+	var player = _new_player(face, "")
+	player.mapping = {"jawOpen": "JawDrop", "mouthSmileLeft": ["mouthSmileLeft", "CheekRaise_L"], "eyeBlinkLeft": null}
+	_check(player.load_track(good) == OK, "a partial mapping loads")
+	# Which shape each ARKit name drives: the mapping's for the names it lists, the own for the rest.
+	var expected = {"JawDrop": "jawOpen", "CheekRaise_L": "mouthSmileLeft"}
+	for name in names:
+		if name != "jawOpen" and name != "eyeBlinkLeft":
+			expected[name] = name
+	var bound = {}
+	for binding in player._bindings:
+		bound[binding[1].trim_prefix("blend_shapes/")] = player._names[binding[0]]
+	_check(bound.size() == expected.size(), "%d shapes driven, expected %d: %s" % [bound.size(), expected.size(), str(bound)])
+	var worst = 0.0
+	var moved = 0
+	for t_us in [250000, 500000, 1000000, 1500000]:
+		player.show_at(t_us)
+		for shape in expected:
+			var want = player.weight_at(names.find(expected[shape]), t_us)
+			_check(bound.get(shape, "") == expected[shape], "blend shape %s is driven by %s, expected %s" % [shape, bound.get(shape, "nothing"), expected[shape]])
+			worst = max(worst, abs(face.get("blend_shapes/" + shape) - want))
+			if want > 0.05:
+				moved += 1
+		_check(face.get("blend_shapes/jawOpen") == 0.5, "the shape jawOpen, which the mapping sends elsewhere, is not driven")
+		_check(face.get("blend_shapes/eyeBlinkLeft") == 0.5, "eyeBlinkLeft, mapped to null, is not driven")
+	_check(worst <= TOLERANCE, "every driven shape shows its ARKit weight (largest difference %s)" % worst)
+	_check(moved >= 8, "the track moved the shapes: %d nonzero weights checked" % moved)
+	print("ok: a partial mapping drives %d shapes: its own for jawOpen, mouthSmileLeft (two shapes) and eyeBlinkLeft (none), the ARKit-named shapes for the other %d names" % [bound.size(), expected.size() - 3])
+
+	# Without a mapping, shapes named but for case (as Live Link Face spells them) are driven too.
+	var cased = Fixture.make_face(["JawOpen", "MOUTHCLOSE", "mouthFunnel"], "Cased")
+	get_root().add_child(cased)
+	var on_cased = _new_player(cased, "")
+	_check(on_cased.load_track(good) == OK, "a mesh with case-changed ARKit names loads")
+	on_cased.show_at(500000)
+	for pair in [["JawOpen", "jawOpen"], ["MOUTHCLOSE", "mouthClose"], ["mouthFunnel", "mouthFunnel"]]:
+		_check(abs(cased.get("blend_shapes/" + pair[0]) - on_cased.weight_at(names.find(pair[1]), 500000)) <= TOLERANCE, "%s follows %s" % pair)
+	print("ok: shapes named but for case follow their ARKit names")
 
 
 # Whether `value` lies between two readings `a` and `b` of a clock, in either order, within 1 ms.

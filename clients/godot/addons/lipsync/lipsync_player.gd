@@ -41,7 +41,8 @@ const TrackDecoder = preload("track_decoder.gd")
 export(NodePath) var mesh_path = NodePath()
 export(NodePath) var audio_player_path = NodePath()
 export(String, FILE, "*.json") var track_file = ""
-# {ARKit name: blend shape name}. Empty: the mesh's shapes carry the ARKit names.
+# {ARKit name: blend shape name, [names], or null (not driven)}: overrides the names it lists;
+# every other ARKit name drives the blend shape of its own name (see _bind).
 export(Dictionary) var mapping = {}
 # The model the track must come from ("" accepts any): a mapping made for one model's rig.
 export(String) var model = ""
@@ -94,12 +95,57 @@ func load_track(path):
 	var opened = file.open(path, File.READ)
 	if opened != OK:
 		return _fail(ERR_FILE_CANT_OPEN, "%s: cannot open the track (error %d); render one with 'lipsync render speech.lab -o %s'" % [path, opened, path.get_file()])
-	var text = file.get_as_text()
+	var bytes = file.get_buffer(file.get_len())
 	file.close()
+	# The bytes are checked before they are decoded: Godot prints a "Unicode error" line for each
+	# line of a file that is not UTF-8 (thousands for a WAV) before the caller could say anything.
+	if bytes.size() >= 12 and bytes.subarray(0, 3).get_string_from_ascii() == "RIFF" and bytes.subarray(8, 11).get_string_from_ascii() == "WAVE":
+		return _fail(ERR_INVALID_DATA, "%s: a WAV file (audio), not a track; give it to the AudioStreamPlayer (audio_player_path) and load the track 'lipsync render INPUT --format json' wrote for that speech" % path)
+	if bytes.size() >= 3 and bytes[0] == 0xEF and bytes[1] == 0xBB and bytes[2] == 0xBF:
+		bytes = bytes.subarray(3, bytes.size() - 1) if bytes.size() > 3 else PoolByteArray()
+	var text = bytes.get_string_from_ascii()
+	if text.to_utf8().size() != bytes.size():  # not plain ASCII: a NUL or a byte of 0x80 or more
+		var bad = _first_byte_not_utf8(bytes)
+		if bad >= 0:
+			return _fail(ERR_INVALID_DATA, "%s: not a text file (byte %d is not UTF-8); a lipsyncd track is the JSON 'lipsync render INPUT --format json' writes" % [path, bad])
+		text = bytes.get_string_from_utf8()
+	var start = text.strip_edges()
+	if not start.begins_with("{"):
+		# Not JSON (Godot's parser would print an error of its own first): a phoneme file, most often.
+		return _fail(ERR_PARSE_ERROR, "%s: not a lipsyncd track: not JSON (it begins '%s'); render one with 'lipsync render INPUT --format json' (a phoneme file, such as flite -psdur output or a TextGrid, is lipsyncd's input: 'lipsync render %s -o %s.json')" % [path, start.substr(0, 30).replace("\n", " "), path.get_file(), path.get_file().get_basename()])
 	var parsed = JSON.parse(text)
 	if parsed.error != OK:
 		return _fail(ERR_PARSE_ERROR, "%s:%d: not JSON (%s); give a track written by 'lipsync render --format json'" % [path, parsed.error_line, parsed.error_string])
 	return set_track(parsed.result, path)
+
+
+# The offset of the first byte of `bytes` that does not belong to a UTF-8 sequence (NUL counts as
+# such: a text file has none), or -1.
+static func _first_byte_not_utf8(bytes):
+	var i = 0
+	var count = bytes.size()
+	while i < count:
+		var lead = bytes[i]
+		var extra = 0
+		if lead == 0:
+			return i
+		elif lead < 0x80:
+			extra = 0
+		elif lead >= 0xC2 and lead <= 0xDF:
+			extra = 1
+		elif lead >= 0xE0 and lead <= 0xEF:
+			extra = 2
+		elif lead >= 0xF0 and lead <= 0xF4:
+			extra = 3
+		else:
+			return i
+		if i + extra >= count:
+			return i
+		for k in range(1, extra + 1):
+			if bytes[i + k] & 0xC0 != 0x80:
+				return i
+		i += extra + 1
+	return -1
 
 
 # Takes a parsed lipsyncd track (the JSON document as a Dictionary); `source` names it in messages.
@@ -149,37 +195,66 @@ func _adopt(names, times, weights, source):
 
 
 # [[index, property], ...] and the mesh, or an error code after push_error.
+#
+# Which ARKit name drives which blend shape (the Blender add-on's rule too, docs/integrations.md):
+# an ARKit name that `mapping` lists drives the shapes it maps it to (a name, an array of names, or
+# null: none); every other ARKit name drives the blend shape of its own name, or, failing that, the
+# one shape whose name matches it but for case (`JawOpen`), and nothing where the mesh has neither.
+# A mapping that names an ARKit name the track lacks, a shape the mesh lacks, or makes two ARKit
+# names drive one shape is refused.
 func _bind(names, source):
 	var mesh_instance = get_node_or_null(mesh_path) if not mesh_path.is_empty() else null
 	if not (mesh_instance is MeshInstance):
 		return _fail(ERR_UNCONFIGURED, "mesh_path '%s' is not a MeshInstance; point it at the face's MeshInstance" % str(mesh_path))
 	var shapes = []
+	var by_lowercase = {}  # lowercase name -> the shapes of that name
 	var mesh = mesh_instance.mesh
 	if mesh is ArrayMesh:
 		for i in range(mesh.get_blend_shape_count()):
-			shapes.append(str(mesh.get_blend_shape_name(i)))
-	var bindings = []
-	var missing = []
+			var shape_name = str(mesh.get_blend_shape_name(i))
+			shapes.append(shape_name)
+			if not by_lowercase.has(shape_name.to_lower()):
+				by_lowercase[shape_name.to_lower()] = []
+			by_lowercase[shape_name.to_lower()].append(shape_name)
+	var targets = {}  # ARKit name -> the shapes `mapping` names for it
 	var unknown = []
-	var pairs = mapping if not mapping.empty() else {}
-	if mapping.empty():
-		for name in names:
-			pairs[name] = name
-	for arkit_name in pairs:
-		var shape = str(pairs[arkit_name])
-		var index = names.find(arkit_name)
-		if index < 0:
+	var missing = []
+	for arkit_name in mapping:
+		var value = mapping[arkit_name]
+		var listed = [value] if typeof(value) == TYPE_STRING else (value if typeof(value) == TYPE_ARRAY else [])
+		var usable = typeof(value) == TYPE_NIL or not listed.empty()
+		for shape in listed:
+			usable = usable and typeof(shape) == TYPE_STRING and shape != ""
+		if not usable:
+			return _fail(ERR_INVALID_DATA, "%s: `mapping`['%s'] is %s; give a blend shape name, an array of names, or null (not driven)" % [source, str(arkit_name), JSON.print(value)])
+		if names.find(arkit_name) < 0:
 			unknown.append(arkit_name)
-		elif shapes.has(shape):
-			bindings.append([index, "blend_shapes/" + shape])
-		else:
-			missing.append(shape)
+		for shape in listed:
+			if not shapes.has(shape) and not missing.has(shape):
+				missing.append(shape)
+		targets[arkit_name] = listed
 	if not unknown.empty():
 		return _fail(ERR_INVALID_DATA, "%s: `mapping` names %s, which the track does not have (it has the ARKit names %s...); fix the mapping's keys" % [source, str(unknown), str(names.slice(0, 4))])
+	if not missing.empty():
+		return _fail(ERR_DOES_NOT_EXIST, "%s: the mesh of '%s' has no blend shapes %s that `mapping` names (it has %s); fix the mapping's values or add the shape keys" % [source, mesh_instance.name, str(missing), str(shapes)])
+	var bindings = []
+	var driven = {}  # blend shape -> the ARKit name driving it
+	for index in range(names.size()):
+		var arkit_name = names[index]
+		var own = []
+		if targets.has(arkit_name):
+			own = targets[arkit_name]
+		elif shapes.has(arkit_name):
+			own = [arkit_name]
+		elif by_lowercase.get(str(arkit_name).to_lower(), []).size() == 1:
+			own = by_lowercase[str(arkit_name).to_lower()]
+		for shape in own:
+			if driven.has(shape):
+				return _fail(ERR_INVALID_DATA, "%s: blend shape '%s' would be driven by both '%s' and '%s'; map one of them elsewhere or to null in `mapping`" % [source, shape, driven[shape], arkit_name])
+			driven[shape] = arkit_name
+			bindings.append([index, "blend_shapes/" + shape])
 	if bindings.empty():
 		return _fail(ERR_DOES_NOT_EXIST, "%s: the mesh of '%s' has none of the blend shapes to animate (it has %s); give it ARKit-named shape keys (jawOpen, mouthClose, ...) or set `mapping` to {ARKit name: your shape name}" % [source, mesh_instance.name, str(shapes)])
-	if not mapping.empty() and not missing.empty():
-		return _fail(ERR_DOES_NOT_EXIST, "%s: the mesh of '%s' has no blend shapes %s that `mapping` names (it has %s); fix the mapping's values or add the shape keys" % [source, mesh_instance.name, str(missing), str(shapes)])
 	return [bindings, mesh_instance]
 
 
@@ -316,7 +391,7 @@ func follow(url, session, start = "beginning"):
 	if cut >= 0:
 		base = base.substr(0, cut)
 	if not base.begins_with("ws://"):
-		return _fail(ERR_INVALID_PARAMETER, "follow(): '%s' is not the viewer's address; give ws://HOST:PORT as lipsyncd --http-listen prints it" % url)
+		return _fail(ERR_INVALID_PARAMETER, "follow(): '%s' is not the viewer's address; give the http://HOST:PORT/view address lipsyncd prints at start ('lipsyncd viewer on http://...', with --http-listen HOST:PORT), or ws://HOST:PORT" % url)
 	_live_url = base + "/ws?session=" + session.percent_encode() + ("&start=now" if start == "now" else "")
 	_live_session = session
 	_live_start = start
@@ -342,7 +417,7 @@ func _connect_live():
 	var error = _socket.connect_to_url(_live_url)
 	if error != OK:
 		_socket = null
-		return _live_fail(error, "cannot connect to %s (error %d); start lipsyncd with --http-listen HOST:PORT and follow that address" % [_live_url, error])
+		return _live_fail(error, "cannot connect to %s (error %d); start lipsyncd with --http-listen HOST:PORT and follow the http://HOST:PORT/view address it prints" % [_live_url, error])
 	return OK
 
 
@@ -376,7 +451,7 @@ func _poll_live():
 func _on_socket_error():
 	_retire_socket()
 	if _live_header == null:
-		_live_fail(ERR_CANT_CONNECT, "no lipsyncd viewer answered at %s; start lipsyncd with --http-listen HOST:PORT and follow that address" % _live_url)
+		_live_fail(ERR_CANT_CONNECT, "no lipsyncd viewer answered at %s; start lipsyncd with --http-listen HOST:PORT and follow the http://HOST:PORT/view address it prints" % _live_url)
 	elif not live_done:
 		_end_live(1006, "the connection was lost")
 
