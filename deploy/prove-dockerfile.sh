@@ -9,6 +9,7 @@
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 source_dir=$PWD
+source tests/support/listening_address.sh
 work=${1:-/var/tmp/lipsync-prove}
 mirror=${DEBIAN_MIRROR:-http://deb.debian.org/debian}
 started=$(date +%s)
@@ -84,9 +85,8 @@ echo "== run: lipsyncd as uid 10001, the health check, one request"
 chroot --userspec=10001:10001 "$work/runtime" /usr/bin/env -i LIPSYNCD_LISTEN=127.0.0.1:0 \
   LIPSYNCD_REPLICA_NAME=proof /usr/bin/lipsyncd >"$work/server.out" 2>"$work/server.err" &
 server_pid=$!
-for _ in $(seq 100); do grep -q "listening on" "$work/server.out" && break; sleep 0.1; done
-address=$(sed -n 's/^lipsyncd listening on //p' "$work/server.out")
-[[ -n "$address" ]] || { echo "lipsyncd did not start:"; cat "$work/server.err"; exit 1; }
+address=$(wait_for_listening_address "$work/server.out" 10) ||
+  { echo "lipsyncd did not start:"; cat "$work/server.err"; exit 1; }
 [[ $(ps -o uid= -p "$server_pid" | tr -d ' ') == 10001 ]] || { echo "lipsyncd does not run as uid 10001"; exit 1; }
 health=$(chroot --userspec=10001:10001 "$work/runtime" /usr/bin/lipsync health --server "$address")
 cp "$source_dir/tests/data/cli/bump_map.json" "$work/runtime/tmp/utterance.json"

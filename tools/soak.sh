@@ -18,6 +18,7 @@ set -euo pipefail
 duration=${1:?usage: tools/soak.sh DURATION_SECONDS [BUILD_DIR]}
 build=${2:-build}
 here=$(cd "$(dirname "$0")" && pwd)
+source "$here/../tests/support/listening_address.sh"
 rss_slack_mb=${SOAK_RSS_SLACK_MB:-16}
 fd_slack=${SOAK_FD_SLACK:-8}
 warmup=$(( duration / 4 > 20 ? duration / 4 : 20 ))
@@ -31,9 +32,10 @@ trap 'kill "$server" 2>/dev/null || true; kill "$load" 2>/dev/null || true; rm -
   --face-threads 1 >"$work/out" 2>"$work/err" &
 server=$!
 for _ in $(seq 100); do grep -q "metrics on" "$work/out" && break; sleep 0.1; done
-address=$(sed -n 's/^lipsyncd listening on //p' "$work/out")
 metrics=$(sed -n 's/^lipsyncd metrics on //p' "$work/out")
-[[ -n $address && -n $metrics ]] || { echo "soak: lipsyncd did not start"; cat "$work/err"; exit 1; }
+if ! address=$(listening_address "$work/out") || [[ -z $metrics ]]; then
+  echo "soak: lipsyncd did not start"; cat "$work/err"; exit 1
+fi
 
 quiet_every=$(( duration / 60 > 5 ? duration / 60 : 5 ))
 PYTHONPATH="$build/clients/python/generated" /usr/bin/python3 "$here/soak/soak_load.py" "$address" "$metrics" \

@@ -9,6 +9,7 @@ set -euo pipefail
 build=$(cd "$1" && pwd)
 cxx=$2
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+source "$here/../support/listening_address.sh"
 for tool in cmake pkg-config; do
   command -v "$tool" >/dev/null || { echo "SKIP: $tool is not installed (apt-get install $tool)"; exit 77; }
 done
@@ -47,9 +48,8 @@ flags=$(pkg-config --cflags --libs lipsync-client)
 # 3. both against the installed server
 "$prefix/bin/lipsyncd" --listen 127.0.0.1:0 --log-level warn >"$work/server.out" 2>"$work/server.err" &
 server_pid=$!
-for _ in $(seq 100); do grep -q "listening on" "$work/server.out" && break; sleep 0.1; done
-address=$(sed -n 's/^lipsyncd listening on //p' "$work/server.out")
-[[ -n "$address" ]] || { echo "FAIL: the installed lipsyncd did not start"; cat "$work/server.err"; exit 1; }
+address=$(wait_for_listening_address "$work/server.out" 10) ||
+  { echo "FAIL: the installed lipsyncd did not start"; cat "$work/server.err"; exit 1; }
 for program in "$work/cmake-build/consumer" "$work/consumer-pc"; do
   out=$("$program" "$address") || { echo "FAIL: $program: $out"; exit 1; }
   [[ "$out" =~ ^frames=[1-9][0-9]*\ streamed=[1-9] ]] || { echo "FAIL: $program printed '$out'"; exit 1; }

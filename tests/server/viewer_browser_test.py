@@ -68,6 +68,9 @@ import websocket  # python3-websocket
 from lipsync_client import Client
 from lipsync.v1 import lipsync_pb2
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, "support"))
+from listening_address import listening_address  # noqa: E402
+
 LIPSYNCD = sys.argv[1] if len(sys.argv) > 1 else "build/server/lipsyncd"
 TEST_DATA = sys.argv[2] if len(sys.argv) > 2 else "tests/data"
 SENTENCE = "Papa bought five more big maps."
@@ -236,7 +239,10 @@ def start_lipsyncd():
         [LIPSYNCD, "--listen", "127.0.0.1:0", "--http-listen", "127.0.0.1:0", "--log-level", "warn",
          "--face-priority", "normal",
          "--session-retention-ms", "60000"], stdout=subprocess.PIPE, text=True)
-    grpc_address = re.match(r"lipsyncd listening on (\S+)", process.stdout.readline()).group(1)
+    line = process.stdout.readline()
+    grpc_address = listening_address(line)
+    if not grpc_address:
+        raise AssertionError(f"lipsyncd did not start: {line!r}")
     viewer = re.match(r"lipsyncd viewer on (http://\S+)/view", process.stdout.readline()).group(1)
     return process, grpc_address, viewer
 

@@ -18,7 +18,7 @@ Figures: docs/server.md, "Memory for oversize messages".
 """
 import argparse
 import collections
-import re
+import os
 import subprocess
 import sys
 import threading
@@ -27,6 +27,9 @@ import time
 import grpc
 
 from lipsync.v1 import lipsync_pb2, lipsync_pb2_grpc
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, os.pardir, "tests", "support"))
+from listening_address import listening_address  # noqa: E402
 
 
 def status_kib(pid, field):
@@ -43,9 +46,9 @@ def start_server(binary, flags):
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline:
         line = server.stdout.readline()
-        match = re.search(r"listening on (\S+)", line)
-        if match:
-            return server, match.group(1)
+        address = listening_address(line)
+        if address:
+            return server, address
         if not line and server.poll() is not None:
             break
     server.kill()

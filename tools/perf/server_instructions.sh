@@ -18,6 +18,7 @@
 # idling, shutdown) is measured by an idle run of each and subtracted. Prints
 # instructions per frame for each server and their ratio.
 set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/../../tests/support/listening_address.sh"
 
 BUILD=${1:-build-perf}
 PRODUCERS=${PRODUCERS:-8}
@@ -45,13 +46,9 @@ measure() {
   valgrind --tool=callgrind --callgrind-out-file="$tag.callgrind" "$@" --listen 127.0.0.1:0 \
     >"$tag.out" 2>"$tag.err" &
   local pid=$!
-  local addr=""
-  for _ in $(seq 300); do
-    addr=$(grep -o "listening on [^ ]*" "$tag.out" 2>/dev/null | head -1 | cut -d' ' -f3 || true)
-    [[ -n $addr ]] && break
-    sleep 0.1
-  done
-  [[ -n $addr ]] || { echo "$name did not start" >&2; cat "$tag.err" >&2; kill "$pid"; exit 1; }
+  local addr
+  addr=$(wait_for_listening_address "$tag.out" 30) ||
+    { echo "$name did not start" >&2; cat "$tag.err" >&2; kill "$pid"; exit 1; }
   local frames=0
   if [[ $load == 1 ]]; then
     local extra=()

@@ -22,6 +22,7 @@
 # first), so that ratios compare runs made under the same machine load. Prints one table row per
 # run and a summary of medians; raw JSON reports go to $OUT_DIR (default a temporary folder).
 set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/../../tests/support/listening_address.sh"
 
 BUILD=${1:-build-perf}
 SESSIONS=${SESSIONS-"100 200 500 1000 2000"}
@@ -65,13 +66,9 @@ start() {
   "$@" >"$log" 2>"$OUT_DIR/$name.err" &
   local pid=$!
   PIDS+=("$pid")
-  for _ in $(seq 100); do
-    if grep -q "listening on" "$log" || ! kill -0 "$pid" 2>/dev/null; then break; fi
-    sleep 0.1
-  done
   local addr
-  addr=$( (grep -o "listening on [^ ]*" "$log" || true) | head -1 | cut -d' ' -f3)
-  [[ -n $addr ]] || { echo "$name did not start: $*" >&2; cat "$OUT_DIR/$name.err" >&2; exit 1; }
+  addr=$(wait_for_listening_address "$log" 10 "$pid") ||
+    { echo "$name did not start: $*" >&2; cat "$OUT_DIR/$name.err" >&2; exit 1; }
   printf -v "ADDR_$name" %s "$addr"
   printf -v "PID_$name" %s "$pid"
 }

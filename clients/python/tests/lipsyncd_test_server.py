@@ -4,8 +4,8 @@ A missing or unstartable server FAILS the tests (never skips); every wait has a 
 
 import os
 import queue
-import re
 import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -15,9 +15,12 @@ import grpc
 
 from lipsync_client import Client
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, os.pardir, os.pardir,
+                                "tests", "support"))
+from listening_address import listening_address  # noqa: E402
+
 STARTUP_TIMEOUT_S = 30.0
 RPC_TIMEOUT_S = 30.0
-LISTENING = re.compile(r"lipsyncd listening on (\S+):(\d+)")
 
 
 class LipsyncdTestCase(unittest.TestCase):
@@ -72,9 +75,9 @@ class LipsyncdTestCase(unittest.TestCase):
                     f"{output}"
                 )
             seen.append(line)
-            match = LISTENING.search(line)
-            if match:
-                cls.address = f"{match.group(1)}:{match.group(2)}"
+            address = listening_address(line)
+            if address:
+                cls.address = address
                 break
         cls.client = Client(cls.address, timeout=RPC_TIMEOUT_S)
         try:

@@ -9,8 +9,8 @@ A missing server FAILS these tests (never skips).
 import hashlib
 import json
 import os
-import re
 import subprocess
+import sys
 import tempfile
 import time
 import unittest
@@ -20,8 +20,11 @@ import grpc
 from lipsync_client import Client
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-MAKE_CERTS = os.path.join(HERE, os.pardir, os.pardir, os.pardir, "tests", "support", "make_test_certs.sh")
-LISTENING = re.compile(r"lipsyncd listening on (\S+:\d+)")
+SUPPORT = os.path.join(HERE, os.pardir, os.pardir, os.pardir, "tests", "support")
+sys.path.insert(0, SUPPORT)
+from listening_address import listening_address  # noqa: E402
+
+MAKE_CERTS = os.path.join(SUPPORT, "make_test_certs.sh")
 KEY = "python-test-key-0001"
 PHONEMES = [("pau", 0, 200_000), ("p", 200_000, 260_000), ("iy", 260_000, 400_000), ("pau", 400_000, 600_000)]
 
@@ -45,12 +48,11 @@ class MutualTlsWithKeysTest(unittest.TestCase):
              cls.cert("server.key"), "--tls-client-ca", cls.cert("ca.pem"), "--api-keys", keys],
             stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=cls.stderr_file, text=True)
         line = cls.server.stdout.readline()
-        match = LISTENING.search(line)
-        if not match:
+        cls.address = listening_address(line)
+        if not cls.address:
             cls.server.kill()
             cls.stderr_file.seek(0)
             raise AssertionError(f"lipsyncd did not start: {line!r} {cls.stderr_file.read()}")
-        cls.address = match.group(1)
 
     @classmethod
     def tearDownClass(cls):
