@@ -286,17 +286,18 @@ def spoken_recordings(speakers, harvard, first, last, work, with_librivox):
 
 class Tally:
     """shown / total per (source, tool) and class, with "all" over the sources, and what each
-    tool showed instead where it missed."""
+    tool showed instead where it missed. `classes`: {name: (reference labels, wanted viseme)}."""
 
-    def __init__(self):
+    def __init__(self, classes=CLASSES):
+        self.classes = classes
         self.counts = {}  # counts[(source, tool)][class] = [shown, total]
         self.shown_instead = {}  # shown_instead[(tool, class)][viseme] = misses that showed it
 
     def score(self, tool, recording, steps, print_misses):
         for key in ((recording.source, tool), ("all", tool)):
-            self.counts.setdefault(key, {cls: [0, 0] for cls in CLASSES})
+            self.counts.setdefault(key, {cls: [0, 0] for cls in self.classes})
         for label, start, end in recording.phones:
-            for cls, (members, wanted) in CLASSES.items():
+            for cls, (members, wanted) in self.classes.items():
                 if label not in members:
                     continue
                 middle = (start + end) / 2
@@ -310,14 +311,16 @@ class Tally:
                     if print_misses:
                         print(f"miss: {tool}, {recording.source} {recording.item}: /{label}/ at {middle:.3f} s shows {shown}")
 
+    def cells(self, source, tool):
+        """The table's cells of (source, tool): "shown/total (percent)" per class."""
+        return [f"{shown}/{total} ({100 * shown / total:.0f} %)" if total else "0/0"
+                for shown, total in self.counts[(source, tool)].values()]
+
     def print_table(self, sources, tools):
-        print("| source | tool | " + " | ".join(CLASSES) + " |")
-        print("|---|---|" + "---:|" * len(CLASSES))
-        for (source, tool), per_class in sorted(self.counts.items(),
-                                                key=lambda kv: (sources.index(kv[0][0]), tools.index(kv[0][1]))):
-            cells = [f"{shown}/{total} ({100 * shown / total:.0f} %)" if total else "0/0"
-                     for shown, total in per_class.values()]
-            print(f"| {source} | {tool} | " + " | ".join(cells) + " |")
+        print("| source | tool | " + " | ".join(self.classes) + " |")
+        print("|---|---|" + "---:|" * len(self.classes))
+        for source, tool in sorted(self.counts, key=lambda key: (sources.index(key[0]), tools.index(key[1]))):
+            print(f"| {source} | {tool} | " + " | ".join(self.cells(source, tool)) + " |")
 
     def print_shown_instead(self):
         print("\nShown instead (all sources):")

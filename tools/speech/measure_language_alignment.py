@@ -236,8 +236,10 @@ def read_textgrid_phones(path):
             for xmin, xmax, label in re.findall(r'xmin = ([0-9.]+)\s*xmax = ([0-9.]+)\s*text = "([^"]*)"', tier)]
 
 
-# Festival's Czech reads ISO 8859-2 (UTF-8 letters come out as "neznámý", unknown); the others UTF-8.
-FESTIVAL_ENCODING = {"czech_dita": "iso-8859-2"}
+# Festival's Czech reads ISO 8859-2 (UTF-8 letters come out as "neznámý", unknown), its Italian and
+# Finnish ISO 8859-1 (a UTF-8 "ì" stops Italian's letter-to-sound rules; Finnish speaks a UTF-8
+# "ä" as "a" and then words for an unknown character, "tuntematon merkki"); the others UTF-8.
+FESTIVAL_ENCODING = {"czech_dita": "iso-8859-2", "lp_diphone": "iso-8859-1", "suo_fi_lj_diphone": "iso-8859-1"}
 
 
 def speak_with_festival(festival_voice, text, wav, segs):
