@@ -34,9 +34,11 @@ must write (lipsync-visemes JSON, or a JSON list of {"t_us", "viseme"} steps as 
 prints), {text_file} the transcript (a file; LibriVox's from its TextGrid's words) for a path
 that wants one; --lipsync-args are appended. --lipsync-label names its rows.
 
-Outside the build and CI. Needs /usr/bin/python3, node and npm (or --headaudio-package), and
-festival, flite, libespeak-ng1 and pocketsphinx-testdata for their sources (a missing one is
-skipped with a note); the default set (65 recordings) with both tools takes about 100 s.
+Run by hand; the ctest listen_is_ahead_of_headaudio_in_every_class
+(tests/server/listen_vs_headaudio_test.py) imports its functions for a small held-out set.
+Needs /usr/bin/python3, node and npm (or --headaudio-package), and festival, flite,
+libespeak-ng1 and pocketsphinx-testdata for their sources (a missing one is skipped with a
+note); the default set (65 recordings) with both tools takes about 100 s.
 Usage: tools/speech/compare_headaudio.py [--lipsync build/clients/cli/lipsync] [--sentences FROM-TO]
        [--voices festival,flite,espeak] [--no-librivox] [--lipsync-cmd TEMPLATE] [--lipsync-args "ARGS"]
        [--lipsync-label NAME] [--no-headaudio] [--headaudio-node-reading] [--headaudio-advance-ms MS]
@@ -316,6 +318,10 @@ class Tally:
         return [f"{shown}/{total} ({100 * shown / total:.0f} %)" if total else "0/0"
                 for shown, total in self.counts[(source, tool)].values()]
 
+    def shown(self, source, tool, cls):
+        """(shown, total) of class `cls` for `tool` on `source` ("all": every source)."""
+        return tuple(self.counts.get((source, tool), {}).get(cls, (0, 0)))
+
     def print_table(self, sources, tools):
         print("| source | tool | " + " | ".join(self.classes) + " |")
         print("|---|---|" + "---:|" * len(self.classes))
@@ -327,6 +333,45 @@ class Tally:
         for (tool, cls), instead in sorted(self.shown_instead.items()):
             ranked = sorted(instead.items(), key=lambda kv: (-kv[1], kv[0]))
             print(f"  {tool}, {cls}: " + ", ".join(f"{name} {count}" for name, count in ranked))
+
+
+def fetch_headaudio(cache_dir=None):
+    """HeadAudio's unpacked package (fetch_headaudio.sh into cache_dir, by default its own
+    build/headaudio/); RuntimeError with npm's message where it cannot be fetched."""
+    return run([FETCH_HEADAUDIO] + ([cache_dir] if cache_dir else [])).strip().splitlines()[-1]
+
+
+def installed_speakers(voices):
+    """{source: speak(text, wav) -> reference phones} for each of `voices` (festival, flite,
+    espeak) that is installed; one that is not is left out with a note on standard error.
+    ValueError names a voice that is none of the three."""
+    speakers = {}
+    for voice in voices:
+        if voice == "festival" and shutil.which("festival"):
+            speakers["Festival"] = festival
+        elif voice == "flite" and shutil.which("flite"):
+            speakers["flite"] = flite
+        elif voice == "espeak":
+            try:
+                speakers["espeak-ng"] = Espeak().speak
+            except (OSError, RuntimeError) as error:
+                print(f"note: espeak-ng left out: {error}", file=sys.stderr)
+        elif voice in ("festival", "flite"):
+            print(f"note: {voice} left out: not installed", file=sys.stderr)
+        else:
+            raise ValueError(f"unknown voice {voice} (festival, flite, espeak)")
+    return speakers
+
+
+def score_recordings(recordings, tools, work, print_misses=False):
+    """A Tally of every tool {name: runner with .visemes(wav, text_file, out)} on every
+    Recording, each tool's output written into `work`."""
+    tally = Tally()
+    for recording in recordings:
+        for tool, runner in tools.items():
+            out = os.path.join(work, f"{recording.source}-{recording.item}-{re.sub(r'[^A-Za-z0-9]+', '_', tool)}.json")
+            tally.score(tool, recording, runner.visemes(recording.wav, recording.text_file, out), print_misses)
+    return tally
 
 
 def main():
@@ -358,7 +403,7 @@ def main():
 
     tools = {}
     if not args.no_headaudio:
-        package = args.headaudio_package or run([FETCH_HEADAUDIO]).strip().splitlines()[-1]
+        package = args.headaudio_package or fetch_headaudio()
         name = "HeadAudio (node)" if args.headaudio_node_reading else "HeadAudio"
         if args.headaudio_advance_ms:
             name += f" {-args.headaudio_advance_ms:+g} ms"
@@ -370,30 +415,16 @@ def main():
     if not tools:
         sys.exit("compare_headaudio: nothing to score (--no-headaudio without --lipsync or --lipsync-cmd)")
 
-    speakers = {}
-    for voice in filter(None, args.voices.split(",")):
-        if voice == "festival" and shutil.which("festival"):
-            speakers["Festival"] = festival
-        elif voice == "flite" and shutil.which("flite"):
-            speakers["flite"] = flite
-        elif voice == "espeak":
-            try:
-                speakers["espeak-ng"] = Espeak().speak
-            except (OSError, RuntimeError) as error:
-                print(f"note: espeak-ng left out: {error}", file=sys.stderr)
-        elif voice in ("festival", "flite"):
-            print(f"note: {voice} left out: not installed", file=sys.stderr)
-        else:
-            sys.exit(f"compare_headaudio: --voices: unknown voice {voice} (festival, flite, espeak)")
+    try:
+        speakers = installed_speakers(filter(None, args.voices.split(",")))
+    except ValueError as error:
+        sys.exit(f"compare_headaudio: --voices: {error}")
 
     work = args.keep or tempfile.mkdtemp(prefix="compare_headaudio-")
     os.makedirs(work, exist_ok=True)
-    tally = Tally()
     try:
-        for recording in spoken_recordings(speakers, harvard, first, last, work, not args.no_librivox):
-            for tool, runner in tools.items():
-                out = os.path.join(work, f"{recording.source}-{recording.item}-{re.sub(r'[^A-Za-z0-9]+', '_', tool)}.json")
-                tally.score(tool, recording, runner.visemes(recording.wav, recording.text_file, out), args.misses)
+        tally = score_recordings(spoken_recordings(speakers, harvard, first, last, work, not args.no_librivox),
+                                 tools, work, args.misses)
     finally:
         if not args.keep:
             shutil.rmtree(work)
