@@ -77,6 +77,12 @@ AtomicOutputFile::AtomicOutputFile(std::string path) : path_(std::move(path)) {
   if (::stat(path_.c_str(), &info) == 0 && S_ISDIR(info.st_mode)) {
     throw FileError("cannot write " + in_quotes(path_) + ": it is a directory");
   }
+  if (::stat(path_.c_str(), &info) == 0 && !S_ISREG(info.st_mode)) {
+    stream_.open(path_, std::ios::binary);
+    if (!stream_) throw FileError("cannot write " + in_quotes(path_) + ": " + reason(errno));
+    errno = 0;
+    return;
+  }
   const std::filesystem::path target(path_);
   const std::filesystem::path directory = target.has_parent_path() ? target.parent_path() : ".";
   const std::string stem = "." + target.filename().string() + ".tmp-" + std::to_string(::getpid());
@@ -117,6 +123,10 @@ void AtomicOutputFile::commit() {
     discard();
     throw FileError("cannot write " + in_quotes(path_) + ": " + reason(errno != 0 ? errno : EIO));
   }
+  if (temp_path_.empty()) {  // written directly
+    done_ = true;
+    return;
+  }
   if (std::rename(temp_path_.c_str(), path_.c_str()) != 0) {
     const int error = errno;
     discard();
@@ -129,7 +139,7 @@ void AtomicOutputFile::commit() {
 void AtomicOutputFile::discard() noexcept {
   g_temp_active.store(false);
   if (stream_.is_open()) stream_.close();
-  ::unlink(temp_path_.c_str());
+  if (!temp_path_.empty()) ::unlink(temp_path_.c_str());
   done_ = true;
 }
 

@@ -22,10 +22,13 @@ inline constexpr std::string_view kStdinName = "<stdin>";
 /// the file and the reason (missing, unreadable, a directory).
 std::string read_file(const std::string& path);
 
-/// A file that appears at `path` only when commit() succeeds.
+/// A file that appears at `path` only when commit() succeeds. Where `path` names something that is
+/// not a regular file (/dev/null, a named pipe, a terminal) it is written directly: renaming a
+/// file over it would replace the device.
 class AtomicOutputFile {
  public:
-  /// Creates the temporary file in the directory of `path`. Throws FileError.
+  /// Creates the temporary file in the directory of `path` (or opens `path` itself, as above).
+  /// Throws FileError.
   explicit AtomicOutputFile(std::string path);
   ~AtomicOutputFile();
   AtomicOutputFile(const AtomicOutputFile&) = delete;
@@ -40,7 +43,7 @@ class AtomicOutputFile {
   void discard() noexcept;
 
   std::string path_;
-  std::string temp_path_;
+  std::string temp_path_;  // empty when `path` is written directly
   std::ofstream stream_;
   bool done_ = false;
 };

@@ -5,6 +5,7 @@
 #include <fcntl.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -583,6 +584,29 @@ TEST_F(CliTest, UnwritableOutputIsAnErrorNamingIt) {
   EXPECT_THAT(is_dir.err, HasSubstr("'sub'"));
   EXPECT_EQ(listing(), std::vector<std::string>{"sub"});
   EXPECT_TRUE(listing(dir_ / "sub").empty());
+}
+
+TEST_F(CliTest, AnOutputThatIsNotARegularFileIsWrittenIntoNotReplaced) {
+  // `-o /dev/null`, a named pipe, a terminal: the track goes into it, and it stays what it was (a
+  // temporary file renamed over /dev/null would replace the device). Shown with a named pipe.
+  // The test holds the pipe open both ways (so that neither side waits for the other) with room
+  // for the whole track, and reads what came once the command is done.
+  const fs::path pipe = dir_ / "track.pipe";
+  ASSERT_EQ(::mkfifo(pipe.c_str(), 0600), 0);
+  const int fd = ::open(pipe.c_str(), O_RDWR | O_NONBLOCK);
+  ASSERT_GE(fd, 0);
+  ASSERT_GE(::fcntl(fd, F_SETPIPE_SZ, 1 << 20), 1 << 20);
+  const RunResult written = run({"render", fixture("hello.json"), "-o", "track.pipe"});
+  std::string piped;
+  char buffer[4096];
+  for (ssize_t n; (n = ::read(fd, buffer, sizeof buffer)) > 0;) piped.append(buffer, static_cast<std::size_t>(n));
+  ::close(fd);
+  ASSERT_EQ(written.status, 0) << describe(written);
+  const RunResult to_stdout = run({"render", fixture("hello.json")});
+  ASSERT_EQ(to_stdout.status, 0) << describe(to_stdout);
+  EXPECT_EQ(piped, to_stdout.out);
+  EXPECT_TRUE(fs::is_fifo(pipe));
+  EXPECT_EQ(listing(), std::vector<std::string>{"track.pipe"});
 }
 
 // ---------------------------------------------------------------------------

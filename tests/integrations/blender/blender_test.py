@@ -279,8 +279,9 @@ def make_demo_face(source_dir, work):
     if step is None:
         fail("docs/integrations.md no longer shows the demo face's command (blender ... demo_face.py -- face.blend)")
     blend = os.path.join(work, "face.blend")
+    # Blender finds a relative --python script from $PWD, which a child's cwd does not change.
     run(shlex.split(step.group(1)) + [blend], cwd=source_dir,
-        env=blender_environment(os.path.join(work, "blender-user")))
+        env=dict(blender_environment(os.path.join(work, "blender-user")), PWD=source_dir))
     return blend
 
 
