@@ -145,17 +145,6 @@ class LatencyMeter {
   std::vector<double> latencies_ms_;
 };
 
-std::string pcm_bytes(std::span<const std::int16_t> samples) {
-  std::string bytes;
-  bytes.reserve(samples.size() * 2);
-  for (const std::int16_t sample : samples) {
-    const auto u = static_cast<std::uint16_t>(sample);
-    bytes.push_back(static_cast<char>(u & 0xFF));
-    bytes.push_back(static_cast<char>(u >> 8));
-  }
-  return bytes;
-}
-
 }  // namespace
 
 int run_listen(std::span<const std::string_view> args) {
@@ -306,7 +295,8 @@ int run_listen(std::span<const std::string_view> args) {
           static_cast<std::int64_t>((first + count) * 1'000'000 / static_cast<std::size_t>(audio.sample_rate_hz));
       if (pace == "realtime") std::this_thread::sleep_until(start + std::chrono::microseconds(end_us));
       meter.sent(end_us);
-      if (!send_words_before(end_us) || !call->send_audio(pcm_bytes(std::span(audio.samples).subspan(first, count)))) {
+      if (!send_words_before(end_us) ||
+          !call->send_audio(speech::pcm_s16le_bytes(std::span(audio.samples).subspan(first, count)))) {
         break;
       }
     }

@@ -378,6 +378,33 @@ TEST_F(NetworkCliTest, LoadtestFastModeReportsThroughput) {
   std::cout << report.out;
 }
 
+// The audio mode: live voices of espeak-ng speech at a speaker's pace (Listen), with their
+// transcripts sent ahead of the audio and from the audio alone: every stream comes back whole
+// (OK, every frame in order to the audio's end) and the latency is measured per frame.
+TEST_F(NetworkCliTest, LoadtestListenBringsEveryLiveVoiceBackWhole) {
+  for (const bool transcript : {true, false}) {
+    SCOPED_TRACE(transcript ? "with transcripts" : "audio alone");
+    std::vector<std::string> args = {"loadtest", "--listen",   "--server", server(), "--producers",
+                                     "3",        "--duration", "4",        "--json"};
+    if (transcript) args.emplace_back("--transcript");
+    const RunResult report = run(args);
+    ASSERT_EQ(report.status, 0) << report.out << report.err;
+    const auto json = nlohmann::json::parse(report.out);
+    EXPECT_EQ(json["mode"], "listen");
+    EXPECT_EQ(json["streams_whole"].get<int>(), 3);
+    EXPECT_THAT(json["errors"], IsEmpty());
+    EXPECT_GE(json["frames"].get<int>(), 3 * 4 * 30);  // three streams of 4 s at 30 frames a second
+    EXPECT_GT(json["latency_ms"]["p50"].get<double>(), 0);
+    std::cout << report.out;
+  }
+  const RunResult fast = run({"loadtest", "--listen", "--fast", "--server", server()});
+  EXPECT_EQ(fast.status, 2);
+  EXPECT_THAT(fast.err, HasSubstr("--fast: not an option of --listen"));
+  const RunResult without = run({"loadtest", "--transcript", "--server", server()});
+  EXPECT_EQ(without.status, 2);
+  EXPECT_THAT(without.err, HasSubstr("--transcript: needs --listen"));
+}
+
 // The same load through the client library (gRPC's C++ client), which --client grpc keeps
 // available (and the default with TLS): both clients must see the same frames.
 TEST_F(NetworkCliTest, LoadtestThroughTheGrpcClientLibraryDeliversEveryFrameToo) {

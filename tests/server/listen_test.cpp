@@ -57,15 +57,6 @@ Spoken speak(bool festival, const std::string& text) {
   return spoken;
 }
 
-std::string pcm_bytes(std::span<const std::int16_t> samples) {
-  std::string bytes;
-  for (const std::int16_t s : samples) {
-    bytes.push_back(static_cast<char>(static_cast<std::uint16_t>(s) & 0xFF));
-    bytes.push_back(static_cast<char>(static_cast<std::uint16_t>(s) >> 8));
-  }
-  return bytes;
-}
-
 /// What one Listen call returned.
 struct Listened {
   client::ReceivedTrack track;
@@ -81,7 +72,8 @@ class ListenTest : public LiveServerTest {
     std::vector<std::string> pieces;
     const std::size_t piece = static_cast<std::size_t>(audio.sample_rate_hz) / 50;
     for (std::size_t at = 0; at < audio.samples.size(); at += piece) {
-      pieces.push_back(pcm_bytes(std::span(audio.samples).subspan(at, std::min(piece, audio.samples.size() - at))));
+      pieces.push_back(
+          speech::pcm_s16le_bytes(std::span(audio.samples).subspan(at, std::min(piece, audio.samples.size() - at))));
     }
     return listen(settings, pieces);
   }
@@ -117,7 +109,7 @@ class ListenTest : public LiveServerTest {
           }
         }
         if ((message.timed_size() > 0 || !message.text().empty()) && !call.send_words(message)) break;
-        if (!call.send_audio(pcm_bytes(std::span(audio.samples).subspan(at, count)))) break;
+        if (!call.send_audio(speech::pcm_s16le_bytes(std::span(audio.samples).subspan(at, count)))) break;
       }
     });
   }
@@ -269,8 +261,8 @@ TEST_F(ListenTest, ASubscriberOfTheSessionGetsTheSameFrames) {
     subscriber = std::thread([&] { subscribed = subscribe_all(*stub_, "listener"); });
     const auto& samples = spoken.recording.audio.samples;
     for (std::size_t at = 0; at < samples.size(); at += 320) {
-      const bool sent =
-          call->send_audio(pcm_bytes(std::span(samples).subspan(at, std::min<std::size_t>(320, samples.size() - at))));
+      const bool sent = call->send_audio(
+          speech::pcm_s16le_bytes(std::span(samples).subspan(at, std::min<std::size_t>(320, samples.size() - at))));
       EXPECT_TRUE(sent);
       if (!sent) break;
     }
@@ -487,8 +479,7 @@ TEST_F(ListenTest, WordsThatCannotBePlacedAreRefusedNamingThem) {
     if (bad.recording) settings.set_encoding(v1::AUDIO_ENCODING_WAV);
     const client::AnimationClient connection(server_->address());
     auto call = connection.start_listen(settings, [](const v1::TrackMessage&) {});
-    call->send_audio(std::string(3200, '\0'));
-    call->send_words(bad.words);
+    call->send_words(bad.words);  // before any audio, which a recording's lane might refuse first (not a WAV)
     call->send_audio(std::string(3200, '\0'));
     call->end();
     const grpc::Status status = call->wait();
@@ -554,7 +545,7 @@ TEST_F(ListenTest, AProducerThatVanishesMidWordEndsItsSessionForTheSubscribers) 
   Received subscribed;
   std::thread subscriber([&] { subscribed = subscribe_all(*stub_, "vanishing"); });
   const auto& samples = spoken.recording.audio.samples;
-  call->send_audio(pcm_bytes(std::span(samples).first(samples.size() / 2)));  // mid-word
+  call->send_audio(speech::pcm_s16le_bytes(std::span(samples).first(samples.size() / 2)));  // mid-word
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   call->cancel();
   call->wait();
@@ -571,7 +562,7 @@ TEST(ListenCli, LipsyncListenWritesWhatLipsyncRenderWritesForARecordingAndReadsA
   const std::string text = "Papa bought five more big maps.";
   const Spoken spoken = speak(false, text);
   lipsync::testing::write_text(dir / "papa.wav", spoken.wav);
-  lipsync::testing::write_text(dir / "papa.raw", pcm_bytes(spoken.recording.audio.samples));
+  lipsync::testing::write_text(dir / "papa.raw", speech::pcm_s16le_bytes(spoken.recording.audio.samples));
   lipsync::testing::ChildProcess server({LIPSYNCD_PATH, "--listen", "127.0.0.1:0", "--log-level", "warn"}, dir,
                                         dir / "server.out", dir / "server.err");
   const std::string address = lipsync::testing::wait_for_listening_address(dir / "server.out");
@@ -589,7 +580,7 @@ TEST(ListenCli, LipsyncListenWritesWhatLipsyncRenderWritesForARecordingAndReadsA
   const auto microphone =
       lipsync::testing::run_program({LIPSYNC_CLI_BINARY, "listen", "-", "--rate", "16000", "--text", text, "--server",
                                      address, "--format", "csv", "-o", "live.csv"},
-                                    dir, dir, {.stdin_file = dir / "papa.raw"});
+                                    dir, dir, {.stdin_file = dir / "papa.raw", .path_env = std::nullopt});
   ASSERT_EQ(microphone.status, 0) << microphone.err;
   EXPECT_THAT(microphone.err, HasSubstr("lipsync: listen: latency from the end of the piece holding a frame's time"));
   const std::string csv = lipsync::testing::read_text(dir / "live.csv");
@@ -597,7 +588,7 @@ TEST(ListenCli, LipsyncListenWritesWhatLipsyncRenderWritesForARecordingAndReadsA
 
   const auto bad =
       lipsync::testing::run_program({LIPSYNC_CLI_BINARY, "listen", "-", "--rate", "4000", "--server", address}, dir,
-                                    dir, {.stdin_file = dir / "papa.raw"});
+                                    dir, {.stdin_file = dir / "papa.raw", .path_env = std::nullopt});
   EXPECT_EQ(bad.status, 2);
   EXPECT_THAT(bad.err, HasSubstr("--rate"));
   server.terminate();
@@ -712,7 +703,7 @@ TEST(ListenLongStream, AnHourOfSpeechAndSilenceKeepsTheServersMemoryFlat) {
       frames += static_cast<std::uint64_t>(message.frames().t_us_size());
     }
   });
-  const std::string speech = pcm_bytes(spoken.recording.audio.samples);
+  const std::string speech = speech::pcm_s16le_bytes(spoken.recording.audio.samples);
   const std::string minute_of_silence(2 * 16000 * 60 - speech.size(), '\0');
   std::vector<long> rss_kib;
   constexpr std::size_t kPiece = 3200;  // 100 ms

@@ -44,7 +44,6 @@
 // the last message sent on the stream before it arrived (for lipsyncd in real
 // time that is the same phoneme as above).
 #include <absl/synchronization/mutex.h>
-#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -72,7 +71,9 @@
 #include "lipsync/renderer.hpp"
 #include "lipsync/segment.hpp"
 #include "lipsync/synthetic.hpp"
+#include "listen_load.hpp"
 #include "loadtest_clients.hpp"
+#include "loadtest_shared.hpp"
 #include "network.hpp"
 #include "pipeline.hpp"
 
@@ -85,7 +86,7 @@ using Clock = std::chrono::steady_clock;
 constexpr auto kOptions = join(
     kConnectionOptions,
     std::to_array<OptionSpec>({
-        {"producers", 0, "N", "concurrent Animate streams, 1 to 10000", "10"},
+        {"producers", 0, "N", "concurrent Animate streams (with --listen: live voices, 1 to 1000), 1 to 10000", "10"},
         {"subscribers-per-session", 0, "M", "subscribers following each producer's session, 0 to 16", "0"},
         {"duration", 0, "S", "seconds during which new utterances start, 1 to 600", "10"},
         {"realtime", 0, "", "send each phoneme when its start time arrives (the default)", ""},
@@ -105,6 +106,12 @@ constexpr auto kOptions = join(
          kRangedHelp<"subdivision level of their mesh", kMeshSubdivisionSetting, " (771, 2379, 8775 vertices)">.view(),
          kDefaultText<kMeshSubdivisionSetting>.view()},
         {"mesh-encoding", 0, "ENC", "encoding of their vertex positions: float32 or int16", "float32"},
+        {"listen", 0, "",
+         "audio mode: each producer is a live voice, a Listen stream of espeak-ng speech sent at a speaker's pace "
+         "(--duration up to 3600)",
+         ""},
+        {"transcript", 0, "", "with --listen: each sentence's words go ahead of its audio", ""},
+        {"latency-ms", 0, "MS", "with --listen: the streams' latency budget, 100 to 2000", "the server's, 200"},
     }));
 
 constexpr std::string_view kUsage = "lipsync loadtest [options]";
@@ -114,6 +121,8 @@ constexpr std::string_view kDescription =
     "frames/s, latency from the moment a frame could be computed to its arrival\n"
     "(p50/p95/p99/max), errors by status code, and whether every frame arrived;\n"
     "with --mesh-share, frames and latency apart for producers with and without the mesh.\n"
+    "With --listen, N live voices instead: the latency from the end of a piece of audio to\n"
+    "the frame that shows it, and whether every stream came back whole.\n"
     "Exit status 0 when there were no errors and every frame arrived, 1 otherwise.";
 
 constexpr std::size_t kUtterancePool = 64;
@@ -245,16 +254,6 @@ void count_frames(const client::v1::TrackMessage& message, const Run& run, Strea
   const std::int64_t sent = run.sent_us[utterance.released_by[first]].load(std::memory_order_acquire);
   const auto latency = static_cast<std::int32_t>(std::clamp<std::int64_t>(arrival_us - sent, 0, INT32_MAX));
   tally.latencies_us.insert(tally.latencies_us.end(), count, latency);
-}
-
-/// CPU time this process has used (user + system), seconds.
-double process_cpu_seconds() {
-  rusage usage{};
-  ::getrusage(RUSAGE_SELF, &usage);
-  const auto seconds = [](const timeval& time) {
-    return static_cast<double>(time.tv_sec) + static_cast<double>(time.tv_usec) * 1e-6;
-  };
-  return seconds(usage.ru_utime) + seconds(usage.ru_stime);
 }
 
 /// What the producers of one kind (with or without the mesh) and their subscribers got.
@@ -551,36 +550,6 @@ class LoadTest {
   Results totals_;
 };
 
-struct Percentiles {
-  double p50_ms = 0, p95_ms = 0, p99_ms = 0, max_ms = 0;
-};
-
-Percentiles percentiles(std::vector<std::int32_t>& values) {
-  Percentiles result;
-  if (values.empty()) return result;
-  std::sort(values.begin(), values.end());
-  const auto at = [&](double q) {
-    const auto index = static_cast<std::size_t>(std::lround(q * static_cast<double>(values.size() - 1)));
-    return static_cast<double>(values[index]) / 1000.0;
-  };
-  result.p50_ms = at(0.50);
-  result.p95_ms = at(0.95);
-  result.p99_ms = at(0.99);
-  result.max_ms = static_cast<double>(values.back()) / 1000.0;
-  return result;
-}
-
-nlohmann::json to_json(const Percentiles& p) {
-  return {{"p50", p.p50_ms}, {"p95", p.p95_ms}, {"p99", p.p99_ms}, {"max", p.max_ms}};
-}
-
-std::string to_text(const Percentiles& p) {
-  char text[128];
-  std::snprintf(text, sizeof text, "p50 %.2f ms  p95 %.2f ms  p99 %.2f ms  max %.2f ms", p.p50_ms, p.p95_ms, p.p99_ms,
-                p.max_ms);
-  return text;
-}
-
 /// What the command line asked for, checked: the run's shape and where and how to connect.
 struct Request {
   LoadTestConfig config;
@@ -596,12 +565,7 @@ Request parse_request(const Arguments& arguments) {
     throw UsageError("loadtest takes no arguments, got '" + arguments.positional().front() + "'");
   }
   Request request;
-  request.address = server_address(arguments);
-  if (!is_loopback_address(request.address)) {
-    throw UsageError("--server: '" + request.address +
-                     "' is not on this machine; loadtest only runs against loopback "
-                     "addresses (127.0.0.1:PORT, localhost:PORT, [::1]:PORT, unix:PATH)");
-  }
+  request.address = loopback_server_address(arguments);
   if (arguments.flag("realtime") && arguments.flag("fast")) throw UsageError("choose one of --realtime and --fast");
   LoadTestConfig& config = request.config;
   config.producers = parse_int_option("producers", arguments.value("producers").value_or("10"), 1, 10'000);
@@ -838,6 +802,11 @@ void write_text_report(const Request& request, const Summary& summary, std::ostr
 int run_loadtest(std::span<const std::string_view> args) {
   const Arguments arguments = Arguments::parse(args, kOptions, "loadtest");
   if (print_help_if_asked(arguments, kUsage, kDescription, kOptions, std::cout)) return 0;
+  if (arguments.flag("listen")) return run_listen_load(arguments);
+  for (const char* option : {"transcript", "latency-ms"}) {
+    if (arguments.value(option) || arguments.flag(option))
+      throw UsageError(std::string("--") + option + ": needs --listen");
+  }
   Request request = parse_request(arguments);
   // As lipsyncd does (server/src/main.cpp): Debian's abseil leaves the deadlock detection of
   // gRPC's Mutexes on, a cost per lock that the generator should not spend on every message.

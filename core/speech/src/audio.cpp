@@ -349,6 +349,17 @@ void StreamingResampler::emit(bool finishing, std::vector<std::int16_t>& out) {
   }
 }
 
+std::string pcm_s16le_bytes(std::span<const std::int16_t> samples) {
+  std::string bytes;
+  bytes.reserve(samples.size() * 2);
+  for (const std::int16_t sample : samples) {
+    const auto u = static_cast<std::uint16_t>(sample);
+    bytes.push_back(static_cast<char>(u & 0xFF));
+    bytes.push_back(static_cast<char>(u >> 8));
+  }
+  return bytes;
+}
+
 void write_wav(std::ostream& out, const PcmAudio& audio) {
   const auto data_bytes = static_cast<std::uint32_t>(audio.samples.size() * 2);
   const auto u32 = [&](std::uint32_t v) {

@@ -131,6 +131,9 @@ class StreamingResampler {
 /// Writes a canonical 44-byte-header PCM WAV (mono, 16-bit).
 void write_wav(std::ostream& out, const PcmAudio& audio);
 
+/// `samples` as raw signed 16-bit little-endian bytes (the Listen RPC's PCM_S16LE).
+std::string pcm_s16le_bytes(std::span<const std::int16_t> samples);
+
 /// Appends a silent interval to `utterance` so that a track rendered from it on the
 /// uniform grid at `fps` has a frame at or after `audio_end_us`: the track then
 /// covers the whole audio and a player never holds a stale pose at its end. Does
