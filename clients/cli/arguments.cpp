@@ -59,7 +59,7 @@ int parse_setting_option(const Arguments& arguments, std::string_view option, In
 
 std::int64_t parse_whole_option(std::string_view option, std::string_view text) {
   const std::optional<std::int64_t> number = whole_number(option, text);
-  if (!number) throw UsageError("--" + std::string(option) + ": " + in_quotes(text) + " is out of range");
+  if (!number) throw UsageError(out_of_range_text("--" + std::string(option), text, "a whole number within 64 bits"));
   return *number;
 }
 

@@ -8,7 +8,7 @@
 //   threads: acquire after a lock, release before an unlock, both around a CondVar wait.
 // - protobuf's parse of a received message, which gRPC runs on whichever thread completed
 //   the read: acquire the message before the parse, release it after. With the release
-//   that a reactor's StartRead(message) makes (deploy/sanitizers/include/lipsync/tsan_handoff.hpp),
+//   that a reactor's StartRead(message) makes (proto/include/lipsync/tsan_handoff.hpp),
 //   this says that the reactor's use of the previous message happens before gRPC clears
 //   and refills it, and the parse before the reaction that reads it.
 //

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "../support/closure_frames.hpp"
+#include "../support/timed_segments.hpp"
 #include "lipsync/error.hpp"
 #include "lipsync/renderer.hpp"
 #include "lipsync/viseme_writer.hpp"
@@ -46,16 +47,6 @@ const std::vector<testing::TimedUtterance>& corpus() {
 }
 
 /// Segments of an ARPAbet utterance given as (label, duration ms), starting at 0.
-std::vector<Segment> utterance(std::initializer_list<std::pair<const char*, int>> phonemes) {
-  LabeledUtterance labeled;
-  labeled.source = "test";
-  std::int64_t t = 0;
-  for (const auto& [label, ms] : phonemes) {
-    labeled.intervals.push_back({label, t, t + ms * 1000});
-    t += ms * 1000;
-  }
-  return build_segments(labeled, model(), *PhoneSet::builtin("arpabet", model()));
-}
 
 TEST(Visemes, VocabulariesHaveTheirVendorsSizesAndOrder) {
   const std::map<VisemeVocabulary, std::size_t> sizes = {{VisemeVocabulary::oculus, 15},
@@ -254,7 +245,8 @@ TEST(Visemes, PausesAwayFromSpeechAreSilenceInEveryVocabularyAndRhubarbShowsX) {
 
 TEST(Visemes, TheRendererSaysWhichClosureHoldsAFrameAndHowFarAPauseIsFromSpeech) {
   // "of my" between pauses: sil 300 ms, ah 100, v 80, m 80, ay 100, sil 300 (ms).
-  const auto segments = utterance({{"sil", 300}, {"ah", 100}, {"v", 80}, {"m", 80}, {"ay", 100}, {"sil", 300}});
+  const auto segments =
+      testing::timed_segments({{"sil", 300}, {"ah", 100}, {"v", 80}, {"m", 80}, {"ay", 100}, {"sil", 300}});
   const Track track = render_track(model(), segments, {.fps = 30});
   ASSERT_EQ(track.articulation.size(), track.frame_count());
   const int v = *model().find_phoneme("v"), m = *model().find_phoneme("m");
@@ -306,8 +298,8 @@ double weight_at_middle(const VisemeClassifier& classifier, const std::vector<Se
 
 TEST(Visemes, TheKOfCoinIsAlreadyRoundedAndTheKOfKeenIsNot) {
   // sil k oy n sil against sil k iy n sil: the same /k/, different vowels after it.
-  const auto coin = utterance({{"sil", 150}, {"k", 70}, {"oy", 220}, {"n", 80}, {"sil", 150}});
-  const auto keen = utterance({{"sil", 150}, {"k", 70}, {"iy", 220}, {"n", 80}, {"sil", 150}});
+  const auto coin = testing::timed_segments({{"sil", 150}, {"k", 70}, {"oy", 220}, {"n", 80}, {"sil", 150}});
+  const auto keen = testing::timed_segments({{"sil", 150}, {"k", 70}, {"iy", 220}, {"n", 80}, {"sil", 150}});
   const std::map<VisemeVocabulary, std::vector<std::string_view>> rounded = {
       {VisemeVocabulary::oculus, {"oh", "ou"}},
       {VisemeVocabulary::azure, {"3", "7", "8", "10"}},
@@ -381,7 +373,7 @@ TEST(Visemes, RhubarbShapesLeftOutGiveTheirWeightToTheBasicShapes) {
     }
   }
   // At rest the idle X becomes A; /f/'s G becomes B.
-  const auto rest = utterance({{"sil", 300}, {"f", 120}, {"sil", 300}});
+  const auto rest = testing::timed_segments({{"sil", 300}, {"f", 120}, {"sil", 300}});
   const Track track = render_track(model(), rest, {.fps = 30});
   const VisemeTrack visemes = compute_visemes(basic, track);
   EXPECT_EQ(basic.names()[visemes.winners.front()], "A");

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "../support/closure_frames.hpp"
+#include "../support/timed_segments.hpp"
 #include "lipsync/renderer.hpp"
 #include "lipsync/visemes.hpp"
 
@@ -179,22 +180,12 @@ TEST(MohoSwitchData, RealSpeechReadsBackWithEveryClosureKeyFrameOnItsFrame) {
 }
 
 /// Segments of an ARPAbet utterance given as (label, duration ms), starting at 0.
-std::vector<Segment> utterance(std::initializer_list<std::pair<const char*, int>> phonemes) {
-  LabeledUtterance labeled;
-  labeled.source = "test";
-  std::int64_t t = 0;
-  for (const auto& [label, ms] : phonemes) {
-    labeled.intervals.push_back({label, t, t + ms * 1000});
-    t += ms * 1000;
-  }
-  return build_segments(labeled, model(), *PhoneSet::builtin("arpabet", model()));
-}
 
 TEST(MohoSwitchData, AClosureShorterThanAFrameStillShowsMBP) {
   const VisemeClassifier classifier(model(), {.vocabulary = VisemeVocabulary::rhubarb});
   // An /m/ of 12 ms between open vowels (272–284 ms), inside the 24 fps frame whose instant is
   // 291.7 ms (frame 8, times 270.8–312.5 ms), away from every frame instant.
-  const auto segments = utterance({{"sil", 100}, {"aa", 172}, {"m", 12}, {"aa", 200}, {"sil", 100}});
+  const auto segments = testing::timed_segments({{"sil", 100}, {"aa", 172}, {"m", 12}, {"aa", 200}, {"sil", 100}});
   const Written written = write(classifier, segments, 60, 24);
   const SwitchData data = read_switch_data(written.text);
   std::vector<long long> closure_frames;
@@ -256,7 +247,7 @@ TEST(MohoSwitchData, AnEmptyUtteranceIsTheRestMouth) {
 }
 
 TEST(MohoSwitchData, AnotherVocabularyOrFrameRateIsRefusedNamingIt) {
-  const auto segments = utterance({{"sil", 100}, {"aa", 200}, {"m", 80}, {"sil", 100}});
+  const auto segments = testing::timed_segments({{"sil", 100}, {"aa", 200}, {"m", 80}, {"sil", 100}});
   const Track track = render_track(model(), segments, {.fps = 30});
   const VisemeClassifier oculus(model(), {.vocabulary = VisemeVocabulary::oculus});
   const VisemeTrack oculus_visemes = compute_visemes(oculus, track);

@@ -19,6 +19,7 @@
 // server sent none, mapped as gRPC's doc/http-grpc-status-mapping.md says.
 #include "h2_grpc_connection.hpp"
 
+#include <grpcpp/support/status_code_enum.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
 #include <poll.h>
@@ -40,15 +41,15 @@ namespace asio = boost::asio;
 
 namespace {
 
-// gRPC's status codes used here (grpc/status.h).
-constexpr int kCancelled = 1;
-constexpr int kUnknown = 2;
-constexpr int kResourceExhausted = 8;
-constexpr int kPermissionDenied = 7;
-constexpr int kUnimplemented = 12;
-constexpr int kInternal = 13;
-constexpr int kUnavailable = 14;
-constexpr int kUnauthenticated = 16;
+// gRPC's status codes used here, as the int the connection reports.
+constexpr int kCancelled = grpc::StatusCode::CANCELLED;
+constexpr int kUnknown = grpc::StatusCode::UNKNOWN;
+constexpr int kResourceExhausted = grpc::StatusCode::RESOURCE_EXHAUSTED;
+constexpr int kPermissionDenied = grpc::StatusCode::PERMISSION_DENIED;
+constexpr int kUnimplemented = grpc::StatusCode::UNIMPLEMENTED;
+constexpr int kInternal = grpc::StatusCode::INTERNAL;
+constexpr int kUnavailable = grpc::StatusCode::UNAVAILABLE;
+constexpr int kUnauthenticated = grpc::StatusCode::UNAUTHENTICATED;
 
 /// Larger messages than this end the call (lipsyncd's own limit is far below).
 constexpr std::size_t kMaxMessageBytes = std::size_t{64} << 20;

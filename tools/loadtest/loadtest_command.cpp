@@ -592,8 +592,8 @@ Request parse_request(const Arguments& arguments) {
   }
   config.mesh.share = parse_double_option("mesh-share", arguments.value("mesh-share").value_or("0"));
   if (config.mesh.share < 0.0 || config.mesh.share > 1.0) {
-    throw UsageError("--mesh-share: '" + *arguments.value("mesh-share") +
-                     "' is out of range (a fraction of the producers, 0 to 1)");
+    throw UsageError(
+        out_of_range_text("--mesh-share", *arguments.value("mesh-share"), "a fraction of the producers, 0 to 1"));
   }
   config.mesh.subdivision = static_cast<std::uint32_t>(parse_render_plan(arguments).mesh_subdivision);
   const std::string encoding = arguments.value("mesh-encoding").value_or("float32");

@@ -123,7 +123,8 @@ LiveRecognizer::LiveRecognizer(const LiveRecognitionOptions& options, std::strin
   cmd_ln_t* config =
       cmd_ln_init(nullptr, ps_args(), TRUE, "-hmm", hmm.c_str(), "-dict", dict.c_str(), "-samprate", "16000",
                   "-remove_silence", "no", "-beam", beam.c_str(), "-pbeam", beam.c_str(), "-wbeam", beam.c_str(),
-                  "-bestpath", "no", "-fsgusefiller", "no", "-lw", forced ? "6.5" : "2.0", nullptr);
+                  "-bestpath", "no", "-fsgusefiller", "no", "-lw", forced ? "6.5" : "2.0", "-topn",
+                  forced ? "4" : std::to_string(options_.phone_top_gaussians).c_str(), nullptr);
   if (config == nullptr) throw InputError(source_, 0, "cannot configure PocketSphinx");
   decoder_ = std::make_unique<Decoder>(options_.sample_rate_hz);
   decoder_->ps = ps_init(config);
