@@ -523,9 +523,27 @@ function showReadouts(frame) {
   });
 }
 
+// The status line: what the page follows (connecting, waiting, following, complete, an error),
+// then what went wrong with the audio or why it plays as it does, each kept until its own next news.
+const statusLine = { session: "", sessionError: false, audio: null, audioError: false };
+
 function setStatus(text, isError) {
-  elements.status.textContent = text;
-  elements.status.className = isError ? "error" : "";
+  statusLine.session = text;
+  statusLine.sessionError = !!isError;
+  showStatus();
+}
+
+/// The audio's part of the status line ("audio: …"); null clears it.
+function setAudioStatus(text, isError = true) {
+  statusLine.audio = text;
+  statusLine.audioError = !!(text && isError);
+  showStatus();
+}
+
+function showStatus() {
+  const { session, audio } = statusLine;
+  elements.status.textContent = audio === null ? session : (session ? session + "; " : "") + "audio: " + audio;
+  elements.status.className = statusLine.sessionError || statusLine.audioError ? "error" : "";
 }
 
 // ---------------------------------------------------------------- audio on the Web Audio clock
@@ -540,6 +558,7 @@ function setStatus(text, isError) {
 // (what the screen shows): the drift. A small drift is trimmed by the source's playback rate
 // (at most kMaxRateTrim); beyond kRescheduleUs, kRescheduleSamples times in a row, the sound is
 // rescheduled (a new source on the anchor, crossfaded over kCrossfadeS).
+const kHeldUntilClick = "the browser holds the audio until the page is clicked";
 const sound = {
   context: null,
   buffer: null,      // the decoded AudioBuffer
@@ -558,8 +577,23 @@ function audioContext() {
   return sound.context;
 }
 
+/// Whether the server of `url` answers at all: an opaque (no-cors) request resolves for any HTTP
+/// status, and fails only when no answer came (connection refused, unknown host, blocked).
+async function serverAnswers(url) {
+  const controller = new AbortController();
+  try {
+    await fetch(url, { mode: "no-cors", signal: controller.signal });
+    return true;
+  } catch (error) {
+    return false;
+  } finally {
+    controller.abort();  // the headers are enough
+  }
+}
+
 /// Fetches and decodes `source` (a URL, or a File chosen on the page). A URL the browser may not
-/// read (another origin without Access-Control-Allow-Origin) falls back to the <audio> element.
+/// read (another origin without Access-Control-Allow-Origin) falls back to the <audio> element; one
+/// whose server does not answer, or answers an error, is named on the status line with what failed.
 async function loadAudio(source, name, { quietNotFound = false } = {}) {
   const id = ++sound.loadId;
   stopSound();
@@ -579,7 +613,8 @@ async function loadAudio(source, name, { quietNotFound = false } = {}) {
       }
       if (!response.ok) {
         const text = (await response.text()).trim();
-        throw new Error(name + ": HTTP " + response.status + (text ? " (" + text + ")" : ""));
+        throw new Error(name + ": HTTP " + response.status + (response.statusText ? " " + response.statusText : "") +
+                        (text ? " (" + text + ")" : ""));
       }
       bytes = await response.arrayBuffer();
     } else {
@@ -588,12 +623,19 @@ async function loadAudio(source, name, { quietNotFound = false } = {}) {
   } catch (error) {
     if (id !== sound.loadId) return;
     if (error instanceof TypeError && typeof source === "string") {
-      // Not readable from this page (CORS) or not reachable: the media element may still play it.
+      // Not readable from this page (CORS), or no answer at all: the media element may play the first.
+      if (!(await serverAnswers(source))) {
+        if (id !== sound.loadId) return;
+        viewer.audioError = name + ": no answer from its server (connection refused, unknown host, or blocked)";
+        setAudioStatus(viewer.audioError);
+        return;
+      }
+      if (id !== sound.loadId) return;
       sound.path = "element";
       viewer.audioPath = "element";
       viewer.audioNote = name + " is not readable from this page (no CORS header?): played by the audio element, " +
                          "which needs a server with byte ranges";
-      setStatus("audio: " + viewer.audioNote, true);
+      setAudioStatus(viewer.audioNote);
       elementStartedAtZero = false;
       elementTooLate = false;
       audio.preload = "auto";  // loaded before the anchor, so that an unseekable file starts on time
@@ -601,7 +643,7 @@ async function loadAudio(source, name, { quietNotFound = false } = {}) {
       return;
     }
     viewer.audioError = error.message;
-    setStatus("audio: " + error.message, true);
+    setAudioStatus(error.message);
     return;
   }
   let buffer;
@@ -610,7 +652,7 @@ async function loadAudio(source, name, { quietNotFound = false } = {}) {
   } catch (error) {
     if (id !== sound.loadId) return;
     viewer.audioError = name + ": not audio the browser can decode (" + error.message + ")";
-    setStatus("audio: " + viewer.audioError, true);
+    setAudioStatus(viewer.audioError);
     return;
   }
   if (id !== sound.loadId) return;
@@ -619,12 +661,12 @@ async function loadAudio(source, name, { quietNotFound = false } = {}) {
   viewer.audioPath = "webaudio";
   viewer.audioDurationUs = Math.round(buffer.duration * 1e6);
   viewer.audioLoadedAtMs = performance.now();
-  if (!quietNotFound) setStatus(track.header ? "following " + track.header.session : elements.status.textContent);
+  setAudioStatus(null);
   if (context.state !== "running") {
     context.resume().catch(() => {});
     if (context.state !== "running") {
-      viewer.audioError = "the browser holds the audio until the page is clicked";
-      setStatus("audio: click the page to allow it", true);
+      viewer.audioError = kHeldUntilClick;
+      setAudioStatus("click the page to allow it");
     }
   }
   return true;
@@ -785,7 +827,7 @@ function elementCanSeek() {
 function explainUnseekable(text) {
   if (viewer.audioNote === text) return;
   viewer.audioNote = text;
-  setStatus("audio: " + text, true);
+  setAudioStatus(text);
 }
 
 /// The unseekable element: started from 0 at the anchor's time 0 when the page was there before
@@ -812,7 +854,7 @@ function steerUnseekableElement(nowUs) {
     audio.playbackRate = 1;
     audioRestart = { fromS: 0, runningSinceMs: null };
     audio.play()
-      .catch((e) => { viewer.audioError = e.message; setStatus("audio: " + e.message + " (click the page to allow it)", true); });
+      .catch((e) => { viewer.audioError = e.message; setAudioStatus(e.message + " (click the page to allow it)"); });
     explainUnseekable(name + " is not readable from this page (no CORS header) and its server answers no byte " +
                       "ranges: played by the audio element from its beginning at the anchor, kept in time by its " +
                       "playback rate only (it cannot be seeked)");
@@ -838,6 +880,19 @@ function steerUnseekableElement(nowUs) {
   return true;
 }
 
+// Why the element could not play a file (MediaError codes), for the status line.
+const kMediaErrors = { 1: "the load was aborted", 2: "a network error", 3: "it could not be decoded",
+                       4: "its server answered an error (a missing file?) or it is not audio the browser plays" };
+
+audio.addEventListener("error", () => {
+  if (sound.path !== "element" || !audio.error) return;
+  const { code, message } = audio.error;
+  viewer.audioError = viewer.audio + ": the audio element cannot play it: " + (kMediaErrors[code] || "error " + code) +
+                      (message ? " (" + message + ")" : "");
+  viewer.audioPlaying = false;
+  setAudioStatus(viewer.audioError);
+});
+
 function steerElement(nowUs) {
   if (viewer.held !== null || nowUs === null) return;
   if (steerUnseekableElement(nowUs)) return;
@@ -857,7 +912,7 @@ function steerElement(nowUs) {
     audioRestart = { fromS: audio.currentTime, runningSinceMs: null };
     audio.playbackRate = 1;
     audio.play()
-      .catch((e) => { viewer.audioError = e.message; setStatus("audio: " + e.message + " (click the page to allow it)", true); })
+      .catch((e) => { viewer.audioError = e.message; setAudioStatus(e.message + " (click the page to allow it)"); })
       .finally(() => { audioStarting = false; });
     return;
   }
@@ -1016,9 +1071,7 @@ function connect(session) {
       track.summary = message.summary;
       viewer.ended = true;
       const complete = session + ": complete, " + message.summary.frames + " frames";
-      // Why the sound did not play in sync stays on the page.
-      if (elementTooLate) setStatus(complete + "; audio: " + viewer.audioNote, true);
-      else setStatus(complete);
+      setStatus(complete);
     }
   };
   socket.onclose = (event) => {
@@ -1092,7 +1145,13 @@ if (viewer.audio) loadAudio(viewer.audio, viewer.audio);
 document.getElementById("session-input").value = viewer.session || "";
 document.getElementById("audio-input").value = viewer.audio || "";
 document.addEventListener("click", () => {
-  if (sound.context && sound.context.state !== "running") sound.context.resume().then(() => { viewer.audioError = null; });
+  if (sound.context && sound.context.state !== "running") {
+    sound.context.resume().then(() => {
+      if (viewer.audioError !== kHeldUntilClick) return;
+      viewer.audioError = null;
+      setAudioStatus(null);
+    });
+  }
   if (sound.path === "element" && viewer.audioError) { viewer.audioError = null; audio.play().catch(() => {}); }
 });
 if (!gl) setStatus("this browser has no WebGL: readouts only", true);

@@ -38,6 +38,8 @@ and checks:
     the weights), checked against a Subscribe of the same session, and at a /f/ key frame of
     flite_fast_2 where the largest weight is PP the page shows the event's FF.
   * an AudioContext stalled for 150 ms while locked is rescheduled onto the anchor and locks again.
+  * an audio URL that fails (a 404 from lipsyncd, a server that refuses the connection, a 404
+    from a server without CORS) is named on the status line, beside the session's own news;
 
 Screenshots of the page (face, readouts, bars) are written to $LIPSYNC_VIEWER_SCREENSHOTS when it is set (the
 pictures in docs/images/ come from there).
@@ -53,6 +55,7 @@ import json
 import os
 import re
 import shutil
+import socket
 import struct
 import subprocess
 import sys
@@ -232,6 +235,12 @@ class DevTools:
         self.socket.close()
         self.process.kill()
         self.process.wait()
+
+
+def unused_port():
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
 
 
 def start_lipsyncd():
@@ -800,6 +809,29 @@ class ViewerInChromium(unittest.TestCase):
         self.assertGreater(state["frames"], 50)
         self.assertIsNone(state["error"])
 
+
+    def wait_for_page(self, condition, what, timeout_s=20):
+        deadline = time.time() + timeout_s
+        while not self.browser.evaluate(condition):
+            self.assertLess(time.time(), deadline, what)
+            time.sleep(0.05)
+
+    def test_14_an_audio_url_that_fails_is_named_on_the_status_line_beside_the_sessions_news(self):
+        zero_us = time.time_ns() // 1000
+        for _ in self.client.animate([self.phonemes], phone_set="radio", session="bad-audio",
+                                     media_clock=("unix", zero_us), timeout=30):
+            pass
+        no_cors = f"http://127.0.0.1:{self.no_cors_server.server_address[1]}"
+        for url, failure in [("/missing.wav", "audio: /missing.wav: HTTP 404 Not Found (lipsyncd: no such page"),
+                             (f"http://127.0.0.1:{unused_port()}/papa.wav", "no answer from its server"),
+                             (f"{no_cors}/missing.wav", "the audio element cannot play it")]:
+            self.open_page("bad-audio", url)
+            self.wait_for_page("!!(window.lipsyncViewer && lipsyncViewer.ended && lipsyncViewer.audioError)",
+                               f"{url}: the page did not say that the audio failed")
+            status = self.browser.evaluate("document.getElementById('status').textContent")
+            print(f"audio {url}: {status}", flush=True)
+            self.assertIn(failure, status)
+            self.assertIn("bad-audio: complete", status)
 
 if __name__ == "__main__":
     unittest.main(argv=sys.argv[:1], verbosity=2)
