@@ -1,6 +1,7 @@
 // lipsyncd's browser viewer (docs/viewer.md). It follows one session over the WebSocket /ws (each
-// binary message a serialised TrackMessage, decoded by track_decoder.js) and draws, every
-// animation frame, the track's frame for the current utterance time:
+// binary message a serialised TrackMessage, decoded by track_decoder.js; lipsyncd waits up to
+// ?wait=S for a session that has not started, and the status line counts the seconds) and draws,
+// every animation frame, the track's frame for the current utterance time:
 //
 // - Time. The header's media-clock anchor says when utterance time 0 plays. On the "unix" clock
 //   (the producer's wall clock; lipsyncd's quick try uses it) the page shows frame t at wall time
@@ -45,7 +46,8 @@ const kSeekSamples = 3;         // ... kSeekSamples measurements in a row (one i
 const kMaxLeadUs = 500000;
 const kMaxElementRateTrim = 0.15;
 const kSettleAfterStartMs = 60; // after a start or seek, drift is measured once the audio runs again, and this long after
-const kRetryNotFoundMs = 250;   // a session not (yet) there is asked for again this often
+const kWaitForSessionS = 120;   // lipsyncd waits this long for a session that has not started (?wait=S)
+const kMaxWaitS = 3600;
 
 // Mesh parts (lipsync.v1.MeshPart) and their colours, linear-ish RGB 0..1.
 const kPartColours = [
@@ -57,7 +59,6 @@ const kPartColours = [
   [0.85, 0.30, 0.40],  // tongue (flat)
 ];
 const kLipColour = [0.76, 0.42, 0.44];  // the vermilion, painted inside kOuterLip
-const kNotFoundCloseCode = 4005;  // 4000 + gRPC NOT_FOUND
 const kLitParts = new Set([0, 1]);
 /// What an open mouth shows on a screenshot (8-bit sRGB as drawn): cavity, teeth, tongue.
 const kOpenMouthColours = [2, 3, 5].map((p) => kPartColours[p].map((c) => Math.round(c * 255)));
@@ -94,7 +95,8 @@ const elements = Object.fromEntries(
 
 const viewer = {
   connected: false,
-  waiting: false,        // the session does not exist yet: the page asks again every kRetryNotFoundMs
+  waiting: false,        // the session has not started yet: lipsyncd waits for it (until waitingUntilMs)
+  waitingUntilMs: null,  // performance.now() when lipsyncd stops waiting
   session: params.get("session") || null,
   mode: null,            // "mesh", "blendshapes" or "rest" (no face data in the stream)
   clock: null,           // "unix" (the anchor's) or "arrival"
@@ -994,7 +996,7 @@ setInterval(() => { if (track.header) steer(utteranceNowUs()); }, kSteerInterval
 // ---------------------------------------------------------------- the WebSocket
 
 function onHeader(header) {
-  viewer.waiting = false;
+  stopWaiting();
   if (viewer.audio && audio.ended) audio.currentTime = 0;  // a new track: the audio may play again
   if (sound.context) stopSound();
   if (sessionAudio === null) askSessionAudio(header.session, "asked");
@@ -1042,22 +1044,60 @@ function askSessionAudio(session, state) {
     });
 }
 
+/// Seconds to wait for a session that has not started (?wait=S, 0 to kMaxWaitS; 0: not at all).
+function sessionWaitS() {
+  const text = params.get("wait");
+  if (text === null) return kWaitForSessionS;
+  const seconds = /^[0-9]+$/.test(text) ? Number(text) : NaN;
+  if (seconds <= kMaxWaitS) return seconds;
+  setStatus("wait: expected whole seconds from 0 to " + kMaxWaitS + ", got '" + text + "'; waiting " +
+            kWaitForSessionS + " s", true);
+  return kWaitForSessionS;
+}
+
+let waitCountdown = null;  // the interval that shows the seconds left while lipsyncd waits for the session
+
+function showWaiting(session, waitS) {
+  const until = performance.now() + waitS * 1000;
+  const show = () => {
+    const left = Math.max(0, Math.ceil((until - performance.now()) / 1000));
+    setStatus("waiting for session " + session + " to start (" + left + " s left)");
+  };
+  viewer.waiting = true;
+  viewer.waitingUntilMs = until;
+  clearInterval(waitCountdown);
+  waitCountdown = setInterval(show, 1000);
+  show();
+}
+
+function stopWaiting() {
+  viewer.waiting = false;
+  clearInterval(waitCountdown);
+  waitCountdown = null;
+}
+
 function connect(session) {
   const start = params.get("start");
+  const waitS = sessionWaitS();
   const url = (location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws?session=" +
     encodeURIComponent(session) + (start ? "&start=" + encodeURIComponent(start) : "") +
-    (apiKey ? "&key=" + encodeURIComponent(apiKey) : "");
+    (waitS ? "&wait_s=" + waitS : "") + (apiKey ? "&key=" + encodeURIComponent(apiKey) : "");
   const socket = new WebSocket(url);
   socket.binaryType = "arraybuffer";
   elements.session.textContent = session;
-  setStatus("connecting to " + session);
+  if (!viewer.error) setStatus("connecting to " + session);
   socket.onopen = () => { viewer.connected = true; };
   socket.onmessage = (event) => {
-    if (typeof event.data === "string") {  // the error before the close: {"code", "message"}
-      const error = JSON.parse(event.data);
-      if (error.code === "NOT_FOUND" && !track.header) return;  // waited for (onclose)
-      viewer.error = error.code + ": " + error.message;
-      setStatus(viewer.error, true);
+    if (typeof event.data === "string") {
+      // lipsyncd waits for the session ({"waiting", "wait_s"}), or the error before the close ({"code", "message"}).
+      const text = JSON.parse(event.data);
+      if (text.waiting !== undefined) {
+        showWaiting(session, text.wait_s);
+        return;
+      }
+      stopWaiting();
+      viewer.error = text.code + ": " + text.message;
+      setStatus(viewer.error + (text.code === "NOT_FOUND" && !track.header ? " (Follow waits again)" : ""), true);
       return;
     }
     const message = decodeTrackMessage(new Uint8Array(event.data));
@@ -1070,23 +1110,14 @@ function connect(session) {
     if (message.summary) {
       track.summary = message.summary;
       viewer.ended = true;
-      const complete = session + ": complete, " + message.summary.frames + " frames";
-      setStatus(complete);
+      setStatus(session + ": complete, " + message.summary.frames + " frames");
     }
   };
   socket.onclose = (event) => {
     viewer.connected = false;
     viewer.closeCode = event.code;
     viewer.closeReason = event.reason;
-    if (event.code === kNotFoundCloseCode && !track.header) {
-      // Opened before its producer: wait for the session to start.
-      viewer.waiting = true;
-      viewer.error = null;
-      setStatus("waiting for session " + session + " to start");
-      setTimeout(() => connect(session), kRetryNotFoundMs);
-      return;
-    }
-    viewer.waiting = false;
+    stopWaiting();
     if (event.code !== 1000 && !viewer.error) {
       viewer.error = "closed (" + event.code + ")" + (event.reason ? ": " + event.reason : "");
       setStatus(viewer.error, true);

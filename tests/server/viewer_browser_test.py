@@ -40,6 +40,8 @@ and checks:
   * an AudioContext stalled for 150 ms while locked is rescheduled onto the anchor and locks again.
   * an audio URL that fails (a 404 from lipsyncd, a server that refuses the connection, a 404
     from a server without CORS) is named on the status line, beside the session's own news;
+  * a session that never starts is waited for with the seconds left on the status line, given up
+    after ?wait=S saying so, and logged by lipsyncd in one line.
 
 Screenshots of the page (face, readouts, bars) are written to $LIPSYNC_VIEWER_SCREENSHOTS when it is set (the
 pictures in docs/images/ come from there).
@@ -243,11 +245,12 @@ def unused_port():
         return probe.getsockname()[1]
 
 
-def start_lipsyncd():
+def start_lipsyncd(log_path):
+    """lipsyncd at --log-level info, its log in `log_path`."""
     process = subprocess.Popen(
-        [LIPSYNCD, "--listen", "127.0.0.1:0", "--http-listen", "127.0.0.1:0", "--log-level", "warn",
+        [LIPSYNCD, "--listen", "127.0.0.1:0", "--http-listen", "127.0.0.1:0", "--log-level", "info",
          "--face-priority", "normal",
-         "--session-retention-ms", "60000"], stdout=subprocess.PIPE, text=True)
+         "--session-retention-ms", "60000"], stdout=subprocess.PIPE, stderr=open(log_path, "w"), text=True)
     line = process.stdout.readline()
     grpc_address = listening_address(line)
     if not grpc_address:
@@ -365,7 +368,8 @@ class ViewerInChromium(unittest.TestCase):
         cls.slow_server = serve_directory(cls.workdir, SlowHandler)
         cls.no_cors_server = serve_directory(cls.workdir, NoCorsHandler)
         cls.no_cors_stream_server = serve_directory(cls.workdir, NoCorsStreamHandler)
-        cls.lipsyncd, cls.grpc_address, cls.viewer_url = start_lipsyncd()
+        cls.log_path = f"{cls.workdir}/lipsyncd.log"
+        cls.lipsyncd, cls.grpc_address, cls.viewer_url = start_lipsyncd(cls.log_path)
         cls.browser = DevTools(cls.workdir)
         cls.client = Client(cls.grpc_address)
         # A first load (no session) warms up the browser: WebGL on SwiftShader, the page's files in
@@ -429,8 +433,8 @@ class ViewerInChromium(unittest.TestCase):
         opened.wait(10)
         return producer, zero_us
 
-    def open_page(self, session, audio_url=None):
-        query = f"session={session}" + (f"&audio={audio_url}" if audio_url else "")
+    def open_page(self, session, audio_url=None, more=""):
+        query = f"session={session}" + (f"&audio={audio_url}" if audio_url else "") + more
         self.browser.call("Page.navigate", url=f"{self.viewer_url}/view?{query}")
 
     def follow_and_measure(self, session, audio_url=None, open_page="before", speak=False, page_script=None,
@@ -832,6 +836,32 @@ class ViewerInChromium(unittest.TestCase):
             print(f"audio {url}: {status}", flush=True)
             self.assertIn(failure, status)
             self.assertIn("bad-audio: complete", status)
+
+    def test_15_a_session_that_never_starts_is_waited_for_visibly_then_given_up_and_logged_once(self):
+        self.open_page("never-started", more="&wait=2")
+        statuses, deadline = [], time.time() + 10
+        while time.time() < deadline:
+            state = json.loads(self.browser.evaluate(
+                "JSON.stringify(window.lipsyncViewer ? {waiting: lipsyncViewer.waiting, error: lipsyncViewer.error,"
+                " status: document.getElementById('status').textContent} : {})"))
+            if state.get("status") and (not statuses or statuses[-1] != state["status"]):
+                statuses.append(state["status"])
+            if state.get("error"):
+                break
+            time.sleep(0.05)
+        print(f"never-started: the status line said {statuses}", flush=True)
+        self.assertIn("waiting for session never-started to start (2 s left)", statuses)
+        self.assertIn("waiting for session never-started to start (1 s left)", statuses)
+        self.assertFalse(state["waiting"])
+        self.assertIn("session 'never-started' did not start within 2 s", statuses[-1])
+        deadline, lines = time.time() + 5, []
+        while time.time() < deadline and not lines:
+            with open(self.log_path) as log:
+                lines = [line for line in log if "never-started" in line]
+            time.sleep(0.05)
+        print(f"never-started: lipsyncd logged {lines}", flush=True)
+        self.assertEqual(len(lines), 1, lines)
+        self.assertIn("did not start within 2 s", lines[0])
 
 if __name__ == "__main__":
     unittest.main(argv=sys.argv[:1], verbosity=2)
