@@ -1,7 +1,9 @@
 // lipsyncd's browser viewer (docs/viewer.md). It follows one session over the WebSocket /ws (each
 // binary message a serialised TrackMessage, decoded by track_decoder.js; lipsyncd waits up to
-// ?wait=S for a session that has not started, and the status line counts the seconds) and draws,
-// every animation frame, the track's frame for the current utterance time:
+// ?wait=S for a session that has not started, and the status line counts the seconds) and draws the
+// track's frame for the current utterance time, at each animation frame while the picture can
+// change on its own; after the track's end the face eases back to rest, and the page then draws
+// nothing (and suspends its audio) until a message, hold() or release() wakes it:
 //
 // - Time. The header's media-clock anchor says when utterance time 0 plays. On the "unix" clock
 //   (the producer's wall clock; lipsyncd's quick try uses it) the page shows frame t at wall time
@@ -45,6 +47,7 @@ const kSeekUnlockedUs = 60000;  // a started or seeked audio further than this i
 const kSeekSamples = 3;         // ... kSeekSamples measurements in a row (one is the element's jitter)
 const kMaxLeadUs = 500000;
 const kMaxElementRateTrim = 0.15;
+const kReturnToRestUs = 250000; // after the track's end the face eases back to rest over this
 const kSettleAfterStartMs = 60; // after a start or seek, drift is measured once the audio runs again, and this long after
 const kWaitForSessionS = 120;   // lipsyncd waits this long for a session that has not started (?wait=S)
 const kMaxWaitS = 3600;
@@ -101,7 +104,6 @@ const viewer = {
   mode: null,            // "mesh", "blendshapes" or "rest" (no face data in the stream)
   clock: null,           // "unix" (the anchor's) or "arrival"
   utteranceZeroUs: null, // the anchor
-  utteranceTime: null,   // µs now on the anchor's timeline
   frameTime: null,       // µs of the frame on screen
   frameIndex: null,
   viseme: null,
@@ -119,6 +121,7 @@ const viewer = {
   audioLoadedAtMs: null, // performance.now() when the audio was decoded
   audioDurationUs: null,
   audioStartedAtUs: null, // utterance time of the first drift measured (the audio heard)
+  audioStartOffsetUs: null, // µs into the audio where its first schedule started it (0: from its first sample)
   audioClock: null,      // "timestamp" (getOutputTimestamp) or "latency" (currentTime + latencies)
   lastClock: null,       // the last measurement: context and performance times, position, utterance time
   mouthOpen: null,       // mm between the inner lips (landmarks 13 and 14) on screen
@@ -126,6 +129,7 @@ const viewer = {
   openMouthColours: kOpenMouthColours,
   frames: 0,
   framesDrawn: 0,        // pictures drawn (a new frame on screen), for the frame rate
+  animating: false,      // the page draws at every animation frame (false: idle until something changes)
   ended: false,
   error: null,
   closeCode: null,
@@ -135,9 +139,11 @@ const viewer = {
   audioError: null,
   held: null,
   /// Freezes the picture at utterance time `tUs` (for screenshots and people), audio paused.
-  hold(tUs) { this.held = tUs; this.drift = null; audio.pause(); if (sound.context) stopSound(); },
+  hold(tUs) { this.held = tUs; this.drift = null; audio.pause(); if (sound.context) stopSound(); wake(); },
   /// Back to following the clock.
-  release() { this.held = null; },
+  release() { this.held = null; wake(); },
+  /// µs now on the anchor's timeline (the held time while held; null before a header).
+  get utteranceTime() { return utteranceNowUs(); },
   /// Where the face's outer lip contour and eye contours are on the page now (CSS pixels).
   contours() { return { lip: onPage(kOuterLip), eyes: kEyes.map(onPage) }; },
   /// Per frame received: [t µs, the viseme the page shows for it (the server's event), the largest weight's].
@@ -154,7 +160,7 @@ window.lipsyncViewer = viewer;
 // eventViseme: the viseme of the server's last VisemeEvent (null before the first), which each
 // frame keeps as `viseme`: the page shows the server's events, not its own reading of the weights
 // (they differ where the server holds a closure's viseme on its key frames).
-const track = { header: null, frames: [], summary: null, eventViseme: null };
+const track = { header: null, frames: [], summary: null, closed: false, eventViseme: null };
 
 function addBatch(batch) {
   const h = track.header;
@@ -330,19 +336,20 @@ function paintTexture(rest, box) {
   return c.getImageData(0, 0, kPaintTexels, kPaintTexels);
 }
 
-function pose(frame) {
+/// The face of `frame` (the rest pose for null), its displacement from the rest scaled by `amount`
+/// (1: the frame as it is; less while the face eases back to rest after the track's end).
+function pose(frame, amount = 1) {
   const g = geometry;
+  g.positions.set(g.rest);
   if (viewer.mode === "mesh" && frame && frame.mesh) {
-    g.positions.set(frame.mesh);
-  } else {
-    g.positions.set(g.rest);
-    if (viewer.mode === "blendshapes" && frame) {
-      g.shapes.forEach((shape, k) => {
-        const w = g.shapeIndex[k] >= 0 ? frame.arkit[g.shapeIndex[k]] : 0;
-        if (!w) return;
-        for (let c = 0; c < shape.deltas.length; ++c) g.positions[c] += w * shape.deltas[c];
-      });
-    }
+    if (amount === 1) g.positions.set(frame.mesh);
+    else for (let c = 0; c < g.positions.length; ++c) g.positions[c] += amount * (frame.mesh[c] - g.rest[c]);
+  } else if (viewer.mode === "blendshapes" && frame) {
+    g.shapes.forEach((shape, k) => {
+      const w = g.shapeIndex[k] >= 0 ? amount * frame.arkit[g.shapeIndex[k]] : 0;
+      if (!w) return;
+      for (let c = 0; c < shape.deltas.length; ++c) g.positions[c] += w * shape.deltas[c];
+    });
   }
   if (g.closure.gapM > 0) {  // the relaxed rest: lips together while the face holds them at most as far apart as at rest
     const gap = g.positions[3 * kUpperInnerLip + 1] - g.positions[3 * kLowerInnerLip + 1], rest = g.closure.gapM;
@@ -497,13 +504,18 @@ function makeBars(names) {
     row.innerHTML = '<span></span><span class="track"><span class="fill"></span></span>';
     row.firstChild.textContent = name;
     elements.bars.appendChild(row);
-    return { fill: row.querySelector(".fill"), peak: 1e-6 };
+    return { fill: row.querySelector(".fill"), peak: 1e-6, width: null };
   });
+}
+
+/// Sets an element's text only when it changes (a write costs the page a layout).
+function setText(element, text) {
+  if (element.textContent !== text) element.textContent = text;
 }
 
 function showReadouts(frame) {
   viewer.frameTime = frame ? frame.t : null;
-  elements["frame-time"].textContent = frame ? String(frame.t) + " µs" : "–";
+  setText(elements["frame-time"], frame ? String(frame.t) + " µs" : "–");
   const h = track.header;
   let viseme = null;
   if (frame && frame.viseme !== null) {
@@ -515,13 +527,14 @@ function showReadouts(frame) {
     viseme = h.visemeNames[best];
   }
   viewer.viseme = viseme;
-  elements.viseme.textContent = viseme ?? "–";
-  elements.drift.textContent = viewer.drift === null ? "–" : (viewer.drift / 1000).toFixed(1) + " ms";
+  setText(elements.viseme, viseme ?? "–");
+  setText(elements.drift, viewer.drift === null ? "–" : (viewer.drift / 1000).toFixed(1) + " ms");
   const values = frame ? (frame.values.length ? frame.values : frame.arkit) : [];
   bars.forEach((bar, i) => {
     const v = Math.abs(values[i] || 0);
     bar.peak = Math.max(bar.peak, v, 1);
-    bar.fill.style.width = (100 * v / bar.peak).toFixed(1) + "%";
+    const width = (100 * v / bar.peak).toFixed(1) + "%";
+    if (bar.width !== width) bar.fill.style.width = bar.width = width;
   });
 }
 
@@ -568,7 +581,16 @@ const sound = {
   schedule: null,    // {source, gain, startContextS, pieces: [{contextS, positionS, rate}]}
   outOfBand: 0,      // measurements in a row beyond kRescheduleUs
   loadId: 0,
+  loading: 0,        // loads under way
+  resting: false,    // the context is suspended by the page while idle (startSteering resumes it)
 };
+
+/// Resumes the AudioContext that the page suspended while idle.
+function wakeAudio() {
+  if (!sound.resting) return Promise.resolve();
+  sound.resting = false;
+  return sound.context.resume().catch(() => {});
+}
 
 function audioContext() {
   if (!sound.context) {
@@ -596,7 +618,17 @@ async function serverAnswers(url) {
 /// Fetches and decodes `source` (a URL, or a File chosen on the page). A URL the browser may not
 /// read (another origin without Access-Control-Allow-Origin) falls back to the <audio> element; one
 /// whose server does not answer, or answers an error, is named on the status line with what failed.
-async function loadAudio(source, name, { quietNotFound = false } = {}) {
+async function loadAudio(source, name, options = {}) {
+  sound.loading += 1;
+  try {
+    return await fetchAndDecodeAudio(source, name, options);
+  } finally {
+    sound.loading -= 1;
+    startSteering();
+  }
+}
+
+async function fetchAndDecodeAudio(source, name, { quietNotFound = false }) {
   const id = ++sound.loadId;
   stopSound();
   sound.buffer = null;
@@ -604,7 +636,9 @@ async function loadAudio(source, name, { quietNotFound = false } = {}) {
   viewer.audio = name;
   viewer.audioError = null;
   viewer.audioLoadedAtMs = null;
+  viewer.audioStartOffsetUs = null;
   const context = audioContext();
+  await wakeAudio();
   let bytes;
   try {
     if (typeof source === "string") {
@@ -728,6 +762,7 @@ function scheduleSound() {
   gain.gain.setValueAtTime(previous ? 0 : 1, startS);
   if (previous) gain.gain.linearRampToValueAtTime(1, startS + kCrossfadeS);
   source.start(startS, offsetS);
+  viewer.audioStartOffsetUs ??= Math.round(offsetS * 1e6);
   sound.schedule = { source, gain, startContextS: startS, pieces: [{ contextS: startS, positionS: offsetS, rate: 1 }] };
   sound.outOfBand = 0;
   viewer.locked = false;
@@ -748,13 +783,14 @@ function steerSound(nowUs) {
   if (positionS === null || positionS >= sound.buffer.duration) {
     viewer.audioPlaying = false;
     viewer.drift = null;
+    setText(elements.drift, "–");
     return;
   }
   viewer.audioPlaying = true;
   const utteranceUs = utteranceAtUs(clock.performanceMs);
   const drift = Math.round(positionS * 1e6 - utteranceUs);
   viewer.drift = drift;
-  elements.drift.textContent = (drift / 1000).toFixed(1) + " ms";
+  setText(elements.drift, (drift / 1000).toFixed(1) + " ms");
   viewer.driftSamples += 1;
   viewer.audioStartedAtUs ??= Math.round(utteranceUs);
   viewer.lastClock = { contextS: clock.contextS, performanceMs: clock.performanceMs, from: clock.from,
@@ -875,7 +911,7 @@ function steerUnseekableElement(nowUs) {
   }
   const drift = Math.round(audio.currentTime * 1e6 - nowUs);
   viewer.drift = drift;
-  elements.drift.textContent = (drift / 1000).toFixed(1) + " ms";
+  setText(elements.drift, (drift / 1000).toFixed(1) + " ms");
   viewer.driftSamples += 1;
   audio.playbackRate = 1 - Math.max(-kMaxElementRateTrim, Math.min(kMaxElementRateTrim, (drift / 1e6) * kRateGainPerSecond));
   noteLock(drift, nowUs);
@@ -927,7 +963,7 @@ function steerElement(nowUs) {
   }
   const drift = Math.round(audio.currentTime * 1e6 - nowUs);
   viewer.drift = drift;
-  elements.drift.textContent = (drift / 1000).toFixed(1) + " ms";
+  setText(elements.drift, (drift / 1000).toFixed(1) + " ms");
   viewer.driftSamples += 1;
   const trim = Math.max(-kMaxElementRateTrim, Math.min(kMaxElementRateTrim, (drift / 1e6) * kRateGainPerSecond));
   audio.playbackRate = 1 - trim;
@@ -969,29 +1005,85 @@ function utteranceNowUs() {
   return Math.round((performance.timeOrigin + performance.now()) * 1000 - viewer.utteranceZeroUs);
 }
 
-let drawn = { geometry: null, frameIndex: undefined };
+/// µs of utterance time at which the track ends, once no more frames can come (else null): one
+/// frame step after its last frame, or the end of its last phoneme if that is later.
+function trackEndUs() {
+  if (!(track.summary || track.closed) || !track.frames.length) return null;
+  const stepUs = 1e6 / (track.header.fps || 30);
+  return Math.max(track.frames[track.frames.length - 1].t + stepUs, track.summary ? track.summary.durationUs : 0);
+}
 
-/// Every animation frame: the frame for the current utterance time, drawn when it changed.
-function tick() {
-  const now = utteranceNowUs();
-  viewer.utteranceTime = now;
-  if (track.header && geometry) {
-    const index = now === null || now < 0 ? null : frameAt(now);
-    viewer.frameIndex = index;
-    const frame = index === null ? null : track.frames[index];
-    if (drawn.geometry !== geometry || drawn.frameIndex !== index) {
-      pose(frame);
-      draw();
-      drawn = { geometry, frameIndex: index };
-    }
-    showReadouts(frame);
-  }
+let drawn = { geometry: null, frameIndex: undefined, amount: undefined };
+let tickRequested = false;
+
+/// Asks for a tick at the next animation frame (once), and steers the audio again.
+function wake() {
+  startSteering();
+  if (tickRequested) return;
+  tickRequested = true;
+  viewer.animating = true;
   requestAnimationFrame(tick);
 }
 
+/// At an animation frame: the frame for the current utterance time, drawn when it changed. After
+/// the track's end the face eases back to rest over kReturnToRestUs. The page asks for the next
+/// animation frame only while the picture can change on its own (frames may still come, or the
+/// ease is not over); a message, hold() or release() wakes it again.
+function tick() {
+  tickRequested = false;
+  const now = utteranceNowUs();
+  if (!track.header || !geometry) {
+    viewer.animating = false;
+    return;
+  }
+  const endUs = trackEndUs();
+  const toRest = endUs === null || now === null || now < endUs ? 0 : Math.min(1, (now - endUs) / kReturnToRestUs);
+  const index = now === null || now < 0 || toRest === 1 ? null : frameAt(now);
+  viewer.frameIndex = index;
+  const frame = index === null ? null : track.frames[index];
+  const amount = 1 - toRest;
+  if (drawn.geometry !== geometry || drawn.frameIndex !== index || drawn.amount !== amount) {
+    pose(frame, amount);
+    draw();
+    drawn = { geometry, frameIndex: index, amount };
+  }
+  showReadouts(frame);
+  if (viewer.held === null && toRest < 1) wake();
+  else viewer.animating = false;
+}
+
 // The audio is steered on a timer of its own: a page that draws slowly (software WebGL on a busy
-// machine) still measures and corrects its drift every kSteerIntervalMs.
-setInterval(() => { if (track.header) steer(utteranceNowUs()); }, kSteerIntervalMs);
+// machine) still measures and corrects its drift every kSteerIntervalMs. Once the track has ended,
+// the face rests and no audio is left to play or load, the timer stops and the AudioContext is
+// suspended (even in silence its rendering costs a few per cent of a core); wake() starts both again.
+let steerTimer = null;
+
+function startSteering() {
+  wakeAudio();
+  steerTimer ??= setInterval(steerTick, kSteerIntervalMs);
+}
+
+/// Whether audio may still play: loading, or not yet past its end (nothing plays while held).
+function audioToCome(nowUs) {
+  if (sound.loading) return true;
+  if (viewer.held !== null || nowUs === null) return false;
+  if (sound.path === "webaudio") return nowUs < sound.buffer.duration * 1e6;
+  if (sound.path === "element") return !audio.ended && !(audio.duration > 0 && nowUs >= audio.duration * 1e6);
+  return false;
+}
+
+function steerTick() {
+  if (!track.header) return;
+  const now = utteranceNowUs();
+  steer(now);
+  if (viewer.animating || trackEndUs() === null || audioToCome(now)) return;
+  clearInterval(steerTimer);
+  steerTimer = null;
+  if (sound.context && sound.context.state === "running") {
+    sound.resting = true;
+    sound.context.suspend().catch(() => {});
+  }
+}
 
 // ---------------------------------------------------------------- the WebSocket
 
@@ -1005,6 +1097,7 @@ function onHeader(header) {
   track.frames = [];
   track.eventViseme = null;
   track.summary = null;
+  track.closed = false;
   const anchor = header.mediaClock;
   if (anchor && anchor.clock === "unix" && anchor.utteranceZeroUs) {
     viewer.clock = "unix";
@@ -1112,16 +1205,19 @@ function connect(session) {
       viewer.ended = true;
       setStatus(session + ": complete, " + message.summary.frames + " frames");
     }
+    wake();
   };
   socket.onclose = (event) => {
     viewer.connected = false;
     viewer.closeCode = event.code;
     viewer.closeReason = event.reason;
+    track.closed = true;
     stopWaiting();
     if (event.code !== 1000 && !viewer.error) {
       viewer.error = "closed (" + event.code + ")" + (event.reason ? ": " + event.reason : "");
       setStatus(viewer.error, true);
     }
+    wake();
   };
 }
 
@@ -1176,7 +1272,7 @@ if (viewer.audio) loadAudio(viewer.audio, viewer.audio);
 document.getElementById("session-input").value = viewer.session || "";
 document.getElementById("audio-input").value = viewer.audio || "";
 document.addEventListener("click", () => {
-  if (sound.context && sound.context.state !== "running") {
+  if (sound.context && !sound.resting && sound.context.state !== "running") {
     sound.context.resume().then(() => {
       if (viewer.audioError !== kHeldUntilClick) return;
       viewer.audioError = null;
@@ -1190,5 +1286,4 @@ if (!gl) setStatus("this browser has no WebGL: readouts only", true);
 faceAssetLoaded.then(() => {
   if (viewer.session) connect(viewer.session);
   else setStatus("no session: name one, or paste phonemes for a quick try");
-  requestAnimationFrame(tick);
 });

@@ -38,6 +38,8 @@ and checks:
     the weights), checked against a Subscribe of the same session, and at a /f/ key frame of
     flite_fast_2 where the largest weight is PP the page shows the event's FF.
   * an AudioContext stalled for 150 ms while locked is rescheduled onto the anchor and locks again.
+  * after the utterance the face eases back to rest (lips together, no teeth) and the page stops
+    drawing: no picture and little CPU (the browser's processes, from /proc) while nothing changes;
   * an audio URL that fails (a 404 from lipsyncd, a server that refuses the connection, a 404
     from a server without CORS) is named on the status line, beside the session's own news;
   * a session that never starts is waited for with the seconds left on the status line, given up
@@ -237,6 +239,27 @@ class DevTools:
         self.socket.close()
         self.process.kill()
         self.process.wait()
+
+
+def cpu_seconds_of_process_tree(root_pid):
+    """CPU time (user + system, s) used so far by a process and its living descendants, from /proc."""
+    children, used = {}, {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat") as stat:
+                fields = stat.read().rsplit(")", 1)[1].split()  # from the state on: ppid, ..., utime, stime
+        except OSError:
+            continue
+        children.setdefault(int(fields[1]), []).append(int(entry))
+        used[int(entry)] = int(fields[11]) + int(fields[12])
+    total, todo = 0, [root_pid]
+    while todo:
+        pid = todo.pop()
+        total += used.get(pid, 0)
+        todo += children.get(pid, [])
+    return total / os.sysconf("SC_CLK_TCK")
 
 
 def unused_port():
@@ -819,6 +842,56 @@ class ViewerInChromium(unittest.TestCase):
         while not self.browser.evaluate(condition):
             self.assertLess(time.time(), deadline, what)
             time.sleep(0.05)
+
+    def follow_until_at_rest(self, session, start_producer, audio_url=None):
+        """The page opened on `session` (it waits), then `start_producer()` makes the session; samples
+        the page every 50 ms until the session is over and the page has stopped animating (the face
+        back at rest). Returns the samples, the page's state and the producer."""
+        self.open_page(session, audio_url)
+        self.wait_for_page("!!(window.lipsyncViewer && lipsyncViewer.waiting)", "the page never waited for the session")
+        producer = start_producer()
+        samples, deadline = [], time.time() + 20
+        while time.time() < deadline:
+            state = json.loads(self.browser.evaluate(
+                "JSON.stringify({t: lipsyncViewer.utteranceTime, frame: lipsyncViewer.frameTime,"
+                " viseme: document.getElementById('viseme').textContent, ended: lipsyncViewer.ended,"
+                " animating: lipsyncViewer.animating, error: lipsyncViewer.error, audioError: lipsyncViewer.audioError,"
+                " open: lipsyncViewer.mouthOpen})"))
+            samples.append(state)
+            self.assertIsNone(state["error"], state)
+            self.assertIsNone(state["audioError"], state)
+            if state["ended"] and state.get("animating") is False:
+                break
+            time.sleep(0.05)
+        return samples, json.loads(self.browser.evaluate("JSON.stringify(window.lipsyncViewer)")), producer
+
+    def test_12_after_the_utterance_the_face_returns_to_rest_and_the_page_stops_drawing(self):
+        def produce():
+            zero_us = time.time_ns() // 1000 + 300_000
+            for _ in self.client.animate([self.phonemes], phone_set="radio", session="to-rest",
+                                         media_clock=("unix", zero_us), timeout=30):
+                pass
+
+        samples, viewer, _ = self.follow_until_at_rest("to-rest", produce)
+        rect = viewer["mouthRect"]
+        pixels = open_mouth_pixels(self.browser.screenshot(rect), viewer["openMouthColours"])
+        drawn, cpu = viewer["framesDrawn"], cpu_seconds_of_process_tree(self.browser.process.pid)
+        time.sleep(2)
+        drawn_idle = self.browser.evaluate("lipsyncViewer.framesDrawn") - drawn
+        cpu_idle = (cpu_seconds_of_process_tree(self.browser.process.pid) - cpu) / 2
+        last_frame_us = max(s["frame"] for s in samples if s["frame"] is not None)
+        last_frame_open = self.mouth_at(last_frame_us, "last-frame")["open"]
+        self.browser.evaluate("lipsyncViewer.release()")
+        print(f"to-rest: inner-lip gap {last_frame_open} mm at the last frame, {viewer['mouthOpen']} mm after the end "
+              f"({pixels}/{rect['width'] * rect['height']} open-mouth pixels); then over 2 s {drawn_idle} pictures "
+              f"drawn, the browser's processes at {100 * cpu_idle:.1f} % of a core", flush=True)
+        self.assertGreater(last_frame_open, 0.5, "the last frame is at rest already: nothing to return from")
+        self.assertLess(viewer["mouthOpen"], 0.5, "the lips did not close after the utterance")
+        self.assertLess(pixels, 0.01 * rect["width"] * rect["height"], "teeth or mouth show after the utterance")
+        self.assertIsNone(viewer["frameTime"])
+        self.assertEqual(drawn_idle, 0, "the page drew pictures while nothing changed")
+        self.assertLess(cpu_idle, 0.10, "the browser kept a tenth of a core busy while nothing changed")
+        self.assertFalse(viewer.get("animating", True), "the page still animates after the end")
 
     def test_14_an_audio_url_that_fails_is_named_on_the_status_line_beside_the_sessions_news(self):
         zero_us = time.time_ns() // 1000
