@@ -38,6 +38,10 @@ and checks:
     the weights), checked against a Subscribe of the same session, and at a /f/ key frame of
     flite_fast_2 where the largest weight is PP the page shows the event's FF.
   * an AudioContext stalled for 150 ms while locked is rescheduled onto the anchor and locks again.
+  * README's live face through the real `lipsync`: `lipsync speak ... --session demo --visemes
+    oculus` plays its voice from its first sample (the CLI anchors the session ahead) with the
+    viseme readout, and `lipsync stream flite_1.psdur --session ... --audio papa.wav --mesh
+    --visemes oculus` draws the server's mesh with visemes and plays the attached WAV whole;
   * after the utterance the face eases back to rest (lips together, no teeth) and the page stops
     drawing: no picture and little CPU (the browser's processes, from /proc) while nothing changes;
   * an audio URL that fails (a 404 from lipsyncd, a server that refuses the connection, a 404
@@ -48,7 +52,7 @@ and checks:
 Screenshots of the page (face, readouts, bars) are written to $LIPSYNC_VIEWER_SCREENSHOTS when it is set (the
 pictures in docs/images/ come from there).
 
-Usage: viewer_browser_test.py LIPSYNCD TEST_DATA_DIR   (PYTHONPATH: the client and its stubs)
+Usage: viewer_browser_test.py LIPSYNCD TEST_DATA_DIR LIPSYNC   (PYTHONPATH: the client and its stubs)
 """
 
 import base64
@@ -80,6 +84,7 @@ from listening_address import listening_address  # noqa: E402
 
 LIPSYNCD = sys.argv[1] if len(sys.argv) > 1 else "build/server/lipsyncd"
 TEST_DATA = sys.argv[2] if len(sys.argv) > 2 else "tests/data"
+LIPSYNC = sys.argv[3] if len(sys.argv) > 3 else "build/clients/cli/lipsync"
 SENTENCE = "Papa bought five more big maps."
 FRAME_US = 1_000_000 // 30
 PLAYOUT_DELAY_US = 1_000_000
@@ -836,12 +841,16 @@ class ViewerInChromium(unittest.TestCase):
         self.assertGreater(state["frames"], 50)
         self.assertIsNone(state["error"])
 
-
     def wait_for_page(self, condition, what, timeout_s=20):
         deadline = time.time() + timeout_s
         while not self.browser.evaluate(condition):
             self.assertLess(time.time(), deadline, what)
             time.sleep(0.05)
+
+    def lipsync(self, *args):
+        """The real `lipsync ARGS --server` this lipsyncd, running."""
+        return subprocess.Popen([LIPSYNC, *args, "--server", self.grpc_address], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)
 
     def follow_until_at_rest(self, session, start_producer, audio_url=None):
         """The page opened on `session` (it waits), then `start_producer()` makes the session; samples
@@ -864,6 +873,28 @@ class ViewerInChromium(unittest.TestCase):
                 break
             time.sleep(0.05)
         return samples, json.loads(self.browser.evaluate("JSON.stringify(window.lipsyncViewer)")), producer
+
+    def finished(self, process):
+        _, err = process.communicate(timeout=30)
+        self.assertEqual(process.returncode, 0, err)
+
+    def test_11_the_readmes_lipsync_speak_plays_its_voice_from_its_first_sample_with_visemes(self):
+        # README, "A live face in the browser": the page first, then lipsync speak.
+        samples, viewer, producer = self.follow_until_at_rest(
+            "demo", lambda: self.lipsync("speak", SENTENCE, "--session", "demo", "--visemes", "oculus", "-o", "/dev/null"))
+        self.finished(producer)
+        shown = [s["viseme"] for s in samples if s["frame"] is not None]
+        print(f"demo (lipsync speak): clock {viewer['clock']}, audio {viewer['audio']} started at "
+              f"{viewer['audioStartOffsetUs']} us into it, heard at utterance time {viewer['audioStartedAtUs']} us, "
+              f"locked at {viewer['lockedAtUs']} us; visemes shown {sorted(set(shown))}", flush=True)
+        self.assertEqual(viewer["clock"], "unix", "lipsync speak sent no media-clock anchor")
+        self.assertEqual(viewer["audio"], "/audio?session=demo")
+        self.assertEqual(viewer["audioPath"], "webaudio")
+        self.assertEqual(viewer["audioStartOffsetUs"], 0, "the voice did not play from its first sample")
+        self.assertIsNotNone(viewer["lockedAtUs"], "the voice never locked onto the anchor")
+        self.assertIn("PP", shown)
+        self.assertIn("aa", shown)
+        self.check_visemes("demo")
 
     def test_12_after_the_utterance_the_face_returns_to_rest_and_the_page_stops_drawing(self):
         def produce():
@@ -892,6 +923,23 @@ class ViewerInChromium(unittest.TestCase):
         self.assertEqual(drawn_idle, 0, "the page drew pictures while nothing changed")
         self.assertLess(cpu_idle, 0.10, "the browser kept a tenth of a core busy while nothing changed")
         self.assertFalse(viewer.get("animating", True), "the page still animates after the end")
+
+    def test_13_the_readmes_lipsync_stream_with_mesh_and_visemes_draws_the_servers_mesh_and_plays_the_wav_whole(self):
+        psdur = os.path.join(TEST_DATA, "closures", "flite_1.psdur")
+        samples, viewer, producer = self.follow_until_at_rest(
+            "demo-mesh", lambda: self.lipsync("stream", psdur, "--session", "demo-mesh", "--audio",
+                                              f"{self.workdir}/papa.wav", "--mesh", "--visemes", "oculus", "-o",
+                                              "/dev/null"))
+        self.finished(producer)
+        shown = [s["viseme"] for s in samples if s["frame"] is not None]
+        print(f"demo-mesh (lipsync stream --mesh --visemes oculus): mode {viewer['mode']}, audio started at "
+              f"{viewer['audioStartOffsetUs']} us into it, locked at {viewer['lockedAtUs']} us; visemes shown "
+              f"{sorted(set(shown))}", flush=True)
+        self.assertEqual(viewer["mode"], "mesh")
+        self.assertEqual(viewer["audio"], "/audio?session=demo-mesh")
+        self.assertEqual(viewer["audioStartOffsetUs"], 0, "the attached WAV did not play from its first sample")
+        self.assertIn("PP", shown)
+        self.assertIn("aa", shown)
 
     def test_14_an_audio_url_that_fails_is_named_on_the_status_line_beside_the_sessions_news(self):
         zero_us = time.time_ns() // 1000
@@ -935,6 +983,7 @@ class ViewerInChromium(unittest.TestCase):
         print(f"never-started: lipsyncd logged {lines}", flush=True)
         self.assertEqual(len(lines), 1, lines)
         self.assertIn("did not start within 2 s", lines[0])
+
 
 if __name__ == "__main__":
     unittest.main(argv=sys.argv[:1], verbosity=2)
