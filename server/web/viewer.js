@@ -1137,14 +1137,15 @@ function askSessionAudio(session, state) {
     });
 }
 
+let waitNote = "";  // why the page waits kWaitForSessionS instead of what ?wait= said
+
 /// Seconds to wait for a session that has not started (?wait=S, 0 to kMaxWaitS; 0: not at all).
 function sessionWaitS() {
   const text = params.get("wait");
   if (text === null) return kWaitForSessionS;
   const seconds = /^[0-9]+$/.test(text) ? Number(text) : NaN;
   if (seconds <= kMaxWaitS) return seconds;
-  setStatus("wait: expected whole seconds from 0 to " + kMaxWaitS + ", got '" + text + "'; waiting " +
-            kWaitForSessionS + " s", true);
+  waitNote = "; wait=" + text + " is not whole seconds from 0 to " + kMaxWaitS;
   return kWaitForSessionS;
 }
 
@@ -1154,7 +1155,7 @@ function showWaiting(session, waitS) {
   const until = performance.now() + waitS * 1000;
   const show = () => {
     const left = Math.max(0, Math.ceil((until - performance.now()) / 1000));
-    setStatus("waiting for session " + session + " to start (" + left + " s left)");
+    setStatus("waiting for session " + session + " to start (" + left + " s left" + waitNote + ")", !!waitNote);
   };
   viewer.waiting = true;
   viewer.waitingUntilMs = until;
@@ -1188,9 +1189,10 @@ function connect(session) {
         showWaiting(session, text.wait_s);
         return;
       }
+      const waited = viewer.waiting;
       stopWaiting();
       viewer.error = text.code + ": " + text.message;
-      setStatus(viewer.error + (text.code === "NOT_FOUND" && !track.header ? " (Follow waits again)" : ""), true);
+      setStatus(viewer.error + (waited ? " (Follow waits again)" : ""), true);
       return;
     }
     const message = decodeTrackMessage(new Uint8Array(event.data));
@@ -1227,6 +1229,7 @@ function navigate(session, audioUrl) {
   const next = new URLSearchParams();
   if (session) next.set("session", session);
   if (audioUrl) next.set("audio", audioUrl);
+  if (params.get("wait") !== null) next.set("wait", params.get("wait"));
   if (apiKey) next.set("key", apiKey);
   location.search = next.toString();
 }
