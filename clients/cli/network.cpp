@@ -4,6 +4,7 @@
 #include <cstdlib>
 
 #include "cli_error.hpp"
+#include "lipsync/visemes.hpp"
 
 namespace lipsync::cli {
 
@@ -25,6 +26,34 @@ void set_track_request_options(const Arguments& arguments, TrackFormat format,
   if (const auto session = arguments.value("session")) {
     if (session->empty()) throw UsageError("--session: the name must not be empty");
     settings.set_session(*session);
+  }
+}
+
+void set_viseme_request_option(const Arguments& arguments, client::v1::AnimationSettings& settings) {
+  const auto name = arguments.value("visemes");
+  if (!name) return;
+  const std::optional<VisemeVocabulary> vocabulary = viseme_vocabulary_from_string(*name);
+  if (!vocabulary) {
+    throw UsageError("--visemes: unknown vocabulary '" + *name + "' (choose oculus, azure, polly or rhubarb)");
+  }
+  if (settings.session().empty()) {
+    throw UsageError("--visemes needs --session: the visemes go to the session's subscribers and viewers");
+  }
+  client::v1::VisemeOutput& visemes = *settings.mutable_outputs()->mutable_visemes();
+  visemes.set_enabled(true);
+  switch (*vocabulary) {
+    case VisemeVocabulary::oculus:
+      visemes.set_vocabulary(client::v1::VISEME_VOCABULARY_OCULUS);
+      break;
+    case VisemeVocabulary::azure:
+      visemes.set_vocabulary(client::v1::VISEME_VOCABULARY_AZURE);
+      break;
+    case VisemeVocabulary::polly:
+      visemes.set_vocabulary(client::v1::VISEME_VOCABULARY_POLLY);
+      break;
+    case VisemeVocabulary::rhubarb:
+      visemes.set_vocabulary(client::v1::VISEME_VOCABULARY_RHUBARB);
+      break;
   }
 }
 

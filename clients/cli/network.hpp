@@ -33,6 +33,18 @@ inline constexpr OptionSpec kSessionOption = {"session", 0, "NAME",
 /// server's ARKit weights unless csv), --server-model and --session (UsageError if empty).
 void set_track_request_options(const Arguments& arguments, TrackFormat format, client::v1::AnimationSettings& settings);
 
+/// --visemes of the commands that publish a session (speak, stream): what the session's
+/// subscribers and viewers get besides the frames; the track the command writes is unchanged.
+inline constexpr OptionSpec kVisemesOption = {
+    "visemes", 0, "VOCABULARY",
+    "also publish viseme weights and events in VOCABULARY (oculus, azure, polly or rhubarb) for the session's "
+    "subscribers and viewers (needs --session)",
+    "none"};
+
+/// Into `settings`: --visemes (UsageError for an unknown vocabulary, or without --session, which
+/// set_track_request_options has read).
+void set_viseme_request_option(const Arguments& arguments, client::v1::AnimationSettings& settings);
+
 /// How to reach a server that uses TLS or API keys (docs/security.md), in kConnectionOptions
 /// after kServerOption. The API key may also come from LIPSYNC_API_KEY (kept out of `ps`).
 inline constexpr OptionSpec kTlsOption = {"tls", 0, "", "connect with TLS (implied by --ca, --cert and --key)",

@@ -4,7 +4,11 @@
 // stream` does) and the speech (--wav). With the built-in model and the default
 // settings both equal what `lipsync say TEXT -o ... --wav ...` writes on this
 // machine, byte for byte (the same espeak-ng, the same render path).
-// --session publishes the frames for `lipsync subscribe` / `play`.
+// --session publishes the frames for `lipsync subscribe` / `play` and the browser
+// viewer, with --visemes the server's viseme events too. The session's media clock
+// says utterance time 0 (the first sample) plays --playout-delay after the call
+// starts, on the "unix" clock: time for lipsyncd to speak and for a viewer to fetch
+// the voice (/audio) before its first sample is due, so that it plays whole.
 #include <array>
 #include <chrono>
 #include <iostream>
@@ -24,6 +28,10 @@ namespace {
 
 /// --timeout: synthesis and rendering of one text.
 constexpr IntSetting kSpeakTimeoutSetting = {1, 86'400, 600};
+/// --playout-delay, ms: espeak-ng speaks a sentence in tens of milliseconds and a viewer fetches and
+/// decodes its voice in tens more, so a second leaves room for a loaded machine (minutes of speech,
+/// 10 MB of WAV for the viewer, want more).
+constexpr IntSetting kSpeakPlayoutDelaySetting = {0, 600'000, 1000};
 
 constexpr auto kOptions =
     join(kConnectionOptions,
@@ -37,6 +45,12 @@ constexpr auto kOptions =
              kFpsOption,
              kServerModelOption,
              kSessionOption,
+             kVisemesOption,
+             {"playout-delay", 0, "MS",
+              kRangedHelp<"media clock: utterance time 0 (the first sample) plays this long after the call starts",
+                          kSpeakPlayoutDelaySetting>
+                  .view(),
+              kDefaultText<kSpeakPlayoutDelaySetting>.view()},
              kTimeoutOption<"give up when the call has not finished after S seconds", kSpeakTimeoutSetting>,
          }));
 
@@ -70,11 +84,15 @@ int run_speak(std::span<const std::string_view> args) {
   client::v1::AnimationSettings& settings = *request.mutable_settings();
   settings.set_fps(static_cast<std::uint32_t>(parse_render_plan(arguments).render.fps));
   set_track_request_options(arguments, format, settings);
+  set_viseme_request_option(arguments, settings);
+  const int delay_ms = parse_setting_option(arguments, "playout-delay", kSpeakPlayoutDelaySetting);
 
   client::ClientOptions client_options = connection_options(arguments);
   client_options.stream_timeout = std::chrono::seconds(timeout_s);
   const client::AnimationClient connection(address, client_options);
   connection.wait_connected();
+  settings.mutable_media_clock()->set_clock("unix");
+  settings.mutable_media_clock()->set_utterance_zero_us(unix_now_us() + delay_ms * 1000LL);
   const client::SpokenTrack spoken = connection.speak(request);
 
   // The WAV first: the track, usually what a caller waits for, then appears last.

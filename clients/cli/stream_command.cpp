@@ -15,6 +15,10 @@
 // that is the lookahead's release delay on read speech (release_delay.hpp)
 // plus a margin, so that players on that clock get every frame in time.
 //
+// --visemes VOCABULARY and --mesh add the server's viseme events and its simulated
+// face to what the session's subscribers and viewers get (the track written here
+// stays the channels and ARKit weights).
+//
 // --audio FILE.wav attaches the utterance's sound to the session (AudioAttachment
 // pieces of kAudioPieceBytes, sent after the settings and before the first
 // phonemes): the session's viewers play it from lipsyncd (/audio?session=NAME)
@@ -54,6 +58,10 @@ constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     {"audio", 0, "FILE.wav",
      "attach the utterance's sound (a WAV file) to the session: its viewers play it from lipsyncd (needs --session)",
      ""},
+    kVisemesOption,
+    {"mesh", 0, "",
+     "also publish the server's simulated face (its vertices, every frame) for the session's viewers (needs --session)",
+     "off"},
     {"playout-delay", 0, "MS",
      "media clock: utterance time 0 plays this long after the stream starts, 0 to 600000",
      "the lookahead's release delay on read speech + 250 (1780 at lookahead 7)"},
@@ -112,6 +120,11 @@ int run_stream(std::span<const std::string_view> args) {
   settings.set_fps(static_cast<std::uint32_t>(plan.render.fps));
   if (arguments.value("lookahead")) settings.set_lookahead(static_cast<std::uint32_t>(plan.render.lookahead));
   set_track_request_options(arguments, format, settings);
+  set_viseme_request_option(arguments, settings);
+  if (arguments.flag("mesh")) {
+    if (settings.session().empty()) throw UsageError("--mesh needs --session: the face goes to the session's viewers");
+    settings.mutable_outputs()->mutable_mesh()->set_enabled(true);
+  }
   const std::optional<std::string> phone_set_name = arguments.value("phone-set");
   if (phone_set_name && phone_set_name->empty()) throw UsageError("--phone-set: the name must not be empty");
 

@@ -1,6 +1,9 @@
 // lipsyncd's browser viewer (docs/viewer.md). It follows one session over the WebSocket /ws (each
-// binary message a serialised TrackMessage, decoded by track_decoder.js) and draws, every
-// animation frame, the track's frame for the current utterance time:
+// binary message a serialised TrackMessage, decoded by track_decoder.js; lipsyncd waits up to
+// ?wait=S for a session that has not started, and the status line counts the seconds) and draws the
+// track's frame for the current utterance time, at each animation frame while the picture can
+// change on its own; after the track's end the face eases back to rest, and the page then draws
+// nothing (and suspends its audio) until a message, hold() or release() wakes it:
 //
 // - Time. The header's media-clock anchor says when utterance time 0 plays. On the "unix" clock
 //   (the producer's wall clock; lipsyncd's quick try uses it) the page shows frame t at wall time
@@ -44,8 +47,10 @@ const kSeekUnlockedUs = 60000;  // a started or seeked audio further than this i
 const kSeekSamples = 3;         // ... kSeekSamples measurements in a row (one is the element's jitter)
 const kMaxLeadUs = 500000;
 const kMaxElementRateTrim = 0.15;
+const kReturnToRestUs = 250000; // after the track's end the face eases back to rest over this
 const kSettleAfterStartMs = 60; // after a start or seek, drift is measured once the audio runs again, and this long after
-const kRetryNotFoundMs = 250;   // a session not (yet) there is asked for again this often
+const kWaitForSessionS = 120;   // lipsyncd waits this long for a session that has not started (?wait=S)
+const kMaxWaitS = 3600;
 
 // Mesh parts (lipsync.v1.MeshPart) and their colours, linear-ish RGB 0..1.
 const kPartColours = [
@@ -57,7 +62,6 @@ const kPartColours = [
   [0.85, 0.30, 0.40],  // tongue (flat)
 ];
 const kLipColour = [0.76, 0.42, 0.44];  // the vermilion, painted inside kOuterLip
-const kNotFoundCloseCode = 4005;  // 4000 + gRPC NOT_FOUND
 const kLitParts = new Set([0, 1]);
 /// What an open mouth shows on a screenshot (8-bit sRGB as drawn): cavity, teeth, tongue.
 const kOpenMouthColours = [2, 3, 5].map((p) => kPartColours[p].map((c) => Math.round(c * 255)));
@@ -94,12 +98,12 @@ const elements = Object.fromEntries(
 
 const viewer = {
   connected: false,
-  waiting: false,        // the session does not exist yet: the page asks again every kRetryNotFoundMs
+  waiting: false,        // the session has not started yet: lipsyncd waits for it (until waitingUntilMs)
+  waitingUntilMs: null,  // performance.now() when lipsyncd stops waiting
   session: params.get("session") || null,
   mode: null,            // "mesh", "blendshapes" or "rest" (no face data in the stream)
   clock: null,           // "unix" (the anchor's) or "arrival"
   utteranceZeroUs: null, // the anchor
-  utteranceTime: null,   // µs now on the anchor's timeline
   frameTime: null,       // µs of the frame on screen
   frameIndex: null,
   viseme: null,
@@ -117,6 +121,7 @@ const viewer = {
   audioLoadedAtMs: null, // performance.now() when the audio was decoded
   audioDurationUs: null,
   audioStartedAtUs: null, // utterance time of the first drift measured (the audio heard)
+  audioStartOffsetUs: null, // µs into the audio where its first schedule started it (0: from its first sample)
   audioClock: null,      // "timestamp" (getOutputTimestamp) or "latency" (currentTime + latencies)
   lastClock: null,       // the last measurement: context and performance times, position, utterance time
   mouthOpen: null,       // mm between the inner lips (landmarks 13 and 14) on screen
@@ -124,6 +129,7 @@ const viewer = {
   openMouthColours: kOpenMouthColours,
   frames: 0,
   framesDrawn: 0,        // pictures drawn (a new frame on screen), for the frame rate
+  animating: false,      // the page draws at every animation frame (false: idle until something changes)
   ended: false,
   error: null,
   closeCode: null,
@@ -133,9 +139,11 @@ const viewer = {
   audioError: null,
   held: null,
   /// Freezes the picture at utterance time `tUs` (for screenshots and people), audio paused.
-  hold(tUs) { this.held = tUs; this.drift = null; audio.pause(); if (sound.context) stopSound(); },
+  hold(tUs) { this.held = tUs; this.drift = null; audio.pause(); if (sound.context) stopSound(); wake(); },
   /// Back to following the clock.
-  release() { this.held = null; },
+  release() { this.held = null; wake(); },
+  /// µs now on the anchor's timeline (the held time while held; null before a header).
+  get utteranceTime() { return utteranceNowUs(); },
   /// Where the face's outer lip contour and eye contours are on the page now (CSS pixels).
   contours() { return { lip: onPage(kOuterLip), eyes: kEyes.map(onPage) }; },
   /// Per frame received: [t µs, the viseme the page shows for it (the server's event), the largest weight's].
@@ -152,7 +160,7 @@ window.lipsyncViewer = viewer;
 // eventViseme: the viseme of the server's last VisemeEvent (null before the first), which each
 // frame keeps as `viseme`: the page shows the server's events, not its own reading of the weights
 // (they differ where the server holds a closure's viseme on its key frames).
-const track = { header: null, frames: [], summary: null, eventViseme: null };
+const track = { header: null, frames: [], summary: null, closed: false, eventViseme: null };
 
 function addBatch(batch) {
   const h = track.header;
@@ -328,19 +336,20 @@ function paintTexture(rest, box) {
   return c.getImageData(0, 0, kPaintTexels, kPaintTexels);
 }
 
-function pose(frame) {
+/// The face of `frame` (the rest pose for null), its displacement from the rest scaled by `amount`
+/// (1: the frame as it is; less while the face eases back to rest after the track's end).
+function pose(frame, amount = 1) {
   const g = geometry;
+  g.positions.set(g.rest);
   if (viewer.mode === "mesh" && frame && frame.mesh) {
-    g.positions.set(frame.mesh);
-  } else {
-    g.positions.set(g.rest);
-    if (viewer.mode === "blendshapes" && frame) {
-      g.shapes.forEach((shape, k) => {
-        const w = g.shapeIndex[k] >= 0 ? frame.arkit[g.shapeIndex[k]] : 0;
-        if (!w) return;
-        for (let c = 0; c < shape.deltas.length; ++c) g.positions[c] += w * shape.deltas[c];
-      });
-    }
+    if (amount === 1) g.positions.set(frame.mesh);
+    else for (let c = 0; c < g.positions.length; ++c) g.positions[c] += amount * (frame.mesh[c] - g.rest[c]);
+  } else if (viewer.mode === "blendshapes" && frame) {
+    g.shapes.forEach((shape, k) => {
+      const w = g.shapeIndex[k] >= 0 ? amount * frame.arkit[g.shapeIndex[k]] : 0;
+      if (!w) return;
+      for (let c = 0; c < shape.deltas.length; ++c) g.positions[c] += w * shape.deltas[c];
+    });
   }
   if (g.closure.gapM > 0) {  // the relaxed rest: lips together while the face holds them at most as far apart as at rest
     const gap = g.positions[3 * kUpperInnerLip + 1] - g.positions[3 * kLowerInnerLip + 1], rest = g.closure.gapM;
@@ -495,13 +504,18 @@ function makeBars(names) {
     row.innerHTML = '<span></span><span class="track"><span class="fill"></span></span>';
     row.firstChild.textContent = name;
     elements.bars.appendChild(row);
-    return { fill: row.querySelector(".fill"), peak: 1e-6 };
+    return { fill: row.querySelector(".fill"), peak: 1e-6, width: null };
   });
+}
+
+/// Sets an element's text only when it changes (a write costs the page a layout).
+function setText(element, text) {
+  if (element.textContent !== text) element.textContent = text;
 }
 
 function showReadouts(frame) {
   viewer.frameTime = frame ? frame.t : null;
-  elements["frame-time"].textContent = frame ? String(frame.t) + " µs" : "–";
+  setText(elements["frame-time"], frame ? String(frame.t) + " µs" : "–");
   const h = track.header;
   let viseme = null;
   if (frame && frame.viseme !== null) {
@@ -513,19 +527,38 @@ function showReadouts(frame) {
     viseme = h.visemeNames[best];
   }
   viewer.viseme = viseme;
-  elements.viseme.textContent = viseme ?? "–";
-  elements.drift.textContent = viewer.drift === null ? "–" : (viewer.drift / 1000).toFixed(1) + " ms";
+  setText(elements.viseme, viseme ?? "–");
+  setText(elements.drift, viewer.drift === null ? "–" : (viewer.drift / 1000).toFixed(1) + " ms");
   const values = frame ? (frame.values.length ? frame.values : frame.arkit) : [];
   bars.forEach((bar, i) => {
     const v = Math.abs(values[i] || 0);
     bar.peak = Math.max(bar.peak, v, 1);
-    bar.fill.style.width = (100 * v / bar.peak).toFixed(1) + "%";
+    const width = (100 * v / bar.peak).toFixed(1) + "%";
+    if (bar.width !== width) bar.fill.style.width = bar.width = width;
   });
 }
 
+// The status line: what the page follows (connecting, waiting, following, complete, an error),
+// then what went wrong with the audio or why it plays as it does, each kept until its own next news.
+const statusLine = { session: "", sessionError: false, audio: null, audioError: false };
+
 function setStatus(text, isError) {
-  elements.status.textContent = text;
-  elements.status.className = isError ? "error" : "";
+  statusLine.session = text;
+  statusLine.sessionError = !!isError;
+  showStatus();
+}
+
+/// The audio's part of the status line ("audio: …"); null clears it.
+function setAudioStatus(text, isError = true) {
+  statusLine.audio = text;
+  statusLine.audioError = !!(text && isError);
+  showStatus();
+}
+
+function showStatus() {
+  const { session, audio } = statusLine;
+  elements.status.textContent = audio === null ? session : (session ? session + "; " : "") + "audio: " + audio;
+  elements.status.className = statusLine.sessionError || statusLine.audioError ? "error" : "";
 }
 
 // ---------------------------------------------------------------- audio on the Web Audio clock
@@ -540,6 +573,7 @@ function setStatus(text, isError) {
 // (what the screen shows): the drift. A small drift is trimmed by the source's playback rate
 // (at most kMaxRateTrim); beyond kRescheduleUs, kRescheduleSamples times in a row, the sound is
 // rescheduled (a new source on the anchor, crossfaded over kCrossfadeS).
+const kHeldUntilClick = "the browser holds the audio until the page is clicked";
 const sound = {
   context: null,
   buffer: null,      // the decoded AudioBuffer
@@ -547,7 +581,16 @@ const sound = {
   schedule: null,    // {source, gain, startContextS, pieces: [{contextS, positionS, rate}]}
   outOfBand: 0,      // measurements in a row beyond kRescheduleUs
   loadId: 0,
+  loading: 0,        // loads under way
+  resting: false,    // the context is suspended by the page while idle (startSteering resumes it)
 };
+
+/// Resumes the AudioContext that the page suspended while idle.
+function wakeAudio() {
+  if (!sound.resting) return Promise.resolve();
+  sound.resting = false;
+  return sound.context.resume().catch(() => {});
+}
 
 function audioContext() {
   if (!sound.context) {
@@ -558,9 +601,34 @@ function audioContext() {
   return sound.context;
 }
 
+/// Whether the server of `url` answers at all: an opaque (no-cors) request resolves for any HTTP
+/// status, and fails only when no answer came (connection refused, unknown host, blocked).
+async function serverAnswers(url) {
+  const controller = new AbortController();
+  try {
+    await fetch(url, { mode: "no-cors", signal: controller.signal });
+    return true;
+  } catch (error) {
+    return false;
+  } finally {
+    controller.abort();  // the headers are enough
+  }
+}
+
 /// Fetches and decodes `source` (a URL, or a File chosen on the page). A URL the browser may not
-/// read (another origin without Access-Control-Allow-Origin) falls back to the <audio> element.
-async function loadAudio(source, name, { quietNotFound = false } = {}) {
+/// read (another origin without Access-Control-Allow-Origin) falls back to the <audio> element; one
+/// whose server does not answer, or answers an error, is named on the status line with what failed.
+async function loadAudio(source, name, options = {}) {
+  sound.loading += 1;
+  try {
+    return await fetchAndDecodeAudio(source, name, options);
+  } finally {
+    sound.loading -= 1;
+    startSteering();
+  }
+}
+
+async function fetchAndDecodeAudio(source, name, { quietNotFound = false }) {
   const id = ++sound.loadId;
   stopSound();
   sound.buffer = null;
@@ -568,7 +636,9 @@ async function loadAudio(source, name, { quietNotFound = false } = {}) {
   viewer.audio = name;
   viewer.audioError = null;
   viewer.audioLoadedAtMs = null;
+  viewer.audioStartOffsetUs = null;
   const context = audioContext();
+  await wakeAudio();
   let bytes;
   try {
     if (typeof source === "string") {
@@ -579,7 +649,8 @@ async function loadAudio(source, name, { quietNotFound = false } = {}) {
       }
       if (!response.ok) {
         const text = (await response.text()).trim();
-        throw new Error(name + ": HTTP " + response.status + (text ? " (" + text + ")" : ""));
+        throw new Error(name + ": HTTP " + response.status + (response.statusText ? " " + response.statusText : "") +
+                        (text ? " (" + text + ")" : ""));
       }
       bytes = await response.arrayBuffer();
     } else {
@@ -588,12 +659,19 @@ async function loadAudio(source, name, { quietNotFound = false } = {}) {
   } catch (error) {
     if (id !== sound.loadId) return;
     if (error instanceof TypeError && typeof source === "string") {
-      // Not readable from this page (CORS) or not reachable: the media element may still play it.
+      // Not readable from this page (CORS), or no answer at all: the media element may play the first.
+      if (!(await serverAnswers(source))) {
+        if (id !== sound.loadId) return;
+        viewer.audioError = name + ": no answer from its server (connection refused, unknown host, or blocked)";
+        setAudioStatus(viewer.audioError);
+        return;
+      }
+      if (id !== sound.loadId) return;
       sound.path = "element";
       viewer.audioPath = "element";
       viewer.audioNote = name + " is not readable from this page (no CORS header?): played by the audio element, " +
                          "which needs a server with byte ranges";
-      setStatus("audio: " + viewer.audioNote, true);
+      setAudioStatus(viewer.audioNote);
       elementStartedAtZero = false;
       elementTooLate = false;
       audio.preload = "auto";  // loaded before the anchor, so that an unseekable file starts on time
@@ -601,7 +679,7 @@ async function loadAudio(source, name, { quietNotFound = false } = {}) {
       return;
     }
     viewer.audioError = error.message;
-    setStatus("audio: " + error.message, true);
+    setAudioStatus(error.message);
     return;
   }
   let buffer;
@@ -610,7 +688,7 @@ async function loadAudio(source, name, { quietNotFound = false } = {}) {
   } catch (error) {
     if (id !== sound.loadId) return;
     viewer.audioError = name + ": not audio the browser can decode (" + error.message + ")";
-    setStatus("audio: " + viewer.audioError, true);
+    setAudioStatus(viewer.audioError);
     return;
   }
   if (id !== sound.loadId) return;
@@ -619,12 +697,12 @@ async function loadAudio(source, name, { quietNotFound = false } = {}) {
   viewer.audioPath = "webaudio";
   viewer.audioDurationUs = Math.round(buffer.duration * 1e6);
   viewer.audioLoadedAtMs = performance.now();
-  if (!quietNotFound) setStatus(track.header ? "following " + track.header.session : elements.status.textContent);
+  setAudioStatus(null);
   if (context.state !== "running") {
     context.resume().catch(() => {});
     if (context.state !== "running") {
-      viewer.audioError = "the browser holds the audio until the page is clicked";
-      setStatus("audio: click the page to allow it", true);
+      viewer.audioError = kHeldUntilClick;
+      setAudioStatus("click the page to allow it");
     }
   }
   return true;
@@ -684,6 +762,7 @@ function scheduleSound() {
   gain.gain.setValueAtTime(previous ? 0 : 1, startS);
   if (previous) gain.gain.linearRampToValueAtTime(1, startS + kCrossfadeS);
   source.start(startS, offsetS);
+  viewer.audioStartOffsetUs ??= Math.round(offsetS * 1e6);
   sound.schedule = { source, gain, startContextS: startS, pieces: [{ contextS: startS, positionS: offsetS, rate: 1 }] };
   sound.outOfBand = 0;
   viewer.locked = false;
@@ -704,13 +783,14 @@ function steerSound(nowUs) {
   if (positionS === null || positionS >= sound.buffer.duration) {
     viewer.audioPlaying = false;
     viewer.drift = null;
+    setText(elements.drift, "–");
     return;
   }
   viewer.audioPlaying = true;
   const utteranceUs = utteranceAtUs(clock.performanceMs);
   const drift = Math.round(positionS * 1e6 - utteranceUs);
   viewer.drift = drift;
-  elements.drift.textContent = (drift / 1000).toFixed(1) + " ms";
+  setText(elements.drift, (drift / 1000).toFixed(1) + " ms");
   viewer.driftSamples += 1;
   viewer.audioStartedAtUs ??= Math.round(utteranceUs);
   viewer.lastClock = { contextS: clock.contextS, performanceMs: clock.performanceMs, from: clock.from,
@@ -785,7 +865,7 @@ function elementCanSeek() {
 function explainUnseekable(text) {
   if (viewer.audioNote === text) return;
   viewer.audioNote = text;
-  setStatus("audio: " + text, true);
+  setAudioStatus(text);
 }
 
 /// The unseekable element: started from 0 at the anchor's time 0 when the page was there before
@@ -812,7 +892,7 @@ function steerUnseekableElement(nowUs) {
     audio.playbackRate = 1;
     audioRestart = { fromS: 0, runningSinceMs: null };
     audio.play()
-      .catch((e) => { viewer.audioError = e.message; setStatus("audio: " + e.message + " (click the page to allow it)", true); });
+      .catch((e) => { viewer.audioError = e.message; setAudioStatus(e.message + " (click the page to allow it)"); });
     explainUnseekable(name + " is not readable from this page (no CORS header) and its server answers no byte " +
                       "ranges: played by the audio element from its beginning at the anchor, kept in time by its " +
                       "playback rate only (it cannot be seeked)");
@@ -831,12 +911,25 @@ function steerUnseekableElement(nowUs) {
   }
   const drift = Math.round(audio.currentTime * 1e6 - nowUs);
   viewer.drift = drift;
-  elements.drift.textContent = (drift / 1000).toFixed(1) + " ms";
+  setText(elements.drift, (drift / 1000).toFixed(1) + " ms");
   viewer.driftSamples += 1;
   audio.playbackRate = 1 - Math.max(-kMaxElementRateTrim, Math.min(kMaxElementRateTrim, (drift / 1e6) * kRateGainPerSecond));
   noteLock(drift, nowUs);
   return true;
 }
+
+// Why the element could not play a file (MediaError codes), for the status line.
+const kMediaErrors = { 1: "the load was aborted", 2: "a network error", 3: "it could not be decoded",
+                       4: "its server answered an error (a missing file?) or it is not audio the browser plays" };
+
+audio.addEventListener("error", () => {
+  if (sound.path !== "element" || !audio.error) return;
+  const { code, message } = audio.error;
+  viewer.audioError = viewer.audio + ": the audio element cannot play it: " + (kMediaErrors[code] || "error " + code) +
+                      (message ? " (" + message + ")" : "");
+  viewer.audioPlaying = false;
+  setAudioStatus(viewer.audioError);
+});
 
 function steerElement(nowUs) {
   if (viewer.held !== null || nowUs === null) return;
@@ -857,7 +950,7 @@ function steerElement(nowUs) {
     audioRestart = { fromS: audio.currentTime, runningSinceMs: null };
     audio.playbackRate = 1;
     audio.play()
-      .catch((e) => { viewer.audioError = e.message; setStatus("audio: " + e.message + " (click the page to allow it)", true); })
+      .catch((e) => { viewer.audioError = e.message; setAudioStatus(e.message + " (click the page to allow it)"); })
       .finally(() => { audioStarting = false; });
     return;
   }
@@ -870,7 +963,7 @@ function steerElement(nowUs) {
   }
   const drift = Math.round(audio.currentTime * 1e6 - nowUs);
   viewer.drift = drift;
-  elements.drift.textContent = (drift / 1000).toFixed(1) + " ms";
+  setText(elements.drift, (drift / 1000).toFixed(1) + " ms");
   viewer.driftSamples += 1;
   const trim = Math.max(-kMaxElementRateTrim, Math.min(kMaxElementRateTrim, (drift / 1e6) * kRateGainPerSecond));
   audio.playbackRate = 1 - trim;
@@ -912,34 +1005,90 @@ function utteranceNowUs() {
   return Math.round((performance.timeOrigin + performance.now()) * 1000 - viewer.utteranceZeroUs);
 }
 
-let drawn = { geometry: null, frameIndex: undefined };
+/// µs of utterance time at which the track ends, once no more frames can come (else null): one
+/// frame step after its last frame, or the end of its last phoneme if that is later.
+function trackEndUs() {
+  if (!(track.summary || track.closed) || !track.frames.length) return null;
+  const stepUs = 1e6 / (track.header.fps || 30);
+  return Math.max(track.frames[track.frames.length - 1].t + stepUs, track.summary ? track.summary.durationUs : 0);
+}
 
-/// Every animation frame: the frame for the current utterance time, drawn when it changed.
-function tick() {
-  const now = utteranceNowUs();
-  viewer.utteranceTime = now;
-  if (track.header && geometry) {
-    const index = now === null || now < 0 ? null : frameAt(now);
-    viewer.frameIndex = index;
-    const frame = index === null ? null : track.frames[index];
-    if (drawn.geometry !== geometry || drawn.frameIndex !== index) {
-      pose(frame);
-      draw();
-      drawn = { geometry, frameIndex: index };
-    }
-    showReadouts(frame);
-  }
+let drawn = { geometry: null, frameIndex: undefined, amount: undefined };
+let tickRequested = false;
+
+/// Asks for a tick at the next animation frame (once), and steers the audio again.
+function wake() {
+  startSteering();
+  if (tickRequested) return;
+  tickRequested = true;
+  viewer.animating = true;
   requestAnimationFrame(tick);
 }
 
+/// At an animation frame: the frame for the current utterance time, drawn when it changed. After
+/// the track's end the face eases back to rest over kReturnToRestUs. The page asks for the next
+/// animation frame only while the picture can change on its own (frames may still come, or the
+/// ease is not over); a message, hold() or release() wakes it again.
+function tick() {
+  tickRequested = false;
+  const now = utteranceNowUs();
+  if (!track.header || !geometry) {
+    viewer.animating = false;
+    return;
+  }
+  const endUs = trackEndUs();
+  const toRest = endUs === null || now === null || now < endUs ? 0 : Math.min(1, (now - endUs) / kReturnToRestUs);
+  const index = now === null || now < 0 || toRest === 1 ? null : frameAt(now);
+  viewer.frameIndex = index;
+  const frame = index === null ? null : track.frames[index];
+  const amount = 1 - toRest;
+  if (drawn.geometry !== geometry || drawn.frameIndex !== index || drawn.amount !== amount) {
+    pose(frame, amount);
+    draw();
+    drawn = { geometry, frameIndex: index, amount };
+  }
+  showReadouts(frame);
+  if (viewer.held === null && toRest < 1) wake();
+  else viewer.animating = false;
+}
+
 // The audio is steered on a timer of its own: a page that draws slowly (software WebGL on a busy
-// machine) still measures and corrects its drift every kSteerIntervalMs.
-setInterval(() => { if (track.header) steer(utteranceNowUs()); }, kSteerIntervalMs);
+// machine) still measures and corrects its drift every kSteerIntervalMs. Once the track has ended,
+// the face rests and no audio is left to play or load, the timer stops and the AudioContext is
+// suspended (even in silence its rendering costs a few per cent of a core); wake() starts both again.
+let steerTimer = null;
+
+function startSteering() {
+  wakeAudio();
+  steerTimer ??= setInterval(steerTick, kSteerIntervalMs);
+}
+
+/// Whether audio may still play: loading, or not yet past its end (nothing plays while held).
+function audioToCome(nowUs) {
+  if (sound.loading) return true;
+  if (viewer.held !== null || nowUs === null) return false;
+  if (sound.path === "webaudio") return nowUs < sound.buffer.duration * 1e6;
+  if (sound.path === "element") return !audio.ended && !(audio.duration > 0 && nowUs >= audio.duration * 1e6);
+  return false;
+}
+
+function steerTick() {
+  if (!track.header) return;
+  const now = utteranceNowUs();
+  steer(now);
+  if (viewer.animating || trackEndUs() === null || audioToCome(now)) return;
+  clearInterval(steerTimer);
+  steerTimer = null;
+  if (sound.context && sound.context.state === "running") {
+    sound.resting = true;
+    sound.context.suspend().catch(() => {});
+  }
+}
 
 // ---------------------------------------------------------------- the WebSocket
 
 function onHeader(header) {
-  viewer.waiting = false;
+  stopWaiting();
   if (viewer.audio && audio.ended) audio.currentTime = 0;  // a new track: the audio may play again
   if (sound.context) stopSound();
   if (sessionAudio === null) askSessionAudio(header.session, "asked");
@@ -948,6 +1097,7 @@ function onHeader(header) {
   track.frames = [];
   track.eventViseme = null;
   track.summary = null;
+  track.closed = false;
   const anchor = header.mediaClock;
   if (anchor && anchor.clock === "unix" && anchor.utteranceZeroUs) {
     viewer.clock = "unix";
@@ -987,22 +1137,62 @@ function askSessionAudio(session, state) {
     });
 }
 
+let waitNote = "";  // why the page waits kWaitForSessionS instead of what ?wait= said
+
+/// Seconds to wait for a session that has not started (?wait=S, 0 to kMaxWaitS; 0: not at all).
+function sessionWaitS() {
+  const text = params.get("wait");
+  if (text === null) return kWaitForSessionS;
+  const seconds = /^[0-9]+$/.test(text) ? Number(text) : NaN;
+  if (seconds <= kMaxWaitS) return seconds;
+  waitNote = "; wait=" + text + " is not whole seconds from 0 to " + kMaxWaitS;
+  return kWaitForSessionS;
+}
+
+let waitCountdown = null;  // the interval that shows the seconds left while lipsyncd waits for the session
+
+function showWaiting(session, waitS) {
+  const until = performance.now() + waitS * 1000;
+  const show = () => {
+    const left = Math.max(0, Math.ceil((until - performance.now()) / 1000));
+    setStatus("waiting for session " + session + " to start (" + left + " s left" + waitNote + ")", !!waitNote);
+  };
+  viewer.waiting = true;
+  viewer.waitingUntilMs = until;
+  clearInterval(waitCountdown);
+  waitCountdown = setInterval(show, 1000);
+  show();
+}
+
+function stopWaiting() {
+  viewer.waiting = false;
+  clearInterval(waitCountdown);
+  waitCountdown = null;
+}
+
 function connect(session) {
   const start = params.get("start");
+  const waitS = sessionWaitS();
   const url = (location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws?session=" +
     encodeURIComponent(session) + (start ? "&start=" + encodeURIComponent(start) : "") +
-    (apiKey ? "&key=" + encodeURIComponent(apiKey) : "");
+    (waitS ? "&wait_s=" + waitS : "") + (apiKey ? "&key=" + encodeURIComponent(apiKey) : "");
   const socket = new WebSocket(url);
   socket.binaryType = "arraybuffer";
   elements.session.textContent = session;
-  setStatus("connecting to " + session);
+  if (!viewer.error) setStatus("connecting to " + session);
   socket.onopen = () => { viewer.connected = true; };
   socket.onmessage = (event) => {
-    if (typeof event.data === "string") {  // the error before the close: {"code", "message"}
-      const error = JSON.parse(event.data);
-      if (error.code === "NOT_FOUND" && !track.header) return;  // waited for (onclose)
-      viewer.error = error.code + ": " + error.message;
-      setStatus(viewer.error, true);
+    if (typeof event.data === "string") {
+      // lipsyncd waits for the session ({"waiting", "wait_s"}), or the error before the close ({"code", "message"}).
+      const text = JSON.parse(event.data);
+      if (text.waiting !== undefined) {
+        showWaiting(session, text.wait_s);
+        return;
+      }
+      const waited = viewer.waiting;
+      stopWaiting();
+      viewer.error = text.code + ": " + text.message;
+      setStatus(viewer.error + (waited ? " (Follow waits again)" : ""), true);
       return;
     }
     const message = decodeTrackMessage(new Uint8Array(event.data));
@@ -1015,29 +1205,21 @@ function connect(session) {
     if (message.summary) {
       track.summary = message.summary;
       viewer.ended = true;
-      const complete = session + ": complete, " + message.summary.frames + " frames";
-      // Why the sound did not play in sync stays on the page.
-      if (elementTooLate) setStatus(complete + "; audio: " + viewer.audioNote, true);
-      else setStatus(complete);
+      setStatus(session + ": complete, " + message.summary.frames + " frames");
     }
+    wake();
   };
   socket.onclose = (event) => {
     viewer.connected = false;
     viewer.closeCode = event.code;
     viewer.closeReason = event.reason;
-    if (event.code === kNotFoundCloseCode && !track.header) {
-      // Opened before its producer: wait for the session to start.
-      viewer.waiting = true;
-      viewer.error = null;
-      setStatus("waiting for session " + session + " to start");
-      setTimeout(() => connect(session), kRetryNotFoundMs);
-      return;
-    }
-    viewer.waiting = false;
+    track.closed = true;
+    stopWaiting();
     if (event.code !== 1000 && !viewer.error) {
       viewer.error = "closed (" + event.code + ")" + (event.reason ? ": " + event.reason : "");
       setStatus(viewer.error, true);
     }
+    wake();
   };
 }
 
@@ -1047,6 +1229,7 @@ function navigate(session, audioUrl) {
   const next = new URLSearchParams();
   if (session) next.set("session", session);
   if (audioUrl) next.set("audio", audioUrl);
+  if (params.get("wait") !== null) next.set("wait", params.get("wait"));
   if (apiKey) next.set("key", apiKey);
   location.search = next.toString();
 }
@@ -1092,7 +1275,13 @@ if (viewer.audio) loadAudio(viewer.audio, viewer.audio);
 document.getElementById("session-input").value = viewer.session || "";
 document.getElementById("audio-input").value = viewer.audio || "";
 document.addEventListener("click", () => {
-  if (sound.context && sound.context.state !== "running") sound.context.resume().then(() => { viewer.audioError = null; });
+  if (sound.context && !sound.resting && sound.context.state !== "running") {
+    sound.context.resume().then(() => {
+      if (viewer.audioError !== kHeldUntilClick) return;
+      viewer.audioError = null;
+      setAudioStatus(null);
+    });
+  }
   if (sound.path === "element" && viewer.audioError) { viewer.audioError = null; audio.play().catch(() => {}); }
 });
 if (!gl) setStatus("this browser has no WebGL: readouts only", true);
@@ -1100,5 +1289,4 @@ if (!gl) setStatus("this browser has no WebGL: readouts only", true);
 faceAssetLoaded.then(() => {
   if (viewer.session) connect(viewer.session);
   else setStatus("no session: name one, or paste phonemes for a quick try");
-  requestAnimationFrame(tick);
 });

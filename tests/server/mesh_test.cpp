@@ -623,6 +623,46 @@ GlbPoses read_glb_poses(const std::string& bytes) {
 // lipsyncd streams for the same phonemes and settings, and the video's frames are those poses on the
 // --fps grid (face::resample_face_animation, what the CLI's --video and --still draw). Real speech:
 // recorded LibriVox read speech aligned by PocketSphinx, TTS timings and an aligned TTS sentence.
+TEST_F(MeshTest, LipsyncStreamWithMeshAndVisemesPublishesTheFaceAndTheVisemesWithoutChangingItsTrack) {
+  const auto dir = lipsync::testing::make_temp_dir("lipsync-stream-mesh-");
+  const std::string papa = std::string(LIPSYNC_TEST_DATA_DIR) + "/closures/flite_1.psdur";
+  const auto stream = [&](const std::string& output, std::vector<std::string> options) {
+    std::vector<std::string> args = {LIPSYNC_CLI_BINARY, "stream",           papa, "--fast",
+                                     "--server",         server_->address(), "-o", output};
+    args.insert(args.end(), options.begin(), options.end());
+    return lipsync::testing::run_program(std::move(args), dir, dir);
+  };
+  const auto faced = stream("faced.json", {"--session", "faced", "--mesh", "--visemes", "oculus"});
+  ASSERT_EQ(faced.status, 0) << faced.err;
+  grpc::ClientContext context;
+  set_deadline(context);
+  v1::SubscribeRequest request;
+  request.set_session("faced");
+  auto reader = stub_->Subscribe(&context, request);
+  Received subscribed;
+  v1::TrackMessage message;
+  while (reader->Read(&message)) take(subscribed, message);
+  ASSERT_TRUE(reader->Finish().ok());
+  ASSERT_EQ(subscribed.headers.size(), 1U);
+  const v1::TrackHeader& header = subscribed.headers.front();
+  ASSERT_TRUE(header.has_mesh());
+  EXPECT_GT(header.mesh().vertex_count(), 0U);
+  EXPECT_EQ(subscribed.positions().size(), subscribed.frames() * header.mesh().vertex_count() * 3);
+  EXPECT_THAT(header.viseme_names(), ::testing::Contains("PP"));
+  std::size_t events = 0;
+  for (const auto& batch : subscribed.batches) events += static_cast<std::size_t>(batch.viseme_events_size());
+  EXPECT_GT(events, 5U);
+
+  const auto plain = stream("plain.json", {});
+  ASSERT_EQ(plain.status, 0) << plain.err;
+  EXPECT_EQ(lipsync::testing::read_text(dir / "faced.json"), lipsync::testing::read_text(dir / "plain.json"));
+
+  const auto without_session = stream("x.json", {"--mesh"});
+  EXPECT_EQ(without_session.status, 2);
+  EXPECT_THAT(without_session.err, HasSubstr("--mesh needs --session"));
+  std::filesystem::remove_all(dir);
+}
+
 TEST_F(MeshTest, TheGlbTheVideoAndTheStreamedMeshAreOneFaceOnRealSpeech) {
   const auto dir = lipsync::testing::make_temp_dir("lipsync-one-face-");
   std::size_t compared_keys = 0;

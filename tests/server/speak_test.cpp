@@ -10,6 +10,7 @@
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <filesystem>
 #include <future>
 #include <string>
@@ -348,6 +349,54 @@ TEST_F(SpeakTest, LipsyncSpeakWritesWhatLipsyncSayWrites) {
   EXPECT_EQ(help.status, 0);
   EXPECT_THAT(help.out, HasSubstr("--server ADDR"));
   EXPECT_THAT(help.out, HasSubstr("--wav FILE"));
+  fs::remove_all(dir);
+}
+
+TEST_F(SpeakTest, LipsyncSpeakAnchorsItsSessionAPlayoutDelayAheadAndPublishesVisemesWhenAsked) {
+  namespace fs = std::filesystem;
+  const fs::path dir = testing::make_temp_dir("lipsync-speak-test-");
+  const auto run = [&](std::vector<std::string> args) {
+    args.insert(args.begin(), LIPSYNC_CLI_BINARY);
+    args.insert(args.end(), {"--server", server_->address(), "-o", "/dev/null"});
+    return testing::run_program(std::move(args), dir, dir);
+  };
+  const auto unix_now_us = [] {
+    return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
+        .count();
+  };
+  /// The session's anchor less the wall clock when `lipsync speak` ran: within [before, after].
+  const auto check_anchor = [&](const std::vector<std::string>& args, const std::string& session,
+                                std::int64_t delay_us) {
+    const std::int64_t before = unix_now_us();
+    const auto spoken = run(args);
+    const std::int64_t after = unix_now_us();
+    EXPECT_EQ(spoken.status, 0) << spoken.err;
+    const Received received = subscribe_all(*stub_, session);
+    EXPECT_TRUE(received.status.ok()) << received.status.error_message();
+    EXPECT_TRUE(received.header.has_value());
+    if (!received.header) return std::vector<std::string>{};
+    const v1::MediaClockAnchor& anchor = received.header->media_clock();
+    EXPECT_EQ(anchor.clock(), "unix");
+    EXPECT_GE(anchor.utterance_zero_us(), before + delay_us);
+    EXPECT_LE(anchor.utterance_zero_us(), after + delay_us);
+    return std::vector<std::string>(received.header->viseme_names().begin(), received.header->viseme_names().end());
+  };
+  EXPECT_THAT(check_anchor({"speak", kSentences[0], "--session", "ahead", "--visemes", "oculus"}, "ahead", 1'000'000),
+              ::testing::Contains("PP"));
+  EXPECT_THAT(
+      check_anchor({"speak", kSentences[0], "--session", "sooner", "--playout-delay", "250"}, "sooner", 250'000),
+      ::testing::IsEmpty());
+
+  const auto without_session = run({"speak", "Hello.", "--visemes", "oculus"});
+  EXPECT_EQ(without_session.status, 2);
+  EXPECT_THAT(without_session.err, HasSubstr("--visemes needs --session"));
+  const auto unknown = run({"speak", "Hello.", "--session", "x", "--visemes", "klingon"});
+  EXPECT_EQ(unknown.status, 2);
+  EXPECT_THAT(unknown.err,
+              HasSubstr("--visemes: unknown vocabulary 'klingon' (choose oculus, azure, polly or rhubarb)"));
+  const auto too_late = run({"speak", "Hello.", "--playout-delay", "600001"});
+  EXPECT_EQ(too_late.status, 2);
+  EXPECT_THAT(too_late.err, HasSubstr("--playout-delay"));
   fs::remove_all(dir);
 }
 

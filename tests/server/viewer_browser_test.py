@@ -38,11 +38,21 @@ and checks:
     the weights), checked against a Subscribe of the same session, and at a /f/ key frame of
     flite_fast_2 where the largest weight is PP the page shows the event's FF.
   * an AudioContext stalled for 150 ms while locked is rescheduled onto the anchor and locks again.
+  * README's live face through the real `lipsync`: `lipsync speak ... --session demo --visemes
+    oculus` plays its voice from its first sample (the CLI anchors the session ahead) with the
+    viseme readout, and `lipsync stream flite_1.psdur --session ... --audio papa.wav --mesh
+    --visemes oculus` draws the server's mesh with visemes and plays the attached WAV whole;
+  * after the utterance the face eases back to rest (lips together, no teeth) and the page stops
+    drawing: no picture and little CPU (the browser's processes, from /proc) while nothing changes;
+  * an audio URL that fails (a 404 from lipsyncd, a server that refuses the connection, a 404
+    from a server without CORS) is named on the status line, beside the session's own news;
+  * a session that never starts is waited for with the seconds left on the status line, given up
+    after ?wait=S saying so, and logged by lipsyncd in one line.
 
 Screenshots of the page (face, readouts, bars) are written to $LIPSYNC_VIEWER_SCREENSHOTS when it is set (the
 pictures in docs/images/ come from there).
 
-Usage: viewer_browser_test.py LIPSYNCD TEST_DATA_DIR   (PYTHONPATH: the client and its stubs)
+Usage: viewer_browser_test.py LIPSYNCD TEST_DATA_DIR LIPSYNC   (PYTHONPATH: the client and its stubs)
 """
 
 import base64
@@ -53,6 +63,7 @@ import json
 import os
 import re
 import shutil
+import socket
 import struct
 import subprocess
 import sys
@@ -73,6 +84,7 @@ from listening_address import listening_address  # noqa: E402
 
 LIPSYNCD = sys.argv[1] if len(sys.argv) > 1 else "build/server/lipsyncd"
 TEST_DATA = sys.argv[2] if len(sys.argv) > 2 else "tests/data"
+LIPSYNC = sys.argv[3] if len(sys.argv) > 3 else "build/clients/cli/lipsync"
 SENTENCE = "Papa bought five more big maps."
 FRAME_US = 1_000_000 // 30
 PLAYOUT_DELAY_US = 1_000_000
@@ -234,11 +246,39 @@ class DevTools:
         self.process.wait()
 
 
-def start_lipsyncd():
+def cpu_seconds_of_process_tree(root_pid):
+    """CPU time (user + system, s) used so far by a process and its living descendants, from /proc."""
+    children, used = {}, {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat") as stat:
+                fields = stat.read().rsplit(")", 1)[1].split()  # from the state on: ppid, ..., utime, stime
+        except OSError:
+            continue
+        children.setdefault(int(fields[1]), []).append(int(entry))
+        used[int(entry)] = int(fields[11]) + int(fields[12])
+    total, todo = 0, [root_pid]
+    while todo:
+        pid = todo.pop()
+        total += used.get(pid, 0)
+        todo += children.get(pid, [])
+    return total / os.sysconf("SC_CLK_TCK")
+
+
+def unused_port():
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def start_lipsyncd(log_path):
+    """lipsyncd at --log-level info, its log in `log_path`."""
     process = subprocess.Popen(
-        [LIPSYNCD, "--listen", "127.0.0.1:0", "--http-listen", "127.0.0.1:0", "--log-level", "warn",
+        [LIPSYNCD, "--listen", "127.0.0.1:0", "--http-listen", "127.0.0.1:0", "--log-level", "info",
          "--face-priority", "normal",
-         "--session-retention-ms", "60000"], stdout=subprocess.PIPE, text=True)
+         "--session-retention-ms", "60000"], stdout=subprocess.PIPE, stderr=open(log_path, "w"), text=True)
     line = process.stdout.readline()
     grpc_address = listening_address(line)
     if not grpc_address:
@@ -356,7 +396,8 @@ class ViewerInChromium(unittest.TestCase):
         cls.slow_server = serve_directory(cls.workdir, SlowHandler)
         cls.no_cors_server = serve_directory(cls.workdir, NoCorsHandler)
         cls.no_cors_stream_server = serve_directory(cls.workdir, NoCorsStreamHandler)
-        cls.lipsyncd, cls.grpc_address, cls.viewer_url = start_lipsyncd()
+        cls.log_path = f"{cls.workdir}/lipsyncd.log"
+        cls.lipsyncd, cls.grpc_address, cls.viewer_url = start_lipsyncd(cls.log_path)
         cls.browser = DevTools(cls.workdir)
         cls.client = Client(cls.grpc_address)
         # A first load (no session) warms up the browser: WebGL on SwiftShader, the page's files in
@@ -420,8 +461,8 @@ class ViewerInChromium(unittest.TestCase):
         opened.wait(10)
         return producer, zero_us
 
-    def open_page(self, session, audio_url=None):
-        query = f"session={session}" + (f"&audio={audio_url}" if audio_url else "")
+    def open_page(self, session, audio_url=None, more=""):
+        query = f"session={session}" + (f"&audio={audio_url}" if audio_url else "") + more
         self.browser.call("Page.navigate", url=f"{self.viewer_url}/view?{query}")
 
     def follow_and_measure(self, session, audio_url=None, open_page="before", speak=False, page_script=None,
@@ -799,6 +840,149 @@ class ViewerInChromium(unittest.TestCase):
         self.assertEqual(state["mode"], "blendshapes")
         self.assertGreater(state["frames"], 50)
         self.assertIsNone(state["error"])
+
+    def wait_for_page(self, condition, what, timeout_s=20):
+        deadline = time.time() + timeout_s
+        while not self.browser.evaluate(condition):
+            self.assertLess(time.time(), deadline, what)
+            time.sleep(0.05)
+
+    def lipsync(self, *args):
+        """The real `lipsync ARGS --server` this lipsyncd, running."""
+        return subprocess.Popen([LIPSYNC, *args, "--server", self.grpc_address], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)
+
+    def follow_until_at_rest(self, session, start_producer, audio_url=None):
+        """The page opened on `session` (it waits), then `start_producer()` makes the session; samples
+        the page every 50 ms until the session is over and the page has stopped animating (the face
+        back at rest). Returns the samples, the page's state and the producer."""
+        self.open_page(session, audio_url)
+        self.wait_for_page("!!(window.lipsyncViewer && lipsyncViewer.waiting)", "the page never waited for the session")
+        producer = start_producer()
+        samples, deadline = [], time.time() + 20
+        while time.time() < deadline:
+            state = json.loads(self.browser.evaluate(
+                "JSON.stringify({t: lipsyncViewer.utteranceTime, frame: lipsyncViewer.frameTime,"
+                " viseme: document.getElementById('viseme').textContent, ended: lipsyncViewer.ended,"
+                " animating: lipsyncViewer.animating, error: lipsyncViewer.error, audioError: lipsyncViewer.audioError,"
+                " open: lipsyncViewer.mouthOpen})"))
+            samples.append(state)
+            self.assertIsNone(state["error"], state)
+            self.assertIsNone(state["audioError"], state)
+            if state["ended"] and state.get("animating") is False:
+                break
+            time.sleep(0.05)
+        return samples, json.loads(self.browser.evaluate("JSON.stringify(window.lipsyncViewer)")), producer
+
+    def finished(self, process):
+        _, err = process.communicate(timeout=30)
+        self.assertEqual(process.returncode, 0, err)
+
+    def test_11_the_readmes_lipsync_speak_plays_its_voice_from_its_first_sample_with_visemes(self):
+        # README, "A live face in the browser": the page first, then lipsync speak.
+        samples, viewer, producer = self.follow_until_at_rest(
+            "demo", lambda: self.lipsync("speak", SENTENCE, "--session", "demo", "--visemes", "oculus", "-o", "/dev/null"))
+        self.finished(producer)
+        shown = [s["viseme"] for s in samples if s["frame"] is not None]
+        print(f"demo (lipsync speak): clock {viewer['clock']}, audio {viewer['audio']} started at "
+              f"{viewer['audioStartOffsetUs']} us into it, heard at utterance time {viewer['audioStartedAtUs']} us, "
+              f"locked at {viewer['lockedAtUs']} us; visemes shown {sorted(set(shown))}", flush=True)
+        self.assertEqual(viewer["clock"], "unix", "lipsync speak sent no media-clock anchor")
+        self.assertEqual(viewer["audio"], "/audio?session=demo")
+        self.assertEqual(viewer["audioPath"], "webaudio")
+        self.assertEqual(viewer["audioStartOffsetUs"], 0, "the voice did not play from its first sample")
+        self.assertIsNotNone(viewer["lockedAtUs"], "the voice never locked onto the anchor")
+        self.assertIn("PP", shown)
+        self.assertIn("aa", shown)
+        self.check_visemes("demo")
+
+    def test_12_after_the_utterance_the_face_returns_to_rest_and_the_page_stops_drawing(self):
+        def produce():
+            zero_us = time.time_ns() // 1000 + 300_000
+            for _ in self.client.animate([self.phonemes], phone_set="radio", session="to-rest",
+                                         media_clock=("unix", zero_us), timeout=30):
+                pass
+
+        samples, viewer, _ = self.follow_until_at_rest("to-rest", produce)
+        rect = viewer["mouthRect"]
+        pixels = open_mouth_pixels(self.browser.screenshot(rect), viewer["openMouthColours"])
+        drawn, cpu = viewer["framesDrawn"], cpu_seconds_of_process_tree(self.browser.process.pid)
+        time.sleep(2)
+        drawn_idle = self.browser.evaluate("lipsyncViewer.framesDrawn") - drawn
+        cpu_idle = (cpu_seconds_of_process_tree(self.browser.process.pid) - cpu) / 2
+        last_frame_us = max(s["frame"] for s in samples if s["frame"] is not None)
+        last_frame_open = self.mouth_at(last_frame_us, "last-frame")["open"]
+        self.browser.evaluate("lipsyncViewer.release()")
+        print(f"to-rest: inner-lip gap {last_frame_open} mm at the last frame, {viewer['mouthOpen']} mm after the end "
+              f"({pixels}/{rect['width'] * rect['height']} open-mouth pixels); then over 2 s {drawn_idle} pictures "
+              f"drawn, the browser's processes at {100 * cpu_idle:.1f} % of a core", flush=True)
+        self.assertGreater(last_frame_open, 0.5, "the last frame is at rest already: nothing to return from")
+        self.assertLess(viewer["mouthOpen"], 0.5, "the lips did not close after the utterance")
+        self.assertLess(pixels, 0.01 * rect["width"] * rect["height"], "teeth or mouth show after the utterance")
+        self.assertIsNone(viewer["frameTime"])
+        self.assertEqual(drawn_idle, 0, "the page drew pictures while nothing changed")
+        self.assertLess(cpu_idle, 0.10, "the browser kept a tenth of a core busy while nothing changed")
+        self.assertFalse(viewer.get("animating", True), "the page still animates after the end")
+
+    def test_13_the_readmes_lipsync_stream_with_mesh_and_visemes_draws_the_servers_mesh_and_plays_the_wav_whole(self):
+        psdur = os.path.join(TEST_DATA, "closures", "flite_1.psdur")
+        samples, viewer, producer = self.follow_until_at_rest(
+            "demo-mesh", lambda: self.lipsync("stream", psdur, "--session", "demo-mesh", "--audio",
+                                              f"{self.workdir}/papa.wav", "--mesh", "--visemes", "oculus", "-o",
+                                              "/dev/null"))
+        self.finished(producer)
+        shown = [s["viseme"] for s in samples if s["frame"] is not None]
+        print(f"demo-mesh (lipsync stream --mesh --visemes oculus): mode {viewer['mode']}, audio started at "
+              f"{viewer['audioStartOffsetUs']} us into it, locked at {viewer['lockedAtUs']} us; visemes shown "
+              f"{sorted(set(shown))}", flush=True)
+        self.assertEqual(viewer["mode"], "mesh")
+        self.assertEqual(viewer["audio"], "/audio?session=demo-mesh")
+        self.assertEqual(viewer["audioStartOffsetUs"], 0, "the attached WAV did not play from its first sample")
+        self.assertIn("PP", shown)
+        self.assertIn("aa", shown)
+
+    def test_14_an_audio_url_that_fails_is_named_on_the_status_line_beside_the_sessions_news(self):
+        zero_us = time.time_ns() // 1000
+        for _ in self.client.animate([self.phonemes], phone_set="radio", session="bad-audio",
+                                     media_clock=("unix", zero_us), timeout=30):
+            pass
+        no_cors = f"http://127.0.0.1:{self.no_cors_server.server_address[1]}"
+        for url, failure in [("/missing.wav", "audio: /missing.wav: HTTP 404 Not Found (lipsyncd: no such page"),
+                             (f"http://127.0.0.1:{unused_port()}/papa.wav", "no answer from its server"),
+                             (f"{no_cors}/missing.wav", "the audio element cannot play it")]:
+            self.open_page("bad-audio", url)
+            self.wait_for_page("!!(window.lipsyncViewer && lipsyncViewer.ended && lipsyncViewer.audioError)",
+                               f"{url}: the page did not say that the audio failed")
+            status = self.browser.evaluate("document.getElementById('status').textContent")
+            print(f"audio {url}: {status}", flush=True)
+            self.assertIn(failure, status)
+            self.assertIn("bad-audio: complete", status)
+
+    def test_15_a_session_that_never_starts_is_waited_for_visibly_then_given_up_and_logged_once(self):
+        self.open_page("never-started", more="&wait=2")
+        statuses, deadline = [], time.time() + 10
+        while time.time() < deadline:
+            state = json.loads(self.browser.evaluate(
+                "JSON.stringify(window.lipsyncViewer ? {waiting: lipsyncViewer.waiting, error: lipsyncViewer.error,"
+                " status: document.getElementById('status').textContent} : {})"))
+            if state.get("status") and (not statuses or statuses[-1] != state["status"]):
+                statuses.append(state["status"])
+            if state.get("error"):
+                break
+            time.sleep(0.05)
+        print(f"never-started: the status line said {statuses}", flush=True)
+        self.assertIn("waiting for session never-started to start (2 s left)", statuses)
+        self.assertIn("waiting for session never-started to start (1 s left)", statuses)
+        self.assertFalse(state["waiting"])
+        self.assertIn("session 'never-started' did not start within 2 s", statuses[-1])
+        deadline, lines = time.time() + 5, []
+        while time.time() < deadline and not lines:
+            with open(self.log_path) as log:
+                lines = [line for line in log if "never-started" in line]
+            time.sleep(0.05)
+        print(f"never-started: lipsyncd logged {lines}", flush=True)
+        self.assertEqual(len(lines), 1, lines)
+        self.assertIn("did not start within 2 s", lines[0])
 
 
 if __name__ == "__main__":

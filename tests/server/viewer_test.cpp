@@ -13,11 +13,13 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
+#include <chrono>
 #include <fstream>
 #include <future>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "../support/child_process.hpp"
@@ -251,13 +253,68 @@ TEST_F(ViewerTest, UnknownSessionClosesTheWebsocketWithNotFoundNamingTheSession)
   EXPECT_LE(reply.close.reason.size(), 123u);
 }
 
-TEST_F(ViewerTest, WebsocketWithoutASessionOrWithABadStartIsInvalidArgument) {
+TEST_F(ViewerTest, WebsocketWithoutASessionOrWithABadStartOrWaitIsInvalidArgument) {
   WebSocketReply reply = follow("/ws");
   EXPECT_EQ(reply.close.code, 4000 + grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(std::string(reply.close.reason.c_str()), ::testing::HasSubstr("session=NAME"));
   reply = follow("/ws?session=x&start=yesterday");
   EXPECT_EQ(reply.close.code, 4000 + grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(std::string(reply.close.reason.c_str()), ::testing::HasSubstr("'yesterday'"));
+  for (const std::string wait : {"3601", "-1", "2s", ""}) {
+    reply = follow("/ws?session=x&wait_s=" + wait);
+    EXPECT_EQ(reply.close.code, 4000 + grpc::StatusCode::INVALID_ARGUMENT) << wait;
+    EXPECT_THAT(std::string(reply.close.reason.c_str()), ::testing::HasSubstr("wait_s: expected whole seconds"))
+        << wait;
+  }
+}
+
+TEST_F(ViewerTest, AFollowerAskingToWaitIsToldSoAndGetsTheSessionOnceItStarts) {
+  WebSocketReply reply;
+  std::thread follower([&] { reply = follow("/ws?session=later&wait_s=30"); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the follower waits
+  produce_papa("later");
+  follower.join();
+  const SubscribedBytes subscribed = subscribe_bytes(*stub_, "later");
+  ASSERT_TRUE(subscribed.status.ok()) << subscribed.status.error_message();
+  ASSERT_EQ(reply.text.size(), 1u);
+  EXPECT_EQ(nlohmann::json::parse(reply.text.front()), nlohmann::json({{"waiting", "later"}, {"wait_s", 30}}));
+  EXPECT_EQ(reply.binary, subscribed.messages);
+  EXPECT_EQ(reply.close.code, websocket::close_code::normal);
+}
+
+TEST_F(ViewerTest, AFollowerThatWaitsInVainGetsNotFoundSayingHowLongItWaited) {
+  const auto started = std::chrono::steady_clock::now();
+  const WebSocketReply reply = follow("/ws?session=never&wait_s=1");
+  EXPECT_GE(std::chrono::steady_clock::now() - started, std::chrono::seconds(1));
+  EXPECT_TRUE(reply.binary.empty());
+  ASSERT_EQ(reply.text.size(), 2u);
+  EXPECT_EQ(nlohmann::json::parse(reply.text[0])["waiting"], "never");
+  const auto error = nlohmann::json::parse(reply.text[1]);
+  EXPECT_EQ(error["code"], "NOT_FOUND");
+  EXPECT_THAT(error["message"].get<std::string>(), ::testing::HasSubstr("session 'never' did not start within 1 s"));
+  EXPECT_EQ(reply.close.code, 4000 + grpc::StatusCode::NOT_FOUND);
+}
+
+TEST_F(ViewerTest, AFollowerThatLeavesWhileWaitingIsAnsweredAtOnce) {
+  websocket::stream<tcp::socket> ws(connect_http());
+  ws.handshake(http_host_, "/ws?session=never&wait_s=30");
+  beast::flat_buffer buffer;
+  ws.read(buffer);  // {"waiting": ...}
+  const auto started = std::chrono::steady_clock::now();
+  beast::error_code error;
+  ws.close(websocket::close_code::normal, error);  // answered by lipsyncd's close
+  EXPECT_FALSE(error) << error.message();
+  EXPECT_LT(std::chrono::steady_clock::now() - started, std::chrono::seconds(2));
+}
+
+TEST_F(ViewerTest, ShutdownEndsAFollowerWaitingForItsSessionToStartWithGoingAway) {
+  WebSocketReply reply;
+  std::thread follower([&] { reply = follow("/ws?session=never&wait_s=30"); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  server_->shutdown(std::chrono::milliseconds(0));
+  follower.join();
+  ASSERT_EQ(reply.text.size(), 1u);  // {"waiting": ...}
+  EXPECT_EQ(reply.close.code, websocket::close_code::going_away);
 }
 
 TEST_F(ViewerTest, UnknownPathIs404NamingItAndWsWithoutUpgradeIs426) {

@@ -1,6 +1,7 @@
 #include "http_viewer.hpp"
 
 #include <grpcpp/grpcpp.h>
+#include <poll.h>
 #include <spdlog/spdlog.h>
 #include <sys/socket.h>
 
@@ -8,6 +9,7 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
+#include <charconv>
 #include <chrono>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -35,6 +37,10 @@ constexpr std::size_t kMaxBodyBytes = 4 * 1024 * 1024;  // pasted phoneme text
 constexpr std::size_t kMaxCloseReasonBytes = 123;
 /// Close codes 4000-4999 are for applications: ours is 4000 + the gRPC status code.
 constexpr std::uint16_t kGrpcCloseCodeBase = 4000;
+/// /ws?wait_s=S: the longest wait for a session that has not started, seconds.
+constexpr int kMaxSessionWaitS = 3600;
+/// While a follower waits, the session is looked for (and its WebSocket watched) this often.
+constexpr int kSessionPollIntervalMs = 100;
 
 Response text_response(const Request& request, http::status status, std::string body,
                        std::string_view content_type = "text/plain; charset=utf-8") {
@@ -202,9 +208,29 @@ bool serve_audio(tcp::socket& socket, const Request& request, const QueryParamet
   return !error && request.keep_alive();
 }
 
+/// How a follower's WebSocket went, for its log line.
+struct FollowOutcome {
+  std::chrono::milliseconds waited{0};  ///< spent waiting for the session to start
+  int gave_up_after_s = 0;              ///< > 0: the session did not start within this
+};
+
+/// Whether the viewer at the other end of `socket` spoke (a WebSocket close: a page sends nothing
+/// else) or hung up within `timeout_ms`.
+bool viewer_spoke_or_left(tcp::socket& socket, int timeout_ms) {
+  pollfd watched{.fd = socket.native_handle(), .events = POLLIN, .revents = 0};
+  return ::poll(&watched, 1, timeout_ms) != 0;
+}
+
 /// GET /ws: the session's messages, one binary WebSocket message each, through a Subscribe call.
-void follow_session(websocket::stream<tcp::socket&>& ws, v1::LipSync::Stub& stub, const QueryParameters& query,
-                    grpc::ClientContext& context, const std::atomic<bool>& closing) {
+/// With ?wait_s=S a session that does not exist yet is waited for, up to S seconds: the page is
+/// told once ({"waiting": NAME, "wait_s": S}), and `probe` looks for the session without a call (so
+/// a waiting page costs neither calls nor log lines) until it exists, the viewer leaves, lipsyncd
+/// shuts down, or S seconds pass (then NOT_FOUND saying so).
+FollowOutcome follow_session(websocket::stream<tcp::socket&>& ws, tcp::socket& socket, v1::LipSync::Stub& stub,
+                             const QueryParameters& query, const std::optional<std::string>& authorization,
+                             const SessionProbe& probe, grpc::ClientContext& context,
+                             const std::atomic<bool>& closing) {
+  FollowOutcome outcome;
   const auto close_with = [&](grpc::StatusCode code, const std::string& message) {
     beast::error_code ignored;
     ws.text(true);
@@ -216,7 +242,7 @@ void follow_session(websocket::stream<tcp::socket&>& ws, v1::LipSync::Stub& stub
   const auto session = query.find("session");
   if (session == query.end() || session->second.empty()) {
     close_with(grpc::StatusCode::INVALID_ARGUMENT, "the WebSocket needs a session: /ws?session=NAME");
-    return;
+    return outcome;
   }
   const auto start = query.find("start");
   v1::SubscribeRequest request;
@@ -227,7 +253,50 @@ void follow_session(websocket::stream<tcp::socket&>& ws, v1::LipSync::Stub& stub
     request.set_start(v1::SubscribeRequest::START_FROM_NOW);
   } else {
     close_with(grpc::StatusCode::INVALID_ARGUMENT, "start: expected 'beginning' or 'now', got '" + start->second + "'");
-    return;
+    return outcome;
+  }
+  int wait_s = 0;
+  if (const auto wait = query.find("wait_s"); wait != query.end()) {
+    const std::string& text = wait->second;
+    const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), wait_s);
+    if (error != std::errc() || end != text.data() + text.size() || wait_s < 0 || wait_s > kMaxSessionWaitS) {
+      close_with(grpc::StatusCode::INVALID_ARGUMENT, "wait_s: expected whole seconds from 0 to " +
+                                                         std::to_string(kMaxSessionWaitS) + ", got '" + text + "'");
+      return outcome;
+    }
+  }
+  if (wait_s > 0 && probe) {
+    const std::string_view key = authorization ? std::string_view(*authorization) : std::string_view();
+    const auto look = [&] { return probe(authorization ? &key : nullptr, session->second); };
+    grpc::Status found = look();
+    if (found.error_code() == grpc::StatusCode::NOT_FOUND) {
+      const auto since = std::chrono::steady_clock::now();
+      const auto give_up = since + std::chrono::seconds(wait_s);
+      beast::error_code error;
+      ws.text(true);
+      ws.write(boost::asio::buffer(nlohmann::json{{"waiting", session->second}, {"wait_s", wait_s}}.dump()), error);
+      while (!error && found.error_code() == grpc::StatusCode::NOT_FOUND) {
+        outcome.waited =
+            std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - since);
+        if (closing) {
+          ws.close(websocket::close_reason(websocket::close_code::going_away, "lipsyncd is shutting down"), error);
+          return outcome;
+        }
+        if (std::chrono::steady_clock::now() >= give_up) {
+          outcome.gave_up_after_s = wait_s;
+          close_with(grpc::StatusCode::NOT_FOUND, "session '" + session->second + "' did not start within " +
+                                                      std::to_string(wait_s) + " s (" + found.error_message() + ")");
+          return outcome;
+        }
+        if (viewer_spoke_or_left(socket, kSessionPollIntervalMs)) {
+          beast::flat_buffer ignored;
+          ws.read(ignored, error);  // its close, answered by Beast
+          return outcome;
+        }
+        found = look();
+      }
+      if (error) return outcome;
+    }
   }
 
   ws.binary(true);
@@ -246,7 +315,7 @@ void follow_session(websocket::stream<tcp::socket&>& ws, v1::LipSync::Stub& stub
     }
   }
   const grpc::Status status = reader->Finish();
-  if (client_gone) return;
+  if (client_gone) return outcome;
   beast::error_code ignored;
   if (status.ok()) {
     ws.close(websocket::close_reason(websocket::close_code::normal, "OK"), ignored);
@@ -255,6 +324,7 @@ void follow_session(websocket::stream<tcp::socket&>& ws, v1::LipSync::Stub& stub
   } else {
     close_with(status.error_code(), status.error_message());
   }
+  return outcome;
 }
 
 /// POST /sessions: one Animate call with the pasted text; answers once the session is complete.
@@ -351,13 +421,14 @@ struct CallSlot {
 /// closes. Returns whether the connection stays open for another request (only after answering a
 /// request that is not an upgrade).
 bool serve_websocket(tcp::socket& socket, const Request& request, const QueryParameters& query, v1::LipSync::Stub& stub,
-                     const CallSlot& slot) {
+                     const SessionProbe& probe, const CallSlot& slot) {
   beast::error_code error;
   if (!websocket::is_upgrade(request)) {
     http::write(socket, text_response(request, http::status::upgrade_required, "/ws is a WebSocket: open it as one\n"),
                 error);
     return !error;
   }
+  const std::string peer = socket.remote_endpoint(error).address().to_string();
   websocket::stream<tcp::socket&> ws(socket);
   ws.set_option(websocket::stream_base::decorator(
       [](websocket::response_type& response) { response.set(http::field::server, "lipsyncd"); }));
@@ -371,11 +442,16 @@ bool serve_websocket(tcp::socket& socket, const Request& request, const QueryPar
     return false;
   }
   const auto started = std::chrono::steady_clock::now();
-  follow_session(ws, stub, query, context, slot.closing);
+  const FollowOutcome outcome =
+      follow_session(ws, socket, stub, query, authorization_value(request, query), probe, context, slot.closing);
   spdlog::info(
-      "viewer WebSocket end peer={} session='{}' duration_ms={}", socket.remote_endpoint(error).address().to_string(),
+      "viewer WebSocket end peer={} session='{}' duration_ms={} waited_ms={}{}", peer,
       query.count("session") ? query.at("session") : "",
-      std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - started).count());
+      std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - started).count(),
+      outcome.waited.count(),
+      outcome.gave_up_after_s > 0
+          ? " (the session did not start within " + std::to_string(outcome.gave_up_after_s) + " s)"
+          : std::string());
   return false;
 }
 
@@ -418,8 +494,12 @@ Response serve_sessions(const Request& request, const QueryParameters& query, v1
 }  // namespace
 
 HttpViewer::HttpViewer(const std::string& host_port, std::shared_ptr<grpc::Channel> service,
-                       const ModelCatalog& catalog, SessionAudioLookup session_audio)
-    : service_(std::move(service)), catalog_(catalog), session_audio_(std::move(session_audio)), acceptor_(io_) {
+                       const ModelCatalog& catalog, SessionAudioLookup session_audio, SessionProbe session_probe)
+    : service_(std::move(service)),
+      catalog_(catalog),
+      session_audio_(std::move(session_audio)),
+      session_probe_(std::move(session_probe)),
+      acceptor_(io_) {
   const tcp::endpoint endpoint = resolve(io_, host_port, host_);
   beast::error_code error;
   acceptor_.open(endpoint.protocol(), error);
@@ -499,7 +579,7 @@ void HttpViewer::serve(Connection& connection) {
 
     const CallSlot slot{connection.call_mutex, connection.call, closing_};
     if (path == "/ws") {
-      if (!serve_websocket(connection.socket, request, query, *stub, slot)) break;
+      if (!serve_websocket(connection.socket, request, query, *stub, session_probe_, slot)) break;
       continue;
     }
 

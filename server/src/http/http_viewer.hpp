@@ -4,11 +4,14 @@
 // Routes (docs/viewer.md):
 //   GET  /  and  /view            the page (query: session, audio, start)
 //   GET  /viewer.js, /viewer.css  its script and style; /face.json: the viewer's face (data/face/)
-//   GET  /ws?session=NAME[&start=now]   WebSocket: every TrackMessage of the session, serialised,
+//   GET  /ws?session=NAME[&start=now][&wait_s=S]
+//                                       WebSocket: every TrackMessage of the session, serialised,
 //                                       one binary message each (header, batches, summary); then a
 //                                       close with 1000 and "OK", or a text message
 //                                       {"code":"NOT_FOUND","message":"..."} and close code
-//                                       4000 + the gRPC status code with the message as reason
+//                                       4000 + the gRPC status code with the message as reason.
+//                                       With wait_s, a session not started yet is waited for up to
+//                                       S seconds, first saying {"waiting":NAME,"wait_s":S}
 //   POST /sessions?session=NAME&...     body: phoneme text in any format the CLI reads; the
 //                                       server animates it as a session (a quick try); with
 //                                       speak=1 the body is text that a Speak call speaks into it
@@ -48,14 +51,20 @@ class ModelCatalog;
 using SessionAudioLookup = std::function<grpc::Status(const std::string_view* authorization, const std::string& session,
                                                       std::shared_ptr<const std::string>& wav)>;
 
+/// Whether `session` exists for the caller (`authorization` as for SessionAudioLookup): OK when
+/// it does, NOT_FOUND saying where sessions live when not, or the caller's refusal. Asked while a
+/// follower waits for its session to start; it makes no call and logs nothing.
+using SessionProbe = std::function<grpc::Status(const std::string_view* authorization, const std::string& session)>;
+
 class HttpViewer {
  public:
   /// Binds `host_port` (port 0 picks a free one) and starts accepting. `service` is a channel to
   /// the LipSync service (the gRPC server's in-process channel); `catalog` chooses the phone set of
-  /// pasted text; `session_audio` serves /audio (without it, /audio answers 404).
+  /// pasted text; `session_audio` serves /audio (without it, /audio answers 404); `session_probe`
+  /// lets /ws wait for a session to start (without it, wait_s is not waited for).
   /// Throws std::runtime_error saying why it cannot listen.
   HttpViewer(const std::string& host_port, std::shared_ptr<grpc::Channel> service, const ModelCatalog& catalog,
-             SessionAudioLookup session_audio = {});
+             SessionAudioLookup session_audio = {}, SessionProbe session_probe = {});
   ~HttpViewer();
   HttpViewer(const HttpViewer&) = delete;
   HttpViewer& operator=(const HttpViewer&) = delete;
@@ -78,6 +87,7 @@ class HttpViewer {
   std::shared_ptr<grpc::Channel> service_;
   const ModelCatalog& catalog_;
   SessionAudioLookup session_audio_;
+  SessionProbe session_probe_;
   boost::asio::io_context io_;
   boost::asio::ip::tcp::acceptor acceptor_;
   int port_ = 0;

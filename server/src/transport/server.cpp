@@ -137,9 +137,21 @@ Server::Server(ServerConfig config) : impl_(std::make_unique<Impl>(std::move(con
       }
       return grpc::Status::OK;
     };
+    // /ws?wait_s=: whether a session has started yet, for whoever may Subscribe to it.
+    auto session_probe = [&service = impl_->service](const std::string_view* authorization,
+                                                     const std::string& session) {
+      Caller caller;
+      if (auto status = service.tenants().authenticate_value(authorization, "Subscribe", caller); !status.ok()) {
+        return status;
+      }
+      if (!service.sessions().find(caller.session_key(session))) {
+        return service.routing().not_held(session, service.config().session_retention_ms);
+      }
+      return grpc::Status::OK;
+    };
     impl_->viewer = std::make_unique<HttpViewer>(impl_->config.http_listen,
                                                  impl_->server->InProcessChannel(grpc::ChannelArguments()),
-                                                 impl_->catalog, std::move(session_audio));
+                                                 impl_->catalog, std::move(session_audio), std::move(session_probe));
   }
   if (!impl_->config.metrics_listen.empty()) {
     impl_->metrics = std::make_unique<MetricsEndpoint>(
