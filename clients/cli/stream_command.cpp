@@ -15,7 +15,7 @@
 // that is the lookahead's release delay on read speech (release_delay.hpp)
 // plus a margin, so that players on that clock get every frame in time.
 //
-// --visemes VOCABULARY and --mesh add the server's viseme events and its simulated
+// --visemes VOCABULARY and --viewer-mesh add the server's viseme events and its simulated
 // face to what the session's subscribers and viewers get (the track written here
 // stays the channels and ARKit weights).
 //
@@ -59,7 +59,7 @@ constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
      "attach the utterance's sound (a WAV file) to the session: its viewers play it from lipsyncd (needs --session)",
      ""},
     kVisemesOption,
-    {"mesh", 0, "",
+    {"viewer-mesh", 0, "",
      "also publish the server's simulated face (its vertices, every frame) for the session's viewers (needs --session)",
      "off"},
     {"playout-delay", 0, "MS",
@@ -121,8 +121,9 @@ int run_stream(std::span<const std::string_view> args) {
   if (arguments.value("lookahead")) settings.set_lookahead(static_cast<std::uint32_t>(plan.render.lookahead));
   set_track_request_options(arguments, format, settings);
   set_viseme_request_option(arguments, settings);
-  if (arguments.flag("mesh")) {
-    if (settings.session().empty()) throw UsageError("--mesh needs --session: the face goes to the session's viewers");
+  if (arguments.flag("viewer-mesh")) {
+    if (settings.session().empty())
+      throw UsageError("--viewer-mesh needs --session: the face goes to the session's viewers");
     settings.mutable_outputs()->mutable_mesh()->set_enabled(true);
   }
   const std::optional<std::string> phone_set_name = arguments.value("phone-set");

@@ -632,7 +632,7 @@ TEST_F(MeshTest, LipsyncStreamWithMeshAndVisemesPublishesTheFaceAndTheVisemesWit
     args.insert(args.end(), options.begin(), options.end());
     return lipsync::testing::run_program(std::move(args), dir, dir);
   };
-  const auto faced = stream("faced.json", {"--session", "faced", "--mesh", "--visemes", "oculus"});
+  const auto faced = stream("faced.json", {"--session", "faced", "--viewer-mesh", "--visemes", "oculus"});
   ASSERT_EQ(faced.status, 0) << faced.err;
   grpc::ClientContext context;
   set_deadline(context);
@@ -657,9 +657,9 @@ TEST_F(MeshTest, LipsyncStreamWithMeshAndVisemesPublishesTheFaceAndTheVisemesWit
   ASSERT_EQ(plain.status, 0) << plain.err;
   EXPECT_EQ(lipsync::testing::read_text(dir / "faced.json"), lipsync::testing::read_text(dir / "plain.json"));
 
-  const auto without_session = stream("x.json", {"--mesh"});
+  const auto without_session = stream("x.json", {"--viewer-mesh"});
   EXPECT_EQ(without_session.status, 2);
-  EXPECT_THAT(without_session.err, HasSubstr("--mesh needs --session"));
+  EXPECT_THAT(without_session.err, HasSubstr("--viewer-mesh needs --session"));
   std::filesystem::remove_all(dir);
 }
 

@@ -40,7 +40,7 @@ and checks:
   * an AudioContext stalled for 150 ms while locked is rescheduled onto the anchor and locks again.
   * README's live face through the real `lipsync`: `lipsync speak ... --session demo --visemes
     oculus` plays its voice from its first sample (the CLI anchors the session ahead) with the
-    viseme readout, and `lipsync stream flite_1.psdur --session ... --audio papa.wav --mesh
+    viseme readout, and `lipsync stream flite_1.psdur --session ... --audio papa.wav --viewer-mesh
     --visemes oculus` draws the server's mesh with visemes and plays the attached WAV whole;
   * after the utterance the face eases back to rest (lips together, no teeth) and the page stops
     drawing: no picture and little CPU (the browser's processes, from /proc) while nothing changes;
@@ -928,11 +928,11 @@ class ViewerInChromium(unittest.TestCase):
         psdur = os.path.join(TEST_DATA, "closures", "flite_1.psdur")
         samples, viewer, producer = self.follow_until_at_rest(
             "demo-mesh", lambda: self.lipsync("stream", psdur, "--session", "demo-mesh", "--audio",
-                                              f"{self.workdir}/papa.wav", "--mesh", "--visemes", "oculus", "-o",
+                                              f"{self.workdir}/papa.wav", "--viewer-mesh", "--visemes", "oculus", "-o",
                                               "/dev/null"))
         self.finished(producer)
         shown = [s["viseme"] for s in samples if s["frame"] is not None]
-        print(f"demo-mesh (lipsync stream --mesh --visemes oculus): mode {viewer['mode']}, audio started at "
+        print(f"demo-mesh (lipsync stream --viewer-mesh --visemes oculus): mode {viewer['mode']}, audio started at "
               f"{viewer['audioStartOffsetUs']} us into it, locked at {viewer['lockedAtUs']} us; visemes shown "
               f"{sorted(set(shown))}", flush=True)
         self.assertEqual(viewer["mode"], "mesh")
