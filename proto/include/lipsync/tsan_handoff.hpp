@@ -95,6 +95,8 @@ class HandoffScope {
 template <class Reactor>
 class HandoffReactor : public Reactor {
  protected:
+  // gRPC's own names: each hides the reactor's operation of that name.
+  // NOLINTBEGIN(readability-identifier-naming)
   template <class... Arguments>
   void StartCall(Arguments&&... arguments) {
     handoff_release(key());
@@ -131,6 +133,7 @@ class HandoffReactor : public Reactor {
     handoff_release(key());
     Reactor::Finish(std::forward<Arguments>(arguments)...);
   }
+  // NOLINTEND(readability-identifier-naming)
 
   /// The scope of one reaction (OnReadDone, OnWriteDone, OnCancel, ...).
   [[nodiscard]] HandoffScope reaction() const { return HandoffScope(key()); }
