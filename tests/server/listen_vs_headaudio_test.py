@@ -35,7 +35,6 @@ runs it alone: a starved server decodes larger batches, which flatters it).
 """
 
 import os
-import re
 import shutil
 import subprocess
 import sys
@@ -48,6 +47,8 @@ HEADAUDIO_DIR = sys.argv[4] if len(sys.argv) >= 5 else os.path.join(tempfile.get
 sys.dont_write_bytecode = True  # no __pycache__ beside the imported tools in the source tree
 sys.path.insert(0, os.path.join(os.path.abspath(SOURCE_DIR), "tools", "speech"))
 import compare_headaudio  # noqa: E402  (the harness: sources, HeadAudio's runner, the tally)
+sys.path.insert(0, os.path.join(os.path.abspath(SOURCE_DIR), "tests", "support"))
+from listening_address import ServerProcess  # noqa: E402
 
 FIRST_SENTENCE, LAST_SENTENCE = 21, 24
 VOICES = {"festival": "Festival", "flite": "flite", "espeak": "espeak-ng"}
@@ -86,24 +87,14 @@ class ListenAgainstHeadAudio(unittest.TestCase):
             raise RuntimeError(f"{', '.join(missing)} not installed (deploy/install-deps.sh installs them)")
         cls.work = tempfile.mkdtemp(prefix="listen_vs_headaudio-")
         cls.addClassCleanup(shutil.rmtree, cls.work, ignore_errors=True)
-        lipsyncd = subprocess.Popen([LIPSYNCD, "--listen", "127.0.0.1:0", "--log-level", "warn"],
-                                    stdout=subprocess.PIPE, text=True)
-        try:
-            line = lipsyncd.stdout.readline()
-            address = re.match(r"lipsyncd listening on (\S+)", line)
-            if address is None:
-                raise RuntimeError(f"lipsyncd did not say where it listens (its first line: {line!r})")
-            cls.live = {AUDIO_ALONE: LiveListen(address.group(1), False),
-                        WITH_TRANSCRIPT: LiveListen(address.group(1), True)}
+        with ServerProcess([LIPSYNCD, "--listen", "127.0.0.1:0", "--log-level", "warn"]) as lipsyncd:
+            cls.live = {AUDIO_ALONE: LiveListen(lipsyncd.address, False),
+                        WITH_TRANSCRIPT: LiveListen(lipsyncd.address, True)}
             tools = {HEADAUDIO: compare_headaudio.HeadAudio(PACKAGE, node_reading=False, advance_s=0), **cls.live}
             recordings = compare_headaudio.spoken_recordings(speakers, compare_headaudio.read_harvard(),
                                                              FIRST_SENTENCE, LAST_SENTENCE, cls.work,
                                                              with_librivox=False)
             cls.tally = compare_headaudio.score_recordings(recordings, tools, cls.work)
-        finally:
-            lipsyncd.terminate()
-            lipsyncd.wait()
-            lipsyncd.stdout.close()
         print(f"\nHarvard sentences {FIRST_SENTENCE}-{LAST_SENTENCE}; "
               "shown / total at the middles of the reference phones")
         cls.tally.print_table(list(VOICES.values()) + ["all"], list(tools))

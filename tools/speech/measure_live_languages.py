@@ -58,6 +58,9 @@ import tempfile
 from compare_headaudio import Recording, Tally, read_viseme_steps
 from measure_language_alignment import FESTIVAL_TO_IPA, PAUSES, VOICES, read_festival_segs, speak_with_festival
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "tests", "support"))
+from listening_address import ServerProcess  # noqa: E402
+
 # Natural sentences, twelve per language, each with several /p b m/, /f v/ and /a/.
 SENTENCES = {
     "it": [
@@ -164,28 +167,6 @@ def speak(code, number, text, work):
     return stem, phones
 
 
-class Lipsyncd:
-    """A lipsyncd of this tool's own on a free port."""
-
-    def __init__(self, binary):
-        self.process = subprocess.Popen([binary, "--listen", "127.0.0.1:0", "--log-level", "warn"],
-                                        stdout=subprocess.PIPE, text=True)
-        line = self.process.stdout.readline().strip()
-        if not line.startswith("lipsyncd listening on "):
-            self.stop()
-            raise RuntimeError(f"{binary} did not start: {line or 'no output'}")
-        self.address = line.rsplit(" ", 1)[-1]
-
-    def stop(self):
-        if self.process.poll() is None:
-            self.process.terminate()
-            try:
-                self.process.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
-                self.process.wait()
-
-
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -212,7 +193,10 @@ def main():
     work = args.keep or tempfile.mkdtemp(prefix="measure_live_languages-")
     os.makedirs(work, exist_ok=True)
     load_before = os.getloadavg()[0]  # other work on the machine delays the live frames
-    server = Lipsyncd(args.lipsyncd)
+    try:
+        server = ServerProcess([args.lipsyncd, "--listen", "127.0.0.1:0", "--log-level", "warn"])
+    except RuntimeError as error:
+        sys.exit(f"measure_live_languages: {error}")
     live = f"live, audio alone, {args.latency_ms} ms"
     visemes = ["--format", "visemes-oculus"]
     paths = {  # path -> f(language code, file stem) -> its command, less `-o OUT`

@@ -24,7 +24,6 @@ Exit 77 (ctest: skipped) only when Blender is not installed.
 
 import json
 import os
-import queue
 import re
 import shlex
 import shutil
@@ -32,13 +31,13 @@ import struct
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 import wave
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, "..", "..", "support"))
+from listening_address import ServerProcess  # noqa: E402
 SENTENCE = "Papa bought five more big maps."
-LISTENING = re.compile(r"lipsyncd listening on (\S+):(\d+)")
 
 
 def fail(message):
@@ -93,41 +92,6 @@ def make_speech(work, lipsync, source_dir):
     with open(files["phonemes_json"], "w", encoding="utf-8") as out:
         json.dump({"phone_set": "radio", "phonemes": phonemes}, out)
     return files
-
-
-class Server:
-    """lipsyncd on 127.0.0.1:0; the address from its 'listening on' line."""
-
-    def __init__(self, binary):
-        self.log = tempfile.TemporaryFile(mode="w+")
-        self.process = subprocess.Popen([binary, "--listen", "127.0.0.1:0"], stdin=subprocess.DEVNULL,
-                                        stdout=subprocess.PIPE, stderr=self.log, text=True)
-        lines = queue.Queue()
-        threading.Thread(target=lambda: [lines.put(l) for l in self.process.stdout] + [lines.put(None)],
-                         daemon=True).start()
-        deadline = time.monotonic() + 30
-        while True:
-            try:
-                line = lines.get(timeout=max(deadline - time.monotonic(), 0.01))
-            except queue.Empty:
-                line = None
-            if line is None:
-                self.stop()
-                self.log.seek(0)
-                fail(f"lipsyncd ({binary}) did not say where it listens within 30 s: {self.log.read()}")
-            match = LISTENING.search(line)
-            if match:
-                self.address = f"{match.group(1)}:{match.group(2)}"
-                return
-
-    def stop(self):
-        if self.process.poll() is None:
-            self.process.terminate()
-            try:
-                self.process.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
-                self.process.wait(timeout=10)
 
 
 def unused_port():
@@ -311,7 +275,10 @@ def main():
         server = None
         try:
             if group == "live":
-                server = Server(lipsyncd)
+                try:
+                    server = ServerProcess([lipsyncd, "--listen", "127.0.0.1:0"])
+                except RuntimeError as error:
+                    fail(str(error))
                 config.update(server=server.address, dead_server=f"127.0.0.1:{unused_port()}")
             run_blender(config, work, os.path.join(work, "blender-user"))
             if group == "import":

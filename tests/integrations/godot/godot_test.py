@@ -36,6 +36,8 @@ LIPSYNC, LIPSYNCD, SOURCE_DIR = sys.argv[1:4] if len(sys.argv) >= 4 else \
     ("build/clients/cli/lipsync", "build/server/lipsyncd", ".")
 GODOT = shutil.which("godot3-server")
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, "..", "..", "support"))
+from listening_address import ServerProcess  # noqa: E402
 CLOSURES = os.path.join(SOURCE_DIR, "tests", "data", "closures")
 TRACK_INPUTS = ["flite_1.psdur", "festival_2.lab", "flite_fast_3.psdur", "aligned_festival_5.TextGrid"]
 
@@ -159,12 +161,11 @@ class GodotAddOn(unittest.TestCase):
         self.assertNotIn("ERROR", run.stderr, run.stderr[-4000:])
 
     def test_a_live_session_is_followed_with_the_media_clock_anchor(self):
-        lipsyncd = subprocess.Popen([LIPSYNCD, "--listen", "127.0.0.1:0", "--http-listen", "127.0.0.1:0",
-                                     "--log-level", "warn"], stdout=subprocess.PIPE, text=True)
-        try:
-            grpc_address = re.match(r"lipsyncd listening on (\S+)", lipsyncd.stdout.readline()).group(1)
+        with ServerProcess([LIPSYNCD, "--listen", "127.0.0.1:0", "--http-listen", "127.0.0.1:0", "--log-level",
+                            "warn"]) as lipsyncd:
+            grpc_address = lipsyncd.address
             # Followed at the address lipsyncd prints, as a user copies it.
-            viewer = re.match(r"lipsyncd viewer on (http://\S+/view)", lipsyncd.stdout.readline()).group(1)
+            viewer = re.match(r"lipsyncd viewer on (http://\S+/view)", lipsyncd.next_line() or "").group(1)
             # Godot first: it waits for the session (asking every 250 ms) as the producer starts.
             # The producer starts after the follower has found no session (>= 1 s later): it waits.
             environment = self.environment("live", LIPSYNC_WS=viewer, LIPSYNC_SESSION="godot-live",
@@ -182,10 +183,6 @@ class GodotAddOn(unittest.TestCase):
             self.assertEqual(producer.returncode, 0, producer.stderr)
             out, err = godot.communicate(timeout=60)
             self.assertPassed(subprocess.CompletedProcess(godot.args, godot.returncode, out, err))
-        finally:
-            lipsyncd.terminate()
-            lipsyncd.wait()
-            lipsyncd.stdout.close()
 
     def test_a_bad_viewer_address_is_answered_with_the_address_lipsyncd_prints(self):
         run = self.godot("test_live.gd", "bad_address", LIPSYNC_WS="127.0.0.1:8080", LIPSYNC_SESSION="demo",

@@ -89,8 +89,7 @@ struct LiveRecognitionOptions {
   /// 1e-6 already loses the path on synthetic speech.
   double phone_beam = 1e-8;
   /// Without a transcript, the Gaussians PocketSphinx scores per senone (-topn; 4 with one too):
-  /// 2 halves the phone loop's cost but shows 9 of LibriVox's 29 closures instead of 19
-  /// (docs/performance.md, "Live audio").
+  /// 2 halves the phone loop's cost and loses closures on recorded people's speech.
   int phone_top_gaussians = 4;
 };
 
