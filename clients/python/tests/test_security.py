@@ -22,7 +22,7 @@ from lipsync_client import Client
 HERE = os.path.dirname(os.path.abspath(__file__))
 SUPPORT = os.path.join(HERE, os.pardir, os.pardir, os.pardir, "tests", "support")
 sys.path.insert(0, SUPPORT)
-from listening_address import listening_address  # noqa: E402
+from listening_address import ServerProcess  # noqa: E402
 
 MAKE_CERTS = os.path.join(SUPPORT, "make_test_certs.sh")
 KEY = "python-test-key-0001"
@@ -42,23 +42,17 @@ class MutualTlsWithKeysTest(unittest.TestCase):
         with open(keys, "w") as file:
             json.dump({"tenants": {"py": {"max_streams": 4}},
                        "keys": [{"tenant": "py", "sha256": hashlib.sha256(KEY.encode()).hexdigest()}]}, file)
-        cls.stderr_file = tempfile.TemporaryFile(mode="w+")
-        cls.server = subprocess.Popen(
-            [path, "--listen", "127.0.0.1:0", "--tls-cert", cls.cert("server.pem"), "--tls-key",
-             cls.cert("server.key"), "--tls-client-ca", cls.cert("ca.pem"), "--api-keys", keys],
-            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=cls.stderr_file, text=True)
-        line = cls.server.stdout.readline()
-        cls.address = listening_address(line)
-        if not cls.address:
-            cls.server.kill()
-            cls.stderr_file.seek(0)
-            raise AssertionError(f"lipsyncd did not start: {line!r} {cls.stderr_file.read()}")
+        try:
+            cls.server = ServerProcess(
+                [path, "--listen", "127.0.0.1:0", "--tls-cert", cls.cert("server.pem"), "--tls-key",
+                 cls.cert("server.key"), "--tls-client-ca", cls.cert("ca.pem"), "--api-keys", keys])
+        except RuntimeError as error:
+            raise AssertionError(f"lipsyncd did not start: {error}") from None
+        cls.address = cls.server.address
 
     @classmethod
     def tearDownClass(cls):
-        cls.server.terminate()
-        cls.server.wait(timeout=30)
-        cls.stderr_file.close()
+        cls.server.stop()
         cls.work.cleanup()
 
     @classmethod
