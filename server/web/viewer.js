@@ -134,6 +134,7 @@ const viewer = {
   error: null,
   closeCode: null,
   closeReason: null,
+  socket: null,          // the follower's WebSocket (/ws)
   audio: params.get("audio") || null,
   audioPlaying: false,
   audioError: null,
@@ -1170,6 +1171,9 @@ function stopWaiting() {
   waitCountdown = null;
 }
 
+/// Called with each FrameBatch of the followed session, after its frames are added (live_voice.js).
+const frameListeners = [];
+
 function connect(session) {
   const start = params.get("start");
   const waitS = sessionWaitS();
@@ -1177,11 +1181,13 @@ function connect(session) {
     encodeURIComponent(session) + (start ? "&start=" + encodeURIComponent(start) : "") +
     (waitS ? "&wait_s=" + waitS : "") + (apiKey ? "&key=" + encodeURIComponent(apiKey) : "");
   const socket = new WebSocket(url);
+  viewer.socket = socket;  // a later connect() replaces it: the old one's news is ignored
   socket.binaryType = "arraybuffer";
   elements.session.textContent = session;
   if (!viewer.error) setStatus("connecting to " + session);
   socket.onopen = () => { viewer.connected = true; };
   socket.onmessage = (event) => {
+    if (socket !== viewer.socket) return;
     if (typeof event.data === "string") {
       // lipsyncd waits for the session ({"waiting", "wait_s"}), or the error before the close ({"code", "message"}).
       const text = JSON.parse(event.data);
@@ -1199,6 +1205,7 @@ function connect(session) {
     if (message.header) onHeader(message.header);
     if (message.frames && track.header) {
       addBatch(message.frames);
+      for (const listener of frameListeners) listener(message.frames);
       // A Speak session's audio is stored before its first frames: asked for again if the header was too early.
       if (sessionAudio === "absent") askSessionAudio(session, "retried");
     }
@@ -1210,6 +1217,7 @@ function connect(session) {
     wake();
   };
   socket.onclose = (event) => {
+    if (socket !== viewer.socket) return;
     viewer.connected = false;
     viewer.closeCode = event.code;
     viewer.closeReason = event.reason;

@@ -55,7 +55,6 @@ pictures in docs/images/ come from there).
 Usage: viewer_browser_test.py LIPSYNCD TEST_DATA_DIR LIPSYNC   (PYTHONPATH: the client and its stubs)
 """
 
-import base64
 import functools
 import http.server
 import io
@@ -72,15 +71,13 @@ import threading
 import time
 import unittest
 import urllib.request
-import zlib
-
-import websocket  # python3-websocket
 
 from lipsync_client import Client
 from lipsync.v1 import lipsync_pb2
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, "support"))
 from listening_address import listening_address  # noqa: E402
+from chromium_page import DevTools, decode_png, open_mouth_pixels  # noqa: E402
 
 LIPSYNCD = sys.argv[1] if len(sys.argv) > 1 else "build/server/lipsyncd"
 TEST_DATA = sys.argv[2] if len(sys.argv) > 2 else "tests/data"
@@ -89,49 +86,6 @@ SENTENCE = "Papa bought five more big maps."
 FRAME_US = 1_000_000 // 30
 PLAYOUT_DELAY_US = 1_000_000
 SLOW_START_S = 1.2
-
-
-def decode_png(data):
-    """8-bit RGB or RGBA, non-interlaced (what Chromium writes) -> (width, height, rows of RGB)."""
-    assert data[:8] == b"\x89PNG\r\n\x1a\n", "not a PNG"
-    pos, idat, header = 8, b"", None
-    while pos < len(data):
-        (length,) = struct.unpack(">I", data[pos:pos + 4])
-        kind, body = data[pos + 4:pos + 8], data[pos + 8:pos + 8 + length]
-        if kind == b"IHDR":
-            header = struct.unpack(">IIBBBBB", body)
-        elif kind == b"IDAT":
-            idat += body
-        pos += 12 + length
-    width, height, depth, colour, _, _, interlace = header
-    assert depth == 8 and colour in (2, 6) and interlace == 0, f"unsupported PNG {header}"
-    channels = 3 if colour == 2 else 4
-    raw, stride, rows, previous = zlib.decompress(idat), width * channels, [], bytearray(width * channels)
-    for y in range(height):
-        kind, line = raw[y * (stride + 1)], bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
-        for i in range(stride):
-            a = line[i - channels] if i >= channels else 0
-            b, c = previous[i], previous[i - channels] if i >= channels else 0
-            if kind == 1:
-                line[i] = (line[i] + a) & 0xFF
-            elif kind == 2:
-                line[i] = (line[i] + b) & 0xFF
-            elif kind == 3:
-                line[i] = (line[i] + (a + b) // 2) & 0xFF
-            elif kind == 4:
-                p = a + b - c
-                pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
-                line[i] = (line[i] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 0xFF
-        rows.append([tuple(line[x * channels:x * channels + 3]) for x in range(width)])
-        previous = line
-    return width, height, rows
-
-
-def open_mouth_pixels(png, colours, tolerance=14):
-    """Pixels of the PNG within `tolerance` (per channel) of one of the open-mouth colours."""
-    _, _, rows = decode_png(png)
-    return sum(1 for row in rows for pixel in row
-               if any(all(abs(p - c) <= tolerance for p, c in zip(pixel, colour)) for colour in colours))
 
 
 def inside_polygon(x, y, polygon):
@@ -190,60 +144,6 @@ def face_paint(png, origin, contours):
                 dark += max(r, g, b) < 50
         eyes.append({"area": area, "whites": whites, "dark": dark})
     return {"lip_inside": inside, "lip_beyond": beyond, "eyes": eyes}
-
-
-class DevTools:
-    """One page of a headless Chromium, over the DevTools protocol."""
-
-    def __init__(self, workdir):
-        self.process = subprocess.Popen(
-            ["chromium", "--headless=new", "--no-sandbox", "--disable-gpu-sandbox", "--use-angle=swiftshader",
-             "--enable-unsafe-swiftshader", "--autoplay-policy=no-user-gesture-required", "--mute-audio",
-             "--no-first-run", "--remote-debugging-port=0", "--window-size=1000,900",
-             f"--user-data-dir={workdir}/chromium", "about:blank"],
-            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-        port = None
-        for line in self.process.stderr:
-            match = re.search(r"DevTools listening on ws://127\.0\.0\.1:(\d+)/", line)
-            if match:
-                port = match.group(1)
-                break
-        if port is None:
-            raise RuntimeError("chromium did not start its DevTools endpoint")
-        threading.Thread(target=self.process.stderr.read, daemon=True).start()  # drain
-        with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list") as reply:
-            page = next(t for t in json.load(reply) if t["type"] == "page")
-        self.socket = websocket.create_connection(page["webSocketDebuggerUrl"], timeout=30)
-        self.next_id = 0
-        self.call("Page.enable")
-        self.call("Runtime.enable")
-
-    def call(self, method, **params):
-        self.next_id += 1
-        self.socket.send(json.dumps({"id": self.next_id, "method": method, "params": params}))
-        while True:
-            reply = json.loads(self.socket.recv())
-            if reply.get("id") == self.next_id:
-                if "error" in reply:
-                    raise RuntimeError(f"{method}: {reply['error']}")
-                return reply["result"]
-
-    def evaluate(self, expression):
-        result = self.call("Runtime.evaluate", expression=expression, returnByValue=True, awaitPromise=True)
-        if "exceptionDetails" in result:
-            raise RuntimeError(f"{expression}: {result['exceptionDetails']}")
-        return result["result"].get("value")
-
-    def screenshot(self, clip=None):
-        params = {"format": "png"}
-        if clip:
-            params["clip"] = dict(clip, scale=1)
-        return base64.b64decode(self.call("Page.captureScreenshot", **params)["data"])
-
-    def close(self):
-        self.socket.close()
-        self.process.kill()
-        self.process.wait()
 
 
 def cpu_seconds_of_process_tree(root_pid):
@@ -508,13 +408,7 @@ class ViewerInChromium(unittest.TestCase):
         return samples, json.loads(viewer), zero_us
 
     def mouth_at(self, t_us, name):
-        self.browser.evaluate(f"lipsyncViewer.hold({t_us})")
-        # The page has drawn the held time once a tick saw it; two more animation frames put it on screen.
-        deadline = time.time() + 10
-        while self.browser.evaluate("lipsyncViewer.utteranceTime") != t_us:
-            self.assertLess(time.time(), deadline, "the page did not draw the held time")
-            time.sleep(0.02)
-        self.browser.evaluate("new Promise((done) => requestAnimationFrame(() => requestAnimationFrame(done)))")
+        self.browser.hold_viewer_at(t_us)
         state = json.loads(self.browser.evaluate(
             "JSON.stringify({frame: lipsyncViewer.frameTime, viseme: lipsyncViewer.viseme,"
             " open: lipsyncViewer.mouthOpen, rect: lipsyncViewer.mouthRect, colours: lipsyncViewer.openMouthColours,"

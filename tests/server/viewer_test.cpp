@@ -322,6 +322,7 @@ TEST_F(ViewerTest, UnknownPathIs404NamingItAndWsWithoutUpgradeIs426) {
   EXPECT_EQ(missing.status, 404u);
   EXPECT_THAT(missing.body, ::testing::HasSubstr("/no/such/thing"));
   EXPECT_EQ(request(http::verb::get, "/ws?session=x").status, 426u);
+  EXPECT_EQ(request(http::verb::get, "/listen?session=x&rate=16000").status, 426u);
   EXPECT_EQ(request(http::verb::post, "/viewer.js").status, 405u);
   EXPECT_EQ(request(http::verb::get, "/sessions").status, 405u);
 }
@@ -330,12 +331,17 @@ TEST_F(ViewerTest, PageScriptsAndFaceAreServedFromTheBinary) {
   const HttpReply page = request(http::verb::get, "/view?session=demo&audio=speech.wav");
   EXPECT_EQ(page.status, 200u);
   EXPECT_THAT(page.content_type, ::testing::StartsWith("text/html"));
-  for (const char* id : {"id=\"frame-time\"", "id=\"viseme\"", "id=\"drift\"", "/viewer.js"}) {
+  for (const char* id : {"id=\"frame-time\"", "id=\"viseme\"", "id=\"drift\"", "id=\"latency\"", "id=\"talk\"",
+                         "/viewer.js", "/live_voice.js"}) {
     EXPECT_THAT(page.body, ::testing::HasSubstr(id));
   }
   EXPECT_EQ(request(http::verb::get, "/").body, page.body);
   EXPECT_THAT(request(http::verb::get, "/viewer.js").body, ::testing::HasSubstr("window.lipsyncViewer"));
   EXPECT_THAT(request(http::verb::get, "/track_decoder.js").body, ::testing::HasSubstr("decodeTrackMessage"));
+  EXPECT_THAT(request(http::verb::get, "/live_voice.js").body, ::testing::HasSubstr("/listen?"));
+  const HttpReply worklet = request(http::verb::get, "/capture_worklet.js");
+  EXPECT_THAT(worklet.content_type, ::testing::StartsWith("text/javascript"));
+  EXPECT_THAT(worklet.body, ::testing::HasSubstr("registerProcessor(\"lipsync-capture\""));
   const HttpReply face = request(http::verb::get, "/face.json");
   EXPECT_EQ(face.content_type, "application/json");
   const auto json = nlohmann::json::parse(face.body);

@@ -70,6 +70,18 @@ std::string beam_text(double beam) {
   return text;
 }
 
+/// Forced alignment's beams (all but open) and language weight, as the offline aligner's.
+constexpr double kForcedBeam = 1e-200;
+constexpr double kForcedWeight = 6.5;
+/// The phone loop's language weight (the phonetic LM's, as the offline aligner runs it).
+constexpr double kPhoneLoopWeight = 2.0;
+
+/// The beams and language weight that the next search built on `config` reads.
+void set_search_tuning(cmd_ln_t* config, double beam, double weight) {
+  for (const char* name : {"-beam", "-pbeam", "-wbeam"}) cmd_ln_set_float_r(config, name, beam);
+  cmd_ln_set_float_r(config, "-lw", weight);
+}
+
 }  // namespace
 
 struct LiveRecognizer::Decoder {
@@ -119,11 +131,12 @@ LiveRecognizer::LiveRecognizer(const LiveRecognitionOptions& options, std::strin
   // The phone loop as the offline aligner runs it (the phonetic LM at weight 2) with narrower beams;
   // the transcript's grammar as the offline forced alignment runs it (beams all but open, weight 6.5).
   const bool forced = has_transcript_;
-  const std::string beam = forced ? "1e-200" : beam_text(options_.phone_beam);
+  const std::string beam = beam_text(forced ? kForcedBeam : options_.phone_beam);
+  const std::string weight = beam_text(forced ? kForcedWeight : kPhoneLoopWeight);
   cmd_ln_t* config =
       cmd_ln_init(nullptr, ps_args(), TRUE, "-hmm", hmm.c_str(), "-dict", dict.c_str(), "-samprate", "16000",
                   "-remove_silence", "no", "-beam", beam.c_str(), "-pbeam", beam.c_str(), "-wbeam", beam.c_str(),
-                  "-bestpath", "no", "-fsgusefiller", "no", "-lw", forced ? "6.5" : "2.0", "-topn",
+                  "-bestpath", "no", "-fsgusefiller", "no", "-lw", weight.c_str(), "-topn",
                   forced ? "4" : std::to_string(options_.phone_top_gaussians).c_str(), nullptr);
   if (config == nullptr) throw InputError(source_, 0, "cannot configure PocketSphinx");
   decoder_ = std::make_unique<Decoder>(options_.sample_rate_hz);
@@ -189,10 +202,17 @@ void LiveRecognizer::add_word(std::string text, std::int64_t start_us) {
 
 void LiveRecognizer::use_phone_loop() {
   if (!decoder_->phone_loop_built) {
+    // A search reads its beams and language weight from the decoder's configuration when it is
+    // built. With a transcript the configuration is forced alignment's (beams all but open, weight
+    // 6.5): a phone loop built on it searches every path, about five times slower than the speech
+    // (the speech after the transcript's last word stalled the stream for seconds). It is built
+    // with the phone loop's own, and the configuration put back for the grammars built later.
+    cmd_ln_t* config = ps_get_config(decoder_->ps);
+    if (has_transcript_) set_search_tuning(config, options_.phone_beam, kPhoneLoopWeight);
     const std::string phone_lm = options_.model_dir + "/en-us-phone.lm.bin";
-    if (ps_set_allphone_file(decoder_->ps, "phones", phone_lm.c_str()) != 0) {
-      throw InputError(source_, 0, "cannot load the phonetic language model " + phone_lm);
-    }
+    const int failed = ps_set_allphone_file(decoder_->ps, "phones", phone_lm.c_str());
+    if (has_transcript_) set_search_tuning(config, kForcedBeam, kForcedWeight);
+    if (failed != 0) throw InputError(source_, 0, "cannot load the phonetic language model " + phone_lm);
     decoder_->phone_loop_built = true;
   }
   ps_set_search(decoder_->ps, "phones");

@@ -41,6 +41,11 @@ constexpr std::uint16_t kGrpcCloseCodeBase = 4000;
 constexpr int kMaxSessionWaitS = 3600;
 /// While a follower waits, the session is looked for (and its WebSocket watched) this often.
 constexpr int kSessionPollIntervalMs = 100;
+/// /listen: the largest piece of a page's voice (about 0.34 s of 48 kHz stereo; a page sends 20 ms).
+constexpr std::size_t kMaxPagePieceBytes = 64 * 1024;
+/// /listen: how far a page's audio may run ahead of the time since its first piece (bursts after a
+/// busy moment of the page), µs.
+constexpr std::int64_t kMaxPageAudioLeadUs = 2'000'000;
 
 Response text_response(const Request& request, http::status status, std::string body,
                        std::string_view content_type = "text/plain; charset=utf-8") {
@@ -208,6 +213,32 @@ bool serve_audio(tcp::socket& socket, const Request& request, const QueryParamet
   return !error && request.keep_alive();
 }
 
+/// Answers the upgrade `request` on `ws`; false when the handshake fails.
+bool accept_upgrade(websocket::stream<tcp::socket&>& ws, const Request& request) {
+  ws.set_option(websocket::stream_base::decorator(
+      [](websocket::response_type& response) { response.set(http::field::server, "lipsyncd"); }));
+  beast::error_code error;
+  ws.accept(request, error);
+  return !error;
+}
+
+/// Closes a WebSocket because lipsyncd shuts down (1001).
+void close_going_away(websocket::stream<tcp::socket&>& ws) {
+  beast::error_code ignored;
+  ws.close(websocket::close_reason(websocket::close_code::going_away, "lipsyncd is shutting down"), ignored);
+}
+
+/// Ends a WebSocket with a gRPC error: the text message {"code", "message"}, then a close with
+/// 4000 + the code and the message as its reason (cut to what a reason holds).
+void close_with_status(websocket::stream<tcp::socket&>& ws, grpc::StatusCode code, const std::string& message) {
+  beast::error_code ignored;
+  ws.text(true);
+  ws.write(boost::asio::buffer(error_json(code_name(code), message)), ignored);
+  websocket::close_reason reason(truncated_reason(message));
+  reason.code = static_cast<std::uint16_t>(kGrpcCloseCodeBase + code);
+  ws.close(reason, ignored);
+}
+
 /// How a follower's WebSocket went, for its log line.
 struct FollowOutcome {
   std::chrono::milliseconds waited{0};  ///< spent waiting for the session to start
@@ -232,12 +263,7 @@ FollowOutcome follow_session(websocket::stream<tcp::socket&>& ws, tcp::socket& s
                              const std::atomic<bool>& closing) {
   FollowOutcome outcome;
   const auto close_with = [&](grpc::StatusCode code, const std::string& message) {
-    beast::error_code ignored;
-    ws.text(true);
-    ws.write(boost::asio::buffer(error_json(code_name(code), message)), ignored);
-    websocket::close_reason reason(truncated_reason(message));
-    reason.code = static_cast<std::uint16_t>(kGrpcCloseCodeBase + code);
-    ws.close(reason, ignored);
+    close_with_status(ws, code, message);
   };
   const auto session = query.find("session");
   if (session == query.end() || session->second.empty()) {
@@ -279,7 +305,7 @@ FollowOutcome follow_session(websocket::stream<tcp::socket&>& ws, tcp::socket& s
         outcome.waited =
             std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - since);
         if (closing) {
-          ws.close(websocket::close_reason(websocket::close_code::going_away, "lipsyncd is shutting down"), error);
+          close_going_away(ws);
           return outcome;
         }
         if (std::chrono::steady_clock::now() >= give_up) {
@@ -320,7 +346,7 @@ FollowOutcome follow_session(websocket::stream<tcp::socket&>& ws, tcp::socket& s
   if (status.ok()) {
     ws.close(websocket::close_reason(websocket::close_code::normal, "OK"), ignored);
   } else if (closing) {
-    ws.close(websocket::close_reason(websocket::close_code::going_away, "lipsyncd is shutting down"), ignored);
+    close_going_away(ws);
   } else {
     close_with(status.error_code(), status.error_message());
   }
@@ -417,6 +443,16 @@ struct CallSlot {
   const std::atomic<bool>& closing;
 };
 
+/// A route's call on the in-process channel: the caller's key forwarded, registered for close().
+struct ViewerCall {
+  ViewerCall(const Request& request, const QueryParameters& query, const CallSlot& slot)
+      : registration(slot.mutex, slot.call, context, slot.closing) {
+    forward_api_key(request, query, context);
+  }
+  grpc::ClientContext context;
+  CallRegistration registration;
+};
+
 /// /ws?session=NAME: upgrades to a WebSocket and follows the session until it ends or the viewer
 /// closes. Returns whether the connection stays open for another request (only after answering a
 /// request that is not an upgrade).
@@ -430,20 +466,15 @@ bool serve_websocket(tcp::socket& socket, const Request& request, const QueryPar
   }
   const std::string peer = socket.remote_endpoint(error).address().to_string();
   websocket::stream<tcp::socket&> ws(socket);
-  ws.set_option(websocket::stream_base::decorator(
-      [](websocket::response_type& response) { response.set(http::field::server, "lipsyncd"); }));
-  ws.accept(request, error);
-  if (error) return false;
-  grpc::ClientContext context;
-  forward_api_key(request, query, context);
-  CallRegistration registration(slot.mutex, slot.call, context, slot.closing);
-  if (!registration.admitted) {
-    ws.close(websocket::close_reason(websocket::close_code::going_away, "lipsyncd is shutting down"), error);
+  if (!accept_upgrade(ws, request)) return false;
+  ViewerCall call(request, query, slot);
+  if (!call.registration.admitted) {
+    close_going_away(ws);
     return false;
   }
   const auto started = std::chrono::steady_clock::now();
   const FollowOutcome outcome =
-      follow_session(ws, socket, stub, query, authorization_value(request, query), probe, context, slot.closing);
+      follow_session(ws, socket, stub, query, authorization_value(request, query), probe, call.context, slot.closing);
   spdlog::info(
       "viewer WebSocket end peer={} session='{}' duration_ms={} waited_ms={}{}", peer,
       query.count("session") ? query.at("session") : "",
@@ -452,6 +483,157 @@ bool serve_websocket(tcp::socket& socket, const Request& request, const QueryPar
       outcome.gave_up_after_s > 0
           ? " (the session did not start within " + std::to_string(outcome.gave_up_after_s) + " s)"
           : std::string());
+  return false;
+}
+
+/// Paces a page's live voice: the audio received may run at most kMaxPageAudioLeadUs ahead of the
+/// time since its first piece, so a page sends as it hears (or plays) the sound, not a file at once.
+class PageAudioPace {
+ public:
+  PageAudioPace(std::uint32_t rate_hz, std::uint32_t channels) : bytes_per_second_(2.0 * rate_hz * channels) {}
+
+  /// Counts `bytes` received now; an empty string, or what is wrong.
+  std::string admit(std::size_t bytes) {
+    const auto now = std::chrono::steady_clock::now();
+    if (total_bytes_ == 0) first_ = now;
+    total_bytes_ += bytes;
+    const auto audio_us = static_cast<std::int64_t>(static_cast<double>(total_bytes_) / bytes_per_second_ * 1e6);
+    const auto elapsed_us = std::chrono::duration_cast<std::chrono::microseconds>(now - first_).count();
+    if (audio_us - elapsed_us <= kMaxPageAudioLeadUs) return {};
+    return "the page sends audio faster than it is spoken: " + std::to_string(audio_us / 1000) + " ms of audio in " +
+           std::to_string(elapsed_us / 1000) + " ms (at most " + std::to_string(kMaxPageAudioLeadUs / 1000) +
+           " ms ahead; /listen is for a voice as it is heard: send a file whole with Listen's `recording`)";
+  }
+
+ private:
+  double bytes_per_second_;
+  std::size_t total_bytes_ = 0;
+  std::chrono::steady_clock::time_point first_;
+};
+
+/// /listen?session=NAME&rate=HZ&...: a live voice from the page. Each binary message is the next
+/// piece of 16-bit little-endian PCM, a text message {"end": true} says the voice has ended; the
+/// pieces go into one Listen call on the in-process channel (its admission, limits, keys and
+/// errors), whose session the page and anyone else follow on /ws. Its TrackMessages are not sent
+/// back here: the follower has them. After the end: the text message {"session", "frames",
+/// "duration_us", "notes"} and a close with 1000 "OK"; an error: {"code", "message"} and 4000 + the
+/// gRPC code, as /ws. A page that goes away before the end cancels the call, so the session's
+/// followers see it end with ABORTED, as for a gRPC producer that vanishes.
+bool serve_listen(tcp::socket& socket, const Request& request, const QueryParameters& query, v1::LipSync::Stub& stub,
+                  const CallSlot& slot) {
+  beast::error_code error;
+  if (!websocket::is_upgrade(request)) {
+    http::write(socket,
+                text_response(request, http::status::upgrade_required,
+                              "/listen is a WebSocket: open it as one and send 16-bit PCM pieces\n"),
+                error);
+    return !error;
+  }
+  const std::string peer = socket.remote_endpoint(error).address().to_string();
+  websocket::stream<tcp::socket&> ws(socket);
+  ws.read_message_max(4 * kMaxPagePieceBytes);  // beyond it Beast closes with 1009; below, the message names it
+  if (!accept_upgrade(ws, request)) return false;
+  const auto close_with = [&](grpc::StatusCode code, const std::string& message) {
+    close_with_status(ws, code, message);
+  };
+  v1::ListenRequest message;
+  try {
+    *message.mutable_settings() = plan_page_listen(query, unix_now_us());
+  } catch (const QuickTryError& bad) {
+    close_with(grpc::StatusCode::INVALID_ARGUMENT, bad.what());
+    return false;
+  }
+  const std::string session = message.settings().animation().session();
+  PageAudioPace pace(message.settings().sample_rate_hz(), std::max(1U, message.settings().channels()));
+  ViewerCall call(request, query, slot);
+  if (!call.registration.admitted) {
+    close_going_away(ws);
+    return false;
+  }
+  const auto started = std::chrono::steady_clock::now();
+  auto stream = stub.Listen(&call.context);
+  v1::TrackSummary summary;
+  std::thread drain([&] {
+    v1::TrackMessage answer;
+    while (stream->Read(&answer)) {
+      if (answer.has_summary()) summary = answer.summary();
+    }
+  });
+  bool open = stream->Write(message);
+  bool ended = false;
+  bool page_gone = false;
+  grpc::Status refused;
+  std::size_t bytes = 0;
+  beast::flat_buffer buffer;
+  while (open && !ended) {
+    buffer.clear();
+    ws.read(buffer, error);
+    if (error) {
+      page_gone = error != websocket::error::message_too_big;
+      if (!page_gone) {  // Beast has closed it with 1009; the call ends as refused
+        refused = grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                               "a piece of more than " + std::to_string(4 * kMaxPagePieceBytes) + " bytes");
+      }
+      break;
+    }
+    const std::string_view data(static_cast<const char*>(buffer.data().data()), buffer.size());
+    if (ws.got_text()) {
+      const nlohmann::json text = nlohmann::json::parse(data, nullptr, false);
+      if (!text.is_object() || text.size() != 1 || !text.contains("end") || text["end"] != true) {
+        refused = grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                               "a text message that is not {\"end\": true}: the voice is sent as binary pieces of "
+                               "16-bit PCM, and {\"end\": true} ends it");
+        break;
+      }
+      ended = true;
+      message.Clear();
+      message.mutable_end();
+      open = stream->Write(message);
+      break;
+    }
+    if (data.size() > kMaxPagePieceBytes) {
+      refused = grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                             "a piece of " + std::to_string(data.size()) + " bytes, more than " +
+                                 std::to_string(kMaxPagePieceBytes) +
+                                 ": send the voice in smaller pieces (20 ms of 48 kHz mono is 1920 bytes)");
+      break;
+    }
+    if (const std::string too_fast = pace.admit(data.size()); !too_fast.empty()) {
+      refused = grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED, too_fast);
+      break;
+    }
+    bytes += data.size();
+    message.Clear();
+    message.mutable_audio()->set_data(data.data(), data.size());
+    open = stream->Write(message);
+  }
+  if (page_gone || !refused.ok()) call.context.TryCancel();
+  stream->WritesDone();
+  drain.join();
+  const grpc::Status status = stream->Finish();
+  spdlog::info(
+      "viewer listen end peer={} session='{}' duration_ms={} audio_bytes={} status={}{}", peer, session,
+      std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - started).count(), bytes,
+      code_name(!refused.ok() ? refused.error_code() : status.error_code()),
+      page_gone ? " (the page went away before the end)" : "");
+  if (page_gone) return false;
+  if (!refused.ok()) {
+    close_with(refused.error_code(), refused.error_message());
+  } else if (!status.ok()) {
+    if (slot.closing) {
+      close_going_away(ws);
+    } else {
+      close_with(status.error_code(), status.error_message());
+    }
+  } else {
+    ws.text(true);
+    const nlohmann::json body = {{"session", session},
+                                 {"frames", summary.frames()},
+                                 {"duration_us", summary.duration_us()},
+                                 {"notes", std::vector<std::string>(summary.notes().begin(), summary.notes().end())}};
+    ws.write(boost::asio::buffer(body.dump()), error);
+    ws.close(websocket::close_reason(websocket::close_code::normal, "OK"), error);
+  }
   return false;
 }
 
@@ -474,14 +656,12 @@ Response serve_sessions(const Request& request, const QueryParameters& query, v1
     const QuickTry plan = speaking ? QuickTry{} : plan_quick_try(query, request.body(), catalog, unix_now_us());
     const v1::SpeakRequest spoken =
         speaking ? plan_quick_speak(query, request.body(), unix_now_us()) : v1::SpeakRequest{};
-    grpc::ClientContext context;
-    forward_api_key(request, query, context);
-    CallRegistration registration(slot.mutex, slot.call, context, slot.closing);
-    return !registration.admitted
+    ViewerCall call(request, query, slot);
+    return !call.registration.admitted
                ? text_response(request, http::status::service_unavailable,
                                error_json("UNAVAILABLE", "lipsyncd is shutting down"), "application/json")
-           : speaking ? quick_speak(request, stub, spoken, context)
-                      : quick_try(request, stub, plan, context);
+           : speaking ? quick_speak(request, stub, spoken, call.context)
+                      : quick_try(request, stub, plan, call.context);
   } catch (const InputError& bad) {
     return text_response(request, http::status::bad_request, error_json("INVALID_ARGUMENT", bad.what()),
                          "application/json");
@@ -580,6 +760,11 @@ void HttpViewer::serve(Connection& connection) {
     const CallSlot slot{connection.call_mutex, connection.call, closing_};
     if (path == "/ws") {
       if (!serve_websocket(connection.socket, request, query, *stub, session_probe_, slot)) break;
+      continue;
+    }
+
+    if (path == "/listen") {
+      if (!serve_listen(connection.socket, request, query, *stub, slot)) break;
       continue;
     }
 

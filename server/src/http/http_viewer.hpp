@@ -12,14 +12,21 @@
 //                                       4000 + the gRPC status code with the message as reason.
 //                                       With wait_s, a session not started yet is waited for up to
 //                                       S seconds, first saying {"waiting":NAME,"wait_s":S}
+//   GET  /listen?session=NAME&rate=HZ[&...]
+//                                       WebSocket: a live voice from the page. Binary messages are
+//                                       16-bit PCM pieces (at most 64 KiB, at most 2 s ahead of
+//                                       real time), the text message {"end": true} ends it; one
+//                                       Listen call hears them into the session, which the page
+//                                       follows on /ws. Then {"session","frames","duration_us",
+//                                       "notes"} and close 1000, or an error as /ws closes
 //   POST /sessions?session=NAME&...     body: phoneme text in any format the CLI reads; the
 //                                       server animates it as a session (a quick try); with
 //                                       speak=1 the body is text that a Speak call speaks into it
 //   GET  /audio?session=NAME            the session's sound as a WAV file (a Speak session's
 //                                       voice, kept by the session); 404 when it has none
 //
-// Nothing here duplicates the service: a follower is a Subscribe call and a quick try is an
-// Animate call, both made over the gRPC server's in-process channel, so admission, limits,
+// Nothing here duplicates the service: a follower is a Subscribe call, a quick try an Animate
+// call and a page's voice a Listen call, all made over the gRPC server's in-process channel, so admission, limits,
 // routing, replay and the media-clock anchor are exactly those of a gRPC client. Each HTTP
 // connection is served by its own thread with Beast's synchronous API: a viewer is for a few
 // people watching, not for fan-out at scale (that is Subscribe's job).

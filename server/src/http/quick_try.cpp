@@ -1,6 +1,7 @@
 #include "quick_try.hpp"
 
 #include <charconv>
+#include <limits>
 #include <random>
 
 #include "lipsync/error.hpp"
@@ -60,10 +61,10 @@ std::int64_t integer_parameter(const QueryParameters& query, std::string_view na
   return value;
 }
 
-std::string random_session_name() {
+std::string random_session_name(std::string_view prefix = "try-") {
   static constexpr char kHex[] = "0123456789abcdef";
   std::random_device device;
-  std::string name = "try-";
+  std::string name(prefix);
   for (int i = 0; i < 8; ++i) name += kHex[device() % 16];
   return name;
 }
@@ -110,11 +111,14 @@ std::string split_request_target(std::string_view target, QueryParameters& query
 
 namespace {
 
-/// The settings both quick tries take from the query: session, model, fps, mesh, visemes, lead_ms.
-v1::AnimationSettings quick_try_settings(const QueryParameters& query, std::int64_t now_unix_us) {
+/// The settings the quick tries and the page's live voice take from the query: session, model,
+/// fps, mesh, visemes, lead_ms (`default_lead_ms` when absent).
+v1::AnimationSettings quick_try_settings(const QueryParameters& query, std::int64_t now_unix_us,
+                                         std::string_view session_prefix = "try-",
+                                         std::int64_t default_lead_ms = 1'000) {
   v1::AnimationSettings settings;
   const std::string* session = parameter(query, "session");
-  settings.set_session(session && !session->empty() ? *session : random_session_name());
+  settings.set_session(session && !session->empty() ? *session : random_session_name(session_prefix));
   if (const std::string* model = parameter(query, "model")) settings.set_model(*model);
   settings.set_fps(static_cast<std::uint32_t>(
       integer_parameter(query, "fps", kFpsSetting.min, kFpsSetting.max, kFpsSetting.default_value)));
@@ -126,7 +130,7 @@ v1::AnimationSettings quick_try_settings(const QueryParameters& query, std::int6
     settings.mutable_outputs()->mutable_visemes()->set_enabled(true);
     settings.mutable_outputs()->mutable_visemes()->set_vocabulary(vocabulary);
   }
-  const std::int64_t lead_ms = integer_parameter(query, "lead_ms", 0, 60'000, 1'000);
+  const std::int64_t lead_ms = integer_parameter(query, "lead_ms", 0, 60'000, default_lead_ms);
   settings.mutable_media_clock()->set_clock("unix");
   settings.mutable_media_clock()->set_utterance_zero_us(now_unix_us + lead_ms * 1000);
   return settings;
@@ -174,6 +178,31 @@ v1::SpeakRequest plan_quick_speak(const QueryParameters& query, std::string_view
   request.set_text(std::string(text));
   if (const std::string* voice = parameter(query, "voice")) request.set_voice(*voice);
   return request;
+}
+
+v1::ListenSettings plan_page_listen(const QueryParameters& query, std::int64_t now_unix_us) {
+  v1::ListenSettings settings;
+  v1::AnimationSettings& animation = *settings.mutable_animation();
+  animation = quick_try_settings(query, now_unix_us, "mic-", 0);
+  // The page knows when it heard the first sample; its own clock, on the "unix" scale.
+  if (parameter(query, "utterance_zero_us")) {
+    animation.mutable_media_clock()->set_utterance_zero_us(
+        integer_parameter(query, "utterance_zero_us", 0, std::numeric_limits<std::int64_t>::max(), 0));
+  }
+  if (!parameter(query, "rate")) {
+    throw QuickTryError("rate: required, the sample rate of the 16-bit pieces the page sends (8000 to 48000)");
+  }
+  settings.set_encoding(v1::AUDIO_ENCODING_PCM_S16LE);
+  settings.set_sample_rate_hz(static_cast<std::uint32_t>(integer_parameter(query, "rate", 8'000, 48'000, 0)));
+  settings.set_channels(static_cast<std::uint32_t>(integer_parameter(query, "channels", 1, 2, 1)));
+  if (parameter(query, "latency_ms")) {
+    settings.set_latency_ms(static_cast<std::uint32_t>(integer_parameter(query, "latency_ms", 100, 2'000, 0)));
+  }
+  if (const std::string* transcript = parameter(query, "transcript"); transcript && !transcript->empty()) {
+    settings.set_transcript(*transcript);
+  }
+  if (const std::string* voice = parameter(query, "voice")) settings.set_voice(*voice);
+  return settings;
 }
 
 }  // namespace lipsync::server

@@ -51,4 +51,13 @@ QuickTry plan_quick_try(const QueryParameters& query, std::string_view text, con
 /// QuickTryError for a bad parameter; the text is checked by Speak.
 v1::SpeakRequest plan_quick_speak(const QueryParameters& query, std::string_view text, std::int64_t now_unix_us);
 
+/// `GET /listen` (a WebSocket): a live voice from the page, as the settings of one Listen call.
+/// Parameters: session (default "mic-" and 8 random hex digits), rate (the pieces' sample rate,
+/// 8000 to 48000, required), channels (1 or 2, default 1), latency_ms (the budget, 100 to 2000;
+/// default Listen's), transcript (the words that will be spoken, optional), voice, model, fps,
+/// visemes, and the media-clock anchor: utterance_zero_us (the "unix" µs at which the first sample
+/// was heard; the page sends it) or else lead_ms after the request (default 0). Throws
+/// QuickTryError for a bad parameter; the rest is checked by Listen.
+v1::ListenSettings plan_page_listen(const QueryParameters& query, std::int64_t now_unix_us);
+
 }  // namespace lipsync::server
