@@ -71,7 +71,7 @@ std::string three_phone_grid(const std::string& label) {
 TEST_F(CliTest, HelpListsEveryCommand) {
   const RunResult result = run({"--help"});
   ASSERT_EQ(result.status, 0) << describe(result);
-  for (const char* command : {"render", "demo", "model", "phone-sets"}) {
+  for (const char* command : {"render", "demo", "model", "phone-sets", "voices"}) {
     EXPECT_THAT(result.out, HasSubstr("\n  " + std::string(command) + " ")) << command;
   }
 }
