@@ -176,8 +176,11 @@ TEST_F(CliTest, HelpQuotesTheRangesAndDefaultsThatTheChecksEnforce) {
 }
 
 TEST_F(CliTest, EveryCommandHasHelp) {
-  for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{
-           {"demo", "--help"}, {"model", "--help"}, {"model", "dump", "--help"}, {"phone-sets", "-h"}}) {
+  for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{{"demo", "--help"},
+                                                                                    {"model", "--help"},
+                                                                                    {"model", "dump", "--help"},
+                                                                                    {"phone-sets", "-h"},
+                                                                                    {"voices", "-h"}}) {
     const RunResult result = run(args);
     EXPECT_EQ(result.status, 0) << args[0];
     EXPECT_THAT(result.out, StartsWith("Usage: lipsync ")) << args[0];
