@@ -276,8 +276,12 @@ std::optional<std::string> PhoneSet::several_phones(std::string_view label) cons
   const std::string key = fallback_key(normalise(label));
   const auto pieces = key.empty() ? std::nullopt : split(key);
   if (!pieces || pieces->size() < 2) return std::nullopt;
+  // At most eight pieces: the error that quotes them stays short, whatever the label's length.
+  constexpr std::size_t kMostShown = 8;
   std::string out;
-  for (const auto& piece : *pieces) out += (out.empty() ? "" : " ") + piece.first;
+  for (std::size_t i = 0; i < pieces->size() && i < kMostShown; ++i)
+    out += (out.empty() ? "" : " ") + (*pieces)[i].first;
+  if (pieces->size() > kMostShown) out += " … (" + std::to_string(pieces->size()) + " in all)";
   return out;
 }
 

@@ -145,6 +145,7 @@ TEST(PhoneSet, IpaLabelOfSeveralPhonesIsUnknownAndNamesThem) {
   EXPECT_EQ(name_of(ipa.lookup("qqzz")), "<unknown>");
   EXPECT_EQ(ipa.several_phones("qqzz"), "q q z z");
   EXPECT_EQ(ipa.several_phones("ptk"), "p t k");
+  EXPECT_EQ(ipa.several_phones(std::string(100000, 'k')), "k k k k k k k k … (100000 in all)");  // a short error
   EXPECT_EQ(name_of(ipa.lookup("t͡sʃ")), "t");  // a tie bar makes one phone of its symbols
   EXPECT_EQ(ipa.several_phones("t͡sʃ"), std::nullopt);
   EXPECT_EQ(name_of(ipa.lookup("eau")), "ey");        // a triphthong: vowels alone

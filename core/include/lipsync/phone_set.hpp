@@ -44,10 +44,11 @@ class PhoneSet {
   std::optional<int> lookup(std::string_view label) const;
 
   /// For a label lookup() does not know because it is several phones, those phones separated by
-  /// spaces ("q q z z"); else nullopt. An interval holds one phone: a split is one phone when,
-  /// glides and glottal onsets (fallback_skip) aside, it is one piece, holds a vowel (a diphthong
-  /// `eu`; espeak-ng's r-coloured `ər`), is two consonants (an affricate: `pɸ`, `tʃʲ`), or the
-  /// label has a tie bar; three or more consonants without a tie bar (`qqzz`) are several phones.
+  /// spaces ("q q z z"; the first eight of more); else nullopt. An interval holds one phone: a
+  /// split is one phone when, glides and glottal onsets (fallback_skip) aside, it is one piece,
+  /// holds a vowel (a diphthong `eu`; espeak-ng's r-coloured `ər`), is two consonants (an
+  /// affricate: `pɸ`, `tʃʲ`), or the label has a tie bar; three or more consonants without a tie
+  /// bar (`qqzz`) are several phones.
   std::optional<std::string> several_phones(std::string_view label) const;
 
  private:
