@@ -14,6 +14,7 @@ int run_align(std::span<const std::string_view> args);
 int run_demo(std::span<const std::string_view> args);
 int run_model(std::span<const std::string_view> args);
 int run_phone_sets(std::span<const std::string_view> args);
+int run_voices(std::span<const std::string_view> args);
 #ifdef LIPSYNC_WITH_NETWORK
 int run_stream(std::span<const std::string_view> args);
 int run_speak(std::span<const std::string_view> args);

@@ -27,6 +27,7 @@ constexpr Command kCommands[] = {
     {"demo", "render the built-in demo utterance to lipsync-demo.json", run_demo},
     {"model", "model dump: print the built-in model (or --model FILE) as JSON", run_model},
     {"phone-sets", "list the built-in phone sets", run_phone_sets},
+    {"voices", "list espeak-ng's voices: the name --voice takes, languages, name", run_voices},
 #ifdef LIPSYNC_WITH_NETWORK
     {"stream", "stream a phoneme file to lipsyncd and write the frames it sends", run_stream},
     {"speak", "have lipsyncd speak a text (Speak) and write the track (and --wav the speech)", run_speak},

@@ -71,6 +71,7 @@ int run_say(std::span<const std::string_view> args) {
   OutputRequest request = parse_output_request(arguments);
 
   speech::Synthesis speech = speech::synthesize(arguments.positional().front(), synthesis);
+  for (const std::string& note : speech.notes) std::cerr << "lipsync: warning: " << note << '\n';
   request.audio_end_us = speech.audio.duration_us();
   TemporaryFile temporary;
   if (wav_path) {

@@ -94,6 +94,9 @@ int run_speak(std::span<const std::string_view> args) {
   settings.mutable_media_clock()->set_clock("unix");
   settings.mutable_media_clock()->set_utterance_zero_us(unix_now_us() + delay_ms * 1000LL);
   const client::SpokenTrack spoken = connection.speak(request);
+  if (spoken.summary) {  // how espeak-ng read the text, when that needs saying (words it read in another language...)
+    for (const std::string& note : spoken.summary->track().notes()) std::cerr << "lipsync: warning: " << note << '\n';
+  }
 
   // The WAV first: the track, usually what a caller waits for, then appears last.
   if (wav_path) {

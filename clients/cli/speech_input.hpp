@@ -29,7 +29,7 @@ inline constexpr OptionSpec kAlignerOption = {
     "aligner", 0, "NAME", "aligner of a WAV INPUT: pocketsphinx (English only) or dtw (needs a transcript)",
     "dtw for a non-English --voice, else pocketsphinx"};
 
-inline constexpr OptionSpec kVoiceOption = {"voice", 0, "NAME", "espeak-ng voice ('espeak-ng --voices' lists them)",
+inline constexpr OptionSpec kVoiceOption = {"voice", 0, "NAME", "espeak-ng voice ('lipsync voices' lists them)",
                                             "en-us"};
 inline constexpr OptionSpec kRateOption = {
     "rate", 0, "WPM", kRangedHelp<"speaking rate in words per minute", speech::kWordsPerMinuteSetting>.view(),

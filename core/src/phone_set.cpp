@@ -126,6 +126,8 @@ PhoneSet PhoneSet::from_json(std::string_view json_text, std::string_view source
     }
   }
   set.silence_phoneme_ = model.silence_phoneme();
+  for (const PhonemeSpec& spec : model.phonemes())
+    set.vowel_phoneme_.push_back(spec.phoneme_class == PhonemeClass::vowel);
   for (const auto& [label, target] : root["phones"].items()) {
     if (!target.is_string()) fail("phones '" + label + "': the model phoneme must be a string");
     auto phoneme = model.find_phoneme(target.get<std::string>());
@@ -188,28 +190,38 @@ std::string PhoneSet::normalise(std::string_view label) const {
   return out;
 }
 
+namespace {
+
+/// Whether a label holds a tie bar (U+0361 above, U+035C below: "t͡s"), which makes one phone of
+/// its symbols.
+bool has_tie_bar(std::string_view label) {
+  return label.find("\xCD\xA1") != std::string_view::npos || label.find("\xCD\x9C") != std::string_view::npos;
+}
+
+}  // namespace
+
 std::optional<int> PhoneSet::lookup(std::string_view label) const {
   if (label.empty()) return silence_phoneme_;
   std::string key = normalise(label);
   const auto it = phoneme_by_label_.find(key);
   if (it != phoneme_by_label_.end()) return it->second;
   if (fallback_ignored_.empty() && !fallback_split_) return std::nullopt;
-  return fallback_lookup(key);
+  return fallback_lookup(key, has_tie_bar(label));
 }
 
-std::optional<int> PhoneSet::fallback_lookup(const std::string& normalised) const {
-  // Only labels the table lacks come here (rare), so plain strings and searches do.
+std::string PhoneSet::fallback_key(const std::string& normalised) const {
   std::string key;
   for (std::size_t i = 0; i < normalised.size();) {
     const std::string_view point = std::string_view(normalised).substr(i, code_point_length(normalised, i));
     i += point.size();
     if (std::find(fallback_ignored_.begin(), fallback_ignored_.end(), point) == fallback_ignored_.end()) key += point;
   }
-  if (key.empty()) return std::nullopt;
-  if (const auto it = phoneme_by_label_.find(key); it != phoneme_by_label_.end()) return it->second;
-  if (!fallback_split_) return std::nullopt;
+  return key;
+}
+
+std::optional<std::vector<std::pair<std::string, int>>> PhoneSet::split(const std::string& key) const {
   // Split into the table's labels, longest first at each position; every byte must be covered.
-  std::optional<int> first, chosen;
+  std::vector<std::pair<std::string, int>> pieces;
   for (std::size_t i = 0; i < key.size();) {
     std::size_t length = std::min(longest_key_bytes_, key.size() - i);
     std::unordered_map<std::string, int>::const_iterator found = phoneme_by_label_.end();
@@ -220,12 +232,57 @@ std::optional<int> PhoneSet::fallback_lookup(const std::string& normalised) cons
       if (found != phoneme_by_label_.end()) break;
     }
     if (length == 0) return std::nullopt;
-    if (!first) first = found->second;
-    const bool skip = std::find(fallback_skip_.begin(), fallback_skip_.end(), found->first) != fallback_skip_.end();
-    if (!chosen && !skip) chosen = found->second;
+    pieces.emplace_back(found->first, found->second);
     i += length;
   }
-  return chosen ? chosen : first;
+  return pieces;
+}
+
+bool PhoneSet::is_one_phone(const std::vector<std::pair<std::string, int>>& pieces, bool tied) const {
+  if (tied) return true;
+  std::size_t vowels = 0, others = 0;
+  for (const auto& [piece, phoneme] : pieces) {
+    if (pieces.size() > 1 && std::find(fallback_skip_.begin(), fallback_skip_.end(), piece) != fallback_skip_.end()) {
+      continue;  // a glide or glottal onset beside the phone
+    }
+    const bool vowel =
+        static_cast<std::size_t>(phoneme) < vowel_phoneme_.size() && vowel_phoneme_[static_cast<std::size_t>(phoneme)];
+    ++(vowel ? vowels : others);
+  }
+  if (vowels + others <= 1) return true;
+  // Consonants alone: two are an affricate (pɸ, tʃʲ); more are several phones (qqzz). A split with a
+  // vowel is one: a diphthong (eu), or one of espeak-ng's own names for an r-coloured vowel (ər)
+  // or a final (Cantonese oenɡ).
+  return vowels > 0 || others <= 2;
+}
+
+std::optional<int> PhoneSet::fallback_lookup(const std::string& normalised, bool tied) const {
+  // Only labels the table lacks come here (rare), so plain strings and searches do.
+  const std::string key = fallback_key(normalised);
+  if (key.empty()) return std::nullopt;
+  if (const auto it = phoneme_by_label_.find(key); it != phoneme_by_label_.end()) return it->second;
+  if (!fallback_split_) return std::nullopt;
+  const auto pieces = split(key);
+  if (!pieces || !is_one_phone(*pieces, tied)) return std::nullopt;
+  // The phoneme of the first piece that is not a glide or glottal onset, else of the first.
+  for (const auto& [piece, phoneme] : *pieces) {
+    if (std::find(fallback_skip_.begin(), fallback_skip_.end(), piece) == fallback_skip_.end()) return phoneme;
+  }
+  return pieces->front().second;
+}
+
+std::optional<std::string> PhoneSet::several_phones(std::string_view label) const {
+  if (label.empty() || !fallback_split_ || lookup(label)) return std::nullopt;
+  const std::string key = fallback_key(normalise(label));
+  const auto pieces = key.empty() ? std::nullopt : split(key);
+  if (!pieces || pieces->size() < 2) return std::nullopt;
+  // At most eight pieces: the error that quotes them stays short, whatever the label's length.
+  constexpr std::size_t kMostShown = 8;
+  std::string out;
+  for (std::size_t i = 0; i < pieces->size() && i < kMostShown; ++i)
+    out += (out.empty() ? "" : " ") + (*pieces)[i].first;
+  if (pieces->size() > kMostShown) out += " … (" + std::to_string(pieces->size()) + " in all)";
+  return out;
 }
 
 const PhoneSet& detect_phone_set(const std::vector<PhoneSet>& candidates, const std::vector<std::string_view>& labels) {

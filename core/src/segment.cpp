@@ -44,7 +44,14 @@ void SegmentBuilder::push(std::string_view label, std::int64_t start_us, std::in
          seconds(end_us_) + ": phonemes must be in time order and must not overlap");
   }
   const auto phoneme = phone_set_->lookup(label);
-  if (!phoneme) fail("unknown label in phone set '" + phone_set_->name() + "'");
+  if (!phoneme) {
+    if (const std::optional<std::string> phones = phone_set_->several_phones(label)) {
+      fail("several phones in one interval (" + *phones + " in phone set '" + phone_set_->name() +
+           "'), with no tie bar and no vowel: an interval holds one phone (mark an affricate with a "
+           "tie bar, t͡s)");
+    }
+    fail("unknown label in phone set '" + phone_set_->name() + "'");
+  }
 
   const PhonemeSpec& spec = model_->phoneme(*phoneme);
   if (start_us > end_us_) {

@@ -57,10 +57,21 @@ std::string describe(const RunResult& result) {
 // ---------------------------------------------------------------------------
 // Help and version
 
+// A TextGrid with three phone intervals; the second's label, on line 22 (its xmin on line 20), is `label`.
+std::string three_phone_grid(const std::string& label) {
+  return "File type = \"ooTextFile\"\nObject class = \"TextGrid\"\n\nxmin = 0\nxmax = 0.6\ntiers? <exists>\n"
+         "size = 1\nitem []:\n    item [1]:\n        class = \"IntervalTier\"\n        name = \"phones\"\n"
+         "        xmin = 0\n        xmax = 0.6\n        intervals: size = 3\n        intervals [1]:\n"
+         "            xmin = 0\n            xmax = 0.2\n            text = \"sil\"\n        intervals [2]:\n"
+         "            xmin = 0.2\n            xmax = 0.4\n            text = \"" +
+         label +
+         "\"\n        intervals [3]:\n            xmin = 0.4\n            xmax = 0.6\n            text = \"aa\"\n";
+}
+
 TEST_F(CliTest, HelpListsEveryCommand) {
   const RunResult result = run({"--help"});
   ASSERT_EQ(result.status, 0) << describe(result);
-  for (const char* command : {"render", "demo", "model", "phone-sets"}) {
+  for (const char* command : {"render", "demo", "model", "phone-sets", "voices"}) {
     EXPECT_THAT(result.out, HasSubstr("\n  " + std::string(command) + " ")) << command;
   }
 }
@@ -165,8 +176,11 @@ TEST_F(CliTest, HelpQuotesTheRangesAndDefaultsThatTheChecksEnforce) {
 }
 
 TEST_F(CliTest, EveryCommandHasHelp) {
-  for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{
-           {"demo", "--help"}, {"model", "--help"}, {"model", "dump", "--help"}, {"phone-sets", "-h"}}) {
+  for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{{"demo", "--help"},
+                                                                                    {"model", "--help"},
+                                                                                    {"model", "dump", "--help"},
+                                                                                    {"phone-sets", "-h"},
+                                                                                    {"voices", "-h"}}) {
     const RunResult result = run(args);
     EXPECT_EQ(result.status, 0) << args[0];
     EXPECT_THAT(result.out, StartsWith("Usage: lipsync ")) << args[0];
@@ -276,7 +290,8 @@ TEST_F(CliTest, RenderToFileEqualsStdoutAndReadsStdin) {
   EXPECT_EQ(listing(), std::vector<std::string>{"track.csv"});
   EXPECT_EQ(read_text(dir_ / "track.csv"), to_stdout.out);
 
-  const RunResult from_stdin = run({"render", "-", "--format", "csv"}, {.stdin_file = kFixtures / "bump_map.lab"});
+  const RunResult from_stdin =
+      run({"render", "-", "--format", "csv"}, {.stdin_file = kFixtures / "bump_map.lab", .path_env = std::nullopt});
   ASSERT_EQ(from_stdin.status, 0) << describe(from_stdin);
   EXPECT_EQ(from_stdin.out, to_stdout.out);
 }
@@ -662,6 +677,26 @@ TEST_F(CliTest, PhoneSetsListsEveryBuiltinSet) {
     EXPECT_EQ(description, sets[i].description()) << name;
   }
   EXPECT_THAT(entries.back(), StartsWith("auto  "));
+}
+
+TEST_F(CliTest, TextGridLabelOfSeveralPhonesIsAnErrorNamingItsFileAndTextLine) {
+  // `qqzz` was read as four phonemes in one interval, exit 0. Its line is that of `text =`, not `xmin =`.
+  testing::write_text(dir_ / "qq.TextGrid", three_phone_grid("qqzz"));
+  RunResult result = run({"render", "qq.TextGrid", "-o", "t.json"});
+  EXPECT_EQ(result.status, 1) << describe(result);
+  EXPECT_THAT(result.err, StartsWith("lipsync: error: qq.TextGrid:22: phoneme 'qqzz': "));
+  result = run({"render", "qq.TextGrid", "--phone-set", "ipa", "-o", "t.json"});
+  EXPECT_EQ(result.status, 1) << describe(result);
+  EXPECT_EQ(result.err,
+            "lipsync: error: qq.TextGrid:22: phoneme 'qqzz': several phones in one interval (q q z z in phone set "
+            "'ipa'), with no tie bar and no vowel: an interval holds one phone (mark an affricate with a "
+            "tie bar, t͡s)\n");
+  EXPECT_EQ(listing(), std::vector<std::string>{"qq.TextGrid"});
+  // One phone in IPA renders: an affricate, a diphthong.
+  for (const char* one_phone : {"pɸ", "eu", "t͡s"}) {
+    testing::write_text(dir_ / "one.TextGrid", three_phone_grid(one_phone));
+    EXPECT_EQ(run({"render", "one.TextGrid", "--phone-set", "ipa", "-o", "t.json"}).status, 0) << one_phone;
+  }
 }
 
 }  // namespace

@@ -138,6 +138,23 @@ TEST(PhoneSet, IpaFallbackRemovesMarksAndSplitsLabelsIntoSymbols) {
   EXPECT_EQ(name_of(ipa.lookup("ː")), "<unknown>");   // nothing left
 }
 
+TEST(PhoneSet, IpaLabelOfSeveralPhonesIsUnknownAndNamesThem) {
+  // An interval holds one phone: three or more consonants with no tie bar (no affricate, no
+  // diphthong) are no phoneme, and several_phones() says why.
+  const PhoneSet ipa = *PhoneSet::builtin("ipa", model());
+  EXPECT_EQ(name_of(ipa.lookup("qqzz")), "<unknown>");
+  EXPECT_EQ(ipa.several_phones("qqzz"), "q q z z");
+  EXPECT_EQ(ipa.several_phones("ptk"), "p t k");
+  EXPECT_EQ(ipa.several_phones(std::string(100000, 'k')), "k k k k k k k k … (100000 in all)");  // a short error
+  EXPECT_EQ(name_of(ipa.lookup("t͡sʃ")), "t");  // a tie bar makes one phone of its symbols
+  EXPECT_EQ(ipa.several_phones("t͡sʃ"), std::nullopt);
+  EXPECT_EQ(name_of(ipa.lookup("eau")), "ey");        // a triphthong: vowels alone
+  EXPECT_EQ(name_of(ipa.lookup("ər")), "ax");         // espeak-ng's r-coloured vowel (Mandarin 二)
+  EXPECT_EQ(ipa.several_phones("pɸ"), std::nullopt);  // known: an affricate
+  EXPECT_EQ(ipa.several_phones("☃"), std::nullopt);   // unknown, but not for being several phones
+  EXPECT_EQ(ipa.several_phones("aa"), std::nullopt);  // long a, a vowel twice
+}
+
 TEST(PhoneSet, IpaLookupOfAnyBytesGivesAPhonemeOrNothing) {
   // Random labels (fixed seed) of IPA symbols, diacritics, espeak-ng marks, ASCII and bytes that are
   // no UTF-8 at all (stray continuation bytes, cut sequences): the fallback's split never crashes,

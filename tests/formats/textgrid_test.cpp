@@ -29,25 +29,25 @@ auto speech_phones() {
                      Timing("IY1", 230000, 350000), Timing("CH", 350000, 480000), Timing("", 480000, 620000));
 }
 
-TEST(TextGrid, ReadsLongFormatWithTheLineOfEachStartTime) {
+TEST(TextGrid, ReadsLongFormatWithTheLineOfEachLabel) {
   const LabeledUtterance utterance = parse_grid(fixture("speech_long.TextGrid"));
   EXPECT_EQ(utterance.source, "speech.TextGrid");
   EXPECT_EQ(utterance.phone_set, "");
-  EXPECT_THAT(utterance.intervals, ElementsAre(Interval("", 0, 50000, 34), Interval("S", 50000, 160000, 38),
-                                               Interval("P", 160000, 230000, 42), Interval("IY1", 230000, 350000, 46),
-                                               Interval("CH", 350000, 480000, 50), Interval("", 480000, 620000, 54)));
+  EXPECT_THAT(utterance.intervals, ElementsAre(Interval("", 0, 50000, 36), Interval("S", 50000, 160000, 40),
+                                               Interval("P", 160000, 230000, 44), Interval("IY1", 230000, 350000, 48),
+                                               Interval("CH", 350000, 480000, 52), Interval("", 480000, 620000, 56)));
 }
 
 TEST(TextGrid, ShortFormatMatchesLongFormat) {
   const LabeledUtterance utterance = parse_grid(fixture("speech_short.TextGrid"));
   EXPECT_THAT(utterance.intervals, speech_phones());
-  EXPECT_EQ(utterance.intervals[1].line, 30);
+  EXPECT_EQ(utterance.intervals[1].line, 32);
 }
 
 TEST(TextGrid, ChronologicalFormatMatchesLongFormat) {
   const LabeledUtterance utterance = parse_grid(fixture("speech_chronological.TextGrid"));
   EXPECT_THAT(utterance.intervals, speech_phones());
-  EXPECT_EQ(utterance.intervals[1].line, 21);
+  EXPECT_EQ(utterance.intervals[1].line, 22);
 }
 
 TEST(TextGrid, AllSpellingsGiveTheSameWordsTier) {
@@ -69,20 +69,20 @@ TEST(TextGrid, FreeLayoutWithCommentsIsRead) {
 
 TEST(TextGrid, DecodesUtf16BigEndianWithByteOrderMark) {
   const LabeledUtterance utf8 = parse_grid(fixture("ipa_utf8.TextGrid"));
-  EXPECT_THAT(utf8.intervals, ElementsAre(Interval("", 0, 100000, 34), Interval("ʃ", 100000, 200000, 38),
-                                          Interval("iː", 200000, 350000, 42), Interval("p", 350000, 500000, 46),
-                                          Interval("", 500000, 600000, 50)));
+  EXPECT_THAT(utf8.intervals, ElementsAre(Interval("", 0, 100000, 36), Interval("ʃ", 100000, 200000, 40),
+                                          Interval("iː", 200000, 350000, 44), Interval("p", 350000, 500000, 48),
+                                          Interval("", 500000, 600000, 52)));
   const LabeledUtterance utf16 = parse_grid(fixture("ipa_utf16be.TextGrid"));
-  EXPECT_THAT(utf16.intervals, ElementsAre(Interval("", 0, 100000, 34), Interval("ʃ", 100000, 200000, 38),
-                                           Interval("iː", 200000, 350000, 42), Interval("p", 350000, 500000, 46),
-                                           Interval("", 500000, 600000, 50)));
+  EXPECT_THAT(utf16.intervals, ElementsAre(Interval("", 0, 100000, 36), Interval("ʃ", 100000, 200000, 40),
+                                           Interval("iː", 200000, 350000, 44), Interval("p", 350000, 500000, 48),
+                                           Interval("", 500000, 600000, 52)));
 }
 
 TEST(TextGrid, DecodesUtf16LittleEndianWithByteOrderMark) {
   EXPECT_THAT(
       parse_grid(fixture("ipa_utf16le.TextGrid")).intervals,
-      ElementsAre(Interval("", 0, 100000, 34), Interval("ʃ", 100000, 200000, 38), Interval("iː", 200000, 350000, 42),
-                  Interval("p", 350000, 500000, 46), Interval("", 500000, 600000, 50)));
+      ElementsAre(Interval("", 0, 100000, 36), Interval("ʃ", 100000, 200000, 40), Interval("iː", 200000, 350000, 44),
+                  Interval("p", 350000, 500000, 48), Interval("", 500000, 600000, 52)));
 }
 
 TEST(TextGrid, DoubledQuoteIsOneQuote) {
@@ -104,7 +104,7 @@ TEST(TextGrid, Utf8ByteOrderMarkAndAnyLineBreakKeepLineNumbers) {
   for (const std::string& variant : {"\xEF\xBB\xBF" + grid, crlf, cr}) {
     const LabeledUtterance utterance = parse_grid(variant);
     EXPECT_THAT(utterance.intervals, speech_phones());
-    EXPECT_EQ(utterance.intervals[1].line, 30);
+    EXPECT_EQ(utterance.intervals[1].line, 32);
   }
 }
 
@@ -143,7 +143,7 @@ TEST(TextGrid, ZeroLengthIntervalPassesThrough) {
   const std::string grid =
       "File type = \"ooTextFile\"\nObject class = \"TextGrid\"\n0\n0.2\n<exists>\n1\n"
       "\"IntervalTier\"\n\"phones\"\n0\n0.2\n2\n0\n0.1\n\"a\"\n0.1\n0.1\n\"b\"\n";
-  EXPECT_THAT(parse_grid(grid).intervals, ElementsAre(Interval("a", 0, 100000, 12), Interval("b", 100000, 100000, 15)));
+  EXPECT_THAT(parse_grid(grid).intervals, ElementsAre(Interval("a", 0, 100000, 14), Interval("b", 100000, 100000, 17)));
 }
 
 // The long-format fixture with the first `from` after `after` replaced by `to`

@@ -243,6 +243,11 @@ TEST_F(SpeakTest, BadRequestsAreRefusedNamingTheField) {
   cases.push_back({"text over the limit", speak_request(std::string(4097, 'a')), "text:", "4096 bytes"});
   cases.push_back({"unknown voice", speak_request("Hello."), "voice:", "'no-such-voice'"});
   cases.back().request.set_voice("no-such-voice");
+  cases.push_back({"a voice's name, not its file", speak_request("Bonjour."),
+                   "voice:", "unknown voice 'French'; close matches: fr (French (France))"});
+  cases.back().request.set_voice("French");
+  cases.push_back({"kanji in Japanese", speak_request("漢字です。"), "text:", "voice 'ja' cannot read '漢字です'"});
+  cases.back().request.set_voice("ja");
   cases.push_back({"rate too high", speak_request("Hello."), "words_per_minute:", "500"});
   cases.back().request.set_words_per_minute(500);
   cases.push_back({"fps out of range", speak_request("Hello."), "settings.fps:", "241"});
@@ -265,18 +270,41 @@ TEST_F(SpeakTest, BadRequestsAreRefusedNamingTheField) {
   EXPECT_TRUE(speak_raw(*stub_, speak_request("Hello.")).status.ok());
 }
 
-TEST_F(SpeakTest, ASessionNameInUseIsAlreadyExistsAndAnUnknownVoiceAbortsItsSubscribers) {
+TEST_F(SpeakTest, ASessionNameInUseIsAlreadyExistsAndAnUnreadableTextAbortsItsSubscribers) {
   Producer producer(*stub_, session_settings("taken"));
   const SpeakStream taken = speak_raw(*stub_, speak_request("Hello.", "taken"));
   EXPECT_EQ(taken.status.error_code(), grpc::StatusCode::ALREADY_EXISTS) << taken.status.error_message();
   producer.cancel();
 
-  v1::SpeakRequest bad_voice = speak_request("Hello.", "mute");
-  bad_voice.set_voice("no-such-voice");
-  EXPECT_EQ(speak_raw(*stub_, bad_voice).status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  // The text is found unreadable once spoken, after the session opened: its subscribers are told why.
+  v1::SpeakRequest kanji = speak_request("漢字", "mute");
+  kanji.set_voice("ja");
+  EXPECT_EQ(speak_raw(*stub_, kanji).status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   const Received subscribed = subscribe_all(*stub_, "mute");
   EXPECT_EQ(subscribed.status.error_code(), grpc::StatusCode::ABORTED);
-  EXPECT_THAT(subscribed.status.error_message(), HasSubstr("no-such-voice"));
+  EXPECT_THAT(subscribed.status.error_message(), HasSubstr("'漢字'"));
+}
+
+TEST_F(SpeakTest, WordsReadByAnotherLanguagesRulesAreNamedInTheSummaryAndByLipsyncSpeak) {
+  v1::SpeakRequest request = speak_request("hello мир");
+  request.set_voice("ru");
+  const SpeakStream stream = speak_raw(*stub_, request);
+  ASSERT_TRUE(stream.status.ok()) << stream.status.error_message();
+  ASSERT_TRUE(stream.messages.back().has_summary());
+  const auto& notes = stream.messages.back().summary().track().notes();
+  ASSERT_EQ(notes.size(), 1);
+  EXPECT_EQ(notes[0], "espeak-ng read 'hello' by the rules of another language (en), not those of voice 'ru'");
+
+  namespace fs = std::filesystem;
+  const fs::path dir = testing::make_temp_dir("lipsync-speak-notes-");
+  const auto spoken = testing::run_program(
+      {LIPSYNC_CLI_BINARY, "speak", "hello мир", "--voice", "ru", "--server", server_->address(), "-o", "t.json"}, dir,
+      dir);
+  EXPECT_EQ(spoken.status, 0) << spoken.err;
+  EXPECT_EQ(
+      spoken.err,
+      "lipsync: warning: espeak-ng read 'hello' by the rules of another language (en), not those of voice 'ru'\n");
+  fs::remove_all(dir);
 }
 
 TEST_F(SpeakTest, AFullServerRefusesWithResourceExhausted) {

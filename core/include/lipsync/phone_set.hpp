@@ -9,6 +9,7 @@
 #include <string>
 #include <string_view>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 namespace lipsync {
@@ -39,11 +40,26 @@ class PhoneSet {
   /// fallback_split, a label made of several of the table's labels (an
   /// affricate, a diphthong) is the phoneme of the first that is not a
   /// fallback_skip label (a glide or glottal onset), or of the first if all are.
+  /// A label that splits into several phones is unknown (several_phones()).
   std::optional<int> lookup(std::string_view label) const;
 
+  /// For a label lookup() does not know because it is several phones, those phones separated by
+  /// spaces ("q q z z"; the first eight of more); else nullopt. An interval holds one phone: a
+  /// split is one phone when, glides and glottal onsets (fallback_skip) aside, it is one piece,
+  /// holds a vowel (a diphthong `eu`; espeak-ng's r-coloured `ər`), is two consonants (an
+  /// affricate: `pɸ`, `tʃʲ`), or the label has a tie bar; three or more consonants without a tie
+  /// bar (`qqzz`) are several phones.
+  std::optional<std::string> several_phones(std::string_view label) const;
+
  private:
+  /// The fallback split of a key: each piece of the table and its phoneme; nullopt if a byte is
+  /// left over.
+  std::optional<std::vector<std::pair<std::string, int>>> split(const std::string& key) const;
+  /// Whether the pieces of a split, from a label with or without a tie bar, make one phone.
+  bool is_one_phone(const std::vector<std::pair<std::string, int>>& pieces, bool tied) const;
+  std::string fallback_key(const std::string& normalised) const;
   std::string normalise(std::string_view label) const;
-  std::optional<int> fallback_lookup(const std::string& normalised) const;
+  std::optional<int> fallback_lookup(const std::string& normalised, bool tied) const;
 
   std::string name_;
   std::string description_;
@@ -56,6 +72,7 @@ class PhoneSet {
   std::vector<std::string> fallback_ignored_;  // code points removed
   bool fallback_split_ = false;                // split into the table's labels
   std::vector<std::string> fallback_skip_;     // labels passed over when another follows
+  std::vector<bool> vowel_phoneme_;            // by model phoneme index: a vowel
   std::size_t longest_key_bytes_ = 0;
 };
 

@@ -246,6 +246,8 @@ Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view sour
   Alignment result;
   result.phones.source = source;
   result.phones.phone_set = phone_set_for_voice(voice);
+  // How espeak-ng read the transcript, when that needs saying (words read by another language's rules).
+  for (const std::string& note : synthesis.notes) result.notes.push_back("the transcript: " + note);
   if (input.sample_rate_hz != kFeatureRateHz) {
     result.notes.push_back("resampled from " + std::to_string(input.sample_rate_hz) + " Hz to " +
                            std::to_string(kFeatureRateHz) + " Hz for the alignment");

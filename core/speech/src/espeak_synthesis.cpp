@@ -6,6 +6,11 @@
 // audio exactly, on its own sample clock. Zero-length events (stress changes) are dropped. With
 // IPA names, a language switch ("(en)" inside a Greek text) becomes silence, and a lone length
 // mark or combining diacritic extends the phoneme before it instead of starting one.
+//
+// The text may be spoken in several runs (Mandarin characters and Latin words, espeak_readings.hpp),
+// one espeak_Synth call each; espeak-ng counts samples and text positions from each call's start,
+// so the collector adds the run's offsets. Its word events and the phonemes after each are judged
+// at the end (judge_reading): a nonsense reading is refused, a doubtful one noted.
 #include "espeak_synthesis.hpp"
 
 #include <espeak-ng/espeak_ng.h>
@@ -17,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "espeak_readings.hpp"
 #include "espeak_voices.hpp"
 #include "lipsync/error.hpp"
 
@@ -35,6 +41,9 @@ struct PhonemeStart {
 struct Collector {
   std::vector<std::int16_t> samples;
   std::vector<PhonemeStart> phonemes;
+  std::vector<SpokenWord> words;
+  std::int64_t run_first_sample = 0;    // samples of the runs before this one
+  std::size_t run_first_character = 0;  // code points of the text before this run
 };
 Collector* active_collector = nullptr;  // set during espeak_Synth
 
@@ -47,7 +56,13 @@ int collect(short* wav, int sample_count, espeak_EVENT* events) {
       // `sample` is the event's position in the output, in samples (espeak-ng's
       // MarkerEvent); `audio_position` is the same in whole milliseconds.
       const std::string name(event->id.string, strnlen(event->id.string, sizeof event->id.string));
-      collector->phonemes.push_back({name, event->sample});
+      collector->phonemes.push_back({name, collector->run_first_sample + event->sample});
+      if (!collector->words.empty()) collector->words.back().phonemes.push_back(name);
+    } else if (event->type == espeakEVENT_WORD) {
+      // text_position: 1-based, in characters of this run's text; length: in characters.
+      collector->words.push_back({collector->run_first_character + static_cast<std::size_t>(event->text_position),
+                                  static_cast<std::size_t>(event->length),
+                                  {}});
     }
   }
   return 0;  // continue synthesis
@@ -97,7 +112,7 @@ void select_voice(const std::string& voice_name) {
     found = espeak_SetVoiceByName((voice->identifier + variant).c_str()) == EE_OK;
   }
   if (!found) {
-    throw InputError(std::string(kEspeakSource), 0, "unknown voice '" + voice_name + "' (see 'espeak-ng --voices')");
+    throw InputError(std::string(kEspeakSource), 0, unknown_voice_text(voice_name));
   }
 }
 
@@ -139,24 +154,41 @@ LabeledUtterance phoneme_intervals(const Collector& collector, bool english) {
 Synthesis synthesize_with_espeak(std::string_view text, const SynthesisOptions& options) {
   const bool english = speaks_english(options.voice);
   initialise_once(!english);
-  select_voice(options.voice);
-  espeak_SetParameter(espeakRATE, options.words_per_minute, 0);
+  const Voice* voice = find_voice(options.voice);
+  // The cmn voice reads the pinyin of its own dictionary by English rules: characters go to its
+  // pinyin variant (espeak_readings.hpp).
+  const Voice* pinyin = voice != nullptr && voice->identifier == "sit/cmn" ? find_voice("cmn-latn-pinyin") : nullptr;
+  const std::string prepared = prepare_text(text);
+  const std::size_t plus = options.voice.find('+');
+  const std::string variant = plus == std::string::npos ? "" : options.voice.substr(plus);
+  const std::vector<TextRun> runs =
+      split_runs(prepared, options.voice, pinyin != nullptr ? pinyin->identifier + variant : std::string());
 
   Collector collector;
-  const std::string text_z(text);  // espeak_Synth reads up to a terminating zero
-  active_collector = &collector;
-  const espeak_ERROR status =
-      espeak_Synth(text_z.c_str(), text_z.size() + 1, 0, POS_CHARACTER, 0, espeakCHARS_UTF8, nullptr, nullptr);
-  espeak_Synchronize();
-  active_collector = nullptr;
-  if (status != EE_OK) {
-    throw InputError(std::string(kEspeakSource), 0, "synthesis failed (espeak error " + std::to_string(status) + ")");
+  for (const TextRun& run : runs) {
+    select_voice(run.voice);
+    espeak_SetParameter(espeakRATE, options.words_per_minute, 0);
+    collector.run_first_sample = static_cast<std::int64_t>(collector.samples.size());
+    collector.run_first_character = run.first_character;
+    const std::string text_z(run.text);  // espeak_Synth reads up to a terminating zero
+    active_collector = &collector;
+    const espeak_ERROR status =
+        espeak_Synth(text_z.c_str(), text_z.size() + 1, 0, POS_CHARACTER, 0, espeakCHARS_UTF8, nullptr, nullptr);
+    espeak_Synchronize();
+    active_collector = nullptr;
+    if (status != EE_OK) {
+      throw InputError(std::string(kEspeakSource), 0, "synthesis failed (espeak error " + std::to_string(status) + ")");
+    }
   }
+  const std::string language = voice != nullptr && !voice->languages.empty() ? voice->languages.front() : "";
+  ReadingVerdict verdict = judge_reading(prepared, collector.words, options.voice, language);
+  if (!verdict.refusal.empty()) throw InputError(std::string(kEspeakSource), 0, verdict.refusal);
 
   Synthesis result;
   result.phonemes = phoneme_intervals(collector, english);
   result.audio.sample_rate_hz = espeak_rate_hz;
   result.audio.samples = std::move(collector.samples);
+  result.notes = std::move(verdict.notes);
   return result;
 }
 

@@ -16,9 +16,20 @@
 #include <algorithm>
 #include <cstring>
 #include <mutex>
+#include <optional>
 #include <string>
+#include <utility>
 
 namespace lipsync::speech {
+
+std::string voice_option_name(const Voice& voice) {
+  std::string identifier = voice.identifier.substr(voice.identifier.rfind('/') + 1);
+  for (char& c : identifier) {
+    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
+  }
+  return identifier;
+}
+
 namespace detail {
 namespace {
 
@@ -72,6 +83,81 @@ const Voice* find_voice(std::string_view name) {
   return nullptr;
 }
 
+namespace {
+
+/// Levenshtein distance of two short ASCII-lowered strings.
+std::size_t edit_distance(std::string_view a, std::string_view b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diagonal = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t above = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = above;
+    }
+  }
+  return row[b.size()];
+}
+
+/// How close voice `voice` is to the lowered name `wanted`: 0 is a name that starts with it or a
+/// word of the name that is it ("french" → "French (France)"), 1 a language or file that starts with
+/// it ("fr" → "fr-be"), 2 + the edit distance for a typo (at most 2); nullopt: not close.
+std::optional<std::size_t> closeness(const Voice& voice, const std::string& wanted) {
+  if (wanted.empty()) return std::nullopt;
+  const std::string name = lower_ascii(voice.name);
+  std::string words = name;
+  for (char& c : words) {
+    if (c == '(' || c == ')' || c == ',' || c == '_') c = ' ';
+  }
+  if (name.starts_with(wanted) || (" " + words + " ").find(" " + wanted + " ") != std::string::npos) return 0;
+  std::vector<std::string> codes = {voice_option_name(voice)};
+  for (const std::string& language : voice.languages) codes.push_back(lower_ascii(language));
+  for (const std::string& code : codes) {
+    if (code.starts_with(wanted) || wanted.starts_with(code + "-") || wanted.starts_with(code + "_")) return 1;
+  }
+  std::size_t best = edit_distance(wanted, name);
+  for (const std::string& code : codes) best = std::min(best, edit_distance(wanted, code));
+  for (std::size_t start = 0; start < words.size();) {  // each word of the name ("frnch" → "french")
+    const std::size_t end = std::min(words.find(' ', start), words.size());
+    if (end > start) best = std::min(best, edit_distance(wanted, words.substr(start, end - start)));
+    start = end + 1;
+  }
+  if (best <= 2 && best < wanted.size()) return 2 + best;
+  return std::nullopt;
+}
+
+}  // namespace
+
+std::vector<const Voice*> close_voices(std::string_view name, std::size_t limit) {
+  const std::string wanted = lower_ascii(name.substr(0, name.find('+')));
+  std::vector<std::pair<std::size_t, const Voice*>> scored;
+  for (const Voice& voice : voice_list()) {
+    if (const auto score = closeness(voice, wanted)) scored.emplace_back(*score, &voice);
+  }
+  // Closest first; among equals the shorter name first ("fr" before "fr-be").
+  std::stable_sort(scored.begin(), scored.end(), [](const auto& a, const auto& b) {
+    return a.first != b.first ? a.first < b.first
+                              : voice_option_name(*a.second).size() < voice_option_name(*b.second).size();
+  });
+  std::vector<const Voice*> out;
+  for (std::size_t i = 0; i < scored.size() && i < limit; ++i) out.push_back(scored[i].second);
+  return out;
+}
+
+std::string unknown_voice_text(std::string_view name) {
+  std::string text = "unknown voice '" + std::string(name) + "'";
+  const std::vector<const Voice*> close = close_voices(name, 6);
+  if (!close.empty()) {
+    text += "; close matches:";
+    for (std::size_t i = 0; i < close.size(); ++i) {
+      text += (i == 0 ? " " : ", ") + voice_option_name(*close[i]) + " (" + close[i]->name + ")";
+    }
+  }
+  return text + "; 'lipsync voices' lists every voice and the name --voice takes";
+}
+
 bool speaks_english(std::string_view voice_name) {
   const Voice* voice = find_voice(voice_name);
   if (voice == nullptr || voice->languages.empty()) return false;
@@ -93,6 +179,12 @@ std::vector<Voice> list_voices() {
 std::string phone_set_for_voice(std::string_view voice) {
   const std::lock_guard lock(voice_list_mutex);
   return detail::speaks_english(voice) ? "espeak" : "ipa";
+}
+
+std::optional<std::string> unknown_voice_error(std::string_view voice) {
+  const std::lock_guard lock(voice_list_mutex);
+  if (detail::find_voice(voice) != nullptr) return std::nullopt;
+  return detail::unknown_voice_text(voice);
 }
 
 }  // namespace lipsync::speech

@@ -14,7 +14,7 @@
 // still come in order.
 //
 // Only the tier named in the options is converted. Its intervals keep their
-// labels trimmed ("" is silence) and the line of their start time.
+// labels trimmed ("" is silence) and the line of their text (the label an error names).
 #include <limits>
 #include <string>
 #include <vector>
@@ -294,7 +294,8 @@ class TextGridReader {
     if (static_cast<int>(tier_index) != selected_) return;
     const std::int64_t start_us = seconds_field_to_us(xmin.value, "xmin of " + which, source_, xmin.line);
     const std::int64_t end_us = seconds_field_to_us(xmax.value, "xmax of " + which, source_, xmax.line);
-    intervals_.push_back({std::string(trim(text.value)), start_us, end_us, xmin.line});
+    // The line of the label (`text = "..."`), which an error about it names.
+    intervals_.push_back({std::string(trim(text.value)), start_us, end_us, text.line});
   }
 
   void read_point(const std::string& which) {

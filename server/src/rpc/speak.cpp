@@ -5,7 +5,9 @@
 // runs on the speech thread (speech_thread.hpp), one call at a time, because
 // espeak-ng is a process-wide, non-re-entrant synthesiser:
 //   1. lipsync::speech::synthesize speaks the text and reports the phonemes it
-//      spoke, timed on the audio's own samples (the espeak phone set);
+//      spoke, timed on the audio's own samples (the espeak phone set), and notes on
+//      its reading (words read in another language...), which the summary carries;
+//      a reading that would be nonsense is refused (INVALID_ARGUMENT naming `text`);
 //   2. lipsync::speech::cover_audio appends the silence that takes the track to
 //      a frame at or after the audio's end, as `lipsync say` does;
 //   3. the phonemes go one at a time through the same PhonemeInput and
@@ -80,6 +82,9 @@ grpc::Status synthesis_options(const v1::SpeakRequest& request, speech::Synthesi
     return invalid("voice: the name is longer than " + std::to_string(kMaxVoiceBytes) + " bytes");
   }
   if (!request.voice().empty()) options.voice = request.voice();
+  if (const std::optional<std::string> unknown = speech::unknown_voice_error(options.voice)) {
+    return invalid("voice: " + *unknown);  // names the closest voices
+  }
   const std::uint32_t rate = request.words_per_minute();
   const IntSetting& setting = speech::kWordsPerMinuteSetting;
   if (rate != 0 && (rate < setting.min || rate > setting.max)) {
@@ -317,6 +322,8 @@ class SpeakReactor final : public HandoffReactor<grpc::ServerWriteReactor<v1::Sp
 
     v1::SpeakSummary& speak_summary = *responses_.emplace_back().mutable_summary();
     encode_summary(frames_sent_, input.count(), input.end_us(), *speak_summary.mutable_track());
+    // How espeak-ng read the text, when that needs saying (words read by another language's rules...).
+    for (const std::string& note : speech.notes) speak_summary.mutable_track()->add_notes(note);
     if (session_) {
       v1::TrackMessage summary;
       *summary.mutable_summary() = speak_summary.track();

@@ -18,6 +18,7 @@
 // threads are safe but run one at a time.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -33,16 +34,19 @@ namespace lipsync::speech {
 inline constexpr IntSetting kWordsPerMinuteSetting = {80, 450, 175};
 
 struct SynthesisOptions {
-  std::string voice = "en-us";  ///< an espeak-ng voice name ("espeak-ng --voices" lists them)
+  std::string voice = "en-us";  ///< an espeak-ng voice: list_voices(), `lipsync voices`
   int words_per_minute = static_cast<int>(kWordsPerMinuteSetting.default_value);  ///< kWordsPerMinuteSetting
 };
 
 struct Synthesis {
   PcmAudio audio;             ///< mono 16-bit at espeak-ng's rate (22 050 Hz)
   LabeledUtterance phonemes;  ///< phone_set_for_voice(voice); covers [0, audio end] without gaps
+  /// What the user should know about espeak-ng's reading, one sentence each, naming the words:
+  /// words read by another language's rules, spelled out letter by letter, or (Hebrew) without vowels.
+  std::vector<std::string> notes;
 };
 
-/// One voice file of espeak-ng-data, as `espeak-ng --voices` lists it.
+/// One voice file of espeak-ng-data (`lipsync voices` lists them).
 struct Voice {
   std::string name;                    ///< e.g. "German"
   std::string identifier;              ///< the file, e.g. "gmw/de"; a valid SynthesisOptions::voice
@@ -52,12 +56,23 @@ struct Voice {
 /// Every voice espeak-ng has (read from its data, without initialising it: safe in any process).
 std::vector<Voice> list_voices();
 
+/// The name `--voice` (SynthesisOptions::voice) takes for `voice`: its file name, lowered ("fr").
+std::string voice_option_name(const Voice& voice);
+
+/// Why espeak-ng knows no voice `voice` (by name, file or language, a variant after '+' aside),
+/// naming the closest voices ("unknown voice 'Frnch'; close matches: fr (French (France)), ..."),
+/// or nullopt for a voice it knows.
+std::optional<std::string> unknown_voice_error(std::string_view voice);
+
 /// The phone set of the phonemes synthesize() reports for `voice`: "espeak" (mnemonics) for an
 /// English voice, "ipa" for every other (and for a name espeak-ng does not know).
 std::string phone_set_for_voice(std::string_view voice);
 
-/// Speaks `text` (UTF-8) in a fresh espeak-ng (a process of its own). Throws InputError
-/// (source "espeak-ng") for an empty text, an unknown voice or a failed synthesis;
+/// Speaks `text` (UTF-8) in a fresh espeak-ng (a process of its own). Mandarin characters in the
+/// cmn voice are read as Mandarin (its pinyin variant), U+02BC between letters as an apostrophe.
+/// Throws InputError (source "espeak-ng") for an empty text, an unknown voice (naming close
+/// matches), a text espeak-ng would read as nonsense (the names of characters it cannot read,
+/// naming the words) or a failed synthesis;
 /// std::runtime_error when the process cannot be started, dies, or has not answered
 /// after 30 s plus 10 ms per byte of text (it is then killed).
 Synthesis synthesize(std::string_view text, const SynthesisOptions& options = {});
