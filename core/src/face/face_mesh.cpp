@@ -1,6 +1,7 @@
 // Builds the simulated face from the canonical mesh; see face_mesh.hpp for the layout and
 // docs/face.md for the anatomy and its figures. build_face_mesh() runs one step per helper, in
-// this order: open the mouth (open_mouth, order_lip_loop), close it off behind the lips with the
+// this order: open the mouth (open_mouth, order_lip_loop), bring the lips together for the rest
+// pose (close_lips_at_rest: the asset's lips are 5.5 mm apart), close it off behind the lips with the
 // inner-lip and cavity rings (add_mouth_cavity), subdivide with the lip lines refined as polylines
 // (subdivide_soft_nodes), weight the soft nodes between skull and jaw (assign_jaw_weights), then
 // add the rigid parts: the teeth arches, with the inner lips pushed outside them (add_teeth), and
@@ -117,14 +118,17 @@ struct SoftNodes {
   std::vector<std::array<double, 2>> uv;
   std::vector<double> depth;  // rings behind the lip line (FaceMesh::ring_depth)
   std::vector<double> side;   // +1 upper lip, −1 lower lip, 0 elsewhere; blended at midpoints
+  // How far close_lips_at_rest moved the node (metres; the asset's position is pos − shift).
+  std::vector<Vec3> shift;
   std::vector<std::array<std::uint32_t, 3>> tris;
 
-  std::uint32_t add(Vec3 p, std::array<double, 2> t, double d, double s) {
+  std::uint32_t add(Vec3 p, std::array<double, 2> t, double d, double s, Vec3 moved = {}) {
     const auto id = static_cast<std::uint32_t>(pos.size());
     pos.push_back(p);
     uv.push_back(t);
     depth.push_back(d);
     side.push_back(s);
+    shift.push_back(moved);
     return id;
   }
 };
@@ -137,6 +141,7 @@ SoftNodes open_mouth(const FaceAsset& asset) {
   for (const auto& p : asset.positions_cm) nodes.pos.push_back(kMetresPerCentimetre * p);
   nodes.depth.assign(nodes.pos.size(), 0.0);
   nodes.side.assign(nodes.pos.size(), 0.0);
+  nodes.shift.assign(nodes.pos.size(), Vec3{});
   std::vector<bool> on_loop(nodes.pos.size(), false);
   for (const auto id : kInnerLipLoop) on_loop.at(id) = true;
   for (const auto& t : asset.triangles)
@@ -173,6 +178,71 @@ LipLoop order_lip_loop(SoftNodes& nodes) {
   return loop;
 }
 
+// Brings the lips together for the rest pose. The asset rests with the lips 5.5 mm apart (13→14)
+// and the upper incisors showing; a face at rest has them together. At each x between the
+// corners the upper and lower lip lines (the loop, linear between its vertices) are d(x) apart in
+// height and depth; each lip moves half of d toward the other in both, less half of `rest_gap_m`
+// in height, and the skin above (below) the line follows with a weight falling from 1 within 4 mm
+// of the line to 0 at 18 mm (the vermilion moves whole; the skin toward the nose and the chin takes
+// up the difference). x does not change and the mouth centre, the teeth and the jaw's geometry are
+// the asset's. Springs take their rest lengths from this pose: it is the stress-free shape.
+void close_lips_at_rest(SoftNodes& nodes, const LipLoop& loop, double rest_gap_m) {
+  std::vector<Vec3> upper, lower;  // lip lines through both corners, by increasing x
+  for (std::size_t k = 0; k < kLoopSize; ++k) {
+    const Vec3 p = nodes.pos[loop.ids[k]];
+    if (loop.side[k] >= 0.0) upper.push_back(p);
+    if (loop.side[k] <= 0.0) lower.push_back(p);
+  }
+  auto by_x = [](Vec3 a, Vec3 b) { return a.x < b.x; };
+  std::sort(upper.begin(), upper.end(), by_x);
+  std::sort(lower.begin(), lower.end(), by_x);
+  auto at_x = [](const std::vector<Vec3>& line, double x) {
+    for (std::size_t k = 1; k < line.size(); ++k)
+      if (x <= line[k].x) {
+        const double t = (x - line[k - 1].x) / (line[k].x - line[k - 1].x);
+        return (1.0 - t) * line[k - 1] + t * line[k];
+      }
+    return line.back();
+  };
+  const double x_min = std::max(upper.front().x, lower.front().x), x_max = std::min(upper.back().x, lower.back().x);
+  std::vector<int> on_loop(nodes.pos.size(), 0);  // +1 upper, −1 lower, 2 corner
+  for (std::size_t k = 0; k < kLoopSize; ++k)
+    on_loop[loop.ids[k]] = loop.side[k] > 0.0 ? 1 : loop.side[k] < 0.0 ? -1 : 2;
+  for (std::size_t i = 0; i < nodes.pos.size(); ++i) {
+    Vec3& p = nodes.pos[i];
+    if (p.x <= x_min || p.x >= x_max || on_loop[i] == 2) continue;
+    const Vec3 u = at_x(upper, p.x), l = at_x(lower, p.x);
+    const double dy = u.y - l.y;
+    if (dy <= rest_gap_m) continue;
+    const Vec3 half_down{0.0, -0.5 * (dy - rest_gap_m), -0.5 * (u.z - l.z)};  // moves the upper lip
+    double weight = 0.0;  // +1 moves like the upper lip, −1 like the lower
+    if (on_loop[i] != 0)
+      weight = on_loop[i];
+    else if (p.y >= u.y)
+      weight = 1.0 - smoothstep(0.004, 0.018, p.y - u.y);
+    else if (p.y <= l.y)
+      weight = -(1.0 - smoothstep(0.004, 0.018, l.y - p.y));
+    nodes.shift[i] = weight * half_down;
+    p = p + nodes.shift[i];
+  }
+}
+
+// The closed lips' facing nodes (upper[k] ↔ lower[k], FaceMesh::upper_lip_line) put at their mean,
+// `rest_gap_m` apart in height: after close_lips_at_rest the two lines still differ where a pair's
+// x differ (up to 0.75 mm, on a line that curves back 10 mm toward the corners), enough to leave a
+// slit that shows the teeth as a line of light in the preview. Pairs still apart stay as they are.
+void seal_lip_pairs(SoftNodes& nodes, const std::vector<std::uint32_t>& upper, const std::vector<std::uint32_t>& lower,
+                    double rest_gap_m) {
+  for (std::size_t k = 0; k < upper.size(); ++k) {
+    Vec3& u = nodes.pos[upper[k]];
+    Vec3& l = nodes.pos[lower[k]];
+    if (u.y - l.y > rest_gap_m + 0.0005) continue;
+    const Vec3 mean = 0.5 * (u + l);
+    u = mean + Vec3{0.0, 0.5 * rest_gap_m, 0.0};
+    l = mean + Vec3{0.0, -0.5 * rest_gap_m, 0.0};
+  }
+}
+
 // Rings behind the lip line: inner lip (1, 2) and cavity (3, 4), then a fan to one vertex at the
 // back. Returns the rings, the lip loop first.
 std::vector<LoopRing> add_mouth_cavity(SoftNodes& nodes, const LipLoop& loop, Vec3 centre) {
@@ -191,7 +261,10 @@ std::vector<LoopRing> add_mouth_cavity(SoftNodes& nodes, const LipLoop& loop, Ve
     const RingShape& shape = kRings[r];
     LoopRing ring{};
     for (std::size_t k = 0; k < kLoopSize; ++k) {
-      const Vec3 p = nodes.pos[loop.ids[k]];
+      // The mucosa just behind the lip line closes with the lips; the sulcus and the cavity keep
+      // the asset's heights (a sulcus at the closed lips' height lay on the lower incisal edge).
+      Vec3 p = nodes.pos[loop.ids[k]];
+      if (r > 0) p = p + -1.0 * nodes.shift[loop.ids[k]];
       const double s = shape.smooth_side ? loop.smooth_side[k] : loop.side[k];
       Vec3 q{centre.x + shape.x_scale * (p.x - centre.x), p.y + s * shape.vertical_m,
              (shape.from_centre_z ? centre.z : p.z) - shape.back_m};
@@ -248,7 +321,8 @@ void subdivide_soft_nodes(SoftNodes& nodes, LipLines& lines, int levels) {
       const auto& pos = nodes.pos;
       const auto& uv = nodes.uv;
       nodes.add(0.5 * (pos[a] + pos[b]), {0.5 * (uv[a][0] + uv[b][0]), 0.5 * (uv[a][1] + uv[b][1])},
-                0.5 * (nodes.depth[a] + nodes.depth[b]), 0.5 * (nodes.side[a] + nodes.side[b]));
+                0.5 * (nodes.depth[a] + nodes.depth[b]), 0.5 * (nodes.side[a] + nodes.side[b]),
+                0.5 * (nodes.shift[a] + nodes.shift[b]));
     }
     for (auto* line : {&lines.upper0, &lines.lower0, &lines.upper1, &lines.lower1}) {
       std::vector<std::uint32_t> refined{line->front()};
@@ -272,7 +346,7 @@ void assign_jaw_weights(FaceMesh& mesh, const SoftNodes& nodes, const LipLines& 
   const double slope = (centre.y - hinge.y) / (centre.z - hinge.z);
   mesh.jaw_weights.resize(nodes.pos.size());
   for (std::size_t i = 0; i < nodes.pos.size(); ++i) {
-    const Vec3 p = nodes.pos[i];
+    const Vec3 p = nodes.pos[i] + -1.0 * nodes.shift[i];  // the asset's position
     if (nodes.depth[i] > 0.0) {
       mesh.jaw_weights[i] = std::clamp(0.5 - 0.5 * nodes.side[i], 0.0, 1.0);
       continue;
@@ -398,6 +472,7 @@ FaceMesh build_face_mesh(const FaceAsset& asset, int subdivision_level, const Fa
   const Vec3 centre = 0.5 * (nodes.pos[13] + nodes.pos[14]);
   mesh.mouth_centre_m = centre;
   const double teeth_front_z = nodes.pos[13].z - anatomy.upper_teeth_depth_m;
+  close_lips_at_rest(nodes, loop, anatomy.rest_lip_gap_m);
   const std::vector<LoopRing> rings = add_mouth_cavity(nodes, loop, centre);
 
   LipLines lines{lip_line(nodes, rings[0], 1.0), lip_line(nodes, rings[0], -1.0), lip_line(nodes, rings[1], 1.0),
@@ -411,6 +486,7 @@ FaceMesh build_face_mesh(const FaceAsset& asset, int subdivision_level, const Fa
   mesh.lower_lip_line = interior(lines.lower0);
   mesh.upper_inner_ring = interior(lines.upper1);
   mesh.lower_inner_ring = interior(lines.lower1);
+  seal_lip_pairs(nodes, mesh.upper_lip_line, mesh.lower_lip_line, anatomy.rest_lip_gap_m);
 
   mesh.soft_node_count = static_cast<std::uint32_t>(nodes.pos.size());
   assign_jaw_weights(mesh, nodes, lines);

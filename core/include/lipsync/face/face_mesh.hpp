@@ -62,6 +62,9 @@ struct FaceAnatomy {
   Vec3 tongue_semi_axes_m{0.021, 0.008, 0.028};
   double tongue_tip_behind_teeth_m = 0.006;
   double tongue_below_centre_m = 0.011;
+  /// Gap left between the lips at rest over the middle of the mouth: the asset's lips (5.5 mm
+  /// apart) are brought together to it, and the skin around them follows (docs/face.md).
+  double rest_lip_gap_m = 0.0;
 };
 
 struct FaceMesh {
@@ -91,7 +94,7 @@ struct FaceMesh {
   std::array<std::uint32_t, 2> mouth_corners{};  ///< right (78), left (308)
 
   FaceAnatomy anatomy;
-  Vec3 mouth_centre_m;  ///< mean of landmarks 13 and 14 at rest
+  Vec3 mouth_centre_m;  ///< mean of landmarks 13 and 14 in the asset (the lips close on it at rest)
   /// Upper-teeth arch, skull frame: ellipse centre (x, z), semi-axes, and y range.
   double upper_arch_centre_z_m = 0, lower_arch_centre_z_m = 0;
   double upper_arch_a_m = 0, upper_arch_b_m = 0, lower_arch_a_m = 0, lower_arch_b_m = 0;
