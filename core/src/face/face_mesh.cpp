@@ -23,6 +23,11 @@
 
 namespace lipsync::face {
 
+const std::array<std::array<std::uint32_t, 16>, 2> kEyeContours = {{
+    {33, 246, 161, 160, 159, 158, 157, 173, 133, 155, 154, 153, 145, 144, 163, 7},
+    {263, 466, 388, 387, 386, 385, 384, 398, 362, 382, 381, 380, 374, 373, 390, 249},
+}};
+
 const std::array<std::uint32_t, 20> kInnerLipLoop = {78,  191, 80,  81,  82,  13, 312, 311, 310, 415,
                                                      308, 324, 318, 402, 317, 14, 87,  178, 88,  95};
 
@@ -133,8 +138,8 @@ struct SoftNodes {
   }
 };
 
-// The asset in metres with the mouth opened: every triangle whose three vertices lie on the
-// inner-lip loop is dropped.
+// The asset in metres with the mouth and the eyes opened: every triangle whose three vertices lie
+// on the inner-lip loop, or on one eye's contour, is dropped.
 SoftNodes open_mouth(const FaceAsset& asset) {
   SoftNodes nodes;
   nodes.uv = asset.uvs;
@@ -144,8 +149,14 @@ SoftNodes open_mouth(const FaceAsset& asset) {
   nodes.shift.assign(nodes.pos.size(), Vec3{});
   std::vector<bool> on_loop(nodes.pos.size(), false);
   for (const auto id : kInnerLipLoop) on_loop.at(id) = true;
-  for (const auto& t : asset.triangles)
-    if (!(on_loop[t[0]] && on_loop[t[1]] && on_loop[t[2]])) nodes.tris.push_back(t);
+  std::vector<int> on_eye(nodes.pos.size(), -1);
+  for (int eye = 0; eye < 2; ++eye)
+    for (const auto id : kEyeContours[static_cast<std::size_t>(eye)]) on_eye.at(id) = eye;
+  for (const auto& t : asset.triangles) {
+    const bool mouth_fill = on_loop[t[0]] && on_loop[t[1]] && on_loop[t[2]];
+    const bool eye_fill = on_eye[t[0]] >= 0 && on_eye[t[0]] == on_eye[t[1]] && on_eye[t[0]] == on_eye[t[2]];
+    if (!mouth_fill && !eye_fill) nodes.tris.push_back(t);
+  }
   return nodes;
 }
 
@@ -361,6 +372,112 @@ void assign_jaw_weights(FaceMesh& mesh, const SoftNodes& nodes, const LipLines& 
   mesh.jaw_weights[mesh.mouth_corners[0]] = mesh.jaw_weights[mesh.mouth_corners[1]] = 0.5;
 }
 
+// An eye contour as two polylines by increasing x: the upper lid and the lower lid, both corners in each.
+struct EyeLids {
+  std::vector<Vec3> upper, lower;
+};
+
+EyeLids eye_lids(const std::vector<Vec3>& pos, const std::array<std::uint32_t, 16>& contour) {
+  EyeLids lids;
+  for (std::size_t k = 0; k <= 8; ++k) lids.upper.push_back(pos[contour[k]]);
+  for (std::size_t k = 8; k <= 16; ++k) lids.lower.push_back(pos[contour[k % 16]]);
+  auto by_x = [](Vec3 a, Vec3 b) { return a.x < b.x; };
+  std::sort(lids.upper.begin(), lids.upper.end(), by_x);
+  std::sort(lids.lower.begin(), lids.lower.end(), by_x);
+  return lids;
+}
+
+double height_at(const std::vector<Vec3>& line, double x) {
+  for (std::size_t k = 1; k < line.size(); ++k)
+    if (x <= line[k].x) {
+      const double t = (x - line[k - 1].x) / (line[k].x - line[k - 1].x);
+      return line[k - 1].y + t * (line[k].y - line[k - 1].y);
+    }
+  return line.back().y;
+}
+
+// Eyeballs: an ellipsoid per eye behind its opening, as three rigid parts with their own vertices
+// (so the colours' edges are sharp): a pupil cap within 0.16 rad of the front, the iris out to
+// 0.5 rad (a 5.8 mm radius on a 12 mm ball), the white to a little past the equator.
+void add_eyes(FaceMesh& mesh) {
+  constexpr int kSectors = 16;
+  struct Band {
+    double from_rad, to_rad;
+    int rings;
+    FacePart part;
+  };
+  constexpr std::array<Band, 3> kBands = {
+      {{0.0, 0.16, 1, FacePart::pupil}, {0.16, 0.50, 2, FacePart::iris}, {0.50, 1.75, 4, FacePart::eye_white}}};
+  mesh.eyes_begin = static_cast<std::uint32_t>(mesh.rest_positions_m.size());
+  const FaceAnatomy& anatomy = mesh.anatomy;
+  for (std::size_t eye = 0; eye < 2; ++eye) {
+    const auto& contour = kEyeContours[eye];
+    const EyeLids lids = eye_lids(mesh.rest_positions_m, contour);
+    Vec3 centre{0.5 * (lids.upper.front().x + lids.upper.back().x), 0.0, 0.0};
+    for (const auto id : contour) centre.y += mesh.rest_positions_m[id].y / 16.0;
+    const Vec3 top = mesh.rest_positions_m[contour[4]], bottom = mesh.rest_positions_m[contour[12]];
+    const double front_z = 0.5 * (top.z + bottom.z) - anatomy.eyeball_behind_lids_m;
+    const Vec3 axes{0.5 * (lids.upper.back().x - lids.upper.front().x) + 0.001, anatomy.eyeball_radius_m,
+                    anatomy.eyeball_radius_m};
+    centre.z = front_z - axes.z;
+    mesh.eyeballs[eye] = {centre, axes};
+    auto point = [&](double polar, double azimuth) {
+      return Vec3{centre.x + axes.x * std::sin(polar) * std::cos(azimuth),
+                  centre.y + axes.y * std::sin(polar) * std::sin(azimuth), centre.z + axes.z * std::cos(polar)};
+    };
+    for (const Band& band : kBands) {
+      const auto base = static_cast<std::uint32_t>(mesh.rest_positions_m.size());
+      auto push = [&](Vec3 p) {
+        mesh.rest_positions_m.push_back(p);
+        mesh.uvs.push_back({0.0F, 0.0F});
+        mesh.parts.push_back(band.part);
+      };
+      // Rings r = 0 … rings at polar angles from → to (a pole instead of ring 0 when from = 0).
+      const bool pole = band.from_rad == 0.0;
+      if (pole) push(point(0.0, 0.0));
+      for (int r = pole ? 1 : 0; r <= band.rings; ++r)
+        for (int j = 0; j < kSectors; ++j)
+          push(point(band.from_rad + (band.to_rad - band.from_rad) * r / band.rings,
+                     2.0 * std::numbers::pi * j / kSectors));
+      auto ring = [&](int r, int j) {
+        const int first = pole ? 1 : 0;
+        return base + (pole ? 1U : 0U) + static_cast<std::uint32_t>((r - first) * kSectors + (j % kSectors));
+      };
+      for (int j = 0; j < kSectors; ++j) {
+        // Counter-clockwise seen from the front (+z), outside the ball.
+        if (pole) mesh.triangles.push_back({base, ring(1, j), ring(1, j + 1)});
+        for (int r = pole ? 1 : 0; r < band.rings; ++r) {
+          mesh.triangles.push_back({ring(r, j), ring(r + 1, j), ring(r + 1, j + 1)});
+          mesh.triangles.push_back({ring(r, j), ring(r + 1, j + 1), ring(r, j + 1)});
+        }
+      }
+    }
+  }
+}
+
+// Blinks: the upper lid's nodes and the skin above them (weight 1 at the lid margin, 0 at 6 mm
+// above it) move down by the opening between the lids at their x and 0.3 mm more, so the shut
+// upper lid overlaps the lower one (lids that just met left a line of white in the preview).
+void add_blink(FaceMesh& mesh) {
+  for (std::size_t eye = 0; eye < 2; ++eye) {
+    const EyeLids lids = eye_lids(mesh.rest_positions_m, kEyeContours[eye]);
+    const double x_min = lids.upper.front().x, x_max = lids.upper.back().x;
+    for (std::uint32_t i = 0; i < mesh.soft_node_count; ++i) {
+      if (mesh.ring_depth[i] != 0.0) continue;
+      const Vec3 p = mesh.rest_positions_m[i];
+      if (p.x <= x_min || p.x >= x_max) continue;
+      const double y_upper = height_at(lids.upper, p.x), y_lower = height_at(lids.lower, p.x);
+      const double above = p.y - y_upper;
+      if (above < -1e-9 || above > 0.006) continue;
+      const double weight = 1.0 - smoothstep(0.0, 0.006, above);
+      const double drop = std::max(y_upper - y_lower, 0.0) + 0.0003;
+      mesh.blink_nodes.push_back(i);
+      mesh.blink_offsets_m.push_back({0.0, -weight * drop, 0.0});
+      mesh.blink_eye.push_back(static_cast<std::uint8_t>(eye));
+    }
+  }
+}
+
 // The soft nodes become the mesh's first vertices, each with its part by ring depth.
 void store_soft_nodes(FaceMesh& mesh, SoftNodes&& nodes) {
   mesh.rest_positions_m = std::move(nodes.pos);
@@ -498,6 +615,8 @@ FaceMesh build_face_mesh(const FaceAsset& asset, int subdivision_level, const Fa
                           teeth_front_z - anatomy.tongue_tip_behind_teeth_m - r.z};
   mesh.tongue_root_m = {centre.x, mesh.tongue_centre_m.y - r.y, mesh.tongue_centre_m.z - r.z};
   add_tongue(mesh);
+  add_eyes(mesh);
+  add_blink(mesh);
   return mesh;
 }
 

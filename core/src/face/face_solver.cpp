@@ -716,12 +716,13 @@ struct FaceSolver::Impl {
       const V3 p = jaw.apply(mesh.rest_positions_m[i]);
       output[i] = {p.x, p.y, p.z};
     }
-    for (std::size_t i = mesh.tongue_begin; i < mesh.vertex_count(); ++i) {
+    for (std::size_t i = mesh.tongue_begin; i < mesh.eyes_begin; ++i) {
       V3 p = tongue.apply(mesh.rest_positions_m[i]);
       p.z += tongue_protrusion_m;
       p = jaw.apply(p);
       output[i] = {p.x, p.y, p.z};
     }
+    for (std::size_t i = mesh.eyes_begin; i < mesh.vertex_count(); ++i) output[i] = mesh.rest_positions_m[i];
   }
 
   double energy() const {
