@@ -258,8 +258,9 @@ function restClosure(rest, parts) {
   const cornerX = Math.abs(rest[3 * kOuterLip[0]]);
   const smooth = (t) => { const c = Math.max(0, Math.min(1, t)); return c * c * (3 - 2 * c); };
   const closure = new Float32Array(rest.length);
+  if (!(half > 0)) return { vector: closure, gapM: 0 };  // the physics face rests closed (issue 41)
   for (let v = 0; v < rest.length / 3; ++v) {
-    if (parts[v] > 1) continue;  // cavity, teeth and tongue stay
+    if (parts[v] > 1) continue;  // cavity, teeth, tongue and eyes stay
     const dy = rest[3 * v + 1] - lineY;
     const across = smooth((1.3 * cornerX - Math.abs(rest[3 * v])) / (0.5 * cornerX));
     const along = smooth((3 * kRestClosureLipHeightM - Math.abs(dy)) / (2 * kRestClosureLipHeightM));
