@@ -63,6 +63,7 @@ constexpr OptionSpec kOptions[] = {
      "a WAV INPUT, else none"},
     kStillOption,
     kStillAtOption,
+    kNoBlinksOption,
     kTextOption,
     kTextFileOption,
     kRecordingVoiceOption,
@@ -248,6 +249,7 @@ OutputRequest parse_output_request(const Arguments& arguments) {
   out.audio_path = arguments.value("audio");
   out.still_path = arguments.value("still");
   out.subdivision = plan.mesh_subdivision;
+  out.blinks = !arguments.flag("no-blinks");
   if (const auto text = arguments.value("still-at")) {
     out.still_at_s = parse_double_option("still-at", *text);
     if (!(out.still_at_s >= 0.0 && std::isfinite(out.still_at_s)))
@@ -266,6 +268,7 @@ OutputRequest parse_output_request(const Arguments& arguments) {
 #endif
   if (!face_outputs && arguments.value("mesh-subdivision"))
     throw UsageError("--mesh-subdivision needs --mesh, --video or --still");
+  if (!face_outputs && !out.blinks) throw UsageError("--no-blinks needs --mesh, --video or --still");
   const std::pair<const char*, std::optional<std::string>> face_files[] = {
       {"mesh", out.mesh_path}, {"video", out.video_path}, {"still", out.still_path}};
   for (const auto& [option, path] : face_files) {
@@ -321,7 +324,8 @@ void render_outputs(const OutputRequest& out, LabeledUtterance utterance) {
   // One face per input: the track's own frames (key frames included) stepped as lipsyncd steps its
   // mesh output (face::FaceTrackStepper); the glb keeps those poses, the video and the still show
   // them on the --fps grid, linear between frames as a glTF player does.
-  const face::FaceAnimation track_faces = face::simulate_track_frames(mesh, rig, track);
+  const face::FaceAnimation track_faces =
+      face::simulate_track_frames(mesh, rig, track, {}, {.enabled = out.blinks, .seed = 1});
   if (out.mesh_path) {
     AtomicOutputFile file(*out.mesh_path);
     // Keys within 0.01 mm of every track frame: the glb plays the streamed poses (docs/face.md).

@@ -40,6 +40,8 @@ inline constexpr OptionSpec kVideoOption = {
     "video", 0, "FILE", "also render a software preview of the face to FILE (.mp4, H.264; needs ffmpeg)", "no video"};
 inline constexpr OptionSpec kStillOption = {
     "still", 0, "FILE", "also render one preview frame of the face to FILE (.png; needs ffmpeg)", "no still"};
+inline constexpr OptionSpec kNoBlinksOption = {
+    "no-blinks", 0, "", "the face's eyes stay open (no blinks) in --mesh, --video and --still", "blinks"};
 inline constexpr OptionSpec kStillAtOption = {"still-at", 0, "SECONDS",
                                               "time of the --still frame, >= 0 (the nearest --fps frame)", "0"};
 
@@ -53,6 +55,7 @@ struct OutputRequest {
   std::optional<std::string> phone_set_name, model_path;
   std::optional<std::string> mesh_path, video_path, audio_path, still_path;
   int subdivision = 1;
+  bool blinks = true;  ///< --no-blinks turns them off
   double still_at_s = 0.0;
   std::string ffmpeg;  ///< found on PATH when --video or --still is given
   /// Length of the speech the track goes with, when known: the track is extended to

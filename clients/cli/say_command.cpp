@@ -40,6 +40,7 @@ constexpr OptionSpec kOptions[] = {
     kVideoOption,
     kStillOption,
     kStillAtOption,
+    kNoBlinksOption,
 };
 
 constexpr std::string_view kUsage = "lipsync say TEXT [options]";

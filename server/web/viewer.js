@@ -60,9 +60,12 @@ const kPartColours = [
   [0.96, 0.95, 0.88],  // upper teeth (flat)
   [0.96, 0.95, 0.88],  // lower teeth (flat)
   [0.85, 0.30, 0.40],  // tongue (flat)
+  [0.93, 0.92, 0.88],  // eye white (lit: the physics face's eyeballs)
+  [0.36, 0.24, 0.14],  // iris (lit)
+  [0.03, 0.03, 0.03],  // pupil (flat)
 ];
 const kLipColour = [0.76, 0.42, 0.44];  // the vermilion, painted inside kOuterLip
-const kLitParts = new Set([0, 1]);
+const kLitParts = new Set([0, 1, 6, 7]);
 /// What an open mouth shows on a screenshot (8-bit sRGB as drawn): cavity, teeth, tongue.
 const kOpenMouthColours = [2, 3, 5].map((p) => kPartColours[p].map((c) => Math.round(c * 255)));
 // Landmark contours of the MediaPipe canonical face mesh (vertex ids): the skin is painted from
@@ -256,8 +259,9 @@ function restClosure(rest, parts) {
   const cornerX = Math.abs(rest[3 * kOuterLip[0]]);
   const smooth = (t) => { const c = Math.max(0, Math.min(1, t)); return c * c * (3 - 2 * c); };
   const closure = new Float32Array(rest.length);
+  if (!(half > 0)) return { vector: closure, gapM: 0 };  // the physics face rests closed (issue 41)
   for (let v = 0; v < rest.length / 3; ++v) {
-    if (parts[v] > 1) continue;  // cavity, teeth and tongue stay
+    if (parts[v] > 1) continue;  // cavity, teeth, tongue and eyes stay
     const dy = rest[3 * v + 1] - lineY;
     const across = smooth((1.3 * cornerX - Math.abs(rest[3 * v])) / (0.5 * cornerX));
     const along = smooth((3 * kRestClosureLipHeightM - Math.abs(dy)) / (2 * kRestClosureLipHeightM));

@@ -11,6 +11,9 @@
 // face_step: one substep of the default 1/30 s (5 local–global iterations) with speech-like
 // channel values that change every step, for comparison with older per-step figures.
 //
+// face_frame_iterations/LEVEL/K: face_frame with K local–global iterations instead of 5, for the
+// cost side of fewer iterations at equal error (docs/performance.md, "The physics face's speed").
+//
 // With --benchmark_repetitions the minimum over repetitions is reported too (the least disturbed
 // figure on a shared machine). Run pinned to one core:
 //   taskset -c 1 face_bench --benchmark_repetitions=10
@@ -47,7 +50,9 @@ const lipsync::Track& utterance_track() {
 
 void face_frame(benchmark::State& state) {
   const FaceMesh mesh = build_face_mesh(FaceAsset::builtin(), static_cast<int>(state.range(0)));
-  FaceSolver solver(mesh, FaceRig::builtin());
+  FaceSolverParams params;
+  if (state.range(1) > 0) params.iterations = static_cast<int>(state.range(1));
+  FaceSolver solver(mesh, FaceRig::builtin(), params);
   const lipsync::Track& track = utterance_track();
   std::size_t frame = 0;
   std::int64_t previous_us = 0, simulated_us = 0;
@@ -95,7 +100,20 @@ void face_step(benchmark::State& state) {
 }
 
 const auto kMin = [](const std::vector<double>& v) { return *std::min_element(v.begin(), v.end()); };
-BENCHMARK(face_frame)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->ComputeStatistics("min", kMin);
+BENCHMARK(face_frame)
+    ->Args({0, 0})
+    ->Args({1, 0})
+    ->Args({2, 0})
+    ->Unit(benchmark::kMillisecond)
+    ->ComputeStatistics("min", kMin);
+BENCHMARK(face_frame)
+    ->Name("face_frame_iterations")
+    ->Args({1, 1})
+    ->Args({1, 2})
+    ->Args({1, 3})
+    ->Args({1, 4})
+    ->Unit(benchmark::kMillisecond)
+    ->ComputeStatistics("min", kMin);
 BENCHMARK(face_step)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->ComputeStatistics("min", kMin);
 
 }  // namespace

@@ -87,10 +87,20 @@ TEST_F(FaceCliTest, MeshWithATrackFileWritesBoth) {
   EXPECT_EQ(listing(), (std::vector<std::string>{"face.glb", "track.json"}));
 }
 
+TEST_F(FaceCliTest, NoBlinksTakesTheFirstBlinkOutOfTheGlb) {
+  ASSERT_EQ(run({"render", kInput, "--mesh", "blinks.glb", "--mesh-subdivision=0"}).status, 0);
+  const RunResult result = run({"render", kInput, "--mesh", "open.glb", "--mesh-subdivision=0", "--no-blinks"});
+  ASSERT_EQ(result.status, 0) << result.err;
+  // The input ends at 1.039 s, in the first blink of the default schedule (from 1 s): only the
+  // face with blinks has its lids half shut on the last frame.
+  EXPECT_NE(read_text(dir_ / "open.glb"), read_text(dir_ / "blinks.glb"));
+}
+
 TEST_F(FaceCliTest, BadOptionsLeaveNoFile) {
   for (const std::vector<std::string>& args :
        {std::vector<std::string>{"render", kInput, "--mesh", "face.glb", "--mesh-subdivision", "3"},
         std::vector<std::string>{"render", kInput, "--audio", "x.wav"},
+        std::vector<std::string>{"render", kInput, "--no-blinks", "-o", "track.json"},
         std::vector<std::string>{"render", kInput, "--mesh", "no/such/dir/face.glb"}}) {
     const RunResult result = run(args);
     EXPECT_NE(result.status, 0);

@@ -1,6 +1,7 @@
 // The face over time: track sampling, simulation on a uniform grid, the glTF binary's structure
 // (header, chunks, accessors and buffer views that fit, POSITION min/max that match the data, a
-// weights animation whose keys reproduce every simulated frame), and the preview rasteriser.
+// weights animation whose keys reproduce every simulated frame), the preview rasteriser, and the
+// face at rest as a user sees it in those outputs (lips together, upper teeth hidden).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -13,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "../support/lip_measures.hpp"
 #include "lipsync/face/face_animation.hpp"
 #include "lipsync/face/face_mesh.hpp"
 #include "lipsync/face/face_raster.hpp"
@@ -201,6 +203,53 @@ TEST(FaceGlb, ToleranceZeroKeepsEveryFrame) {
   GlbOptions options;
   options.key_tolerance_m = 0;
   EXPECT_EQ(write_face_glb(out, level0(), animation, options).key_frames, animation.frame_count());
+}
+
+// What a user sees of the rest pose: the lips together in the glb (its POSITION is the first frame,
+// its last key the face after a second of silence), and no upper tooth in the preview. The teeth
+// are found in the picture by rendering a copy of the mesh whose other parts all have the cavity's
+// dark red, so any light pixel is a visible tooth; an /aa/ shows some, so the measure can see them.
+TEST(FaceRest, TheFaceRestsWithItsLipsTogetherAndItsUpperTeethHidden) {
+  const FaceMesh mesh = build_face_mesh(FaceAsset::builtin(), 1);  // the default level
+  const FaceAnimation animation = simulate_track_frames(mesh, FaceRig::builtin(), held_track({"sil"}, 1'000'000));
+  std::ostringstream out;
+  GlbOptions options;
+  options.key_tolerance_m = 0.00001;  // as lipsync render --mesh
+  write_face_glb(out, mesh, animation, options);
+  const Glb glb = parse_glb(out.str());
+  const auto& primitive = glb.json["meshes"][0]["primitives"][0];
+  const auto base = glb.floats(primitive["attributes"]["POSITION"].get<std::size_t>());
+  const auto last = glb.floats(primitive["targets"].back()["POSITION"].get<std::size_t>());
+  ASSERT_EQ(base.size(), 3 * mesh.vertex_count());
+  std::vector<Vec3> first_pose(mesh.vertex_count()), last_pose(mesh.vertex_count());
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    first_pose[v] = {base[3 * v], base[3 * v + 1], base[3 * v + 2]};
+    last_pose[v] = {base[3 * v] + last[3 * v], base[3 * v + 1] + last[3 * v + 1], base[3 * v + 2] + last[3 * v + 2]};
+  }
+  const double first_gap = lip_gap_m(mesh, first_pose), last_gap = lip_gap_m(mesh, last_pose);
+
+  FaceMesh teeth_only = mesh;
+  for (auto& part : teeth_only.parts)
+    if (part != FacePart::upper_teeth) part = FacePart::mouth_cavity;
+  const auto teeth_pixels = [&](std::span<const Vec3> pose) {
+    std::vector<std::uint8_t> rgb;
+    render_face_rgb(teeth_only, pose, RasterOptions{}, rgb);
+    std::size_t n = 0;
+    for (std::size_t p = 0; p < rgb.size(); p += 3) n += rgb[p + 1] > 120 ? 1 : 0;
+    return n;
+  };
+  FaceSolver solver(mesh, FaceRig::builtin());
+  const auto aa = targets_of("aa");
+  for (int frame = 0; frame < 30; ++frame) solver.step(aa, 1.0 / 30.0);
+  const std::size_t at_rest = teeth_pixels(last_pose), at_aa = teeth_pixels(solver.positions());
+  std::printf(
+      "[ measured ] at rest: lips %.3f mm apart (glb first frame), %.3f mm (after 1 s); %zu upper-teeth "
+      "pixels (/aa/: %zu)\n",
+      1000 * first_gap, 1000 * last_gap, at_rest, at_aa);
+  EXPECT_LE(first_gap, 0.0005);
+  EXPECT_LE(last_gap, 0.0005);
+  EXPECT_EQ(at_rest, 0U);
+  EXPECT_GT(at_aa, 100U);
 }
 
 TEST(FaceRaster, DrawsAFaceAndAnOpenMouthShowsTheDarkCavity) {

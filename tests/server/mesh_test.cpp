@@ -1,6 +1,8 @@
 // lipsyncd's mesh output over the network: the topology once in the header,
-// per-frame positions equal to FaceSolver run offline on render_track's frames
-// (bit for bit as float32, within half a quantisation step as int16), Render =
+// per-frame positions equal to FaceSolver run offline on render_track's frames by
+// FaceTrackStepper (the solver's poses with the eyelids' seeded blinks; without
+// them for settings.outputs.mesh.no_blinks) (bit for bit as float32, within half
+// a quantisation step as int16), Render =
 // Animate, subscribers get the producer's mesh, channel-only streams carry no
 // mesh bytes, bad mesh settings rejected naming the field; and, measured on the
 // streamed mesh and ARKit weights of real TTS timings, sealed lips at every
@@ -55,8 +57,8 @@ Track reference_track(const std::vector<LabeledInterval>& intervals) {
   return render_track(model, build_segments({"test", "", intervals}, model, arpabet), {.fps = 30});
 }
 
-/// The documented rule, offline: one step per frame, dt = t_i − t_{i−1} (t_{−1} = 0). Metres, double.
-std::vector<double> reference_positions(const Track& track, int level) {
+/// The solver alone, offline: one step per frame, dt = t_i − t_{i−1} (t_{−1} = 0). Metres, double.
+std::vector<double> solver_positions(const Track& track, int level) {
   const face::FaceMesh mesh = face::build_face_mesh(face::FaceAsset::builtin(), level);
   face::FaceSolver solver(mesh, face::FaceRig::builtin());
   std::vector<double> out;
@@ -66,6 +68,19 @@ std::vector<double> reference_positions(const Track& track, int level) {
     previous = track.t_us[frame];
     for (const face::Vec3& p : solver.positions()) out.insert(out.end(), {p.x, p.y, p.z});
   }
+  return out;
+}
+
+/// The documented rule, offline: the solver stepped as above, then the eyelids of the default
+/// blink schedule (face::FaceTrackStepper). Metres, double.
+std::vector<double> reference_positions(const Track& track, int level) {
+  const face::FaceMesh mesh = face::build_face_mesh(face::FaceAsset::builtin(), level);
+  face::FaceSolver solver(mesh, face::FaceRig::builtin());
+  face::FaceTrackStepper stepper(solver);
+  std::vector<double> out;
+  for (std::size_t frame = 0; frame < track.frame_count(); ++frame)
+    for (const face::Vec3& p : stepper.step(track.t_us[frame], track.frame_values(frame)))
+      out.insert(out.end(), {p.x, p.y, p.z});
   return out;
 }
 
@@ -230,6 +245,21 @@ TEST_F(MeshTest, AnimateFloat32EqualsTheOfflineSolverBitForBit) {
     moved = std::max(moved, std::abs(expected_float[i] - rest[static_cast<int>(i % (vertices * 3))]));
   }
   EXPECT_GT(moved, 0.002f);
+}
+
+TEST_F(MeshTest, NoBlinksStreamsTheSolversOwnPosesAndTheDefaultBlinksOnTheSchedule) {
+  const auto intervals = utterance(30);
+  const Track track = reference_track(intervals);
+  ASSERT_GT(track.t_us.back(), face::kBlinkFirstUs + face::kBlinkCloseUs);  // the first blink is in it
+  v1::AnimationSettings settings = mesh_settings(1);
+  settings.mutable_outputs()->mutable_mesh()->set_no_blinks(true);
+  const Received still = animate(settings, intervals);
+  const Received blinking = animate(mesh_settings(1), intervals);
+  ASSERT_TRUE(still.status.ok()) << still.status.error_message();
+  ASSERT_TRUE(blinking.status.ok()) << blinking.status.error_message();
+  const std::vector<double> solver_only = solver_positions(track, 1);
+  EXPECT_TRUE(still.positions() == std::vector<float>(solver_only.begin(), solver_only.end()));
+  EXPECT_FALSE(blinking.positions() == still.positions());
 }
 
 TEST_F(MeshTest, AStreamAfterAnotherStartsFromRestLikeANewSolver) {

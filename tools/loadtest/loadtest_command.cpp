@@ -103,7 +103,7 @@ constexpr auto kOptions = join(
         {"mesh-share", 0, "F",
          "fraction of the producers (spread evenly) that ask for the mesh output (physics face), 0 to 1", "0"},
         {"mesh-subdivision", 0, "N",
-         kRangedHelp<"subdivision level of their mesh", kMeshSubdivisionSetting, " (771, 2379, 8775 vertices)">.view(),
+         kRangedHelp<"subdivision level of their mesh", kMeshSubdivisionSetting, " (1061, 2643, 8903 vertices)">.view(),
          kDefaultText<kMeshSubdivisionSetting>.view()},
         {"mesh-encoding", 0, "ENC", "encoding of their vertex positions: float32 or int16", "float32"},
         {"listen", 0, "",

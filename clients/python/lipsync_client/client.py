@@ -24,6 +24,8 @@ Settings (keyword arguments of render, animate, speak and listen; all optional, 
     face's vertices, Frame.mesh), mesh_subdivision (int, 0..2; unset = 1), mesh_encoding
     ("float32" or "int16": int16 halves the bytes, error <= half the header's
     quantisation_scale_m, about 2.1 µm; Frame.mesh is decoded to metres either way),
+    mesh_blinks (bool; unset = True: the face's upper lids blink on lipsyncd's seeded schedule;
+    False keeps the eyes open, for clients that drive the eyes themselves),
     visemes (str: "oculus", "azure", "polly" or "rhubarb": also the viseme weights,
     Frame.visemes, and events, Frame.viseme_event and Track.viseme_events()),
     rhubarb_extended_shapes (str, rhubarb only: Rhubarb's --extendedShapes letters; unset = "GHX").
@@ -221,6 +223,7 @@ def make_settings(
     mesh: bool = False,
     mesh_subdivision: Optional[int] = None,
     mesh_encoding: str = "float32",
+    mesh_blinks: bool = True,
     visemes: Optional[str] = None,
     rhubarb_extended_shapes: Optional[str] = None,
 ) -> Any:
@@ -247,6 +250,7 @@ def make_settings(
         if mesh_encoding not in encodings:
             raise ValueError(f"mesh_encoding must be 'float32' or 'int16', not {mesh_encoding!r}")
         settings.outputs.mesh.encoding = encodings[mesh_encoding]
+        settings.outputs.mesh.no_blinks = not mesh_blinks
     if visemes is not None:
         if visemes not in VISEME_VOCABULARIES:
             raise ValueError(f"visemes must be one of {', '.join(VISEME_VOCABULARIES)}, not {visemes!r}")

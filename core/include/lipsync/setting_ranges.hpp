@@ -30,7 +30,7 @@ inline constexpr IntSetting kFpsSetting = {1, 240, 30};
 /// Segments after a frame's own that must be known before it is emitted; the
 /// maximum (the coarticulation window radius, 7) is exact, fewer approximate.
 inline constexpr IntSetting kLookaheadSetting = {0, 7, 7};
-/// Subdivision level of the face mesh (771, 2379 or 8775 vertices).
+/// Subdivision level of the face mesh (1061, 2643 or 8903 vertices).
 inline constexpr IntSetting kMeshSubdivisionSetting = {0, 2, 1};
 /// Share of a /p b/ segment given to its closure; the range is (0, 1), exclusive.
 inline constexpr double kDefaultClosureFraction = 0.6;

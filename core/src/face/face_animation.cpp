@@ -24,6 +24,12 @@ std::array<float, 3> part_colour(FacePart part) {
       return {0.92F, 0.90F, 0.84F};
     case FacePart::tongue:
       return {0.75F, 0.30F, 0.32F};
+    case FacePart::eye_white:
+      return {0.90F, 0.88F, 0.84F};
+    case FacePart::iris:
+      return {0.28F, 0.20F, 0.12F};
+    case FacePart::pupil:
+      return {0.03F, 0.03F, 0.03F};
   }
   return {1.0F, 0.0F, 1.0F};
 }
@@ -102,18 +108,76 @@ FaceAnimation simulate_face_animation(const FaceMesh& mesh, const FaceRig& rig, 
   return animation;
 }
 
+namespace {
+
+std::uint64_t splitmix64(std::uint64_t x) {
+  x += 0x9e3779b97f4a7c15ULL;
+  x = (x ^ (x >> 30U)) * 0xbf58476d1ce4e5b9ULL;
+  x = (x ^ (x >> 27U)) * 0x94d049bb133111ebULL;
+  return x ^ (x >> 31U);
+}
+
+double ease(double t) {
+  const double c = std::clamp(t, 0.0, 1.0);
+  return c * c * (3.0 - 2.0 * c);
+}
+
+}  // namespace
+
+double eyelid_closure(const BlinkSettings& blinks, std::int64_t t_us) {
+  if (!blinks.enabled || t_us < 0) return 0.0;
+  std::int64_t start = kBlinkFirstUs;
+  for (std::uint64_t k = 0;; ++k) {
+    const std::uint64_t draw = splitmix64(blinks.seed + k) >> 11U;  // 53 bits
+    const auto spread = static_cast<std::int64_t>(static_cast<double>(draw) * 0x1p-53 * kBlinkSpreadUs);
+    if (k > 0) start += kBlinkMinIntervalUs + spread;
+    if (t_us < start) return 0.0;
+    const std::int64_t into = t_us - start;
+    if (into < kBlinkCloseUs) return ease(static_cast<double>(into) / kBlinkCloseUs);
+    if (into < kBlinkCloseUs + kBlinkHoldUs) return 1.0;
+    if (into < kBlinkCloseUs + kBlinkHoldUs + kBlinkOpenUs)
+      return 1.0 - ease(static_cast<double>(into - kBlinkCloseUs - kBlinkHoldUs) / kBlinkOpenUs);
+  }
+}
+
+void close_eyelids(const FaceMesh& mesh, double closure, std::span<Vec3> pose) {
+  if (!(closure > 0.0)) return;
+  constexpr double kMarginM = 0.0005;
+  for (std::size_t k = 0; k < mesh.blink_nodes.size(); ++k) {
+    Vec3& p = pose[mesh.blink_nodes[k]];
+    const Vec3 d = mesh.blink_offsets_m[k];
+    p = {p.x + closure * d.x, p.y + closure * d.y, p.z + closure * d.z};
+    // Outside the eyeball grown by the margin: scale the offset from its centre onto that surface.
+    const EyeBall& ball = mesh.eyeballs[mesh.blink_eye[k]];
+    const Vec3 a{ball.semi_axes_m.x + kMarginM, ball.semi_axes_m.y + kMarginM, ball.semi_axes_m.z + kMarginM};
+    const Vec3 r{p.x - ball.centre_m.x, p.y - ball.centre_m.y, p.z - ball.centre_m.z};
+    const double e = (r.x / a.x) * (r.x / a.x) + (r.y / a.y) * (r.y / a.y) + (r.z / a.z) * (r.z / a.z);
+    if (e < 1.0 && r.z > 0.0) {
+      // Forward along z onto the surface (the lid slides over the front of the ball).
+      const double zz = a.z * std::sqrt(std::max(0.0, 1.0 - (r.x / a.x) * (r.x / a.x) - (r.y / a.y) * (r.y / a.y)));
+      p.z = ball.centre_m.z + zz;
+    }
+  }
+}
+
+FaceTrackStepper::FaceTrackStepper(FaceSolver& solver, BlinkSettings blinks)
+    : solver_(solver), blinks_(blinks), pose_(solver.positions().begin(), solver.positions().end()) {}
+
 std::span<const Vec3> FaceTrackStepper::step(std::int64_t t_us, std::span<const float> channel_values) {
   solver_.step(channel_values, static_cast<double>(t_us - previous_t_us_) * 1e-6);
   previous_t_us_ = t_us;
-  return solver_.positions();
+  const auto x = solver_.positions();
+  std::copy(x.begin(), x.end(), pose_.begin());
+  close_eyelids(solver_.mesh(), eyelid_closure(blinks_, t_us), pose_);
+  return pose_;
 }
 
 FaceAnimation simulate_track_frames(const FaceMesh& mesh, const FaceRig& rig, const Track& track,
-                                    const FaceSolverParams& params) {
+                                    const FaceSolverParams& params, BlinkSettings blinks) {
   if (track.channel_count != rig.channel_count())
     throw std::invalid_argument("simulate_track_frames: the track's channels are not the rig's model's");
   FaceSolver solver(mesh, rig, params);
-  FaceTrackStepper stepper(solver);
+  FaceTrackStepper stepper(solver, blinks);
   FaceAnimation animation;
   animation.vertex_count = mesh.vertex_count();
   animation.t_us = track.t_us;

@@ -1,6 +1,7 @@
 // Builds the simulated face from the canonical mesh; see face_mesh.hpp for the layout and
 // docs/face.md for the anatomy and its figures. build_face_mesh() runs one step per helper, in
-// this order: open the mouth (open_mouth, order_lip_loop), close it off behind the lips with the
+// this order: open the mouth (open_mouth, order_lip_loop), bring the lips together for the rest
+// pose (close_lips_at_rest: the asset's lips are 5.5 mm apart), close it off behind the lips with the
 // inner-lip and cavity rings (add_mouth_cavity), subdivide with the lip lines refined as polylines
 // (subdivide_soft_nodes), weight the soft nodes between skull and jaw (assign_jaw_weights), then
 // add the rigid parts: the teeth arches, with the inner lips pushed outside them (add_teeth), and
@@ -21,6 +22,11 @@
 #include "lipsync/setting_ranges.hpp"
 
 namespace lipsync::face {
+
+const std::array<std::array<std::uint32_t, 16>, 2> kEyeContours = {{
+    {33, 246, 161, 160, 159, 158, 157, 173, 133, 155, 154, 153, 145, 144, 163, 7},
+    {263, 466, 388, 387, 386, 385, 384, 398, 362, 382, 381, 380, 374, 373, 390, 249},
+}};
 
 const std::array<std::uint32_t, 20> kInnerLipLoop = {78,  191, 80,  81,  82,  13, 312, 311, 310, 415,
                                                      308, 324, 318, 402, 317, 14, 87,  178, 88,  95};
@@ -117,30 +123,40 @@ struct SoftNodes {
   std::vector<std::array<double, 2>> uv;
   std::vector<double> depth;  // rings behind the lip line (FaceMesh::ring_depth)
   std::vector<double> side;   // +1 upper lip, −1 lower lip, 0 elsewhere; blended at midpoints
+  // How far close_lips_at_rest moved the node (metres; the asset's position is pos − shift).
+  std::vector<Vec3> shift;
   std::vector<std::array<std::uint32_t, 3>> tris;
 
-  std::uint32_t add(Vec3 p, std::array<double, 2> t, double d, double s) {
+  std::uint32_t add(Vec3 p, std::array<double, 2> t, double d, double s, Vec3 moved = {}) {
     const auto id = static_cast<std::uint32_t>(pos.size());
     pos.push_back(p);
     uv.push_back(t);
     depth.push_back(d);
     side.push_back(s);
+    shift.push_back(moved);
     return id;
   }
 };
 
-// The asset in metres with the mouth opened: every triangle whose three vertices lie on the
-// inner-lip loop is dropped.
+// The asset in metres with the mouth and the eyes opened: every triangle whose three vertices lie
+// on the inner-lip loop, or on one eye's contour, is dropped.
 SoftNodes open_mouth(const FaceAsset& asset) {
   SoftNodes nodes;
   nodes.uv = asset.uvs;
   for (const auto& p : asset.positions_cm) nodes.pos.push_back(kMetresPerCentimetre * p);
   nodes.depth.assign(nodes.pos.size(), 0.0);
   nodes.side.assign(nodes.pos.size(), 0.0);
+  nodes.shift.assign(nodes.pos.size(), Vec3{});
   std::vector<bool> on_loop(nodes.pos.size(), false);
   for (const auto id : kInnerLipLoop) on_loop.at(id) = true;
-  for (const auto& t : asset.triangles)
-    if (!(on_loop[t[0]] && on_loop[t[1]] && on_loop[t[2]])) nodes.tris.push_back(t);
+  std::vector<int> on_eye(nodes.pos.size(), -1);
+  for (int eye = 0; eye < 2; ++eye)
+    for (const auto id : kEyeContours[static_cast<std::size_t>(eye)]) on_eye.at(id) = eye;
+  for (const auto& t : asset.triangles) {
+    const bool mouth_fill = on_loop[t[0]] && on_loop[t[1]] && on_loop[t[2]];
+    const bool eye_fill = on_eye[t[0]] >= 0 && on_eye[t[0]] == on_eye[t[1]] && on_eye[t[0]] == on_eye[t[2]];
+    if (!mouth_fill && !eye_fill) nodes.tris.push_back(t);
+  }
   return nodes;
 }
 
@@ -173,6 +189,71 @@ LipLoop order_lip_loop(SoftNodes& nodes) {
   return loop;
 }
 
+// Brings the lips together for the rest pose. The asset rests with the lips 5.5 mm apart (13→14)
+// and the upper incisors showing; a face at rest has them together. At each x between the
+// corners the upper and lower lip lines (the loop, linear between its vertices) are d(x) apart in
+// height and depth; each lip moves half of d toward the other in both, less half of `rest_gap_m`
+// in height, and the skin above (below) the line follows with a weight falling from 1 within 4 mm
+// of the line to 0 at 18 mm (the vermilion moves whole; the skin toward the nose and the chin takes
+// up the difference). x does not change and the mouth centre, the teeth and the jaw's geometry are
+// the asset's. Springs take their rest lengths from this pose: it is the stress-free shape.
+void close_lips_at_rest(SoftNodes& nodes, const LipLoop& loop, double rest_gap_m) {
+  std::vector<Vec3> upper, lower;  // lip lines through both corners, by increasing x
+  for (std::size_t k = 0; k < kLoopSize; ++k) {
+    const Vec3 p = nodes.pos[loop.ids[k]];
+    if (loop.side[k] >= 0.0) upper.push_back(p);
+    if (loop.side[k] <= 0.0) lower.push_back(p);
+  }
+  auto by_x = [](Vec3 a, Vec3 b) { return a.x < b.x; };
+  std::sort(upper.begin(), upper.end(), by_x);
+  std::sort(lower.begin(), lower.end(), by_x);
+  auto at_x = [](const std::vector<Vec3>& line, double x) {
+    for (std::size_t k = 1; k < line.size(); ++k)
+      if (x <= line[k].x) {
+        const double t = (x - line[k - 1].x) / (line[k].x - line[k - 1].x);
+        return (1.0 - t) * line[k - 1] + t * line[k];
+      }
+    return line.back();
+  };
+  const double x_min = std::max(upper.front().x, lower.front().x), x_max = std::min(upper.back().x, lower.back().x);
+  std::vector<int> on_loop(nodes.pos.size(), 0);  // +1 upper, −1 lower, 2 corner
+  for (std::size_t k = 0; k < kLoopSize; ++k)
+    on_loop[loop.ids[k]] = loop.side[k] > 0.0 ? 1 : loop.side[k] < 0.0 ? -1 : 2;
+  for (std::size_t i = 0; i < nodes.pos.size(); ++i) {
+    Vec3& p = nodes.pos[i];
+    if (p.x <= x_min || p.x >= x_max || on_loop[i] == 2) continue;
+    const Vec3 u = at_x(upper, p.x), l = at_x(lower, p.x);
+    const double dy = u.y - l.y;
+    if (dy <= rest_gap_m) continue;
+    const Vec3 half_down{0.0, -0.5 * (dy - rest_gap_m), -0.5 * (u.z - l.z)};  // moves the upper lip
+    double weight = 0.0;  // +1 moves like the upper lip, −1 like the lower
+    if (on_loop[i] != 0)
+      weight = on_loop[i];
+    else if (p.y >= u.y)
+      weight = 1.0 - smoothstep(0.004, 0.018, p.y - u.y);
+    else if (p.y <= l.y)
+      weight = -(1.0 - smoothstep(0.004, 0.018, l.y - p.y));
+    nodes.shift[i] = weight * half_down;
+    p = p + nodes.shift[i];
+  }
+}
+
+// The closed lips' facing nodes (upper[k] ↔ lower[k], FaceMesh::upper_lip_line) put at their mean,
+// `rest_gap_m` apart in height: after close_lips_at_rest the two lines still differ where a pair's
+// x differ (up to 0.75 mm, on a line that curves back 10 mm toward the corners), enough to leave a
+// slit that shows the teeth as a line of light in the preview. Pairs still apart stay as they are.
+void seal_lip_pairs(SoftNodes& nodes, const std::vector<std::uint32_t>& upper, const std::vector<std::uint32_t>& lower,
+                    double rest_gap_m) {
+  for (std::size_t k = 0; k < upper.size(); ++k) {
+    Vec3& u = nodes.pos[upper[k]];
+    Vec3& l = nodes.pos[lower[k]];
+    if (u.y - l.y > rest_gap_m + 0.0005) continue;
+    const Vec3 mean = 0.5 * (u + l);
+    u = mean + Vec3{0.0, 0.5 * rest_gap_m, 0.0};
+    l = mean + Vec3{0.0, -0.5 * rest_gap_m, 0.0};
+  }
+}
+
 // Rings behind the lip line: inner lip (1, 2) and cavity (3, 4), then a fan to one vertex at the
 // back. Returns the rings, the lip loop first.
 std::vector<LoopRing> add_mouth_cavity(SoftNodes& nodes, const LipLoop& loop, Vec3 centre) {
@@ -191,7 +272,10 @@ std::vector<LoopRing> add_mouth_cavity(SoftNodes& nodes, const LipLoop& loop, Ve
     const RingShape& shape = kRings[r];
     LoopRing ring{};
     for (std::size_t k = 0; k < kLoopSize; ++k) {
-      const Vec3 p = nodes.pos[loop.ids[k]];
+      // The mucosa just behind the lip line closes with the lips; the sulcus and the cavity keep
+      // the asset's heights (a sulcus at the closed lips' height lay on the lower incisal edge).
+      Vec3 p = nodes.pos[loop.ids[k]];
+      if (r > 0) p = p + -1.0 * nodes.shift[loop.ids[k]];
       const double s = shape.smooth_side ? loop.smooth_side[k] : loop.side[k];
       Vec3 q{centre.x + shape.x_scale * (p.x - centre.x), p.y + s * shape.vertical_m,
              (shape.from_centre_z ? centre.z : p.z) - shape.back_m};
@@ -248,7 +332,8 @@ void subdivide_soft_nodes(SoftNodes& nodes, LipLines& lines, int levels) {
       const auto& pos = nodes.pos;
       const auto& uv = nodes.uv;
       nodes.add(0.5 * (pos[a] + pos[b]), {0.5 * (uv[a][0] + uv[b][0]), 0.5 * (uv[a][1] + uv[b][1])},
-                0.5 * (nodes.depth[a] + nodes.depth[b]), 0.5 * (nodes.side[a] + nodes.side[b]));
+                0.5 * (nodes.depth[a] + nodes.depth[b]), 0.5 * (nodes.side[a] + nodes.side[b]),
+                0.5 * (nodes.shift[a] + nodes.shift[b]));
     }
     for (auto* line : {&lines.upper0, &lines.lower0, &lines.upper1, &lines.lower1}) {
       std::vector<std::uint32_t> refined{line->front()};
@@ -272,7 +357,7 @@ void assign_jaw_weights(FaceMesh& mesh, const SoftNodes& nodes, const LipLines& 
   const double slope = (centre.y - hinge.y) / (centre.z - hinge.z);
   mesh.jaw_weights.resize(nodes.pos.size());
   for (std::size_t i = 0; i < nodes.pos.size(); ++i) {
-    const Vec3 p = nodes.pos[i];
+    const Vec3 p = nodes.pos[i] + -1.0 * nodes.shift[i];  // the asset's position
     if (nodes.depth[i] > 0.0) {
       mesh.jaw_weights[i] = std::clamp(0.5 - 0.5 * nodes.side[i], 0.0, 1.0);
       continue;
@@ -285,6 +370,112 @@ void assign_jaw_weights(FaceMesh& mesh, const SoftNodes& nodes, const LipLines& 
   for (const auto id : lines.upper0) mesh.jaw_weights[id] = 0.0;
   for (const auto id : lines.lower0) mesh.jaw_weights[id] = 1.0;
   mesh.jaw_weights[mesh.mouth_corners[0]] = mesh.jaw_weights[mesh.mouth_corners[1]] = 0.5;
+}
+
+// An eye contour as two polylines by increasing x: the upper lid and the lower lid, both corners in each.
+struct EyeLids {
+  std::vector<Vec3> upper, lower;
+};
+
+EyeLids eye_lids(const std::vector<Vec3>& pos, const std::array<std::uint32_t, 16>& contour) {
+  EyeLids lids;
+  for (std::size_t k = 0; k <= 8; ++k) lids.upper.push_back(pos[contour[k]]);
+  for (std::size_t k = 8; k <= 16; ++k) lids.lower.push_back(pos[contour[k % 16]]);
+  auto by_x = [](Vec3 a, Vec3 b) { return a.x < b.x; };
+  std::sort(lids.upper.begin(), lids.upper.end(), by_x);
+  std::sort(lids.lower.begin(), lids.lower.end(), by_x);
+  return lids;
+}
+
+double height_at(const std::vector<Vec3>& line, double x) {
+  for (std::size_t k = 1; k < line.size(); ++k)
+    if (x <= line[k].x) {
+      const double t = (x - line[k - 1].x) / (line[k].x - line[k - 1].x);
+      return line[k - 1].y + t * (line[k].y - line[k - 1].y);
+    }
+  return line.back().y;
+}
+
+// Eyeballs: an ellipsoid per eye behind its opening, as three rigid parts with their own vertices
+// (so the colours' edges are sharp): a pupil cap within 0.16 rad of the front, the iris out to
+// 0.5 rad (a 5.8 mm radius on a 12 mm ball), the white to a little past the equator.
+void add_eyes(FaceMesh& mesh) {
+  constexpr int kSectors = 16;
+  struct Band {
+    double from_rad, to_rad;
+    int rings;
+    FacePart part;
+  };
+  constexpr std::array<Band, 3> kBands = {
+      {{0.0, 0.16, 1, FacePart::pupil}, {0.16, 0.50, 2, FacePart::iris}, {0.50, 1.75, 4, FacePart::eye_white}}};
+  mesh.eyes_begin = static_cast<std::uint32_t>(mesh.rest_positions_m.size());
+  const FaceAnatomy& anatomy = mesh.anatomy;
+  for (std::size_t eye = 0; eye < 2; ++eye) {
+    const auto& contour = kEyeContours[eye];
+    const EyeLids lids = eye_lids(mesh.rest_positions_m, contour);
+    Vec3 centre{0.5 * (lids.upper.front().x + lids.upper.back().x), 0.0, 0.0};
+    for (const auto id : contour) centre.y += mesh.rest_positions_m[id].y / 16.0;
+    const Vec3 top = mesh.rest_positions_m[contour[4]], bottom = mesh.rest_positions_m[contour[12]];
+    const double front_z = 0.5 * (top.z + bottom.z) - anatomy.eyeball_behind_lids_m;
+    const Vec3 axes{0.5 * (lids.upper.back().x - lids.upper.front().x) + 0.001, anatomy.eyeball_radius_m,
+                    anatomy.eyeball_radius_m};
+    centre.z = front_z - axes.z;
+    mesh.eyeballs[eye] = {centre, axes};
+    auto point = [&](double polar, double azimuth) {
+      return Vec3{centre.x + axes.x * std::sin(polar) * std::cos(azimuth),
+                  centre.y + axes.y * std::sin(polar) * std::sin(azimuth), centre.z + axes.z * std::cos(polar)};
+    };
+    for (const Band& band : kBands) {
+      const auto base = static_cast<std::uint32_t>(mesh.rest_positions_m.size());
+      auto push = [&](Vec3 p) {
+        mesh.rest_positions_m.push_back(p);
+        mesh.uvs.push_back({0.0F, 0.0F});
+        mesh.parts.push_back(band.part);
+      };
+      // Rings r = 0 … rings at polar angles from → to (a pole instead of ring 0 when from = 0).
+      const bool pole = band.from_rad == 0.0;
+      if (pole) push(point(0.0, 0.0));
+      for (int r = pole ? 1 : 0; r <= band.rings; ++r)
+        for (int j = 0; j < kSectors; ++j)
+          push(point(band.from_rad + (band.to_rad - band.from_rad) * r / band.rings,
+                     2.0 * std::numbers::pi * j / kSectors));
+      auto ring = [&](int r, int j) {
+        const int first = pole ? 1 : 0;
+        return base + (pole ? 1U : 0U) + static_cast<std::uint32_t>((r - first) * kSectors + (j % kSectors));
+      };
+      for (int j = 0; j < kSectors; ++j) {
+        // Counter-clockwise seen from the front (+z), outside the ball.
+        if (pole) mesh.triangles.push_back({base, ring(1, j), ring(1, j + 1)});
+        for (int r = pole ? 1 : 0; r < band.rings; ++r) {
+          mesh.triangles.push_back({ring(r, j), ring(r + 1, j), ring(r + 1, j + 1)});
+          mesh.triangles.push_back({ring(r, j), ring(r + 1, j + 1), ring(r, j + 1)});
+        }
+      }
+    }
+  }
+}
+
+// Blinks: the upper lid's nodes and the skin above them (weight 1 at the lid margin, 0 at 6 mm
+// above it) move down by the opening between the lids at their x and 0.3 mm more, so the shut
+// upper lid overlaps the lower one (lids that just met left a line of white in the preview).
+void add_blink(FaceMesh& mesh) {
+  for (std::size_t eye = 0; eye < 2; ++eye) {
+    const EyeLids lids = eye_lids(mesh.rest_positions_m, kEyeContours[eye]);
+    const double x_min = lids.upper.front().x, x_max = lids.upper.back().x;
+    for (std::uint32_t i = 0; i < mesh.soft_node_count; ++i) {
+      if (mesh.ring_depth[i] != 0.0) continue;
+      const Vec3 p = mesh.rest_positions_m[i];
+      if (p.x <= x_min || p.x >= x_max) continue;
+      const double y_upper = height_at(lids.upper, p.x), y_lower = height_at(lids.lower, p.x);
+      const double above = p.y - y_upper;
+      if (above < -1e-9 || above > 0.006) continue;
+      const double weight = 1.0 - smoothstep(0.0, 0.006, above);
+      const double drop = std::max(y_upper - y_lower, 0.0) + 0.0003;
+      mesh.blink_nodes.push_back(i);
+      mesh.blink_offsets_m.push_back({0.0, -weight * drop, 0.0});
+      mesh.blink_eye.push_back(static_cast<std::uint8_t>(eye));
+    }
+  }
 }
 
 // The soft nodes become the mesh's first vertices, each with its part by ring depth.
@@ -398,6 +589,7 @@ FaceMesh build_face_mesh(const FaceAsset& asset, int subdivision_level, const Fa
   const Vec3 centre = 0.5 * (nodes.pos[13] + nodes.pos[14]);
   mesh.mouth_centre_m = centre;
   const double teeth_front_z = nodes.pos[13].z - anatomy.upper_teeth_depth_m;
+  close_lips_at_rest(nodes, loop, anatomy.rest_lip_gap_m);
   const std::vector<LoopRing> rings = add_mouth_cavity(nodes, loop, centre);
 
   LipLines lines{lip_line(nodes, rings[0], 1.0), lip_line(nodes, rings[0], -1.0), lip_line(nodes, rings[1], 1.0),
@@ -411,6 +603,7 @@ FaceMesh build_face_mesh(const FaceAsset& asset, int subdivision_level, const Fa
   mesh.lower_lip_line = interior(lines.lower0);
   mesh.upper_inner_ring = interior(lines.upper1);
   mesh.lower_inner_ring = interior(lines.lower1);
+  seal_lip_pairs(nodes, mesh.upper_lip_line, mesh.lower_lip_line, anatomy.rest_lip_gap_m);
 
   mesh.soft_node_count = static_cast<std::uint32_t>(nodes.pos.size());
   assign_jaw_weights(mesh, nodes, lines);
@@ -422,6 +615,8 @@ FaceMesh build_face_mesh(const FaceAsset& asset, int subdivision_level, const Fa
                           teeth_front_z - anatomy.tongue_tip_behind_teeth_m - r.z};
   mesh.tongue_root_m = {centre.x, mesh.tongue_centre_m.y - r.y, mesh.tongue_centre_m.z - r.z};
   add_tongue(mesh);
+  add_eyes(mesh);
+  add_blink(mesh);
   return mesh;
 }
 

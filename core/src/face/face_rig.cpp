@@ -80,6 +80,10 @@ FaceRig FaceRig::from_json(std::string_view json_text, std::string_view source, 
   const auto& jaw = in.field(doc, "jaw", "rig");
   rig.jaw_channel_ = in.channel(model, in.text(jaw, "channel", "jaw"), "jaw", "jaw");
   rig.max_jaw_rotation_rad_ = in.number(jaw, "max_rotation_deg", "jaw", 1.0, 45.0) * std::numbers::pi / 180.0;
+  rig.jaw_seal_below_ = in.number(jaw, "seal_below", "jaw", 0.0, 0.5, 0.0);
+  rig.jaw_seal_release_ = in.number(jaw, "seal_release", "jaw", 0.0, 0.5, rig.jaw_seal_below_);
+  if (rig.jaw_seal_release_ < rig.jaw_seal_below_)
+    in.fail("jaw", "field 'seal_release' must not be below field 'seal_below'");
   const auto& tongue = in.field(doc, "tongue", "rig");
   rig.tongue_raise_channel_ = in.channel(model, in.text(tongue, "raise_channel", "tongue"), "tongue", "tongue");
   rig.max_tongue_raise_rad_ = in.number(tongue, "max_raise_deg", "tongue", 0.0, 45.0) * std::numbers::pi / 180.0;
@@ -143,6 +147,7 @@ FaceRig FaceRig::from_json(std::string_view json_text, std::string_view source, 
       spec.closure_direction = {d.x / length, d.y / length, d.z / length};
       spec.purse = in.number(json, "purse", where, 0.0, 1.0, 0.0);
       spec.protrusion_m = in.number(json, "protrusion_m", where, -0.02, 0.02, 0.0);
+      spec.eversion_m = in.number(json, "eversion_m", where, 0.0, 0.02, 0.0);
       if (json.contains("jaw_compensation")) {
         const std::string comp_where = where + " jaw_compensation";
         const auto& comp = json["jaw_compensation"];
@@ -166,6 +171,13 @@ FaceRig FaceRig::from_json(std::string_view json_text, std::string_view source, 
 }
 
 std::string_view FaceRig::builtin_json() { return embedded::face_rig_json(); }
+
+double FaceRig::skin_jaw_value(double jaw) const {
+  if (jaw >= jaw_seal_release_) return jaw;
+  if (jaw <= jaw_seal_below_) return 0.0;
+  const double t = (jaw - jaw_seal_below_) / (jaw_seal_release_ - jaw_seal_below_);
+  return jaw * t * t * (3.0 - 2.0 * t);
+}
 
 const FaceRig& FaceRig::builtin() {
   static const FaceRig kRig = from_json(builtin_json(), "data/face/kRig.json", ArticulationModel::builtin());

@@ -185,7 +185,8 @@ struct FaceSolver::Impl {
   std::vector<Float4> correction;
   std::vector<Vec3> output;
   XRotation jaw;
-  XRotation tongue;  // in the jaw's rest frame
+  XRotation skin_jaw;  // what the soft tissue follows: the jaw less the lip seal (FaceRig::skin_jaw_value)
+  XRotation tongue;    // in the jaw's rest frame
   double tongue_protrusion_m = 0;
 
   Impl(const FaceMesh& mesh_, const FaceRig& rig_, const FaceSolverParams& params_)
@@ -314,7 +315,7 @@ struct FaceSolver::Impl {
           } else {
             d = V3{spec.purse * (centre.x - rest[i].x), 0.0, 0.0};
             closure[m][i] = spec.closure_m * V3(spec.closure_direction);
-            protrusion[m][i] = V3{0.0, 0.0, spec.protrusion_m};
+            protrusion[m][i] = V3{0.0, 0.0, spec.protrusion_m} - spec.eversion_m * V3(spec.closure_direction);
           }
           per_muscle[m][i] = {w, d};
         }
@@ -498,7 +499,7 @@ struct FaceSolver::Impl {
     std::fill(velocity.begin(), velocity.end(), 0.0);
     x_previous_step = x;
     target = x;
-    jaw = x_rotation(mesh.anatomy.jaw_hinge_m, 0.0);
+    jaw = skin_jaw = x_rotation(mesh.anatomy.jaw_hinge_m, 0.0);
     tongue = x_rotation(mesh.tongue_root_m, 0.0);
     tongue_protrusion_m = 0.0;
     write_output();
@@ -511,13 +512,14 @@ struct FaceSolver::Impl {
   }
 
   void compute_targets(std::span<const float> values) {
-    jaw =
-        x_rotation(mesh.anatomy.jaw_hinge_m, channel(values, rig.jaw_channel(), 0.0, 1.0) * rig.max_jaw_rotation_rad());
+    const double jaw_value = channel(values, rig.jaw_channel(), 0.0, 1.0);
+    jaw = x_rotation(mesh.anatomy.jaw_hinge_m, jaw_value * rig.max_jaw_rotation_rad());
+    skin_jaw = x_rotation(mesh.anatomy.jaw_hinge_m, rig.skin_jaw_value(jaw_value) * rig.max_jaw_rotation_rad());
     tongue = x_rotation(mesh.tongue_root_m,
                         -channel(values, rig.tongue_raise_channel(), -1.0, 1.0) * rig.max_tongue_raise_rad());
     tongue_protrusion_m = channel(values, rig.tongue_protrusion_channel(), 0.0, 1.0) * rig.max_tongue_protrusion_m();
     for (std::size_t i = 0; i < n; ++i) {
-      const V3 carried = rest[i] + jaw_share[i] * (jaw.apply(rest[i]) - rest[i]);
+      const V3 carried = rest[i] + jaw_share[i] * (skin_jaw.apply(rest[i]) - rest[i]);
       target[3 * i] = carried.x;
       target[3 * i + 1] = carried.y;
       target[3 * i + 2] = carried.z;
@@ -529,7 +531,7 @@ struct FaceSolver::Impl {
                                                             channel(values, mb.compensation_channel, 0.0, 1.0));
         if (s > 0.0) {
           for (const CompensatedNode& node : mb.compensated) {
-            const V3 drop = jaw.apply(rest[node.node]) - rest[node.node];
+            const V3 drop = skin_jaw.apply(rest[node.node]) - rest[node.node];
             target[3 * node.node] -= s * node.share * drop.x;
             target[3 * node.node + 1] -= s * node.share * drop.y;
             target[3 * node.node + 2] -= s * node.share * drop.z;
@@ -540,7 +542,7 @@ struct FaceSolver::Impl {
       if (c == 0.0) continue;
       const auto displace = [&](const std::vector<Binding>& bindings, double scale) {
         for (const Binding& b : bindings) {
-          const V3 d = mb.on_jaw ? jaw.apply_vector(scale * b.displacement_m) : scale * b.displacement_m;
+          const V3 d = mb.on_jaw ? skin_jaw.apply_vector(scale * b.displacement_m) : scale * b.displacement_m;
           target[3 * b.node] += d.x;
           target[3 * b.node + 1] += d.y;
           target[3 * b.node + 2] += d.z;
@@ -693,9 +695,9 @@ struct FaceSolver::Impl {
       if (skull_contact[i]) {
         // Half-space under the skin: the node's rest position carried by its bones, minus the
         // allowed sink along the carried rest normal.
-        const V3 carried = rest[i] + jaw_share[i] * (jaw.apply(rest[i]) - rest[i]);
+        const V3 carried = rest[i] + jaw_share[i] * (skin_jaw.apply(rest[i]) - rest[i]);
         const V3 normal =
-            normalized(rest_normal[i] + jaw_share[i] * (jaw.apply_vector(rest_normal[i]) - rest_normal[i]));
+            normalized(rest_normal[i] + jaw_share[i] * (skin_jaw.apply_vector(rest_normal[i]) - rest_normal[i]));
         const V3 p = node(i);
         const double depth = dot(p - carried, normal) + sink_limit_m[i];
         if (depth < 0) set_node(i, p - depth * normal);
@@ -714,12 +716,13 @@ struct FaceSolver::Impl {
       const V3 p = jaw.apply(mesh.rest_positions_m[i]);
       output[i] = {p.x, p.y, p.z};
     }
-    for (std::size_t i = mesh.tongue_begin; i < mesh.vertex_count(); ++i) {
+    for (std::size_t i = mesh.tongue_begin; i < mesh.eyes_begin; ++i) {
       V3 p = tongue.apply(mesh.rest_positions_m[i]);
       p.z += tongue_protrusion_m;
       p = jaw.apply(p);
       output[i] = {p.x, p.y, p.z};
     }
+    for (std::size_t i = mesh.eyes_begin; i < mesh.vertex_count(); ++i) output[i] = mesh.rest_positions_m[i];
   }
 
   double energy() const {

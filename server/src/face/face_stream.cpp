@@ -20,6 +20,12 @@ v1::MeshPart to_proto(face::FacePart part) {
       return v1::MESH_PART_LOWER_TEETH;
     case face::FacePart::tongue:
       return v1::MESH_PART_TONGUE;
+    case face::FacePart::eye_white:
+      return v1::MESH_PART_EYE_WHITE;
+    case face::FacePart::iris:
+      return v1::MESH_PART_IRIS;
+    case face::FacePart::pupil:
+      return v1::MESH_PART_PUPIL;
   }
   return v1::MESH_PART_SKIN;
 }
@@ -116,8 +122,9 @@ void FaceLibrary::SolverReturn::operator()(face::FaceSolver* solver) const {
   if (pooled.size() < kPooledSolvers) pooled.push_back(std::move(owned));
 }
 
-FaceStream::FaceStream(const FaceTopology& topology, FaceLibrary::PooledSolver solver, v1::MeshEncoding encoding)
-    : topology_(topology), solver_(std::move(solver)), encoding_(encoding), stepper_(*solver_) {}
+FaceStream::FaceStream(const FaceTopology& topology, FaceLibrary::PooledSolver solver, v1::MeshEncoding encoding,
+                       face::BlinkSettings blinks)
+    : topology_(topology), solver_(std::move(solver)), encoding_(encoding), stepper_(*solver_, blinks) {}
 
 v1::MeshTopology header_topology(const FaceTopology& topology, v1::MeshEncoding encoding) {
   v1::MeshTopology wire = topology.wire;

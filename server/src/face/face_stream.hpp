@@ -94,7 +94,9 @@ v1::MeshTopology header_topology(const FaceTopology& topology, v1::MeshEncoding 
 
 class FaceStream {
  public:
-  FaceStream(const FaceTopology& topology, FaceLibrary::PooledSolver solver, v1::MeshEncoding encoding);
+  /// `blinks`: the eyelids' schedule (settings.outputs.mesh.no_blinks turns it off).
+  FaceStream(const FaceTopology& topology, FaceLibrary::PooledSolver solver, v1::MeshEncoding encoding,
+             face::BlinkSettings blinks = {});
 
   /// Steps the face through frames [begin, end) of `track` and appends their positions to `batch`.
   void encode(const Track& track, std::size_t begin, std::size_t end, v1::FrameBatch& batch);

@@ -302,10 +302,11 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
     if (plan_.mesh) {
       // From here on everything that leaves this stream goes through the lane, in order.
       lane_.emplace(service_.face_workers());
-      lane_->post([this, encoding = plan_.mesh_encoding] {
+      lane_->post([this, encoding = plan_.mesh_encoding, blinks = plan_.blinks] {
         if (!stopped_) {
-          face_ = std::make_unique<FaceStream>(
-              *face_setup_.topology, service_.faces().solver(*face_setup_.topology, *face_setup_.rig), encoding);
+          face_ = std::make_unique<FaceStream>(*face_setup_.topology,
+                                               service_.faces().solver(*face_setup_.topology, *face_setup_.rig),
+                                               encoding, blinks);
         }
       });
     }

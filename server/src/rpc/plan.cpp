@@ -108,6 +108,7 @@ grpc::Status resolve_settings(const v1::AnimationSettings& settings, const Model
   plan.channels = !any || settings.outputs().channels();
   plan.arkit = !any || settings.outputs().arkit();
   plan.mesh = wants_mesh(settings);
+  plan.blinks.enabled = !settings.outputs().mesh().no_blinks();
   if (plan.mesh) {
     const v1::MeshEncoding encoding = settings.outputs().mesh().encoding();
     switch (encoding) {

@@ -35,6 +35,7 @@ struct Plan {
   bool arkit = true;
   bool mesh = false;
   v1::MeshEncoding mesh_encoding = v1::MESH_ENCODING_FLOAT32;
+  face::BlinkSettings blinks;  ///< settings.outputs.mesh.no_blinks turns them off
   /// The viseme output's classifier (null unless asked for); each stream brings its own event detector.
   std::shared_ptr<const VisemeClassifier> visemes;
   v1::VisemeVocabulary viseme_vocabulary = v1::VISEME_VOCABULARY_UNSPECIFIED;

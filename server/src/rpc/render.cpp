@@ -33,8 +33,9 @@ grpc::Status render(LipSyncService& service, Plan& plan, const v1::RenderRequest
   if (auto status = prepare_face(plan, service.faces(), face_setup); !status.ok()) return status;
   std::unique_ptr<FaceStream> face_stream;
   if (plan.mesh) {
-    face_stream = std::make_unique<FaceStream>(
-        *face_setup.topology, service.faces().solver(*face_setup.topology, *face_setup.rig), plan.mesh_encoding);
+    face_stream = std::make_unique<FaceStream>(*face_setup.topology,
+                                               service.faces().solver(*face_setup.topology, *face_setup.rig),
+                                               plan.mesh_encoding, plan.blinks);
   }
   StreamEncoder encoder{.face = face_stream.get(), .viseme_detector = {}};
   const Track track = render_track(plan.model->tables, segments, plan.engine.render);

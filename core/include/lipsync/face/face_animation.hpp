@@ -51,28 +51,54 @@ void sample_track(const Track& track, std::int64_t t_us, std::span<float> out);
 FaceAnimation simulate_face_animation(const FaceMesh& mesh, const FaceRig& rig, const Track& track, int fps,
                                       FaceSolverParams params = {});
 
+/// Blinks (docs/face.md, "Eyes"): a seeded schedule of spontaneous blinks, the same for a seed on
+/// every path (stream, glb, video), or none for callers that drive the eyes themselves.
+struct BlinkSettings {
+  bool enabled = true;
+  std::uint64_t seed = 1;  ///< the schedule's seed; the default is what lipsyncd and lipsync render use
+};
+
+/// How far the upper lids are shut at `t_us` (0 open … 1 shut) by the schedule of `blinks`: blink
+/// k starts kBlinkFirstUs + Σ intervals, each interval kBlinkMinIntervalUs plus a uniform draw of
+/// up to kBlinkSpreadUs from splitmix64(seed + k) (mean 3.5 s, about 17 blinks a minute, the rate
+/// of a relaxed speaker); a blink shuts over 80 ms (smoothstep), stays shut 40 ms and opens over
+/// 160 ms. 0 for every t when blinks are off or t < 0. Pure; O(t / 3.5 s).
+double eyelid_closure(const BlinkSettings& blinks, std::int64_t t_us);
+inline constexpr std::int64_t kBlinkFirstUs = 1'000'000;
+inline constexpr std::int64_t kBlinkMinIntervalUs = 1'500'000;
+inline constexpr std::int64_t kBlinkSpreadUs = 4'000'000;
+inline constexpr std::int64_t kBlinkCloseUs = 80'000, kBlinkHoldUs = 40'000, kBlinkOpenUs = 160'000;
+
+/// Closes the upper lids of `pose` (soft nodes in mesh order, as FaceSolver::positions()) by
+/// `closure` (0 … 1): each of mesh.blink_nodes moves by closure · its offset and is kept 0.5 mm
+/// outside its eyeball. No allocation.
+void close_eyelids(const FaceMesh& mesh, double closure, std::span<Vec3> pose);
+
 /// The face of a track's frames, one frame at a time: the rule every path that shows a track's face
 /// follows (lipsyncd's mesh output, `lipsync render --mesh / --video / --still`), so that one input
 /// and one set of settings give one face. From rest, one solver step per frame with
 /// dt = t_i − t_{i−1} (t_{−1} = 0) and the channels held at the frame's values (FaceSolver::step
 /// divides dt into substeps of at most its time step); the first frame, at t = 0, takes the
-/// channels and moves no skin.
+/// channels and moves no skin. The pose's lids are then closed by the blink schedule at t_i
+/// (close_eyelids; the solver does not see the lids' motion: they are far from every muscle).
 class FaceTrackStepper {
  public:
   /// `solver` must be at rest (new or reset) and outlive the stepper.
-  explicit FaceTrackStepper(FaceSolver& solver) : solver_(solver) {}
+  explicit FaceTrackStepper(FaceSolver& solver, BlinkSettings blinks = {});
   /// Steps to the frame at `t_us` (after the previous one) with `channel_values`; returns the pose.
   std::span<const Vec3> step(std::int64_t t_us, std::span<const float> channel_values);
 
  private:
   FaceSolver& solver_;
+  BlinkSettings blinks_;
+  std::vector<Vec3> pose_;
   std::int64_t previous_t_us_ = 0;
 };
 
 /// The poses of every frame of `track` by FaceTrackStepper (the animation's times are the track's).
 /// Throws std::invalid_argument for a track whose channel count differs from the rig's.
 FaceAnimation simulate_track_frames(const FaceMesh& mesh, const FaceRig& rig, const Track& track,
-                                    const FaceSolverParams& params = {});
+                                    const FaceSolverParams& params = {}, BlinkSettings blinks = {});
 
 /// `animation` seen on a uniform grid, as a video shows it: frames k = 0 … at
 /// t = round(k · 10⁶ / fps) µs, the last one the first at or after the animation's last time; each

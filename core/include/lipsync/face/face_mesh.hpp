@@ -7,10 +7,14 @@
 // (mucosa curling back toward the gums), two rings of cavity and a closing fan, so the skin is one
 // oriented surface. The soft surface is then split 1→4 at edge midpoints `subdivision_level` times
 // (landmark ids 0–467 keep their index). Teeth and tongue are rigid meshes appended after the soft
-// nodes; they are carried by their bone (skull, jaw, tongue) and never simulated.
+// nodes; they are carried by their bone (skull, jaw, tongue) and never simulated. The eyes'
+// fills (the asset's closed lids) are removed too, and behind each opening an eyeball (white,
+// iris, pupil; rigid, on the skull) looks forward; the upper lids can close over them (blinks:
+// blink_nodes, applied by FaceTrackStepper, face_animation.hpp).
 //
 // Everything here is in metres, in the asset's frame: x toward the subject's left, y up, z toward
-// the viewer. Vertex order: soft nodes [0, soft_node_count), then upper teeth, lower teeth, tongue.
+// the viewer. Vertex order: soft nodes [0, soft_node_count), then upper teeth, lower teeth, tongue,
+// eyes.
 #pragma once
 
 #include <array>
@@ -41,7 +45,27 @@ struct FaceAsset {
 extern const std::array<std::uint32_t, 20> kInnerLipLoop;
 
 /// What a vertex belongs to (for rendering materials and for the solver).
-enum class FacePart : std::uint8_t { skin, inner_lip, mouth_cavity, upper_teeth, lower_teeth, tongue };
+enum class FacePart : std::uint8_t {
+  skin,
+  inner_lip,
+  mouth_cavity,
+  upper_teeth,
+  lower_teeth,
+  tongue,
+  eye_white,  ///< the eyeball's sclera (rigid, skull)
+  iris,
+  pupil
+};
+
+/// The eye contours of the canonical mesh (landmark ids), the subject's right eye then the left:
+/// corner, upper lid (7), corner, lower lid (7) back to the first corner.
+extern const std::array<std::array<std::uint32_t, 16>, 2> kEyeContours;
+
+/// An eyeball: an ellipsoid behind an eye opening, looking forward (+z), metres.
+struct EyeBall {
+  Vec3 centre_m;
+  Vec3 semi_axes_m;
+};
 
 /// Anatomy that the asset lacks, in metres relative to landmarks. Defaults fit the canonical mesh.
 struct FaceAnatomy {
@@ -62,6 +86,13 @@ struct FaceAnatomy {
   Vec3 tongue_semi_axes_m{0.021, 0.008, 0.028};
   double tongue_tip_behind_teeth_m = 0.006;
   double tongue_below_centre_m = 0.011;
+  /// Gap left between the lips at rest over the middle of the mouth: the asset's lips (5.5 mm
+  /// apart) are brought together to it, and the skin around them follows (docs/face.md).
+  double rest_lip_gap_m = 0.0;
+  /// Eyeball depth (z semi-axis) and height; its width spans the eye opening plus 1 mm. Its front
+  /// lies `eyeball_behind_lids_m` behind the lid margins' middle (landmarks 159 / 145, 386 / 374).
+  double eyeball_radius_m = 0.012;
+  double eyeball_behind_lids_m = 0.0015;
 };
 
 struct FaceMesh {
@@ -80,7 +111,7 @@ struct FaceMesh {
   std::vector<double> ring_depth;
 
   std::uint32_t soft_node_count = 0;
-  std::uint32_t upper_teeth_begin = 0, lower_teeth_begin = 0, tongue_begin = 0;  ///< vertex ranges
+  std::uint32_t upper_teeth_begin = 0, lower_teeth_begin = 0, tongue_begin = 0, eyes_begin = 0;  ///< vertex ranges
   int subdivision_level = 0;
 
   /// Lip lines (ring 0), corner excluded, ordered from the subject's right to left: the upper and
@@ -91,12 +122,19 @@ struct FaceMesh {
   std::array<std::uint32_t, 2> mouth_corners{};  ///< right (78), left (308)
 
   FaceAnatomy anatomy;
-  Vec3 mouth_centre_m;  ///< mean of landmarks 13 and 14 at rest
+  Vec3 mouth_centre_m;  ///< mean of landmarks 13 and 14 in the asset (the lips close on it at rest)
   /// Upper-teeth arch, skull frame: ellipse centre (x, z), semi-axes, and y range.
   double upper_arch_centre_z_m = 0, lower_arch_centre_z_m = 0;
   double upper_arch_a_m = 0, upper_arch_b_m = 0, lower_arch_a_m = 0, lower_arch_b_m = 0;
   double upper_teeth_y_min_m = 0, upper_teeth_y_max_m = 0, lower_teeth_y_min_m = 0, lower_teeth_y_max_m = 0;
   Vec3 tongue_centre_m, tongue_root_m;
+  std::array<EyeBall, 2> eyeballs{};  ///< right, left
+  /// A blink: soft nodes of the upper lids (and the skin above them, fading out over 6 mm) and
+  /// their displacement when the lids are shut (blink_offsets_m[k] for node blink_nodes[k]); a
+  /// lid closed by s in [0, 1] is rest + s · offset, kept outside its eyeball.
+  std::vector<std::uint32_t> blink_nodes;
+  std::vector<Vec3> blink_offsets_m;
+  std::vector<std::uint8_t> blink_eye;  ///< 0 right, 1 left, per blink node
 
   std::size_t vertex_count() const { return rest_positions_m.size(); }
 };

@@ -52,6 +52,9 @@ struct MuscleSpec {
   Vec3 closure_direction{};         ///< unit vector (toward the lip midline)
   double purse = 0.0;               ///< fraction of the horizontal offset to the mouth centre removed at c = 1
   double protrusion_m = 0.0;        ///< forward (+z) motion at c = 1
+  /// Motion against closure_direction at c = 1, beyond the saturation as the protrusion: the lip
+  /// turns outward and parts from the other (rounding opens a lip-closed rest, docs/face.md).
+  double eversion_m = 0.0;
   /// Lip–jaw compensation (optional, sphincter parts on the jaw): as the contraction of the
   /// `compensation_channel` rises from `compensation_from` to `compensation_full` (smoothstep), the
   /// part's bound lip holds up to `compensation_share` of its jaw-closed position against the jaw's
@@ -78,6 +81,12 @@ class FaceRig {
   std::size_t channel_count() const { return channel_count_; }
   std::size_t jaw_channel() const { return jaw_channel_; }
   double max_jaw_rotation_rad() const { return max_jaw_rotation_rad_; }  ///< at channel value 1
+  /// The jaw value the soft tissue follows for jaw value `jaw` (rig.json "jaw": "seal_below",
+  /// "seal_release"): j · smoothstep(seal_below, seal_release, j). Below seal_below the skin and
+  /// lips stay where they rest while the teeth part (the lips keep their seal over the jaw's small
+  /// opening at rest, the freeway space: silence holds the jaw at 0.02); from seal_release on the
+  /// skin follows the jaw itself. `jaw` itself without a seal.
+  double skin_jaw_value(double jaw) const;
   std::size_t tongue_raise_channel() const { return tongue_raise_channel_; }
   double max_tongue_raise_rad() const { return max_tongue_raise_rad_; }  ///< at channel value ±1
   std::size_t tongue_protrusion_channel() const { return tongue_protrusion_channel_; }
@@ -88,6 +97,7 @@ class FaceRig {
   std::size_t channel_count_ = 0;
   std::size_t jaw_channel_ = 0, tongue_raise_channel_ = 0, tongue_protrusion_channel_ = 0;
   double max_jaw_rotation_rad_ = 0, max_tongue_raise_rad_ = 0, max_tongue_protrusion_m_ = 0;
+  double jaw_seal_below_ = 0, jaw_seal_release_ = 0;
 };
 
 }  // namespace lipsync::face
