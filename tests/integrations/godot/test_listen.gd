@@ -246,17 +246,18 @@ func _verify_listening():
 		var jaw = _live_at("jawOpen", t)
 		var close = _live_at("mouthClose", t)
 		var line = "%s hold %d..%d us, middle %d: live jawOpen %.3f mouthClose %.3f mouthRollLower %.3f; offline jawOpen %.3f mouthClose %.3f" % [hold[2], hold[0], hold[1], t, jaw, close, _live_at("mouthRollLower", t), _offline_at("jawOpen", t), _offline_at("mouthClose", t)]
-		print("   " + line)
 		if hold[2] == "f" or hold[2] == "v":
+			print("ok: (not checked: a tuck) " + line)
 			continue  # /f v/: the lower lip tucked, not sealed
 		closed += 1
-		_check(close >= jaw - 0.02 and jaw <= 0.2, "closed at the /p b m/ middle: " + line)
+		if _check(close >= jaw - 0.02 and jaw <= 0.2, "closed at the /p b m/ middle: " + line):
+			print("ok: closed: " + line)
 	var opened = 0
 	for t in _offline_open_peaks():
 		var line = "open vowel at %d us: live jawOpen %.3f, offline %.3f" % [t, _live_at("jawOpen", t), _offline_at("jawOpen", t)]
-		print("   " + line)
 		opened += 1
-		_check(_live_at("jawOpen", t) >= 0.25 and _live_at("mouthClose", t) < 0.1, "open at the open vowel: " + line)
+		if _check(_live_at("jawOpen", t) >= 0.25 and _live_at("mouthClose", t) < 0.1, "open at the open vowel: " + line):
+			print("ok: open: " + line)
 	_check(closed >= 6 and opened >= 4, "checked %d /p b m/ middles and %d open vowels" % [closed, opened])
 	print("ok: %d /p b m/ middles closed and %d open vowels open, as in the offline render" % [closed, opened])
 

@@ -321,6 +321,7 @@ func play(from_us = 0):
 		push_error("LipsyncPlayer: audio_player_path '%s' is not an AudioStreamPlayer" % str(audio_player_path))
 		_audio = null
 		return ERR_UNCONFIGURED
+	_leave_voice()
 	if _audio != null:
 		_audio.play(from_us / 1000000.0)
 	_start_ticks_us = OS.get_ticks_usec() - from_us
@@ -440,6 +441,13 @@ func follow(url, session, start = "beginning"):
 	var base = _viewer_base(url, "follow()")
 	if base == "":
 		return ERR_INVALID_PARAMETER
+	_leave_voice()
+	return _follow(base, session, start)
+
+
+# follow() of a viewer at `base` (ws://HOST:PORT), also the voice's own follower.
+func _follow(base, session, start = "beginning"):
+	_close_socket()
 	_live_url = base + "/ws?session=" + session.percent_encode() + ("&start=now" if start == "now" else "")
 	_live_session = session
 	_live_start = start
@@ -650,6 +658,9 @@ func listen(url, session, transcript = ""):
 	if base == "":
 		return ERR_INVALID_PARAMETER
 	_end_voice_socket()
+	_close_socket()  # a session followed before
+	_live_retry_at_ms = -1
+	_live_header = null
 	_audio = audio
 	_voice_pcm = data
 	_voice_format = stream.format
@@ -746,6 +757,14 @@ func _step_voice():
 		listening = false
 
 
+# Leaves the voice's clock for play() or follow(); a voice still being sent is cut off there (its
+# session's followers see it end as ABORTED).
+func _leave_voice():
+	_end_voice_socket()
+	listening = false
+	_voice_session = ""
+
+
 func _voice_fail(code, message):
 	listen_error = message
 	listening = false
@@ -768,7 +787,7 @@ func _end_voice_socket():
 
 func _on_voice_connected(_protocol):
 	_voice_open = true
-	follow(_voice_base, _voice_session)  # the session's frames, as any follower gets them
+	_follow(_voice_base, _voice_session)  # the session's frames, as any follower gets them
 	_live_retry_ms = 20  # lipsyncd is opening the session now: its first frames are due soon
 
 
