@@ -207,7 +207,7 @@ class GodotAddOn(unittest.TestCase):
                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
             # Meanwhile, on the same lipsyncd: players it cannot hear, and a voice it refuses.
             bad = self.godot("test_listen.gd", "listen_bad_input", LIPSYNC_WS=viewer, LIPSYNC_SESSION="godot-96k",
-                             LIPSYNC_OFFLINE=self.wav_track, LIPSYNC_OGG=self.ogg, LIPSYNC_NO_SERVER=f"ws://127.0.0.1:{free_port()}")
+                             LIPSYNC_OFFLINE=self.wav_track, LIPSYNC_OGG=self.ogg, LIPSYNC_WAV=self.wav, LIPSYNC_NO_SERVER=f"ws://127.0.0.1:{free_port()}")
             self.assertPassed(bad)
             for expected in [
                     "listen(): audio_player_path '' is not an AudioStreamPlayer; point it at the AudioStreamPlayer that "

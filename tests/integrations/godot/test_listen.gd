@@ -16,7 +16,8 @@
 #              IMA-ADPCM WAV, an empty sample: refused at once, nothing sent; a voice at 96 kHz:
 #              lipsyncd's refusal (INVALID_ARGUMENT, rate) is reported and the follower stops
 #              waiting; a viewer address where nothing listens: reported. 8-bit samples convert
-#              to 16-bit (s × 256).
+#              to 16-bit (s × 256). Then stop() of the real voice (LIPSYNC_WAV) after 0.5 s ends it
+#              there: {"end": true} and lipsyncd's summary of what was sent.
 #
 # Prints "ok: ..." per check passed and "FAIL: ..." per failure; exits 0 only when all passed.
 extends "res://checking_tree.gd"
@@ -343,4 +344,20 @@ func _step_bad_input():
 			_check(player.listen_error.find("--http-listen") >= 0, "the error says to start lipsyncd with --http-listen: " + player.listen_error)
 			print("ok: no lipsyncd: " + player.listen_error)
 			_check(face.get("blend_shapes/jawOpen") == 0.5, "the face is untouched")
+			# The real voice, stopped after 0.5 s: the voice ends there, with lipsyncd's summary.
+			player = _new_player(_new_voice("Stopped", Fixture.read_wav(OS.get_environment("LIPSYNC_WAV"))))
+			_check(player.listen(OS.get_environment("LIPSYNC_WS"), "godot-stopped") == OK, "listen() of the voice to stop starts")
+			phase = "to stop"
+	elif phase == "to stop":
+		if LipsyncPlayer.audio_clock_us(player._audio) >= 500000:
+			player.stop()
+			phase = "stopped"
+	elif phase == "stopped":
+		if player.listen_summary != null or player.listen_error != "":
+			var sent_us = player.listen_sent_bytes * 1000000 / (2 * player._voice_rate)
+			var summary = player.listen_summary if player.listen_summary != null else {}
+			_check(player.listen_error == "", "no error: " + player.listen_error)
+			_check(sent_us >= 500000 and sent_us <= 500000 + player.listen_ahead_ms * 1000 + 50000, "stopped at 0.5 s: %d us of the voice sent" % sent_us)
+			_check(int(summary.get("duration_us", 0)) <= sent_us + 50000 and int(summary.get("frames", 0)) > 0, "lipsyncd's summary covers what was sent: %s" % JSON.print(summary))
+			print("ok: stop() at 0.5 s ended the voice: %d us sent, lipsyncd's summary %s" % [sent_us, JSON.print(summary)])
 			_finish()
