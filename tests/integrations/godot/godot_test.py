@@ -16,6 +16,12 @@ real lipsyncd (--http-listen on port 0) fed in real time by `lipsync stream`.
   * live: a lipsyncd session followed over the viewer's WebSocket with the media-clock anchor, the
     follower started before the session (it asks again until the session exists); a session that
     never starts is reported after live_wait_ms;
+  * listen: an AudioStreamPlayer plays flite's WAV of "Papa bought five more big maps." and the
+    player sends its samples to lipsyncd's /listen as they play (with the words), following the
+    session: closed at the /p b m/ middles and open at the open vowels of lipsyncd's offline render
+    of the same WAV, drawn on the audio clock (test_listen.gd); meanwhile, on the same lipsyncd, the
+    players it cannot hear (no stream, Ogg Vorbis, IMA-ADPCM, no samples) are refused with what to
+    do and nothing sent, and a voice at a rate lipsyncd refuses is reported with its refusal;
   * no_server: following a viewer address where nothing listens reports it; bad_address: an address
     that is not a viewer's is answered with the http://HOST:PORT/view address lipsyncd prints.
 
@@ -57,7 +63,7 @@ class GodotAddOn(unittest.TestCase):
         with open(os.path.join(cls.project, "project.godot"), "w") as project:
             project.write('config_version=4\n\n[application]\n\nconfig/name="lipsync add-on test"\n')
         shutil.copytree(os.path.join(SOURCE_DIR, "clients", "godot", "addons"), os.path.join(cls.project, "addons"))
-        for script in ("face_fixture.gd", "test_player.gd", "test_live.gd"):
+        for script in ("checking_tree.gd", "face_fixture.gd", "test_player.gd", "test_live.gd", "test_listen.gd"):
             shutil.copy(os.path.join(HERE, script), cls.project)
         cls.tracks = []
         for name in TRACK_INPUTS:
@@ -79,6 +85,12 @@ class GodotAddOn(unittest.TestCase):
         # The speech itself, given where the track goes.
         cls.wav = os.path.join(cls.workdir, "papa.wav")
         subprocess.run(["flite", "-voice", "slt", "-t", "Papa bought five more big maps.", "-o", cls.wav], check=True)
+        cls.text = "Papa bought five more big maps."
+        cls.wav_track = os.path.join(cls.workdir, "papa_wav.json")
+        subprocess.run([LIPSYNC, "render", cls.wav, "--text", cls.text, "-o", cls.wav_track], check=True)
+        cls.ogg = os.path.join(cls.workdir, "papa.ogg")  # a stream Godot 3 gives no samples of
+        subprocess.run(["ffmpeg", "-hide_banner", "-loglevel", "error", "-i", cls.wav, "-c:a", "libvorbis", cls.ogg],
+                       check=True)
         cls.not_utf8 = os.path.join(cls.workdir, "latin1.json")
         with open(cls.not_utf8, "wb") as out:
             out.write('{"format": "lipsync-track", "text": "caf\u00e9"}\n'.encode("latin-1"))
@@ -183,6 +195,37 @@ class GodotAddOn(unittest.TestCase):
             self.assertEqual(producer.returncode, 0, producer.stderr)
             out, err = godot.communicate(timeout=60)
             self.assertPassed(subprocess.CompletedProcess(godot.args, godot.returncode, out, err))
+
+    def test_a_played_voice_is_heard_live_and_unreadable_players_are_refused(self):
+        with ServerProcess([LIPSYNCD, "--listen", "127.0.0.1:0", "--http-listen", "127.0.0.1:0", "--log-level",
+                            "warn"]) as lipsyncd:
+            viewer = re.match(r"lipsyncd viewer on (http://\S+/view)", lipsyncd.next_line() or "").group(1)
+            environment = self.environment("listen", LIPSYNC_WS=viewer, LIPSYNC_SESSION="godot-voice",
+                                           LIPSYNC_WAV=self.wav, LIPSYNC_TEXT=self.text, LIPSYNC_OFFLINE=self.wav_track,
+                                           LIPSYNC_PHONEMES=os.path.join(CLOSURES, "flite_1.psdur"))
+            godot = subprocess.Popen([GODOT, "--path", self.project, "-s", "res://test_listen.gd"], env=environment,
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            # Meanwhile, on the same lipsyncd: players it cannot hear, and a voice it refuses.
+            bad = self.godot("test_listen.gd", "listen_bad_input", LIPSYNC_WS=viewer, LIPSYNC_SESSION="godot-96k",
+                             LIPSYNC_OFFLINE=self.wav_track, LIPSYNC_OGG=self.ogg, LIPSYNC_WAV=self.wav, LIPSYNC_NO_SERVER=f"ws://127.0.0.1:{free_port()}")
+            self.assertPassed(bad)
+            for expected in [
+                    "listen(): audio_player_path '' is not an AudioStreamPlayer; point it at the AudioStreamPlayer that "
+                    "plays the voice",
+                    "listen(): the AudioStreamPlayer 'Silent' has no stream; give it the voice to speak (a WAV, imported "
+                    "as an AudioStreamSample)",
+                    "listen(): the AudioStreamPlayer 'Music' plays an AudioStreamOGGVorbis, whose samples Godot 3 does "
+                    "not give to scripts; import the voice as a WAV",
+                    "listen(): the AudioStreamPlayer 'Compressed' plays an IMA-ADPCM WAV, whose samples the add-on does "
+                    "not decode; reimport the WAV with Compress Mode 'Disabled'",
+                    "listen(): the AudioStreamPlayer 'Empty' has an AudioStreamSample without samples",
+                    "listen(): session 'godot-96k': lipsyncd refused the voice: INVALID_ARGUMENT: rate:",
+                    "listen(): session 'nobody': no lipsyncd viewer answered at ws://127.0.0.1:"]:
+                self.assertIn(expected, bad.stderr)
+            self.assertNotIn("NOT_FOUND", bad.stderr)  # the follower of the refused voice did not wait on
+            out, err = godot.communicate(timeout=60)
+            self.assertPassed(subprocess.CompletedProcess(godot.args, godot.returncode, out, err))
+            self.assertNotIn("LipsyncPlayer:", err, err[-4000:])
 
     def test_a_bad_viewer_address_is_answered_with_the_address_lipsyncd_prints(self):
         run = self.godot("test_live.gd", "bad_address", LIPSYNC_WS="127.0.0.1:8080", LIPSYNC_SESSION="demo",

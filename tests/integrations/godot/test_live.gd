@@ -9,13 +9,12 @@
 # and leaves the face untouched; with no_session, a session that never starts is reported after
 # live_wait_ms (lipsyncd's NOT_FOUND, asked again every 250 ms until then); with bad_address,
 # follow() of something that is not a viewer address is refused at once.
-extends SceneTree
+extends "res://checking_tree.gd"
 
 const Fixture = preload("res://face_fixture.gd")
 const LipsyncPlayer = preload("res://addons/lipsync/lipsync_player.gd")
 const TOLERANCE = 1e-6
 
-var failures = 0
 var started_ms = 0
 var face
 var player
@@ -24,7 +23,6 @@ var samples = []  # [unix µs now, player's time, frames received, {name: weight
 var ended = []
 var header = null
 var after_end_steps = 0
-var mode = ""
 var audio = null
 var audio_start = null  # [anchor's utterance time, audio clock] when the audio was first seen playing
 
@@ -33,10 +31,7 @@ func _init():
 	mode = OS.get_environment("LIPSYNC_GODOT_TEST")
 	started_ms = OS.get_ticks_msec()
 	expected = Fixture.read_json(OS.get_environment("LIPSYNC_EXPECTED"))
-	var names = []
-	for name in expected["arkit_names"]:
-		names.append(name)
-	face = Fixture.make_face(names)
+	face = Fixture.make_face_for(expected)
 	get_root().add_child(face)
 	player = LipsyncPlayer.new()
 	get_root().add_child(player)
@@ -70,19 +65,6 @@ func _on_header(h):
 
 func _on_ended(code, reason):
 	ended = [code, reason]
-
-
-func _check(condition, message):
-	if condition:
-		return true
-	failures += 1
-	print("FAIL: " + message)
-	return false
-
-
-func _finish():
-	print("%s: %d failure(s)" % [mode, failures])
-	quit(1 if failures > 0 else 0)
 
 
 func _unix_now_us():

@@ -18,15 +18,13 @@
 #              drives the blend shape of its own name (or the one that matches it but for case).
 #
 # Prints "ok: ..." per check passed and "FAIL: ..." per failure; exits 0 only when all passed.
-extends SceneTree
+extends "res://checking_tree.gd"
 
 const Fixture = preload("res://face_fixture.gd")
 const LipsyncPlayer = preload("res://addons/lipsync/lipsync_player.gd")
 const TOLERANCE = 1e-6  # float32 weights through float64 JSON and back
 const MIX_BUFFER_FRAMES = 512  # what the Dummy audio driver mixes at a time (about 12 ms)
 
-var failures = 0
-var mode = ""
 var step = 0
 var clock_us = 0
 var started_ms = 0
@@ -49,23 +47,6 @@ func _init():
 	else:
 		_fail("unknown LIPSYNC_GODOT_TEST '%s'" % mode)
 		_finish()
-
-
-func _check(condition, message):
-	if condition:
-		return true
-	_fail(message)
-	return false
-
-
-func _fail(message):
-	failures += 1
-	print("FAIL: " + message)
-
-
-func _finish():
-	print("%s: %d failure(s)" % [mode, failures])
-	quit(1 if failures > 0 else 0)
 
 
 func _idle(_delta):

@@ -10,6 +10,8 @@
 # The clock. The face shows the track at the time the listener hears:
 #   - with `audio_player_path`, an AudioStreamPlayer's playback position plus the time since the
 #     last mix, minus the output latency (Godot's recipe for syncing to audio);
+#   - with a voice (listen()), the AudioStreamPlayer's clock as above once it plays: the frames are
+#     for the stream's own sample times;
 #   - in live mode, the session's media-clock anchor: on the "unix" clock utterance time 0 plays at
 #     `utterance_zero_us`, as lipsyncd's browser viewer does (docs/viewer.md); on another clock,
 #     from the header's arrival;
@@ -21,6 +23,18 @@
 # (`lipsyncd --http-listen HOST:PORT`, ws://HOST:PORT/ws?session=NAME): binary TrackMessages
 # (track_decoder.gd), frames appended as they come; a session not started yet is asked for again
 # every 250 ms for `live_wait_ms`.
+#
+# Live mode with a voice (listen()) makes the session itself: the AudioStreamPlayer at
+# `audio_player_path` plays its AudioStreamSample (a WAV, 8- or 16-bit PCM) and the node sends the
+# stream's own samples, as 16-bit PCM pieces of 20 ms, to the viewer's WebSocket /listen
+# (ws://HOST:PORT/listen?session=NAME&rate=HZ, docs/viewer.md) as the playback position passes
+# them, `listen_ahead_ms` ahead of it (lipsyncd refuses audio more than 2 s ahead of real time),
+# then {"end": true}; it follows the session on /ws as above and draws its frames on the audio
+# clock. listen() starts the stream; once the mixer has played its first samples the WebSocket is
+# opened with the session's anchor (utterance_zero_us): the unix time at which the audio clock was
+# 0, i.e. when the first sample was heard. Godot 3 gives scripts no samples of
+# Ogg Vorbis or MP3 streams, nor of the microphone as it records (AudioEffectCapture is Godot
+# 3.3+/4.x): those are refused with what to do (docs/integrations.md).
 #
 # Bad input (a file that is not a lipsyncd track, a track of another model, a mesh without the
 # shape keys, no lipsyncd) is reported with push_error saying what to do, and the scene is left as
@@ -35,6 +49,7 @@ signal track_loaded(frame_count)
 signal live_header(header)
 signal live_ended(code, reason)
 signal finished
+signal listen_ended(summary)  # lipsyncd's summary of the voice: {session, frames, duration_us, notes}
 
 const TrackDecoder = preload("track_decoder.gd")
 
@@ -49,6 +64,12 @@ export(String) var model = ""
 export(bool) var autoplay = false
 # How long follow() waits for a session that has not started yet, ms.
 export(int) var live_wait_ms = 10000
+# listen(): how far ahead of the audio clock the voice is sent, ms (lipsyncd allows 2000). With
+# the default budget, frames then come about 130 ms before they are heard (at 200 ms, 30 ms: often
+# too late for the next frame to interpolate toward; docs/integrations.md).
+export(int) var listen_ahead_ms = 300
+# listen(): the latency budget asked of lipsyncd (Listen's latency_ms, 100 to 2000).
+export(int) var listen_latency_ms = 200
 
 # A FuncRef returning the utterance time in µs; replaces the audio and wall clocks when set.
 var clock_source = null
@@ -73,6 +94,7 @@ var _live_session = ""
 var _live_start = ""
 var _live_deadline_ms = 0
 var _live_retry_at_ms = -1
+var _live_retry_ms = 250  # how soon a session not started yet is asked for again
 var _live_header = null
 var _live_clock_offset_us = 0  # unix µs − OS.get_ticks_usec()
 var _live_zero_ticks_us = 0  # ticks at utterance time 0 (non-unix clocks)
@@ -81,6 +103,32 @@ var _live_close = [1006, ""]  # the close code and reason lipsyncd sent
 var live_done = false
 var live_retries = 0  # times follow() asked again for a session that had not started
 var live_error = ""
+
+# The voice (listen()) state.
+const VOICE_PIECE_MS = 20  # a piece of the voice, as the viewer page sends them
+const VOICE_LOG_MAX = 100000  # pieces kept in listen_pieces (half an hour)
+var _voice_socket = null
+var _retired_voice_socket = null
+var _voice_url = ""
+var _voice_session = ""
+var _voice_base = ""  # ws://HOST:PORT of the viewer
+var _voice_pcm = PoolByteArray()  # the stream's samples, as they are stored (8- or 16-bit)
+var _voice_format = 0
+var _voice_rate = 0
+var _voice_channels = 1
+var _voice_frames = 0  # sample frames in the stream
+var _voice_sent_frames = 0
+var _voice_query = ""  # /listen's parameters but the anchor
+var _voice_unix_offset_us = 0  # unix µs − OS.get_ticks_usec()
+var _voice_last_us = 0  # the audio clock last read while it played
+var _voice_open = false  # the WebSocket is open
+var _voice_close = [1006, ""]
+var listening = false  # a voice is being sent
+var listen_error = ""
+var listen_summary = null
+var listen_sent_bytes = 0
+var listen_max_ahead_us = 0  # the furthest the samples sent ran ahead of the audio clock
+var listen_pieces = []  # [audio time µs at a piece's end, OS.get_ticks_usec() when it was sent]
 
 
 func _ready():
@@ -273,6 +321,7 @@ func play(from_us = 0):
 		push_error("LipsyncPlayer: audio_player_path '%s' is not an AudioStreamPlayer" % str(audio_player_path))
 		_audio = null
 		return ERR_UNCONFIGURED
+	_leave_voice()
 	if _audio != null:
 		_audio.play(from_us / 1000000.0)
 	_start_ticks_us = OS.get_ticks_usec() - from_us
@@ -295,6 +344,8 @@ func is_playing():
 func current_time_us():
 	if clock_source != null:
 		return int(clock_source.call_func())
+	if _voice_session != "":
+		return _voice_time_us()
 	if _live_header != null:
 		if _live_header["clock"] == "unix":
 			return OS.get_ticks_usec() + _live_clock_offset_us - int(_live_header["utterance_zero_us"])
@@ -326,13 +377,16 @@ static func audio_clock_us(player):
 
 func _process(_delta):
 	_retired_socket = null
+	_retired_voice_socket = null
 	if _socket != null or _live_retry_at_ms >= 0:
 		_poll_live()
+	if _voice_session != "":
+		_step_voice()
 	if _playing or _live_header != null:
 		var t = current_time_us()
 		show_at(t)
 		# In live mode the audio (if any) starts when utterance time 0 comes, at the anchor's time.
-		if _live_header != null and _audio is AudioStreamPlayer and not _live_audio_started and t >= 0:
+		if _live_header != null and _voice_session == "" and _audio is AudioStreamPlayer and not _live_audio_started and t >= 0:
 			_audio.play(t / 1000000.0)
 			_live_audio_started = true
 		if _playing and clock_source == null and _audio != null and not _audio.playing:
@@ -384,18 +438,21 @@ func bound_shapes():
 func follow(url, session, start = "beginning"):
 	if session == "":
 		return _fail(ERR_INVALID_PARAMETER, "follow(): no session name; give the name the producer streams to (lipsync stream --session NAME)")
-	var base = url.strip_edges()
-	if base.begins_with("http://"):
-		base = "ws://" + base.substr(7)
-	var cut = base.find("/", 5)
-	if cut >= 0:
-		base = base.substr(0, cut)
-	if not base.begins_with("ws://"):
-		return _fail(ERR_INVALID_PARAMETER, "follow(): '%s' is not the viewer's address; give the http://HOST:PORT/view address lipsyncd prints at start ('lipsyncd viewer on http://...', with --http-listen HOST:PORT), or ws://HOST:PORT" % url)
+	var base = _viewer_base(url, "follow()")
+	if base == "":
+		return ERR_INVALID_PARAMETER
+	_leave_voice()
+	return _follow(base, session, start)
+
+
+# follow() of a viewer at `base` (ws://HOST:PORT), also the voice's own follower.
+func _follow(base, session, start = "beginning"):
+	_close_socket()
 	_live_url = base + "/ws?session=" + session.percent_encode() + ("&start=now" if start == "now" else "")
 	_live_session = session
 	_live_start = start
 	_live_deadline_ms = OS.get_ticks_msec() + live_wait_ms
+	_live_retry_ms = 250
 	_live_header = null
 	live_done = false
 	live_error = ""
@@ -406,19 +463,39 @@ func follow(url, session, start = "beginning"):
 	return _connect_live()
 
 
+# ws://HOST:PORT of the viewer at `url` (as follow() takes it), or "" after push_error.
+func _viewer_base(url, caller):
+	var base = url.strip_edges()
+	if base.begins_with("http://"):
+		base = "ws://" + base.substr(7)
+	var cut = base.find("/", 5)
+	if cut >= 0:
+		base = base.substr(0, cut)
+	if not base.begins_with("ws://"):
+		_fail(ERR_INVALID_PARAMETER, "%s: '%s' is not the viewer's address; give the http://HOST:PORT/view address lipsyncd prints at start ('lipsyncd viewer on http://...', with --http-listen HOST:PORT), or ws://HOST:PORT" % [caller, url])
+		return ""
+	return base
+
+
 func _connect_live():
 	_live_retry_at_ms = -1
 	_live_close = [1006, "the connection was lost"]
-	_socket = WebSocketClient.new()
-	_socket.connect("connection_error", self, "_on_socket_error")
-	_socket.connect("server_close_request", self, "_on_socket_close_request")
-	_socket.connect("connection_closed", self, "_on_socket_closed")
-	_socket.connect("data_received", self, "_on_socket_data")
-	var error = _socket.connect_to_url(_live_url)
+	_socket = _open_socket(_live_url, {"connection_error": "_on_socket_error", "server_close_request": "_on_socket_close_request", "connection_closed": "_on_socket_closed", "data_received": "_on_socket_data"})
+	var error = _socket.get_meta("connect_error")
 	if error != OK:
 		_socket = null
 		return _live_fail(error, "cannot connect to %s (error %d); start lipsyncd with --http-listen HOST:PORT and follow the http://HOST:PORT/view address it prints" % [_live_url, error])
 	return OK
+
+
+# A WebSocketClient connecting to `url`, its signals calling this node's `handlers` ({signal:
+# method}); connect_to_url's error is its meta "connect_error".
+func _open_socket(url, handlers):
+	var socket = WebSocketClient.new()
+	for signal_name in handlers:
+		socket.connect(signal_name, self, handlers[signal_name])
+	socket.set_meta("connect_error", socket.connect_to_url(url))
+	return socket
 
 
 func _live_fail(code, message):
@@ -494,7 +571,7 @@ func _on_live_error_text(text):
 		message = str(parsed.result.get("message", text))
 	if code == "NOT_FOUND" and _live_header == null and OS.get_ticks_msec() < _live_deadline_ms:
 		_close_socket()
-		_live_retry_at_ms = OS.get_ticks_msec() + 250  # the session has not started yet
+		_live_retry_at_ms = OS.get_ticks_msec() + _live_retry_ms  # the session has not started yet
 		live_retries += 1
 		return
 	if code == "NOT_FOUND":
@@ -548,3 +625,204 @@ func _end_live(code, reason):
 	live_done = true
 	_close_socket()
 	emit_signal("live_ended", code, reason)
+
+
+# --- Live mode with a voice: listen() -------------------------------------------------------------
+
+# Makes the face speak what the AudioStreamPlayer at `audio_player_path` plays: starts its stream,
+# sends its samples to lipsyncd's viewer at `url` (as follow() takes it) as they play, into
+# session `session`, and follows that session. `transcript`: the words said
+# (optional; the /p b m/ closures are far more reliable with them). OK when under way; an error
+# code after push_error when the player's stream cannot be sent (nothing is sent then). Later
+# errors (lipsyncd's refusal, a lost connection) go to push_error and `listen_error`.
+func listen(url, session, transcript = ""):
+	var audio = get_node_or_null(audio_player_path) if not audio_player_path.is_empty() else null
+	if not (audio is AudioStreamPlayer):
+		return _fail(ERR_UNCONFIGURED, "listen(): audio_player_path '%s' is not an AudioStreamPlayer; point it at the AudioStreamPlayer that plays the voice" % str(audio_player_path))
+	var stream = audio.stream
+	var who = "the AudioStreamPlayer '%s'" % audio.name
+	if stream == null:
+		return _fail(ERR_UNCONFIGURED, "listen(): %s has no stream; give it the voice to speak (a WAV, imported as an AudioStreamSample)" % who)
+	if not (stream is AudioStreamSample):
+		return _fail(ERR_UNAVAILABLE, "listen(): %s plays an %s, whose samples Godot 3 does not give to scripts; import the voice as a WAV (AudioStreamSample, 8- or 16-bit PCM), or render its track offline ('lipsync render voice.wav --text \"...\" --format json') and play() it" % [who, stream.get_class()])
+	if stream.format == AudioStreamSample.FORMAT_IMA_ADPCM:
+		return _fail(ERR_UNAVAILABLE, "listen(): %s plays an IMA-ADPCM WAV, whose samples the add-on does not decode; reimport the WAV with Compress Mode 'Disabled' (the Import dock) so that it is 16-bit PCM" % who)
+	var channels = 2 if stream.stereo else 1
+	var bytes_per_frame = (2 if stream.format == AudioStreamSample.FORMAT_16_BITS else 1) * channels
+	var data = stream.data
+	if data.size() < bytes_per_frame:
+		return _fail(ERR_INVALID_DATA, "listen(): %s has an AudioStreamSample without samples; give it the voice's WAV" % who)
+	if session == "":
+		return _fail(ERR_INVALID_PARAMETER, "listen(): no session name; give the name the face's session takes (followers watch it by that name)")
+	var base = _viewer_base(url, "listen()")
+	if base == "":
+		return ERR_INVALID_PARAMETER
+	_end_voice_socket()
+	_close_socket()  # a session followed before
+	_live_retry_at_ms = -1
+	_live_header = null
+	_audio = audio
+	_voice_pcm = data
+	_voice_format = stream.format
+	_voice_rate = stream.mix_rate
+	_voice_channels = channels
+	_voice_frames = data.size() / bytes_per_frame
+	_voice_sent_frames = 0
+	_voice_session = session
+	_voice_base = base
+	_voice_unix_offset_us = OS.get_system_time_msecs() * 1000 - OS.get_ticks_usec()
+	_voice_last_us = 0
+	_voice_open = false
+	_voice_close = [1006, "the connection was lost"]
+	listening = true
+	listen_error = ""
+	listen_summary = null
+	listen_sent_bytes = 0
+	listen_max_ahead_us = 0
+	listen_pieces = []
+	_voice_query = "session=%s&rate=%d&channels=%d&latency_ms=%d" % [session.percent_encode(), _voice_rate, channels, listen_latency_ms]
+	if transcript != "":
+		_voice_query += "&transcript=" + transcript.percent_encode()
+	_voice_url = ""
+	_audio.play(0)
+	return OK
+
+
+# Opens the voice's WebSocket, anchored where the audio clock says sample 0 was heard.
+func _connect_voice():
+	var zero_unix_us = OS.get_ticks_usec() + _voice_unix_offset_us - audio_clock_us(_audio)
+	_voice_url = _voice_base + "/listen?" + _voice_query + "&utterance_zero_us=%d" % zero_unix_us
+	_voice_socket = _open_socket(_voice_url, {"connection_established": "_on_voice_connected", "connection_error": "_on_voice_socket_error", "server_close_request": "_on_voice_close_request", "connection_closed": "_on_voice_closed", "data_received": "_on_voice_data"})
+	var error = _voice_socket.get_meta("connect_error")
+	if error != OK:
+		_voice_socket = null
+		return _voice_fail(error, "cannot connect to %s (error %d); start lipsyncd with --http-listen HOST:PORT and give the http://HOST:PORT/view address it prints" % [_voice_base, error])
+	return OK
+
+
+# `frames` 16-bit little-endian PCM frames from `from_frame` of an AudioStreamSample's `data`, stored
+# in `format` (8- or 16-bit) with `channels` interleaved: 16-bit data is that already; Godot keeps
+# 8-bit samples signed, so each becomes a 16-bit value with it as the high byte (s × 256).
+static func pcm16_of(data, format, channels, from_frame, frames):
+	if format == AudioStreamSample.FORMAT_16_BITS:
+		return data.subarray(from_frame * 2 * channels, (from_frame + frames) * 2 * channels - 1)
+	var first = from_frame * channels
+	var count = frames * channels
+	var out = PoolByteArray()
+	out.resize(count * 2)
+	for i in range(count):
+		out[2 * i] = 0
+		out[2 * i + 1] = data[first + i]
+	return out
+
+
+# The voice's utterance time, µs: the audio clock; after the audio stopped, where it stopped.
+func _voice_time_us():
+	if _audio != null and _audio.playing:
+		_voice_last_us = audio_clock_us(_audio)
+	return _voice_last_us
+
+
+# Each frame while a voice is under way: connects once the audio has played (the anchor), sends
+# the samples the playback position (plus listen_ahead_ms) has reached in pieces of
+# VOICE_PIECE_MS, and ends the voice ({"end": true}) once all are sent or the audio stopped.
+func _step_voice():
+	if _voice_socket != null:
+		_voice_socket.poll()  # emits the _on_voice_* signals
+	elif listening and _voice_url == "" and (_audio.get_playback_position() > 0.0 or not _audio.playing):
+		_connect_voice()
+	if not listening or not _voice_open or _voice_socket == null:
+		return
+	var stopped = not _audio.playing  # the stream ended, or stop() was called
+	var now_us = _voice_time_us()
+	var due = min(_voice_frames, (now_us + listen_ahead_ms * 1000) * _voice_rate / 1000000)
+	var piece_frames = max(1, _voice_rate * VOICE_PIECE_MS / 1000)
+	var peer = _voice_socket.get_peer(1)
+	peer.set_write_mode(WebSocketPeer.WRITE_MODE_BINARY)
+	while _voice_sent_frames < due:
+		var frames = min(piece_frames, due - _voice_sent_frames)
+		if frames < piece_frames and _voice_sent_frames + frames < _voice_frames and not stopped:
+			break  # whole pieces only, but for the stream's last
+		var piece = pcm16_of(_voice_pcm, _voice_format, _voice_channels, _voice_sent_frames, frames)
+		if peer.put_packet(piece) != OK:
+			break  # the socket's output buffer is full: the rest next frame
+		_voice_sent_frames += frames
+		listen_sent_bytes += piece.size()
+		if listen_pieces.size() < VOICE_LOG_MAX:
+			listen_pieces.append([_voice_sent_frames * 1000000 / _voice_rate, OS.get_ticks_usec()])
+	listen_max_ahead_us = max(listen_max_ahead_us, _voice_sent_frames * 1000000 / _voice_rate - now_us)
+	if _voice_sent_frames >= _voice_frames or stopped:
+		peer.set_write_mode(WebSocketPeer.WRITE_MODE_TEXT)
+		peer.put_packet(JSON.print({"end": true}).to_utf8())
+		listening = false
+
+
+# Leaves the voice's clock for play() or follow(); a voice still being sent is cut off there (its
+# session's followers see it end as ABORTED).
+func _leave_voice():
+	_end_voice_socket()
+	listening = false
+	_voice_session = ""
+
+
+func _voice_fail(code, message):
+	listen_error = message
+	listening = false
+	_end_voice_socket()
+	if _live_header == null:  # the session will not start: stop waiting for it
+		_close_socket()
+		_live_retry_at_ms = -1
+	return _fail(code, "listen(): session '%s': %s" % [_voice_session, message])
+
+
+# Closes the voice's WebSocket, kept alive until the next frame (it may be emitting the signal we are in).
+func _end_voice_socket():
+	_voice_open = false
+	if _voice_socket != null:
+		var socket = _voice_socket
+		_retired_voice_socket = socket
+		_voice_socket = null
+		socket.disconnect_from_host()
+
+
+func _on_voice_connected(_protocol):
+	_voice_open = true
+	_follow(_voice_base, _voice_session)  # the session's frames, as any follower gets them
+	_live_retry_ms = 20  # lipsyncd is opening the session now: its first frames are due soon
+
+
+func _on_voice_socket_error():
+	_retired_voice_socket = _voice_socket
+	_voice_socket = null
+	if listen_error == "" and listen_summary == null:
+		_voice_fail(ERR_CANT_CONNECT, "no lipsyncd viewer answered at %s; start lipsyncd with --http-listen HOST:PORT and give the http://HOST:PORT/view address it prints" % _voice_base)
+
+
+func _on_voice_close_request(code, reason):
+	_voice_close = [code, reason]
+
+
+func _on_voice_closed(_was_clean):
+	if _voice_socket == null:
+		return  # closed by us
+	_retired_voice_socket = _voice_socket
+	_voice_socket = null
+	_voice_open = false
+	if listen_error == "" and listen_summary == null:
+		_voice_fail(ERR_CONNECTION_ERROR, "lipsyncd closed the voice's WebSocket (%d %s) before its summary" % _voice_close)
+
+
+# lipsyncd's text on /listen: its refusal {"code", "message"} (then a close with 4000 + the gRPC
+# code), or after {"end": true} the voice's summary {"session", "frames", "duration_us", "notes"}.
+func _on_voice_data():
+	while _voice_socket != null and _voice_socket.get_peer(1).get_available_packet_count() > 0:
+		var text = _voice_socket.get_peer(1).get_packet().get_string_from_utf8()
+		var parsed = JSON.parse(text)
+		var doc = parsed.result if parsed.error == OK else null
+		if typeof(doc) != TYPE_DICTIONARY:
+			_voice_fail(ERR_PARSE_ERROR, "lipsyncd answered '%s', not JSON" % text.substr(0, 80))
+		elif doc.has("code"):
+			_voice_fail(ERR_CANT_ACQUIRE_RESOURCE, "lipsyncd refused the voice: %s: %s" % [str(doc["code"]), str(doc.get("message", ""))])
+		else:
+			listen_summary = doc
+			emit_signal("listen_ended", doc)
