@@ -148,6 +148,11 @@ ServerMetrics::ServerMetrics(MetricsRegistry& registry_in)
       phonemes_received(
           registry.counter("lipsyncd_phonemes_received_total", "Phonemes received by Animate and Render.", {})
               .with({})),
+      listen_decoders(registry.counter("lipsyncd_listen_decoders_total",
+                                       "Live Listen streams' recognisers, by where their decoder was loaded: "
+                                       "ahead (a spare, ready) or by_stream (none was ready; the stream's first "
+                                       "frames wait for it).",
+                                       {"loaded"})),
       write_latency(registry
                         .histogram("lipsyncd_write_latency_seconds",
                                    "Per stream message: from computable (queued for the stream) to written "

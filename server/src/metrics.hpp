@@ -140,8 +140,11 @@ struct ServerMetrics {
   Family<Counter>& frames_sent;    ///< lipsyncd_frames_sent_total{method}
   Family<Counter>& messages_sent;  ///< lipsyncd_messages_sent_total{method}
   Counter& phonemes_received;      ///< lipsyncd_phonemes_received_total
-  Histogram& write_latency;        ///< lipsyncd_write_latency_seconds: computable → written
-  Histogram& face_solver;          ///< lipsyncd_face_solver_seconds: per mesh frame batch
+  /// lipsyncd_listen_decoders_total{loaded}: live streams' decoders, loaded "ahead" (a spare) or
+  /// "by_stream" (none was ready)
+  Family<Counter>& listen_decoders;
+  Histogram& write_latency;                      ///< lipsyncd_write_latency_seconds: computable → written
+  Histogram& face_solver;                        ///< lipsyncd_face_solver_seconds: per mesh frame batch
   std::atomic<std::int64_t> queued_messages{0};  ///< lipsyncd_queued_messages (gauge)
   /// lipsyncd_streams{method,state="open",tenant}: a stream counts once authenticated, until OnDone.
   Family<Level> open_streams{"lipsyncd_streams", "", {"method", "tenant"}, [] { return std::make_unique<Level>(); }};

@@ -22,6 +22,7 @@
 #include "../speech/tts_recordings.hpp"
 #include "../support/child_process.hpp"
 #include "../support/harvard_sentences.hpp"
+#include "../support/prometheus_text.hpp"
 #include "../support/server_harness.hpp"
 #include "lipsync/client/animation_client.hpp"
 #include "lipsync/model.hpp"
@@ -423,6 +424,54 @@ TEST_F(ListenTest, SpeechAfterTheTranscriptsLastWordIsNotedInTheSummary) {
               ElementsAre(::testing::MatchesRegex(
                   "the speech at [0-9]+\\.[0-9]{3} s comes after the transcript's last word: its phones are "
                   "recognised without it")));
+}
+
+class ListenDecoderTest : public ListenTest {
+ protected:
+  void SetUp() override {
+    ServerConfig config;
+    config.metrics_listen = "127.0.0.1:0";  // the pool's series, read where an operator reads them
+    start(config);
+  }
+  double metric(const std::string& series) {
+    return parse_exposition(http_get(server_->metrics_address(), "/metrics")).at(series);
+  }
+  /// Waits (up to 20 s) until lipsyncd holds `spares` decoders loaded ahead.
+  void wait_for_spares(double spares) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    while (metric("lipsyncd_listen_spare_decoders") != spares) {
+      ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "no spare decoder was loaded";
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  }
+};
+
+TEST_F(ListenDecoderTest, StreamsAfterTheFirstOfTheirKindStartWithADecoderLoadedAheadAndHearTheSame) {
+  // A recogniser's decoder takes about half a second to load, which a stream that loads its own
+  // spends before its first frame. The first live stream of a kind (with a transcript, or from the
+  // audio alone) loads its own; lipsyncd then loads a spare, which the next stream of that kind
+  // takes, and loads the next.
+  const Spoken spoken = speak(false, "Papa bought five more big maps.");
+  EXPECT_EQ(metric("lipsyncd_listen_spare_decoders"), 0);
+  for (const bool with_transcript : {false, true}) {
+    SCOPED_TRACE(with_transcript ? "with the transcript" : "from the audio alone");
+    v1::ListenSettings settings;
+    if (with_transcript) settings.set_transcript("Papa bought five more big maps.");
+    std::vector<Listened> streams;
+    for (int i = 0; i < 3; ++i) {
+      streams.push_back(listen_live(spoken.recording.audio, settings));
+      ASSERT_TRUE(streams.back().status.ok()) << streams.back().status.error_message();
+      wait_for_spares(with_transcript ? 2 : 1);  // its kind's spare, and the other kind's from before
+    }
+    // (Frame for frame they may differ: an as-fast-as-taken stream's frames depend on how much
+    // audio waits for its lane at each step. The recogniser's phones with either decoder are the
+    // same: live_audio_test, ADecoderLoadedAheadHearsExactlyWhatOneLoadedByTheRecognizerHears.)
+    for (int i = 1; i < 3; ++i) {
+      EXPECT_THAT(streams[i].track.track.t_us, ElementsAreArray(streams[0].track.track.t_us)) << "stream " << i;
+    }
+  }
+  EXPECT_EQ(metric(R"(lipsyncd_listen_decoders_total{loaded="by_stream"})"), 2);
+  EXPECT_EQ(metric(R"(lipsyncd_listen_decoders_total{loaded="ahead"})"), 4);
 }
 
 TEST_F(ListenTest, WordsThatCannotBePlacedAreRefusedNamingThem) {

@@ -237,7 +237,10 @@ class PageVoice(unittest.TestCase):
         print(f"mic-words: sent {state['piecesSent']} pieces ({state['bytesSent']} bytes) at {state['sampleRate']} Hz; "
               f"summary {state['summary']}; the page has {state['frames']} frames", flush=True)
         self.assertEqual(state["summary"]["session"], "mic-words")
-        self.assertGreater(state["summary"]["frames"], 30 * self.microphone_s * 0.9)
+        # The whole sentence was heard, a frame every 1/30 s of it.
+        sentence_end_us = (PAD_S + len(self.speech) / self.speech_rate) * 1e6
+        self.assertGreater(state["summary"]["duration_us"], sentence_end_us)
+        self.assertGreaterEqual(state["summary"]["frames"] * 1e6 / 30, sentence_end_us)
         self.assertEqual(state["frames"], state["summary"]["frames"])
         self.check_latency(state)
         closed, opened = self.measure_mouth("mic-words")
@@ -246,8 +249,18 @@ class PageVoice(unittest.TestCase):
             self.assertEqual(pixels, 0, f"/{label}/ at {t_us} µs shows an open mouth")
         for label, t_us, pixels in opened:
             self.assertGreaterEqual(pixels, OPEN_PIXELS, f"/{label}/ at {t_us} µs shows a closed mouth")
+        directory = os.environ.get("LIPSYNC_VIEWER_SCREENSHOTS")
+        if directory:  # the page held at the first /aa/, its readouts (the latency) and the Talk controls
+            self.browser.hold_viewer_at(opened[0][1])
+            page = json.loads(self.browser.evaluate(
+                "JSON.stringify((({x, y, width}) => ({x, y, width, height:"
+                " document.getElementById('talk-form').getBoundingClientRect().bottom - y + 8}))"
+                "(document.querySelector('main').getBoundingClientRect()))"))
+            os.makedirs(directory, exist_ok=True)
+            with open(os.path.join(directory, "viewer-microphone.png"), "wb") as out:
+                out.write(self.browser.screenshot({k: round(v) for k, v in page.items()}))
 
-    def test_2_talking_without_words_moves_the_mouth_from_the_audio_alone(self):
+    def test_2_talking_without_words_moves_the_mouth_from_the_audio_alone_and_a_second_voice_starts_on_time(self):
         state = self.talk("mic-audio", "")
         self.check_latency(state)
         closed, opened = self.measure_mouth("mic-audio")
@@ -255,6 +268,12 @@ class PageVoice(unittest.TestCase):
         print(f"mic-audio: from the audio alone {sealed} of {len(closed)} /p b m/ middles closed", flush=True)
         for label, t_us, pixels in opened:
             self.assertGreaterEqual(pixels, OPEN_PIXELS, f"/{label}/ at {t_us} µs shows a closed mouth")
+        # The first voice of its kind waited for its recogniser to load; lipsyncd then loaded a
+        # spare decoder, so the next voice's first frames are as timely as the rest.
+        again = self.talk("mic-audio-again", "")
+        first_second = [ms for t, ms in again["log"] if t < 1_000_000]
+        print(f"mic-audio-again: the first second's frames {first_second} ms", flush=True)
+        self.assertLessEqual(max(first_second), BUDGET_MS + PAGE_MARGIN_MS)
 
     def test_3_a_refused_microphone_is_named_on_the_status_line_and_the_page_keeps_working(self):
         # A browser whose user says no to every microphone request (Chromium's fake prompt, denying).

@@ -10,6 +10,7 @@
 #include <functional>
 #include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "../support/harvard_sentences.hpp"
@@ -270,6 +271,51 @@ TEST(LiveRecognizer, CutsUtterancesAtPausesTakesTheSilenceBetweenThemAsOneAndHea
     EXPECT_EQ(second[i].label, first[i].label) << "phone " << i;
   }
   EXPECT_GT(offset_us, 0);
+}
+
+TEST(LiveRecognizer, ADecoderLoadedAheadHearsExactlyWhatOneLoadedByTheRecognizerHears) {
+  // Flite's sentence, then a pause and the sentence again: with the transcript given once, the
+  // second runs past the transcript's last word onto the phone loop; without one, all of it is on
+  // the phone loop. A decoder prepared ahead (on another thread, as a server's spare) gives the
+  // recogniser the same phones as one it loads itself, phone for phone; one prepared for other
+  // options is not used.
+  const auto wav =
+      std::filesystem::temp_directory_path() / ("live_audio_test-ahead-" + std::to_string(::getpid()) + ".wav");
+  const auto recording = testing::flite_recording("Papa bought five more big maps.", wav);
+  std::filesystem::remove(wav);
+  ASSERT_TRUE(recording);
+  PcmAudio audio = recording->audio;
+  audio.samples.insert(audio.samples.end(), static_cast<std::size_t>(audio.sample_rate_hz), 0);
+  audio.samples.insert(audio.samples.end(), recording->audio.samples.begin(), recording->audio.samples.end());
+  for (const bool with_transcript : {true, false}) {
+    SCOPED_TRACE(with_transcript ? "with the transcript" : "from the audio alone");
+    LiveRecognitionOptions options;
+    if (with_transcript) options.transcript = "Papa bought five more big maps.";
+    options.sample_rate_hz = audio.sample_rate_hz;
+    LiveRecognizer loading(options, "live");
+    const std::vector<LabeledInterval> loaded = recognise_in_pieces(audio, loading);
+    PreparedLiveDecoder prepared;
+    std::thread([&] { prepared = prepare_live_decoder(options, "ahead"); }).join();
+    ASSERT_TRUE(prepared);
+    LiveRecognizer ahead(options, "live", std::move(prepared));
+    const std::vector<LabeledInterval> heard = recognise_in_pieces(audio, ahead);
+    ASSERT_EQ(heard.size(), loaded.size());
+    for (std::size_t i = 0; i < heard.size(); ++i) {
+      EXPECT_EQ(heard[i].label, loaded[i].label) << "phone " << i;
+      EXPECT_EQ(heard[i].start_us, loaded[i].start_us) << "phone " << i;
+      EXPECT_EQ(heard[i].end_us, loaded[i].end_us) << "phone " << i;
+    }
+    // Both sentences were heard (about 20 phones each).
+    EXPECT_GE(std::count_if(heard.begin(), heard.end(), [](const LabeledInterval& p) { return !p.label.empty(); }), 30);
+    // A decoder of the other kind is not taken (it would decode with the wrong search).
+    LiveRecognitionOptions other = options;
+    other.transcript = with_transcript ? std::nullopt : std::optional<std::string>("Papa bought five more big maps.");
+    EXPECT_FALSE(same_live_decoder(other, options));
+    LiveRecognizer mismatched(options, "live", prepare_live_decoder(other, "other"));
+    const std::vector<LabeledInterval> again = recognise_in_pieces(audio, mismatched);
+    ASSERT_EQ(again.size(), loaded.size());
+    for (std::size_t i = 0; i < again.size(); ++i) EXPECT_EQ(again[i].label, loaded[i].label) << "phone " << i;
+  }
 }
 
 /// The bilabials of `truth` (the synthesiser's phones) that `heard` labels /p b m/ at their middles.

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <sstream>
 
 #include "lipsync/error.hpp"
@@ -84,14 +85,14 @@ void set_search_tuning(cmd_ln_t* config, double beam, double weight) {
 
 }  // namespace
 
-struct LiveRecognizer::Decoder {
-  ps_decoder_t* ps = nullptr;
-  StreamingResampler resampler;
-  // The cepstral means the model starts with. PocketSphinx carries its running means from one
-  // utterance to the next, and the digital silence a synthesiser leaves at an utterance's end drags
-  // them far from speech: the next utterance then decodes to silence. Each utterance starts from
-  // these, as the first does, so that each is decoded as if it were the stream's first.
-  std::vector<mfcc_t> initial_means;
+class LiveDecoder {
+ public:
+  explicit LiveDecoder(const LiveRecognitionOptions& options) : made_for(options) {}
+  ~LiveDecoder() {
+    if (ps != nullptr) ps_free(ps);
+  }
+  LiveDecoder(const LiveDecoder&) = delete;
+  LiveDecoder& operator=(const LiveDecoder&) = delete;
 
   void remember_means() {
     feat_t* feat = ps_get_feat(ps);
@@ -99,59 +100,104 @@ struct LiveRecognizer::Decoder {
     cmn_live_get(feat->cmn_struct, initial_means.data());
   }
   void restore_means() { cmn_live_set(ps_get_feat(ps)->cmn_struct, initial_means.data()); }
+
+  /// The options it was loaded for (same_live_decoder).
+  LiveRecognitionOptions made_for;
+  ps_decoder_t* ps = nullptr;
+  /// The stream's rate to the model's, set by the recogniser that takes it.
+  std::optional<StreamingResampler> resampler;
+  // The cepstral means the model starts with. PocketSphinx carries its running means from one
+  // utterance to the next, and the digital silence a synthesiser leaves at an utterance's end drags
+  // them far from speech: the next utterance then decodes to silence. Each utterance starts from
+  // these, as the first does, so that each is decoded as if it were the stream's first.
+  std::vector<mfcc_t> initial_means;
   // Two grammar names, used in turn: replacing the search in use would free it under the decoder.
   int grammar_turn = 0;
   bool phone_loop_built = false;
-
-  Decoder(int rate_hz) : resampler(rate_hz, kModelRateHz) {}
-  ~Decoder() {
-    if (ps != nullptr) ps_free(ps);
-  }
 };
 
-LiveRecognizer::LiveRecognizer(const LiveRecognitionOptions& options, std::string source)
+void LiveDecoderDeleter::operator()(LiveDecoder* decoder) const { delete decoder; }
+
+namespace {
+
+/// Builds the phone loop's search on `decoder` (about a quarter of a second). A search reads its
+/// beams and language weight from the decoder's configuration when it is built. With a transcript
+/// the configuration is forced alignment's (beams all but open, weight 6.5): a phone loop built on
+/// it searches every path, about five times slower than the speech (the speech after the
+/// transcript's last word stalled the stream for seconds). It is built with the phone loop's own,
+/// and the configuration put back for the grammars built later.
+void build_phone_loop(LiveDecoder& decoder, const std::string& source) {
+  const LiveRecognitionOptions& options = decoder.made_for;
+  const bool forced = options.transcript.has_value();
+  cmd_ln_t* config = ps_get_config(decoder.ps);
+  if (forced) set_search_tuning(config, options.phone_beam, kPhoneLoopWeight);
+  const std::string phone_lm = options.model_dir + "/en-us-phone.lm.bin";
+  const int failed = ps_set_allphone_file(decoder.ps, "phones", phone_lm.c_str());
+  if (forced) set_search_tuning(config, kForcedBeam, kForcedWeight);
+  if (failed != 0) throw InputError(source, 0, "cannot load the phonetic language model " + phone_lm);
+  decoder.phone_loop_built = true;
+}
+
+}  // namespace
+
+bool same_live_decoder(const LiveRecognitionOptions& prepared_for, const LiveRecognitionOptions& options) {
+  return prepared_for.transcript.has_value() == options.transcript.has_value() &&
+         prepared_for.model_dir == options.model_dir && prepared_for.phone_beam == options.phone_beam &&
+         prepared_for.phone_top_gaussians == options.phone_top_gaussians;
+}
+
+PreparedLiveDecoder prepare_live_decoder(const LiveRecognitionOptions& options, const std::string& source) {
+  const std::string hmm = options.model_dir + "/en-us";
+  const std::string dict = options.model_dir + "/cmudict-en-us.dict";
+  const std::string phone_lm = options.model_dir + "/en-us-phone.lm.bin";
+  for (const std::string& path : {hmm + "/mdef", dict, phone_lm}) {
+    if (!is_file(path)) {
+      throw InputError(
+          source, 0,
+          "the PocketSphinx model is missing (" + path + "; install it with 'apt-get install pocketsphinx-en-us')");
+    }
+  }
+  err_set_logfp(nullptr);  // PocketSphinx logs to stderr by default
+  // The phone loop as the offline aligner runs it (the phonetic LM at weight 2) with narrower beams;
+  // the transcript's grammar as the offline forced alignment runs it (beams all but open, weight 6.5).
+  const bool forced = options.transcript.has_value();
+  const std::string beam = beam_text(forced ? kForcedBeam : options.phone_beam);
+  const std::string weight = beam_text(forced ? kForcedWeight : kPhoneLoopWeight);
+  cmd_ln_t* config =
+      cmd_ln_init(nullptr, ps_args(), TRUE, "-hmm", hmm.c_str(), "-dict", dict.c_str(), "-samprate", "16000",
+                  "-remove_silence", "no", "-beam", beam.c_str(), "-pbeam", beam.c_str(), "-wbeam", beam.c_str(),
+                  "-bestpath", "no", "-fsgusefiller", "no", "-lw", weight.c_str(), "-topn",
+                  forced ? "4" : std::to_string(options.phone_top_gaussians).c_str(), nullptr);
+  if (config == nullptr) throw InputError(source, 0, "cannot configure PocketSphinx");
+  PreparedLiveDecoder decoder(new LiveDecoder(options));
+  decoder->ps = ps_init(config);
+  cmd_ln_free_r(config);
+  if (decoder->ps == nullptr)
+    throw InputError(source, 0, "cannot load the PocketSphinx model from " + options.model_dir);
+  // The phone loop costs about a quarter of a second to build: with a transcript it is built only
+  // if the speech outlasts the transcript's words.
+  if (forced) {
+    detail::add_word(decoder->ps, detail::kPauseWord, "SIL");
+  } else {
+    build_phone_loop(*decoder, source);
+  }
+  decoder->remember_means();
+  return decoder;
+}
+
+LiveRecognizer::LiveRecognizer(const LiveRecognitionOptions& options, std::string source, PreparedLiveDecoder prepared)
     : options_(options), source_(std::move(source)) {
   if (options_.sample_rate_hz < 8000 || options_.sample_rate_hz > 48000) {
     throw InputError(
         source_, 0,
         "sample rate " + std::to_string(options_.sample_rate_hz) + " Hz: live audio takes 8000 to 48000 Hz");
   }
-  const std::string hmm = options_.model_dir + "/en-us";
-  const std::string dict = options_.model_dir + "/cmudict-en-us.dict";
-  const std::string phone_lm = options_.model_dir + "/en-us-phone.lm.bin";
-  for (const std::string& path : {hmm + "/mdef", dict, phone_lm}) {
-    if (!is_file(path)) {
-      throw InputError(
-          source_, 0,
-          "the PocketSphinx model is missing (" + path + "; install it with 'apt-get install pocketsphinx-en-us')");
-    }
-  }
   has_transcript_ = options_.transcript.has_value();
-  err_set_logfp(nullptr);  // PocketSphinx logs to stderr by default
-  // The phone loop as the offline aligner runs it (the phonetic LM at weight 2) with narrower beams;
-  // the transcript's grammar as the offline forced alignment runs it (beams all but open, weight 6.5).
-  const bool forced = has_transcript_;
-  const std::string beam = beam_text(forced ? kForcedBeam : options_.phone_beam);
-  const std::string weight = beam_text(forced ? kForcedWeight : kPhoneLoopWeight);
-  cmd_ln_t* config =
-      cmd_ln_init(nullptr, ps_args(), TRUE, "-hmm", hmm.c_str(), "-dict", dict.c_str(), "-samprate", "16000",
-                  "-remove_silence", "no", "-beam", beam.c_str(), "-pbeam", beam.c_str(), "-wbeam", beam.c_str(),
-                  "-bestpath", "no", "-fsgusefiller", "no", "-lw", weight.c_str(), "-topn",
-                  forced ? "4" : std::to_string(options_.phone_top_gaussians).c_str(), nullptr);
-  if (config == nullptr) throw InputError(source_, 0, "cannot configure PocketSphinx");
-  decoder_ = std::make_unique<Decoder>(options_.sample_rate_hz);
-  decoder_->ps = ps_init(config);
-  cmd_ln_free_r(config);
-  if (decoder_->ps == nullptr)
-    throw InputError(source_, 0, "cannot load the PocketSphinx model from " + options_.model_dir);
-  // The phone loop costs about a quarter of a second to build: with a transcript it is built only
-  // if the speech outlasts the transcript's words.
-  if (!forced) use_phone_loop();
-  if (forced) {
-    detail::add_word(decoder_->ps, detail::kPauseWord, "SIL");
-    add_words(*options_.transcript);
-  }
-  decoder_->remember_means();
+  decoder_ = prepared && same_live_decoder(prepared->made_for, options_) ? std::move(prepared)
+                                                                         : prepare_live_decoder(options_, source_);
+  decoder_->resampler.emplace(options_.sample_rate_hz, kModelRateHz);
+  if (has_transcript_) add_words(*options_.transcript);
+  if (!has_transcript_) ps_set_search(decoder_->ps, "phones");
   frame_.reserve(kFrameSamples);
 }
 
@@ -201,20 +247,7 @@ void LiveRecognizer::add_word(std::string text, std::int64_t start_us) {
 }
 
 void LiveRecognizer::use_phone_loop() {
-  if (!decoder_->phone_loop_built) {
-    // A search reads its beams and language weight from the decoder's configuration when it is
-    // built. With a transcript the configuration is forced alignment's (beams all but open, weight
-    // 6.5): a phone loop built on it searches every path, about five times slower than the speech
-    // (the speech after the transcript's last word stalled the stream for seconds). It is built
-    // with the phone loop's own, and the configuration put back for the grammars built later.
-    cmd_ln_t* config = ps_get_config(decoder_->ps);
-    if (has_transcript_) set_search_tuning(config, options_.phone_beam, kPhoneLoopWeight);
-    const std::string phone_lm = options_.model_dir + "/en-us-phone.lm.bin";
-    const int failed = ps_set_allphone_file(decoder_->ps, "phones", phone_lm.c_str());
-    if (has_transcript_) set_search_tuning(config, kForcedBeam, kForcedWeight);
-    if (failed != 0) throw InputError(source_, 0, "cannot load the phonetic language model " + phone_lm);
-    decoder_->phone_loop_built = true;
-  }
+  if (!decoder_->phone_loop_built) build_phone_loop(*decoder_, source_);
   ps_set_search(decoder_->ps, "phones");
 }
 
@@ -222,7 +255,7 @@ std::int64_t LiveRecognizer::sample_us(std::int64_t sample) const { return sampl
 
 void LiveRecognizer::push(std::span<const std::int16_t> samples) {
   resampled_.clear();
-  decoder_->resampler.push(samples, resampled_);
+  decoder_->resampler->push(samples, resampled_);
   for (const std::int16_t sample : resampled_) {
     frame_.push_back(sample);
     if (frame_.size() == static_cast<std::size_t>(kFrameSamples)) {
@@ -244,7 +277,7 @@ void LiveRecognizer::decode_queued() {
 
 void LiveRecognizer::finish() {
   resampled_.clear();
-  decoder_->resampler.finish(resampled_);
+  decoder_->resampler->finish(resampled_);
   frame_.insert(frame_.end(), resampled_.begin(), resampled_.end());
   // The last, partial frame is classified as a whole one would be.
   if (!frame_.empty()) process_frame(frame_);

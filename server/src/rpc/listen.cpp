@@ -396,11 +396,14 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
     return grpc::Status();
   }
 
-  /// Loads the recogniser for audio at `rate_hz` (about half a second). A transcript word the
-  /// dictionary lacks is an InputError naming `settings.transcript`.
+  /// The recogniser for audio at `rate_hz`, with a decoder loaded ahead when one is ready (else
+  /// it loads its own: about half a second). A transcript word the dictionary lacks is an
+  /// InputError naming `settings.transcript`.
   grpc::Status make_recognizer(int rate_hz) {
     recognizer_options_.sample_rate_hz = rate_hz;
-    recognizer_.emplace(recognizer_options_, transcript_ ? "settings.transcript" : "settings");
+    speech::PreparedLiveDecoder decoder = service_.live_decoders().take(recognizer_options_);
+    service_.metrics().listen_decoders.with({decoder ? "ahead" : "by_stream"}).add();
+    recognizer_.emplace(recognizer_options_, transcript_ ? "settings.transcript" : "settings", std::move(decoder));
     for (const v1::ListenWords& words : early_words_) {
       if (auto status = add_words(words); !status.ok()) return status;
     }

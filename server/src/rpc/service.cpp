@@ -89,6 +89,12 @@ void LipSyncService::register_gauges() {
   metrics_registry_.gauge({"lipsyncd_calls_in_progress", "Animate, Subscribe and Render calls running.", {}, [this] {
                              return std::vector<GaugeSample>{{{}, static_cast<double>(admission_.calls_in_progress())}};
                            }});
+  metrics_registry_.gauge({"lipsyncd_listen_spare_decoders",
+                           "Decoders loaded ahead for Listen's next live streams, ready to be taken.",
+                           {},
+                           [this] {
+                             return std::vector<GaugeSample>{{{}, static_cast<double>(live_decoders_.ready())}};
+                           }});
   metrics_registry_.gauge(
       {"lipsyncd_queued_messages",
        "Messages queued for streams, not yet handed to gRPC (all streams together).",

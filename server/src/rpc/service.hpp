@@ -12,6 +12,7 @@
 #include "lipsync/server/config.hpp"
 #include "lipsync/tsan_handoff.hpp"
 #include "metrics.hpp"
+#include "rpc/live_decoders.hpp"
 #include "rpc/speech_thread.hpp"
 #include "sessions/audio_budget.hpp"
 #include "sessions/live_streams.hpp"
@@ -68,6 +69,8 @@ class LipSyncService final : public v1::LipSync::WithRawCallbackMethod_Subscribe
   /// The threads Listen streams decode on (--listen-threads), at normal priority; each stream has
   /// a lane (strand) of its own there.
   FaceWorkers& recognition_workers() { return recognition_workers_; }
+  /// Decoders for Listen's live streams, loaded ahead (rpc/live_decoders.hpp).
+  LiveDecoderPool& live_decoders() { return live_decoders_; }
   /// The one thread Speak synthesises on (espeak-ng is not re-entrant).
   SpeechThread& speech_thread() { return speech_thread_; }
   /// API keys, tenants and their quotas (--api-keys; open without).
@@ -108,6 +111,8 @@ class LipSyncService final : public v1::LipSync::WithRawCallbackMethod_Subscribe
   LiveStreams live_streams_;
   // Before the face's, for the same reason: its destructor runs the Listen jobs still queued.
   FaceWorkers recognition_workers_;
+  // After the workers it loads on, so that it is destroyed before them.
+  LiveDecoderPool live_decoders_{recognition_workers_};
   // Last, so that it is destroyed first: its destructor runs the jobs still
   // queued, which use the members above.
   FaceWorkers face_workers_;

@@ -43,7 +43,9 @@
 // reported in the notes: the speech does not follow the transcript there.
 //
 // Not thread-safe: one stream, one recogniser, one thread at a time. Loading the model takes
-// about half a second; decoding costs about 0.1-0.3 of the audio's real time on one core.
+// about half a second; decoding costs about 0.1-0.3 of the audio's real time on one core. That
+// half second can be spent ahead: prepare_live_decoder() loads a decoder (on any thread), and a
+// recogniser made with it starts at once and decodes exactly as one that loaded its own.
 #pragma once
 
 #include <cstdint>
@@ -93,11 +95,27 @@ struct LiveRecognitionOptions {
   int phone_top_gaussians = 4;
 };
 
+/// A PocketSphinx decoder loaded for a LiveRecognizer: the acoustic model, the dictionary and,
+/// without a transcript, the phone loop. Opaque; made by prepare_live_decoder().
+class LiveDecoder;
+struct LiveDecoderDeleter {
+  void operator()(LiveDecoder* decoder) const;
+};
+using PreparedLiveDecoder = std::unique_ptr<LiveDecoder, LiveDecoderDeleter>;
+
+/// Loads the decoder a recogniser with `options` needs before its first sample. Of the options
+/// only these matter (same_live_decoder): whether a transcript is set, model_dir, phone_beam and
+/// phone_top_gaussians. Throws InputError naming `source`: a missing or unreadable model.
+PreparedLiveDecoder prepare_live_decoder(const LiveRecognitionOptions& options, const std::string& source);
+/// Whether a decoder prepared for `prepared_for` serves a recogniser made with `options`.
+bool same_live_decoder(const LiveRecognitionOptions& prepared_for, const LiveRecognitionOptions& options);
+
 class LiveRecognizer {
  public:
-  /// Loads the model. `source` names the stream in errors. Throws InputError: a missing model, a
-  /// sample rate outside 8000-48000, a word the dictionary lacks.
-  LiveRecognizer(const LiveRecognitionOptions& options, std::string source);
+  /// Loads the model, or takes `prepared` when it was prepared for such options (else it is
+  /// dropped and the model loaded). `source` names the stream in errors. Throws InputError: a
+  /// missing model, a sample rate outside 8000-48000, a word the dictionary lacks.
+  LiveRecognizer(const LiveRecognitionOptions& options, std::string source, PreparedLiveDecoder prepared = {});
   ~LiveRecognizer();
   LiveRecognizer(const LiveRecognizer&) = delete;
   LiveRecognizer& operator=(const LiveRecognizer&) = delete;
@@ -137,8 +155,6 @@ class LiveRecognizer {
   std::vector<std::string> take_notes();
 
  private:
-  struct Decoder;
-
   struct Word {
     std::string text;
     std::int64_t start_us = -1;  // -1: untimed
@@ -161,7 +177,7 @@ class LiveRecognizer {
 
   LiveRecognitionOptions options_;
   std::string source_;
-  std::unique_ptr<Decoder> decoder_;
+  PreparedLiveDecoder decoder_;
   bool has_transcript_ = false;
   // The transcript's words from words_base_ on (those far behind the speech are dropped, so that a
   // transcript growing for hours keeps a flat memory), numbered from the stream's first word.

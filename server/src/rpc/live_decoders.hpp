@@ -1,0 +1,44 @@
+// Decoders for Listen's live streams, loaded ahead of the streams that take them.
+//
+// A LiveRecognizer's PocketSphinx decoder takes about half a second to load (the acoustic model, a
+// 130,000-word dictionary and, without a transcript, the phone loop). A stream that loads its own
+// spends that before its first frame: the first frames of a voice came 0.5-0.9 s late (the page's
+// microphone, Godot's live mode). The pool keeps one spare decoder per kind (with or without a
+// transcript, and the recogniser's tuning: speech::same_live_decoder): a stream takes it and its
+// first frames leave within the budget, and the next spare is loaded on the recognition workers
+// while the stream runs. A kind's first stream finds none and loads its own (the pool then starts
+// keeping one), so a server that never listens loads nothing; at most kMaxKinds kinds are kept,
+// the one least recently asked for goes first. A spare is a whole decoder (about 30 MB).
+#pragma once
+
+#include <cstddef>
+#include <memory>
+
+#include "face/face_workers.hpp"
+#include "lipsync/speech/live_recognizer.hpp"
+
+namespace lipsync::server {
+
+class LiveDecoderPool {
+ public:
+  /// The most kinds of decoder kept ready at once.
+  static constexpr std::size_t kMaxKinds = 4;
+
+  /// Loads spares on `workers` (the recognition workers; the pool must be destroyed first).
+  explicit LiveDecoderPool(FaceWorkers& workers);
+  LiveDecoderPool(const LiveDecoderPool&) = delete;
+  LiveDecoderPool& operator=(const LiveDecoderPool&) = delete;
+
+  /// A decoder loaded for recognisers with `options`, or null when none is ready (the stream loads
+  /// its own); either way the next one of that kind is loaded.
+  speech::PreparedLiveDecoder take(const speech::LiveRecognitionOptions& options);
+  /// Decoders loaded and not yet taken (lipsyncd_listen_spare_decoders).
+  std::size_t ready() const;
+
+ private:
+  struct Shelf;
+  FaceWorkers& workers_;
+  std::shared_ptr<Shelf> shelf_;  // shared with the loads under way, which may outlive the pool
+};
+
+}  // namespace lipsync::server
