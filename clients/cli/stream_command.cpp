@@ -47,6 +47,13 @@ namespace {
 /// --timeout: a stream in real time lasts as long as its speech.
 constexpr IntSetting kStreamTimeoutSetting = {1, 86'400, 3600};
 
+// On top of the lookahead's release delay: the network, scheduling and the
+// player's own margin (PlaybackBuffer::kDefaultReleaseMarginUs), ms.
+constexpr int kPlayoutMarginMs = 250;
+/// --playout-delay, ms; its default_value is the default at the exact lookahead (the help quotes it).
+constexpr IntSetting kPlayoutDelaySetting = {
+    0, 600'000, static_cast<int>(read_speech_release_delay_us(kLookaheadSetting.max) / 1000) + kPlayoutMarginMs};
+
 constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     kTrackOutputOption,
     kTrackFormatOption,
@@ -63,8 +70,11 @@ constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
      "also publish the server's simulated face (its vertices, every frame) for the session's viewers (needs --session)",
      "off"},
     {"playout-delay", 0, "MS",
-     "media clock: utterance time 0 plays this long after the stream starts, 0 to 600000",
-     "the lookahead's release delay on read speech + 250 (1780 at lookahead 7)"},
+     kRangedHelp<"media clock: utterance time 0 plays this long after the stream starts", kPlayoutDelaySetting>.view(),
+     kJoinedText<"the lookahead's release delay on read speech + ", kDefaultText<IntSetting{0, 0, kPlayoutMarginMs}>,
+                 " (", kDefaultText<kPlayoutDelaySetting>, " at lookahead ",
+                 kDefaultText<IntSetting{0, 0, kLookaheadSetting.max}>, ")">
+         .view()},
     kFpsOption,
     kPhoneSetOption,
     kInputFormatOption,
@@ -76,10 +86,6 @@ constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
      kDefaultText<kLookaheadSetting>.view()},
     kTimeoutOption<"give up when the stream has not finished after S seconds", kStreamTimeoutSetting>,
 }));
-
-// On top of the lookahead's release delay: the network, scheduling and the
-// player's own margin (PlaybackBuffer::kDefaultReleaseMarginUs), ms.
-constexpr int kPlayoutMarginMs = 250;
 
 // --audio is sent in pieces of this size: well within lipsyncd's default message limit (4 MiB).
 constexpr std::size_t kAudioPieceBytes = 1024 * 1024;
@@ -114,7 +120,8 @@ int run_stream(std::span<const std::string_view> args) {
   const RenderPlan plan = parse_render_plan(arguments);
   const int delay_ms =
       arguments.value("playout-delay")
-          ? parse_int_option("playout-delay", *arguments.value("playout-delay"), 0, 600'000)
+          ? parse_int_option("playout-delay", *arguments.value("playout-delay"), kPlayoutDelaySetting.min,
+                             kPlayoutDelaySetting.max)
           : static_cast<int>(read_speech_release_delay_us(plan.render.lookahead) / 1000) + kPlayoutMarginMs;
   client::v1::AnimationSettings settings;
   settings.set_fps(static_cast<std::uint32_t>(plan.render.fps));

@@ -168,6 +168,7 @@ function openListenSocket() {
     for (const piece of live.queued) sendPiece(piece);
     live.queued = [];
     if (live.state === "starting") live.state = "running";
+    viewer.session = live.session;
     connect(live.session);  // follow the session as any viewer does
   };
   socket.onmessage = (event) => {
@@ -199,7 +200,6 @@ async function startLiveVoice(file) {
     latencyP95Ms: null, queued: [], socket: null, behind: false, budgetMs: liveBudgetMs() });
   live.session = document.getElementById("session-input").value.trim() ||
     "mic-" + Array.from(crypto.getRandomValues(new Uint8Array(4)), (b) => b.toString(16).padStart(2, "0")).join("");
-  viewer.session = live.session;
   updateLiveButtons();
   showLatency();
   let input;

@@ -15,6 +15,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <regex>
 #include <set>
 #include <sstream>
 #include <string>
@@ -26,6 +27,7 @@
 #include "lipsync/model.hpp"
 #include "lipsync/moho_writer.hpp"
 #include "lipsync/phone_set.hpp"
+#include "lipsync/release_delay.hpp"
 #include "lipsync/setting_ranges.hpp"
 #include "lipsync/track_writer.hpp"
 #include "lipsync/viseme_writer.hpp"
@@ -173,6 +175,16 @@ TEST_F(CliTest, HelpQuotesTheRangesAndDefaultsThatTheChecksEnforce) {
   EXPECT_THAT(too_fast.err, HasSubstr(range(kFpsSetting)));
   const RunResult play_help = run({"play", "--help"});
   EXPECT_THAT(help_entries(play_help.out)["--rate N"], HasSubstr(range(kFpsSetting)));
+  // stream's --playout-delay: its default is the release delay plus a margin, and the figure the
+  // help quotes for the exact lookahead is that sum.
+  const std::string playout = help_entries(run({"stream", "--help"}).out)["--playout-delay MS"];
+  EXPECT_THAT(playout, HasSubstr("0 to 600000"));
+  std::smatch quoted;
+  const std::string pattern = "release delay on read speech \\+ ([0-9]+) \\(([0-9]+) at lookahead ([0-9]+)\\)";
+  ASSERT_TRUE(std::regex_search(playout, quoted, std::regex(pattern))) << playout;
+  const int margin_ms = std::stoi(quoted[1]), quoted_ms = std::stoi(quoted[2]), lookahead = std::stoi(quoted[3]);
+  EXPECT_EQ(lookahead, kLookaheadSetting.max);
+  EXPECT_EQ(quoted_ms, read_speech_release_delay_us(lookahead) / 1000 + margin_ms);
 }
 
 TEST_F(CliTest, EveryCommandHasHelp) {

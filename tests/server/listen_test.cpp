@@ -446,7 +446,7 @@ class ListenDecoderTest : public ListenTest {
   }
 };
 
-TEST_F(ListenDecoderTest, StreamsAfterTheFirstOfTheirKindStartWithADecoderLoadedAheadAndHearTheSame) {
+TEST_F(ListenDecoderTest, StreamsAfterTheFirstOfTheirKindStartWithADecoderLoadedAhead) {
   // A recogniser's decoder takes about half a second to load, which a stream that loads its own
   // spends before its first frame. The first live stream of a kind (with a transcript, or from the
   // audio alone) loads its own; lipsyncd then loads a spare, which the next stream of that kind
@@ -463,11 +463,13 @@ TEST_F(ListenDecoderTest, StreamsAfterTheFirstOfTheirKindStartWithADecoderLoaded
       ASSERT_TRUE(streams.back().status.ok()) << streams.back().status.error_message();
       wait_for_spares(with_transcript ? 2 : 1);  // its kind's spare, and the other kind's from before
     }
-    // (Frame for frame they may differ: an as-fast-as-taken stream's frames depend on how much
-    // audio waits for its lane at each step. The recogniser's phones with either decoder are the
-    // same: live_audio_test, ADecoderLoadedAheadHearsExactlyWhatOneLoadedByTheRecognizerHears.)
-    for (int i = 1; i < 3; ++i) {
-      EXPECT_THAT(streams[i].track.track.t_us, ElementsAreArray(streams[0].track.track.t_us)) << "stream " << i;
+    // Each covers the audio. (Frame for frame they may differ: an as-fast-as-taken stream's key
+    // frames depend on how much audio waits for its lane at each step. The recogniser's phones with
+    // either decoder are the same: live_audio_test,
+    // ADecoderLoadedAheadHearsExactlyWhatOneLoadedByTheRecognizerHears.)
+    for (const Listened& stream : streams) {
+      ASSERT_FALSE(stream.track.track.t_us.empty());
+      EXPECT_GE(stream.track.track.t_us.back() + 33'334, spoken.recording.audio.duration_us());
     }
   }
   EXPECT_EQ(metric(R"(lipsyncd_listen_decoders_total{loaded="by_stream"})"), 2);

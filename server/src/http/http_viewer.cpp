@@ -533,14 +533,11 @@ bool serve_listen(tcp::socket& socket, const Request& request, const QueryParame
   websocket::stream<tcp::socket&> ws(socket);
   ws.read_message_max(4 * kMaxPagePieceBytes);  // beyond it Beast closes with 1009; below, the message names it
   if (!accept_upgrade(ws, request)) return false;
-  const auto close_with = [&](grpc::StatusCode code, const std::string& message) {
-    close_with_status(ws, code, message);
-  };
   v1::ListenRequest message;
   try {
     *message.mutable_settings() = plan_page_listen(query, unix_now_us());
   } catch (const QuickTryError& bad) {
-    close_with(grpc::StatusCode::INVALID_ARGUMENT, bad.what());
+    close_with_status(ws, grpc::StatusCode::INVALID_ARGUMENT, bad.what());
     return false;
   }
   const std::string session = message.settings().animation().session();
@@ -618,12 +615,12 @@ bool serve_listen(tcp::socket& socket, const Request& request, const QueryParame
       page_gone ? " (the page went away before the end)" : "");
   if (page_gone) return false;
   if (!refused.ok()) {
-    close_with(refused.error_code(), refused.error_message());
+    close_with_status(ws, refused.error_code(), refused.error_message());
   } else if (!status.ok()) {
     if (slot.closing) {
       close_going_away(ws);
     } else {
-      close_with(status.error_code(), status.error_message());
+      close_with_status(ws, status.error_code(), status.error_message());
     }
   } else {
     ws.text(true);

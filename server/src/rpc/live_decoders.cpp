@@ -7,6 +7,8 @@
 #include <utility>
 #include <vector>
 
+#include "lipsync/speech/live_recognizer.hpp"
+
 namespace lipsync::server {
 
 struct LiveDecoderPool::Shelf {

@@ -15,7 +15,15 @@
 #include <memory>
 
 #include "face/face_workers.hpp"
-#include "lipsync/speech/live_recognizer.hpp"
+
+// lipsync/speech/live_recognizer.hpp, declared only: the service's header includes this one, and
+// not every target that includes the service's header sees lipsync::speech's headers.
+namespace lipsync::speech {
+struct LiveRecognitionOptions;
+class LiveDecoder;
+struct LiveDecoderDeleter;
+using PreparedLiveDecoder = std::unique_ptr<LiveDecoder, LiveDecoderDeleter>;
+}  // namespace lipsync::speech
 
 namespace lipsync::server {
 
