@@ -81,7 +81,9 @@ constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
      "the words with the times a TTS gave them (Amazon Polly speech marks, an ElevenLabs alignment, Azure word "
      "boundaries), sent as the audio goes",
      "none"},
-    {"voice", 0, "NAME", "language of the speech: English only for now (\"en\", \"en-us\", ...)", "English"},
+    {"voice", 0, "NAME",
+     "language of the speech, an espeak-ng voice (lipsync voices); other than English it needs --text or --text-file",
+     "English"},
     {"latency-ms", 0, "MS",
      kRangedHelp<"how far a frame may trail the audio it shows (the server's latency budget)", kLatencySetting>
          .view(),

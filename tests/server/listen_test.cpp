@@ -23,6 +23,7 @@
 #include "../support/child_process.hpp"
 #include "../support/harvard_sentences.hpp"
 #include "../support/prometheus_text.hpp"
+#include "../support/recorded_languages.hpp"
 #include "../support/server_harness.hpp"
 #include "lipsync/client/animation_client.hpp"
 #include "lipsync/model.hpp"
@@ -207,6 +208,37 @@ TEST_F(ListenTest, LiveFramesLeaveInOrderCoverTheAudioAndShowRealSpeechsClosures
   EXPECT_GE(closed * 10, bilabials * 9) << closed << " of " << bilabials;
 }
 
+TEST_F(ListenTest, AnotherLanguageWithItsTranscriptIsWarpedLiveAndShowsItsClosures) {
+  // Festival's Italian, Czech and Finnish sent live with the transcript and the language's voice:
+  // the frames follow the warp against espeak-ng's rendering (IPA phonemes), in order and
+  // covering the audio, and at the middle of each /p b m/ closure Festival spoke the face shows PP.
+  int bilabials = 0, closed = 0;
+  for (const char* name : {"it_3", "cs_1", "fi_2"}) {
+    SCOPED_TRACE(name);
+    const testing::RecordedLanguage item = testing::recorded_language(name);
+    v1::ListenSettings settings;
+    settings.set_transcript(item.transcript);
+    settings.set_voice(item.voice);
+    settings.mutable_animation()->mutable_outputs()->mutable_visemes()->set_enabled(true);
+    const Listened listened = listen_live(item.audio, settings);
+    ASSERT_TRUE(listened.status.ok()) << listened.status.error_message();
+    const auto& t_us = listened.track.track.t_us;
+    ASSERT_FALSE(t_us.empty());
+    EXPECT_TRUE(std::adjacent_find(t_us.begin(), t_us.end(), std::greater_equal<>()) == t_us.end());
+    EXPECT_GE(t_us.back(), item.audio.duration_us() - 34'000);
+    ASSERT_FALSE(item.bilabial_middles_us.empty());
+    for (const std::int64_t middle_us : item.bilabial_middles_us) {
+      ++bilabials;
+      const bool shown = viseme_at(listened.track, middle_us) == "PP";
+      closed += shown ? 1 : 0;
+      if (!shown) std::cerr << "  not closed: " << name << " closure's middle at " << middle_us << " us\n";
+    }
+  }
+  std::cerr << "live, other languages with the transcript: " << closed << " of " << bilabials
+            << " bilabials shown closed\n";
+  EXPECT_GE(closed * 10, bilabials * 9) << closed << " of " << bilabials;
+}
+
 TEST_F(ListenTest, SteadyNoiseAndMinutesOfSilenceGiveAMouthAtRest) {
   // A kiosk between visitors: half a minute of a room's white noise at -30 dBFS (a fan), then a
   // minute of digital silence (a TTS between sentences). Neither is speech: the mouth rests (Oculus
@@ -328,11 +360,19 @@ TEST_F(ListenTest, BadSettingsAndBadAudioAreRefusedNamingTheField) {
                    "settings.latency_ms: '50' is out of range (100 to 2000"});
   auto french = pcm(16000);
   french.set_voice("fr");
-  cases.push_back({"another language",
+  cases.push_back({"another language without a transcript",
                    french,
                    {second_of_silence},
                    grpc::StatusCode::INVALID_ARGUMENT,
-                   "settings.voice: 'fr': Listen hears English only for now"});
+                   "settings.voice: 'fr' is not English, and without settings.transcript Listen hears English only"});
+  auto nonesuch = pcm(16000);
+  nonesuch.set_voice("nonesuch");
+  nonesuch.set_transcript("Buongiorno");
+  cases.push_back({"a voice espeak-ng does not know",
+                   nonesuch,
+                   {second_of_silence},
+                   grpc::StatusCode::INVALID_ARGUMENT,
+                   "settings.voice: unknown voice 'nonesuch'"});
   auto ipa = pcm(16000);
   ipa.mutable_animation()->set_phone_set("ipa");
   cases.push_back({"a phone set",

@@ -17,6 +17,8 @@ Each WAV goes, as a user sends it, to:
 
   live, audio alone       `lipsync listen WAV --pace realtime --latency-ms 200` against a lipsyncd
                           this tool starts (--lipsyncd, on a free port), one stream at a time
+  live, transcript        the same with `--text-file T --voice V` (espeak-ng voice it, fi, cs: the
+                          live warp against espeak-ng's rendering, docs/languages.md)
   offline, audio alone    `lipsync render WAV`
   offline, transcript     `lipsync render WAV --text-file T --voice V` (espeak-ng voice it, fi, cs:
                           the DTW aligner of docs/languages.md), what a non-English user should use
@@ -198,10 +200,14 @@ def main():
     except RuntimeError as error:
         sys.exit(f"measure_live_languages: {error}")
     live = f"live, audio alone, {args.latency_ms} ms"
+    live_transcript = f"live, transcript, {args.latency_ms} ms"
     visemes = ["--format", "visemes-oculus"]
+    listen = lambda stem: [args.lipsync, "listen", stem + ".wav", "--server", server.address, "--pace", args.pace,
+                           "--latency-ms", str(args.latency_ms)]
     paths = {  # path -> f(language code, file stem) -> its command, less `-o OUT`
-        live: lambda code, stem: [args.lipsync, "listen", stem + ".wav", "--server", server.address, "--pace",
-                                  args.pace, "--latency-ms", str(args.latency_ms)] + visemes,
+        live: lambda code, stem: listen(stem) + visemes,
+        live_transcript: lambda code, stem: listen(stem) + ["--text-file", stem + ".txt", "--voice", VOICES[code][1]]
+                                            + visemes,
         "offline, audio alone": lambda code, stem: [args.lipsync, "render", stem + ".wav"] + visemes,
         "offline, transcript": lambda code, stem: [args.lipsync, "render", stem + ".wav", "--text-file", stem + ".txt",
                                                    "--voice", VOICES[code][1]] + visemes,
@@ -209,7 +215,7 @@ def main():
                                                 + visemes,
     }
     tally = Tally(CLASSES)
-    latencies = {}  # latencies[language] = [(p50_ms, p95_ms)] per live run
+    latencies = {}  # latencies[(language, path)] = [(p50_ms, p95_ms)] per live run
     try:
         for code in languages:
             language = LANGUAGE_NAMES[code]
@@ -223,12 +229,13 @@ def main():
                     result = subprocess.run(command, capture_output=True, text=True)
                     if result.returncode != 0:
                         raise RuntimeError(f"{shlex.join(command)} failed ({result.returncode}): {result.stderr.strip()[-400:]}")
-                    if path == live:
+                    if path in (live, live_transcript):
                         with open(out + ".stderr", "w", encoding="utf-8") as f:
                             f.write(result.stderr)
                         found = LATENCY.search(result.stderr)
                         if found:
-                            latencies.setdefault(language, []).append((float(found.group(1)), float(found.group(2))))
+                            latencies.setdefault((language, path), []).append(
+                                (float(found.group(1)), float(found.group(2))))
                     tally.score(path, scored, read_viseme_steps(out), args.misses)
             print(f"{language}: {len(SENTENCES[code])} sentences", file=sys.stderr)
     finally:
@@ -243,13 +250,13 @@ def main():
     for code in languages:
         language = LANGUAGE_NAMES[code]
         for path in paths:
-            if path == live and latencies.get(language):
-                runs = latencies[language]
+            if latencies.get((language, path)):
+                runs = latencies[(language, path)]
                 latency = (f"{statistics.median(p50 for p50, _ in runs):.0f} / "
                            f"{statistics.median(p95 for _, p95 in runs):.0f} ms ({max(p95 for _, p95 in runs):.0f})")
             else:
-                latency = "–" if path == live else "(whole file)"
-            name = f"{path}, `--voice {VOICES[code][1]}`" if path == "offline, transcript" else path
+                latency = "–" if path in (live, live_transcript) else "(whole file)"
+            name = f"{path}, `--voice {VOICES[code][1]}`" if "transcript" in path else path
             print(f"| {language} | {name} | {latency} | " + " | ".join(tally.cells(language, path)) + " |")
     if args.misses:
         tally.print_shown_instead()

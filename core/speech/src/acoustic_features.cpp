@@ -78,7 +78,10 @@ std::vector<std::vector<double>> mel_filterbank() {
 
 }  // namespace
 
-FeatureFrames mfcc_features(const PcmAudio& audio) {
+FeatureFrames mfcc_features(const PcmAudio& audio) { return mfcc_features(audio, FeatureNormalisation{}); }
+
+FeatureFrames mfcc_features(const PcmAudio& audio, const FeatureNormalisation& normalisation,
+                            FeatureStatistics* statistics) {
   FeatureFrames result;
   result.dimensions = 2 * kCepstra;
   const std::vector<std::int16_t>& samples = audio.samples;
@@ -120,7 +123,9 @@ FeatureFrames mfcc_features(const PcmAudio& audio) {
   }
   // Every band floored at kFloorBelowLoudestDb under the loudest band power of the utterance:
   // digital silence and a quiet room's noise then look alike.
-  const double loudest = std::max(kPowerFloor, *std::max_element(band_power.begin(), band_power.end()));
+  const double own_loudest = *std::max_element(band_power.begin(), band_power.end());
+  const double loudest =
+      std::max(kPowerFloor, normalisation.loudest_band_power > 0 ? normalisation.loudest_band_power : own_loudest);
   const double floor = loudest * std::pow(10.0, -kFloorBelowLoudestDb / 10.0);
   for (std::size_t k = 0; k < frames; ++k) {
     for (int band = 0; band < kMelBands; ++band)
@@ -148,15 +153,24 @@ FeatureFrames mfcc_features(const PcmAudio& audio) {
       features[k * dims + kCepstra + c] = delta / denominator;
     }
   }
-  // Cepstral mean normalisation over the utterance, then the weights.
+  // Cepstral mean normalisation over the utterance (or by the stream's means), then the weights.
+  const bool own_means = normalisation.means.size() != static_cast<std::size_t>(dims);
   result.values.resize(frames * dims);
   for (int d = 0; d < dims; ++d) {
     double mean = 0.0;
-    for (std::size_t k = 0; k < frames; ++k) mean += features[k * dims + d];
-    mean /= static_cast<double>(frames);
+    if (own_means) {
+      for (std::size_t k = 0; k < frames; ++k) mean += features[k * dims + d];
+      mean /= static_cast<double>(frames);
+    } else {
+      mean = normalisation.means[static_cast<std::size_t>(d)];
+    }
     const double weight = d == 0 ? kLevelWeight : d >= kCepstra ? kDeltaWeight : 1.0;
     for (std::size_t k = 0; k < frames; ++k)
       result.values[k * dims + d] = static_cast<float>((features[k * dims + d] - mean) * weight);
+  }
+  if (statistics != nullptr) {
+    statistics->loudest_band_power = own_loudest;
+    statistics->unweighted = std::move(features);
   }
   return result;
 }

@@ -30,17 +30,6 @@ enum Step : std::uint8_t { kDiagonal, kDown, kRight };
 // Marks a stored step that paid StretchCost::cost (a → or ↓ past a run's free frames).
 constexpr std::uint8_t kStretched = 4;
 
-double frame_distance(const FeatureFrames& a, std::size_t i, const FeatureFrames& b, std::size_t j) {
-  const float* x = a.frame(i);
-  const float* y = b.frame(j);
-  double sum = 0.0;
-  for (int d = 0; d < a.dimensions; ++d) {
-    const double difference = x[d] - y[d];
-    sum += difference * difference;
-  }
-  return std::sqrt(sum);
-}
-
 // The column of the band's centre line at row i: piecewise linear through the corners and
 // the starts and ends of speech.
 double centre_column(std::size_t i, const std::size_t (&rows)[4], const std::size_t (&columns)[4]) {

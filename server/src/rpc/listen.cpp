@@ -5,7 +5,8 @@
 // Two ways through, chosen by `settings.recording`:
 //   - live (the default): each piece goes through the stream's AudioStreamReader (raw PCM or a
 //     WAV file, mixed down to mono) into its LiveRecognizer (PocketSphinx decoding the open
-//     utterance as it arrives, utterances cut at pauses, closures refined from the signal), whose
+//     utterance as it arrives, utterances cut at pauses, closures refined from the signal; in a
+//     language other than English, a LiveSynthesisAligner warping it against espeak-ng), whose
 //     final phonemes feed a LiveRenderer; after each piece the frames up to the audio decoded less
 //     the settling margin leave, rendered over the final phonemes and the recogniser's guess
 //     (docs/streaming.md, "Live audio"). The margin is the latency budget less kProcessingMarginUs.
@@ -50,7 +51,9 @@
 #include "lipsync/setting_ranges.hpp"
 #include "lipsync/speech/aligner.hpp"
 #include "lipsync/speech/audio.hpp"
+#include "lipsync/speech/dtw_aligner.hpp"
 #include "lipsync/speech/live_recognizer.hpp"
+#include "lipsync/speech/live_synthesis_aligner.hpp"
 #include "lipsync/tsan_handoff.hpp"
 #include "rpc/outbox.hpp"
 #include "rpc/plan.hpp"
@@ -219,18 +222,27 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
     const v1::AnimationSettings& animation = settings.animation();
     log_.set_session(animation.session());
     log_.started_line();
-    if (!animation.phone_set().empty() && animation.phone_set() != "arpabet") {
-      return invalid("settings.animation.phone_set: '" + animation.phone_set() +
-                     "' given, but Listen animates the recogniser's ARPAbet phonemes (leave it empty or 'arpabet')");
-    }
     if (wants_mesh(animation)) {
       return invalid("settings.animation.outputs.mesh: not offered by Listen yet (Render the phonemes with the mesh)");
     }
+    // An English voice (or none) is heard by PocketSphinx in ARPAbet; any other espeak-ng voice by the
+    // warp against espeak-ng's rendering of the transcript, in IPA.
     const std::string& voice = settings.voice();
-    if (!voice.empty() && voice != "en" && voice.rfind("en-", 0) != 0) {
+    if (!voice.empty()) {
+      if (auto unknown = speech::unknown_voice_error(voice)) return invalid("settings.voice: " + *unknown);
+      if (speech::phone_set_for_voice(voice) != "espeak") synthesis_voice_ = voice;
+    }
+    const std::string heard_phone_set = synthesis_voice_ ? speech::phone_set_for_voice(voice) : "arpabet";
+    if (!animation.phone_set().empty() && animation.phone_set() != heard_phone_set) {
+      return invalid("settings.animation.phone_set: '" + animation.phone_set() + "' given, but Listen animates the " +
+                     (synthesis_voice_ ? "IPA phonemes of voice '" + voice + "'" : "recogniser's ARPAbet phonemes") +
+                     " (leave it empty or '" + heard_phone_set + "')");
+    }
+    if (synthesis_voice_ && !settings.has_transcript()) {
       return invalid("settings.voice: '" + voice +
-                     "': Listen hears English only for now (\"\", \"en\" or an English espeak-ng voice such as "
-                     "\"en-us\"); other languages go through `lipsync align --voice` offline");
+                     "' is not English, and without settings.transcript Listen hears English only (PocketSphinx's "
+                     "phone loop): send the transcript (\"\" when its words come in ListenWords), or leave the voice "
+                     "empty to hear the audio as English phones");
     }
     if (settings.has_transcript() && settings.transcript().size() > kMaxTranscriptBytes) {
       return invalid("settings.transcript: " + std::to_string(settings.transcript().size()) +
@@ -269,6 +281,13 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
     }
     if (auto status = service_.routing().check_metadata(*context_, animation.session()); !status.ok()) return status;
     if (auto status = resolve_settings(animation, service_.catalog(), true, plan_); !status.ok()) return status;
+    if (synthesis_voice_) {
+      plan_.phone_set = plan_.model->find_phone_set(heard_phone_set);
+      if (plan_.phone_set == nullptr) {
+        return invalid("settings.voice: '" + voice + "' is heard in the phone set '" + heard_phone_set +
+                       "', which model '" + plan_.model->name + "' lacks");
+      }
+    }
     recording_ = settings.recording();
     if (settings.has_transcript()) transcript_ = settings.transcript();
     const std::uint32_t latency_ms = settings.has_latency_ms() ? settings.latency_ms() : kDefaultLatencyMs;
@@ -396,14 +415,26 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
     return grpc::Status();
   }
 
-  /// The recogniser for audio at `rate_hz`, with a decoder loaded ahead when one is ready (else
-  /// it loads its own: about half a second). A transcript word the dictionary lacks is an
-  /// InputError naming `settings.transcript`.
+  /// The recogniser for audio at `rate_hz`: for English, PocketSphinx with a decoder loaded ahead
+  /// when one is ready (else it loads its own: about half a second), a transcript word the
+  /// dictionary lacks being an InputError naming `settings.transcript`; for another voice, the warp
+  /// against espeak-ng's rendering of the transcript (spoken now: a transcript espeak-ng cannot
+  /// speak is an InputError naming it).
   grpc::Status make_recognizer(int rate_hz) {
-    recognizer_options_.sample_rate_hz = rate_hz;
-    speech::PreparedLiveDecoder decoder = service_.live_decoders().take(recognizer_options_);
-    service_.metrics().listen_decoders.with({decoder ? "ahead" : "by_stream"}).add();
-    recognizer_.emplace(recognizer_options_, transcript_ ? "settings.transcript" : "settings", std::move(decoder));
+    if (synthesis_voice_) {
+      speech::LiveSynthesisOptions options;
+      options.transcript = transcript_.value_or("");
+      options.synthesis.voice = *synthesis_voice_;
+      options.sample_rate_hz = rate_hz;
+      options.commit_us = recognizer_options_.commit_us;
+      recognizer_ = std::make_unique<speech::LiveSynthesisAligner>(options, "settings.transcript");
+    } else {
+      recognizer_options_.sample_rate_hz = rate_hz;
+      speech::PreparedLiveDecoder decoder = service_.live_decoders().take(recognizer_options_);
+      service_.metrics().listen_decoders.with({decoder ? "ahead" : "by_stream"}).add();
+      recognizer_ = std::make_unique<speech::LiveRecognizer>(
+          recognizer_options_, transcript_ ? "settings.transcript" : "settings", std::move(decoder));
+    }
     for (const v1::ListenWords& words : early_words_) {
       if (auto status = add_words(words); !status.ok()) return status;
     }
@@ -517,9 +548,17 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
     if (recording_audio_.samples.empty()) {
       return invalid("audio: the recording has no samples (send ListenAudio pieces before `end`)");
     }
-    speech::AlignmentOptions options;
-    options.transcript = transcript_;
-    const speech::Alignment alignment = speech::align_speech(recording_audio_, kAudioSource, options);
+    speech::Alignment alignment;
+    if (synthesis_voice_) {  // as `lipsync render X.wav --voice V --text-file T` aligns it
+      speech::DtwAlignmentOptions options;
+      options.transcript = transcript_.value_or("");
+      options.synthesis.voice = *synthesis_voice_;
+      alignment = speech::align_speech_to_synthesis(recording_audio_, kAudioSource, options);
+    } else {
+      speech::AlignmentOptions options;
+      options.transcript = transcript_;
+      alignment = speech::align_speech(recording_audio_, kAudioSource, options);
+    }
     for (const std::string& note : alignment.notes) keep_note(note);
     LabeledUtterance utterance = alignment.phones;
     speech::cover_audio(utterance, recording_audio_.duration_us(), plan_.engine.render.fps);
@@ -657,7 +696,8 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
 
   // The lane's.
   speech::LiveRecognitionOptions recognizer_options_;
-  std::optional<speech::LiveRecognizer> recognizer_;
+  std::optional<std::string> synthesis_voice_;  // a voice other than English: heard by the warp
+  std::unique_ptr<speech::LivePhoneSource> recognizer_;
   std::optional<LiveRenderer> live_;
   std::vector<v1::ListenWords> early_words_;  // words that came before the recogniser
   std::vector<std::string> notes_;

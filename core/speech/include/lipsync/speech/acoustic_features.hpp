@@ -15,6 +15,7 @@
 // Pure computation: plain loops, no allocation per frame beyond the output.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -43,6 +44,37 @@ struct FeatureFrames {
 /// the frames, then c0 weighted 0.6 and the deltas 3 (for distances between frames). Audio shorter than one window
 /// gives no frames.
 FeatureFrames mfcc_features(const PcmAudio& audio);
+
+/// What a stretch of a longer stream is normalised by, when the stream is heard a piece at a time
+/// (a live voice): the loudest band power and the features' means of the stream so far, not of the
+/// stretch alone.
+struct FeatureNormalisation {
+  double loudest_band_power = 0;  ///< every band is floored 60 dB under it
+  std::vector<double> means;      ///< one per dimension, before the weights
+};
+
+/// What mfcc_features saw of a stretch, for a caller that keeps a stream's FeatureNormalisation.
+struct FeatureStatistics {
+  double loudest_band_power = 0;   ///< the stretch's own loudest band power
+  std::vector<double> unweighted;  ///< each frame's features before the means and weights, row by row
+};
+
+/// mfcc_features of a stretch normalised by `normalisation` (an empty `means`, or a loudest of 0:
+/// the stretch's own, as mfcc_features does); `statistics`, when given, gets what it saw.
+FeatureFrames mfcc_features(const PcmAudio& audio, const FeatureNormalisation& normalisation,
+                            FeatureStatistics* statistics = nullptr);
+
+/// The Euclidean distance between frame `i` of `a` and frame `j` of `b` (the warps' frame cost).
+inline double frame_distance(const FeatureFrames& a, std::size_t i, const FeatureFrames& b, std::size_t j) {
+  const float* x = a.frame(i);
+  const float* y = b.frame(j);
+  double sum = 0.0;
+  for (int d = 0; d < a.dimensions; ++d) {
+    const double difference = x[d] - y[d];
+    sum += difference * difference;
+  }
+  return std::sqrt(sum);
+}
 
 /// The centre of frame `k`, µs.
 constexpr std::int64_t feature_frame_centre_us(std::size_t k) {

@@ -58,6 +58,7 @@
 #include <vector>
 
 #include "lipsync/speech/closure_refiner.hpp"
+#include "lipsync/speech/live_phone_source.hpp"
 #include "lipsync/utterance.hpp"
 #include "lipsync/word_marks.hpp"
 
@@ -110,49 +111,47 @@ PreparedLiveDecoder prepare_live_decoder(const LiveRecognitionOptions& options, 
 /// Whether a decoder prepared for `prepared_for` serves a recogniser made with `options`.
 bool same_live_decoder(const LiveRecognitionOptions& prepared_for, const LiveRecognitionOptions& options);
 
-class LiveRecognizer {
+class LiveRecognizer final : public LivePhoneSource {
  public:
   /// Loads the model, or takes `prepared` when it was prepared for such options (else it is
   /// dropped and the model loaded). `source` names the stream in errors. Throws InputError: a
   /// missing model, a sample rate outside 8000-48000, a word the dictionary lacks.
   LiveRecognizer(const LiveRecognitionOptions& options, std::string source, PreparedLiveDecoder prepared = {});
-  ~LiveRecognizer();
-  LiveRecognizer(const LiveRecognizer&) = delete;
-  LiveRecognizer& operator=(const LiveRecognizer&) = delete;
+  ~LiveRecognizer() override;
 
   /// More words of the transcript, after those given so far. Throws InputError naming the word
   /// (its number in the whole transcript) when the dictionary lacks it, or when the recogniser was
   /// made without a transcript; the words before it are added.
-  void add_words(std::string_view text);
+  void add_words(std::string_view text) override;
   /// The same for words with times; a word's start_us must not be before the previous timed word's.
-  void add_timed_words(std::span<const TimedWord> words);
+  void add_timed_words(std::span<const TimedWord> words) override;
   /// Words added and not yet reached by an utterance (the transcript ahead of the speech).
-  std::size_t words_ahead() const { return words_base_ + words_.size() - std::min(next_word_, words_end()); }
+  std::size_t words_ahead() const override { return words_base_ + words_.size() - std::min(next_word_, words_end()); }
 
   /// Decodes the next samples (at options.sample_rate_hz).
-  void push(std::span<const std::int16_t> samples);
+  void push(std::span<const std::int16_t> samples) override;
   /// The audio has ended: the open utterance is decoded to its end and every phone is final.
-  void finish();
+  void finish() override;
 
   /// Phones that became final since the last call, in order, contiguous with the ones taken before:
   /// together they tile [0, taken_us()). A final silence at the end is held back until something
   /// follows it or the audio ends (a pause arrives as one silence, not one per piece of audio).
-  std::vector<LabeledInterval> take_final();
+  std::vector<LabeledInterval> take_final() override;
   /// Everything after the phones taken, up to the newest audio decoded: the final silence held
   /// back, then the guess; tiles [taken_us(), heard_us()) (empty when they meet).
-  std::vector<LabeledInterval> guess() const;
+  std::vector<LabeledInterval> guess() const override;
   /// How far the phones taken so far reach, µs.
   std::int64_t taken_us() const { return taken_us_; }
   /// How far the final phones reach, µs.
   std::int64_t final_us() const { return final_us_; }
   /// How far the audio has been decoded (or, outside utterances, classified), µs.
-  std::int64_t heard_us() const { return heard_us_; }
+  std::int64_t heard_us() const override { return heard_us_; }
   /// Utterances ended so far.
   std::size_t utterances() const { return utterances_; }
   /// Times an open utterance was decoded again because its grammar's words ran out.
   std::size_t redecodes() const { return redecodes_; }
   /// Things the user should know about the stream ("a word not heard", ...), since the last call.
-  std::vector<std::string> take_notes();
+  std::vector<std::string> take_notes() override;
 
  private:
   struct Word {

@@ -1,0 +1,134 @@
+// Live audio in any espeak-ng language with a transcript: the offline warp against espeak-ng's
+// rendering (dtw_aligner.hpp), done in windows as the audio arrives.
+//
+// The transcript is spoken by espeak-ng once, when it comes (words that come later are spoken as
+// they come and appended), and its MFCC frames are the rows of the warp; the recording's frames are
+// its columns. The window runs from the anchor, the end of the last final phone (in the recording)
+// and the start of the next phone (in the rendering), to the newest audio heard. After each piece
+// the warp is searched from the anchor with an open end: the path must end at the newest column,
+// at whichever row gives the lowest mean distance, so the rendering need not be heard to its end.
+// The rendering's boundaries up to that row are carried across it with the offline rules
+// (carried_boundary_rules.hpp: stops from their closures, sounds after a pause from the recording's
+// speech, /m/ from its murmur, voiced /b/ from its closure) and the closure refiner moves the lip
+// phones to the recording's energy steps. Phones that end `commit_us` or more before the newest
+// audio become final, and the anchor moves to the last of them; the rest are the guess.
+//
+// Speakers pause where espeak-ng does not. The offline aligner puts such pauses into the rendering
+// and warps again; here the recording's runs of pause-level frames (35 dB under the loudest heard)
+// longer than `pause_cut_us` are cut out of the window before the warp (the first 40 ms of each
+// and the 60 ms before the speech that follows are kept: a stop's closure), and come back as
+// silence in the phones. A pause that lasts becomes final silence as it goes, so the window (and
+// the audio kept) stays as long as the commit delay, however long the stream and its pauses.
+//
+// The recording's features are normalised by the stream so far (its loudest band and its means,
+// drawn toward the rendering's means over the first second), not by the window alone.
+//
+// Audio before any word, or after the transcript's last, shows as silence (there is no phone loop
+// in other languages) and a note says so. Not thread-safe: one stream, one aligner.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "lipsync/speech/audio.hpp"
+#include "lipsync/speech/dtw_aligner.hpp"
+#include "lipsync/speech/live_phone_source.hpp"
+
+namespace lipsync::speech {
+
+struct LiveSynthesisOptions {
+  /// Words spoken in the audio ("" when every word comes later, add_words).
+  std::string transcript;
+  /// The voice that speaks the transcript: its language is the recording's.
+  SynthesisOptions synthesis;
+  /// Rate of the samples pushed (8000 to 48000); they are resampled to 16 kHz.
+  int sample_rate_hz = 16000;
+  /// Phones ending this long before the newest audio are final, µs.
+  std::int64_t commit_us = 400'000;
+  /// Pause-level runs of the recording longer than this are cut from the warp and become silence, µs.
+  std::int64_t pause_cut_us = 150'000;
+  /// What matching one frame to many costs in the warp (as offline).
+  StretchCost stretch;
+  /// Move the lip phones' boundaries to the energy steps of the recording.
+  bool refine_closures = true;
+  ClosureRefinerOptions refiner = dtw_refiner_options();
+};
+
+class LiveSynthesisAligner final : public LivePhoneSource {
+ public:
+  /// Speaks the transcript (when not empty). Throws InputError naming `source`: an unknown voice, a
+  /// transcript espeak-ng cannot speak, a sample rate outside 8000-48000.
+  LiveSynthesisAligner(const LiveSynthesisOptions& options, std::string source);
+  ~LiveSynthesisAligner() override;
+
+  void add_words(std::string_view text) override;
+  /// The words' times are not used (their text is added as add_words adds it); a note says so once.
+  void add_timed_words(std::span<const TimedWord> words) override;
+  std::size_t words_ahead() const override;
+
+  void push(std::span<const std::int16_t> samples) override;
+  void finish() override;
+
+  std::vector<LabeledInterval> take_final() override;
+  std::vector<LabeledInterval> guess() const override;
+  std::int64_t heard_us() const override { return heard_us_; }
+  std::vector<std::string> take_notes() override;
+
+  /// How far the final phones reach, µs.
+  std::int64_t final_us() const { return final_us_; }
+  /// The rendering's phones (every word spoken so far by espeak-ng), pauses included.
+  std::size_t rendering_phones() const { return phones_base_ + phones_.size(); }
+
+ private:
+  struct Window;
+  void append_rendering(std::string_view text, std::string_view what);
+  void measure_new_frames();
+  void update(bool ended);
+  void finalise_silence_until(std::int64_t end_us);
+  void move_anchor_to(std::int64_t end_us, std::size_t next_phone);
+  void drop_behind_anchor();
+  void cover_heard_with_guess();
+
+  LiveSynthesisOptions options_;
+  std::string source_;
+  StreamingResampler resampler_;
+  std::vector<std::int16_t> resampled_;  // scratch
+
+  // The rendering: its frames (rows), their pause flags, its phones (stops from their closures,
+  // times on the rendering's clock) and their bursts, from rows_base_ and phones_base_ on.
+  FeatureFrames rows_;
+  std::vector<bool> rows_quiet_;
+  std::size_t rows_base_ = 0;
+  std::vector<LabeledInterval> phones_;  // line: the word count before the phone's chunk
+  std::vector<std::int64_t> bursts_us_;
+  std::size_t phones_base_ = 0;
+  std::vector<double> rendering_means_;
+  std::size_t words_ = 0;  // words spoken by espeak-ng so far
+  bool said_timed_words_ = false;
+
+  // The recording from the anchor's frame on (16 kHz), each 10 ms frame's level, the loudest.
+  std::vector<std::int16_t> audio_;
+  std::int64_t audio_base_sample_ = 0;  // a multiple of the 10 ms hop
+  std::vector<double> levels_db_;       // frames from audio_base_sample_ / hop on
+  double loudest_level_db_ = -200.0;
+  FeatureNormalisation normalisation_;
+  std::vector<double> mean_sums_;
+  std::size_t counted_frames_ = 0;  // frames of the stream up to the last whose features are in mean_sums_
+  std::size_t mean_count_ = 0;      // frames in mean_sums_ (the speech's: pause-level frames are left out)
+
+  // The anchor: the first rendering phone not final yet.
+  std::size_t next_phone_ = 0;
+  std::vector<LabeledInterval> final_;  // final, not yet taken
+  std::vector<LabeledInterval> guess_;
+  std::int64_t final_us_ = 0;
+  std::int64_t heard_us_ = 0;
+  std::int64_t samples_in_ = 0;  // at the rate pushed: heard_us_ is theirs
+  bool finished_ = false;
+  bool said_silence_ = false;
+  std::vector<std::string> notes_;
+};
+
+}  // namespace lipsync::speech
