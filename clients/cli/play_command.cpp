@@ -27,7 +27,11 @@
 #include <cstdio>
 #include <functional>
 #include <iostream>
+#include <memory>
 #include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
 
 #include "arguments.hpp"
 #include "cli_error.hpp"
@@ -135,41 +139,89 @@ std::string milliseconds(std::optional<std::int64_t> us) {
   return text;
 }
 
-}  // namespace
+/// What `lipsync play` was asked for, checked.
+struct PlayOptions {
+  std::string session;
+  std::string address;
+  client::v1::SubscribeRequest::Start start{};
+  std::optional<int> rate;          ///< display updates per second (--rate; default: the track's fps)
+  std::optional<long> max_updates;  ///< --frames: stop after this many display updates
+  bool redraw = false;              ///< redraw one line on a terminal (else one line per update)
+};
 
-int run_play(std::span<const std::string_view> args) {
-  const Arguments arguments = Arguments::parse(args, kOptions, "play");
-  if (print_help_if_asked(arguments, kUsage, kDescription, kOptions, std::cout)) return 0;
+PlayOptions parse_play_options(const Arguments& arguments) {
   if (arguments.positional().size() != 1 || arguments.positional().front().empty()) {
     throw UsageError("play needs exactly one SESSION name (see 'lipsync play --help')");
   }
-  const std::string& session = arguments.positional().front();
-  const std::string address = server_address(arguments);
-  const auto start = subscribe_start(arguments);
-  std::optional<int> rate;
+  PlayOptions options;
+  options.session = arguments.positional().front();
+  options.address = server_address(arguments);
+  options.start = subscribe_start(arguments);
   if (const auto text = arguments.value("rate"))
-    rate = parse_int_option("rate", *text, static_cast<int>(kFpsSetting.min), static_cast<int>(kFpsSetting.max));
-  std::optional<long> max_updates;
-  if (const auto text = arguments.value("frames")) max_updates = parse_int_option("frames", *text, 1, 10'000'000);
-  const bool redraw = !arguments.flag("no-tty") && ::isatty(STDOUT_FILENO) == 1;
-  SessionWait wait(arguments);
+    options.rate =
+        parse_int_option("rate", *text, static_cast<int>(kFpsSetting.min), static_cast<int>(kFpsSetting.max));
+  if (const auto text = arguments.value("frames"))
+    options.max_updates = parse_int_option("frames", *text, 1, 10'000'000);
+  options.redraw = !arguments.flag("no-tty") && ::isatty(STDOUT_FILENO) == 1;
+  return options;
+}
 
-  const client::AnimationClient connection(address, connection_options(arguments));
-  connection.wait_connected();
-  wait.start();
+/// Starts following the session into `state`: its messages and its end come on gRPC's threads.
+std::unique_ptr<client::SubscribeCall> follow_session(const client::AnimationClient& connection,
+                                                      const PlayOptions& options, PlayState& state) {
+  return connection.start_subscribe(
+      options.session, options.start, [&state](const client::v1::TrackMessage& message) { state.take(message); },
+      [&state](const grpc::Status& status) {
+        std::lock_guard lock(state.mutex);
+        state.status = status;
+        if (state.buffer) state.buffer->finish();
+      });
+}
 
-  PlayState state;
-  const auto subscribe = [&] {
-    return connection.start_subscribe(
-        session, start, [&](const client::v1::TrackMessage& message) { state.take(message); },
-        [&](const grpc::Status& status) {
-          std::lock_guard lock(state.mutex);
-          state.status = status;
-          if (state.buffer) state.buffer->finish();
-        });
-  };
+/// One display update of an anchored buffer: the line for the media clock's current reading
+/// (empty while no frame has come) and whether the session has ended and its last frame played.
+struct DisplayUpdate {
+  std::string line;
+  bool ended = false;
+};
+
+/// Samples the buffer at the clock's current reading (into `values`) and draws the mouth and the
+/// drift. Under state.mutex.
+DisplayUpdate sample_for_display(PlayState& state, std::vector<float>& values) {
+  client::PlaybackBuffer& buffer = *state.buffer;
+  values.resize(buffer.channel_count());
+  const client::PlaybackSample sample = buffer.sample(state.now_us(), values);
+  DisplayUpdate update;
+  if (sample.state != client::SampleState::no_frames) {
+    const double jaw = mean_of(values, state.jaw_channels) / 0.35;  // jaw_rotation: radians, ~0.35 wide open
+    const double lips = mean_of(values, state.lip_channels);
+    char head[64];
+    std::snprintf(head, sizeof head, "t=%8.3f s", static_cast<double>(sample.utterance_us) / 1e6);
+    update.line = std::string(head) + "  jaw |" + bar(jaw) + "|  lips |" + bar(lips) + "|  lead " +
+                  milliseconds(sample.lead_us) + "  late " + milliseconds(buffer.stats().last_lateness_us) +
+                  "  underruns " + std::to_string(buffer.stats().underruns);
+  }
+  update.ended = sample.state == client::SampleState::ended;
+  return update;
+}
+
+/// The line after the last update: what played, against which anchor, and how late. Under state.mutex.
+void print_summary(const PlayState& state, long updates, bool redraw, std::ostream& out) {
+  const auto& stats = state.buffer->stats();
+  out << (redraw ? "\n" : "") << "played " << updates << " updates anchored to " << state.anchor_text << ": "
+      << stats.frames_pushed << " frames, " << stats.underruns << " underruns, max behind "
+      << stats.max_behind_us / 1000 << " ms, max lateness "
+      << (stats.max_lateness_us ? std::to_string(*stats.max_lateness_us / 1000) + " ms" : "-") << ", playout offset "
+      << state.buffer->playout_offset_us() / 1000 << " ms (release delay " << state.release_delay_us / 1000
+      << " ms, max release lag " << stats.max_release_lag_us / 1000 << " ms)\n";
+}
+
+/// Follows the session (`subscribe` starts a Subscribe into `state`) and draws it on a steady timer at the
+/// display rate until it ends and its last frame played, or --frames updates; a session not started yet is
+/// asked for again as --wait says. Returns the status that ended it when that was a failure.
+std::optional<grpc::Status> play_session(PlayState& state, const PlayOptions& options, SessionWait& wait,
+                                         const std::function<std::unique_ptr<client::SubscribeCall>()>& subscribe) {
   std::unique_ptr<client::SubscribeCall> call = subscribe();
-
   boost::asio::io_context io;
   boost::asio::steady_timer timer(io);
   long updates = 0;
@@ -195,41 +247,22 @@ int run_play(std::span<const std::string_view> args) {
         }
       }
       if (!stop && state.buffer && state.buffer->anchored()) {
-        client::PlaybackBuffer& buffer = *state.buffer;
-        values.resize(buffer.channel_count());
-        const client::PlaybackSample sample = buffer.sample(state.now_us(), values);
-        if (sample.state != client::SampleState::no_frames) {
-          const double jaw = mean_of(values, state.jaw_channels) / 0.35;  // jaw_rotation: radians, ~0.35 wide open
-          const double lips = mean_of(values, state.lip_channels);
-          char head[64];
-          std::snprintf(head, sizeof head, "t=%8.3f s", static_cast<double>(sample.utterance_us) / 1e6);
-          line = std::string(head) + "  jaw |" + bar(jaw) + "|  lips |" + bar(lips) + "|  lead " +
-                 milliseconds(sample.lead_us) + "  late " + milliseconds(buffer.stats().last_lateness_us) +
-                 "  underruns " + std::to_string(buffer.stats().underruns);
-          ++updates;
-        }
-        if (sample.state == client::SampleState::ended) {
+        DisplayUpdate update = sample_for_display(state, values);
+        if (!update.line.empty()) ++updates;
+        line = std::move(update.line);
+        if (update.ended) {
           stop = true;
           if (state.status && !state.status->ok()) failure = *state.status;
         }
       }
-      if (max_updates && updates >= *max_updates) stop = true;
+      if (options.max_updates && updates >= *options.max_updates) stop = true;
       if (!line.empty()) {
-        std::cout << (redraw ? "\r" : "") << line << (redraw ? "" : "\n") << std::flush;
+        std::cout << (options.redraw ? "\r" : "") << line << (options.redraw ? "" : "\n") << std::flush;
       }
-      if (stop && state.buffer) {
-        const auto& stats = state.buffer->stats();
-        std::cout << (redraw ? "\n" : "") << "played " << updates << " updates anchored to " << state.anchor_text
-                  << ": " << stats.frames_pushed << " frames, " << stats.underruns << " underruns, max behind "
-                  << stats.max_behind_us / 1000 << " ms, max lateness "
-                  << (stats.max_lateness_us ? std::to_string(*stats.max_lateness_us / 1000) + " ms" : "-")
-                  << ", playout offset " << state.buffer->playout_offset_us() / 1000 << " ms (release delay "
-                  << state.release_delay_us / 1000 << " ms, max release lag " << stats.max_release_lag_us / 1000
-                  << " ms)\n";
-      }
+      if (stop && state.buffer) print_summary(state, updates, options.redraw, std::cout);
     }
     if (stop) return;
-    const int per_second = rate.value_or(state.fps);
+    const int per_second = options.rate.value_or(state.fps);
     timer.expires_at(timer.expiry() + std::chrono::microseconds(1'000'000 / per_second));
     timer.async_wait([&](const boost::system::error_code& error) {
       if (!error) tick();
@@ -241,9 +274,27 @@ int run_play(std::span<const std::string_view> args) {
   });
   io.run();
   call.reset();
+  return failure;
+}
+
+}  // namespace
+
+int run_play(std::span<const std::string_view> args) {
+  const Arguments arguments = Arguments::parse(args, kOptions, "play");
+  if (print_help_if_asked(arguments, kUsage, kDescription, kOptions, std::cout)) return 0;
+  const PlayOptions options = parse_play_options(arguments);
+  SessionWait wait(arguments);
+
+  const client::AnimationClient connection(options.address, connection_options(arguments));
+  connection.wait_connected();
+  wait.start();
+
+  PlayState state;
+  const std::optional<grpc::Status> failure =
+      play_session(state, options, wait, [&] { return follow_session(connection, options, state); });
   if (failure)
-    throw client::CallError("Subscribe to session '" + session + "' on " + address, failure->error_code(),
-                            failure->error_message());
+    throw client::CallError("Subscribe to session '" + options.session + "' on " + options.address,
+                            failure->error_code(), failure->error_message());
   return 0;
 }
 

@@ -332,12 +332,14 @@ TEST_F(ViewerTest, PageScriptsAndFaceAreServedFromTheBinary) {
   EXPECT_EQ(page.status, 200u);
   EXPECT_THAT(page.content_type, ::testing::StartsWith("text/html"));
   for (const char* id : {"id=\"frame-time\"", "id=\"viseme\"", "id=\"drift\"", "id=\"latency\"", "id=\"talk\"",
-                         "/viewer.js", "/live_voice.js"}) {
+                         "/viewer.js", "/face_drawing.js", "/audio_steering.js", "/live_voice.js"}) {
     EXPECT_THAT(page.body, ::testing::HasSubstr(id));
   }
   EXPECT_EQ(request(http::verb::get, "/").body, page.body);
   EXPECT_THAT(request(http::verb::get, "/viewer.js").body, ::testing::HasSubstr("window.lipsyncViewer"));
   EXPECT_THAT(request(http::verb::get, "/track_decoder.js").body, ::testing::HasSubstr("decodeTrackMessage"));
+  EXPECT_THAT(request(http::verb::get, "/face_drawing.js").body, ::testing::HasSubstr("function draw()"));
+  EXPECT_THAT(request(http::verb::get, "/audio_steering.js").body, ::testing::HasSubstr("function steer("));
   EXPECT_THAT(request(http::verb::get, "/live_voice.js").body, ::testing::HasSubstr("/listen?"));
   const HttpReply worklet = request(http::verb::get, "/capture_worklet.js");
   EXPECT_THAT(worklet.content_type, ::testing::StartsWith("text/javascript"));

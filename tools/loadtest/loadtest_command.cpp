@@ -1,7 +1,8 @@
 // `lipsync loadtest`: N concurrent producers stream synthetic utterances to
 // lipsyncd back to back for a fixed time, optionally with M subscribers per
 // session, and report throughput, latency, errors by status code and whether
-// every frame arrived.
+// every frame arrived. This file runs the load; loadtest_report.cpp sums up
+// and prints what the run counted.
 //
 // Each utterance (lipsync::synthesize_utterance, ARPAbet) is rendered offline
 // first, through the same SegmentBuilder and StreamingRenderer the server
@@ -56,13 +57,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
-#include <cstdio>
 #include <cstring>
 #include <iostream>
-#include <map>
 #include <memory>
 #include <mutex>
-#include <nlohmann/json.hpp>
 
 #include "arguments.hpp"
 #include "cli_error.hpp"
@@ -73,6 +71,7 @@
 #include "lipsync/synthetic.hpp"
 #include "listen_load.hpp"
 #include "loadtest_clients.hpp"
+#include "loadtest_report.hpp"
 #include "loadtest_shared.hpp"
 #include "network.hpp"
 #include "pipeline.hpp"
@@ -256,72 +255,12 @@ void count_frames(const client::v1::TrackMessage& message, const Run& run, Strea
   tally.latencies_us.insert(tally.latencies_us.end(), count, latency);
 }
 
-/// What the producers of one kind (with or without the mesh) and their subscribers got.
-struct Totals {
-  int producers = 0;
-  std::uint64_t utterances_started = 0;
-  std::uint64_t utterances_complete = 0;
-  std::uint64_t producer_frames = 0;
-  std::uint64_t subscriber_frames = 0;
-  std::uint64_t producer_batches = 0;
-  std::uint64_t subscriber_batches = 0;
-  std::uint64_t subscriptions = 0;
-  std::uint64_t subscriptions_complete = 0;
-  std::uint64_t missing_frames = 0;
-  std::uint64_t unexpected_frames = 0;
-  std::uint64_t frames_without_positions = 0;  ///< mesh producers only
-  std::vector<std::int32_t> producer_latencies_us;
-  std::vector<std::int32_t> subscriber_latencies_us;
-
-  void add(Totals&& other) {
-    producers += other.producers;
-    utterances_started += other.utterances_started;
-    utterances_complete += other.utterances_complete;
-    producer_frames += other.producer_frames;
-    subscriber_frames += other.subscriber_frames;
-    producer_batches += other.producer_batches;
-    subscriber_batches += other.subscriber_batches;
-    subscriptions += other.subscriptions;
-    subscriptions_complete += other.subscriptions_complete;
-    missing_frames += other.missing_frames;
-    unexpected_frames += other.unexpected_frames;
-    frames_without_positions += other.frames_without_positions;
-    producer_latencies_us.insert(producer_latencies_us.end(), other.producer_latencies_us.begin(),
-                                 other.producer_latencies_us.end());
-    subscriber_latencies_us.insert(subscriber_latencies_us.end(), other.subscriber_latencies_us.begin(),
-                                   other.subscriber_latencies_us.end());
-  }
-};
-
-/// Totals of the producers without the mesh ([0]) and with it ([1]), and the errors of all.
-struct Results {
-  std::array<Totals, 2> by_mesh;
-  std::map<std::string, std::uint64_t> errors;
-};
-
-struct MeshRequest {
-  double share = 0.0;  ///< fraction of the producers
-  std::uint32_t subdivision = 1;
-  client::v1::MeshEncoding encoding = client::v1::MESH_ENCODING_FLOAT32;
-};
-
 /// Whether producer `p` asks for the mesh: round((p+1)·share) > round(p·share),
 /// so round(N·share) of N producers do, spread evenly.
 bool producer_has_mesh(int p, double share) {
   const auto mesh_before = [share](int n) { return std::floor(static_cast<double>(n) * share + 0.5); };
   return mesh_before(p + 1) > mesh_before(p);
 }
-
-struct LoadTestConfig {
-  int producers = 10;
-  int subscribers = 0;
-  std::chrono::seconds duration{10};
-  bool realtime = true;
-  std::size_t phonemes = 30;
-  std::uint64_t seed = 1;
-  bool verify = true;
-  MeshRequest mesh;
-};
 
 class LoadTest {
  public:
@@ -624,179 +563,6 @@ std::vector<Utterance> make_pool(const LoadTestConfig& config) {
   return pool;
 }
 
-/// A finished run summed up: totals of all producers and of each kind, their latencies, and the verdict.
-struct Summary {
-  double seconds = 0;
-  double generator_cpu = 0;      ///< cores the generator kept busy on average (its threads and gRPC's)
-  std::array<Totals, 2> groups;  ///< without ([0]) and with ([1]) the mesh
-  Totals totals;
-  std::array<Percentiles, 2> producer_latency_by_mesh;
-  std::array<Percentiles, 2> subscriber_latency_by_mesh;
-  Percentiles producer_latency;
-  Percentiles subscriber_latency;
-  std::map<std::string, std::uint64_t> errors;
-  bool every_frame = false;
-
-  double frames_per_second(const Totals& group) const {
-    return static_cast<double>(group.producer_frames + group.subscriber_frames) / seconds;
-  }
-};
-
-Summary summarise(Results results, double seconds, double generator_cpu) {
-  Summary summary;
-  summary.seconds = seconds;
-  summary.generator_cpu = generator_cpu;
-  for (std::size_t m = 0; m < 2; ++m) {
-    summary.producer_latency_by_mesh[m] = percentiles(results.by_mesh[m].producer_latencies_us);
-    summary.subscriber_latency_by_mesh[m] = percentiles(results.by_mesh[m].subscriber_latencies_us);
-  }
-  summary.groups = {results.by_mesh[0], results.by_mesh[1]};
-  Totals& totals = summary.totals;
-  totals.add(std::move(results.by_mesh[0]));
-  totals.add(std::move(results.by_mesh[1]));
-  summary.producer_latency = percentiles(totals.producer_latencies_us);
-  summary.subscriber_latency = percentiles(totals.subscriber_latencies_us);
-  std::uint64_t error_count = 0;
-  for (const auto& [code, count] : results.errors) error_count += count;
-  summary.every_frame = totals.missing_frames == 0 && totals.unexpected_frames == 0 &&
-                        totals.frames_without_positions == 0 && error_count == 0 &&
-                        totals.utterances_complete == totals.utterances_started &&
-                        totals.subscriptions_complete == totals.subscriptions;
-  summary.errors = std::move(results.errors);
-  return summary;
-}
-
-std::string encoding_name(const MeshRequest& mesh) {
-  return mesh.encoding == client::v1::MESH_ENCODING_INT16 ? "int16" : "float32";
-}
-
-/// `--json`: the whole report as one JSON document (tools/perf reads it).
-void write_json_report(const Request& request, const Summary& summary, std::ostream& out) {
-  const LoadTestConfig& config = request.config;
-  const auto group_json = [&](std::size_t m) {
-    const Totals& group = summary.groups[m];
-    nlohmann::json frames = {{"producers", group.producer_frames},
-                             {"subscribers", group.subscriber_frames},
-                             {"per_second", summary.frames_per_second(group)},
-                             {"missing", group.missing_frames},
-                             {"unexpected", group.unexpected_frames}};
-    if (m == 1) frames["without_positions"] = group.frames_without_positions;
-    return nlohmann::json{
-        {"producers", group.producers},
-        {"utterances", {{"started", group.utterances_started}, {"complete", group.utterances_complete}}},
-        {"subscriptions", {{"started", group.subscriptions}, {"complete", group.subscriptions_complete}}},
-        {"frames", frames},
-        {"batches", {{"producers", group.producer_batches}, {"subscribers", group.subscriber_batches}}},
-        {"latency_ms",
-         {{"producers", to_json(summary.producer_latency_by_mesh[m])},
-          {"subscribers", to_json(summary.subscriber_latency_by_mesh[m])}}},
-    };
-  };
-  const Totals& totals = summary.totals;
-  nlohmann::json report = {
-      {"server", request.address},
-      {"mode", config.realtime ? "realtime" : "fast"},
-      {"client", load_client_name(request.client_kind)},
-      {"producers", config.producers},
-      {"subscribers_per_session", config.subscribers},
-      {"duration_s", config.duration.count()},
-      {"elapsed_s", summary.seconds},
-      {"phonemes_per_utterance", config.phonemes},
-      {"seed", config.seed},
-      {"mesh",
-       {{"share", config.mesh.share},
-        {"subdivision", config.mesh.subdivision},
-        {"encoding", encoding_name(config.mesh)}}},
-      {"utterances", {{"started", totals.utterances_started}, {"complete", totals.utterances_complete}}},
-      {"subscriptions", {{"started", totals.subscriptions}, {"complete", totals.subscriptions_complete}}},
-      {"frames",
-       {{"producers", totals.producer_frames},
-        {"subscribers", totals.subscriber_frames},
-        {"per_second", summary.frames_per_second(totals)},
-        {"missing", totals.missing_frames},
-        {"unexpected", totals.unexpected_frames},
-        {"without_positions", totals.frames_without_positions}}},
-      {"batches", {{"producers", totals.producer_batches}, {"subscribers", totals.subscriber_batches}}},
-      {"latency_ms",
-       {{"producers", to_json(summary.producer_latency)}, {"subscribers", to_json(summary.subscriber_latency)}}},
-      {"by_output", {{"mesh", group_json(1)}, {"no_mesh", group_json(0)}}},
-      {"errors", summary.errors},
-      {"verified", config.verify},
-      {"generator_cpu_cores", summary.generator_cpu},
-      {"every_frame_arrived", summary.every_frame},
-  };
-  out << report.dump(2) << '\n';
-}
-
-/// Without `--json`: a few lines for a person, the verdict last.
-void write_text_report(const Request& request, const Summary& summary, std::ostream& out) {
-  const LoadTestConfig& config = request.config;
-  const Totals& totals = summary.totals;
-  const std::array<Totals, 2>& groups = summary.groups;
-  char line[256];
-  std::snprintf(line, sizeof line,
-                "loadtest: %d producers (%s), %d subscribers per session, %.1f s, seed %llu, client %s\n",
-                config.producers, config.realtime ? "real time" : "fast", config.subscribers, summary.seconds,
-                static_cast<unsigned long long>(config.seed), request.client_name.c_str());
-  out << line;
-  if (groups[1].producers > 0) {
-    std::snprintf(line, sizeof line, "mesh: %d of %d producers (share %.2f), subdivision %u, %s\n", groups[1].producers,
-                  config.producers, config.mesh.share, config.mesh.subdivision, encoding_name(config.mesh).c_str());
-    out << line;
-  }
-  out << "utterances: " << totals.utterances_started << " started, " << totals.utterances_complete
-      << " complete; subscriptions: " << totals.subscriptions << " started, " << totals.subscriptions_complete
-      << " complete\n";
-  std::snprintf(line, sizeof line,
-                "frames: %llu to producers (%llu batches), %llu to subscribers (%llu batches), %.0f/s; %llu missing, "
-                "%llu unexpected\n",
-                static_cast<unsigned long long>(totals.producer_frames),
-                static_cast<unsigned long long>(totals.producer_batches),
-                static_cast<unsigned long long>(totals.subscriber_frames),
-                static_cast<unsigned long long>(totals.subscriber_batches), summary.frames_per_second(totals),
-                static_cast<unsigned long long>(totals.missing_frames),
-                static_cast<unsigned long long>(totals.unexpected_frames));
-  out << line;
-  if (groups[1].producers == 0) {
-    out << "latency, computable to arrival (producers): " << to_text(summary.producer_latency) << '\n';
-    if (config.subscribers > 0) {
-      out << "latency, computable to arrival (subscribers): " << to_text(summary.subscriber_latency) << '\n';
-    }
-  } else {
-    for (const std::size_t m : {std::size_t{0}, std::size_t{1}}) {
-      const Totals& group = groups[m];
-      const char* name = m == 1 ? "mesh" : "no mesh";
-      std::snprintf(line, sizeof line,
-                    "%s: %d producers, %llu utterances complete, frames %llu to producers, %llu to subscribers, %.0f/s",
-                    name, group.producers, static_cast<unsigned long long>(group.utterances_complete),
-                    static_cast<unsigned long long>(group.producer_frames),
-                    static_cast<unsigned long long>(group.subscriber_frames), summary.frames_per_second(group));
-      out << line;
-      if (m == 1) out << "; " << group.frames_without_positions << " without positions";
-      out << '\n';
-      if (group.producers == 0) continue;
-      out << "  latency, computable to arrival (" << name
-          << " producers): " << to_text(summary.producer_latency_by_mesh[m]) << '\n';
-      if (config.subscribers > 0) {
-        out << "  latency, computable to arrival (" << name
-            << " subscribers): " << to_text(summary.subscriber_latency_by_mesh[m]) << '\n';
-      }
-    }
-  }
-  std::snprintf(line, sizeof line, "load generator CPU: %.2f cores\n", summary.generator_cpu);
-  out << line;
-  out << "errors:";
-  if (summary.errors.empty()) out << " none";
-  for (const auto& [code, count] : summary.errors) out << ' ' << code << ' ' << count;
-  out << '\n';
-  if (!config.verify) {
-    out << (summary.every_frame ? "result: no errors (frames not checked: --no-verify)\n"
-                                : "result: FAILED (errors)\n");
-  } else {
-    out << (summary.every_frame ? "result: every frame arrived\n" : "result: FAILED (errors or missing frames)\n");
-  }
-}
-
 }  // namespace
 
 int run_loadtest(std::span<const std::string_view> args) {
@@ -824,9 +590,9 @@ int run_loadtest(std::span<const std::string_view> args) {
   const double seconds = test.elapsed().count();
   const Summary summary = summarise(std::move(results), seconds, (process_cpu_seconds() - cpu_before) / seconds);
   if (arguments.flag("json")) {
-    write_json_report(request, summary, std::cout);
+    write_json_report(request.config, request.address, request.client_name, summary, std::cout);
   } else {
-    write_text_report(request, summary, std::cout);
+    write_text_report(request.config, request.client_name, summary, std::cout);
   }
   return summary.every_frame ? 0 : kExitInputError;
 }

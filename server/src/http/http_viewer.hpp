@@ -3,7 +3,8 @@
 //
 // Routes (docs/viewer.md):
 //   GET  /  and  /view            the page (query: session, audio, start)
-//   GET  /viewer.js, /viewer.css  its script and style; /face.json: the viewer's face (data/face/)
+//   GET  /viewer.js, /viewer.css  its script and style (with face_drawing.js, audio_steering.js and the
+//                                 others of server/web/); /face.json: the viewer's face (data/face/)
 //   GET  /ws?session=NAME[&start=now][&wait_s=S]
 //                                       WebSocket: every TrackMessage of the session, serialised,
 //                                       one binary message each (header, batches, summary); then a
