@@ -24,8 +24,9 @@ const kPieceMs = 20;            // a piece of the voice: what a microphone gives
 const kFileLeadMs = 500;        // a played file is heard this long after it is captured
 const kDefaultBudgetMs = 200;   // the latency budget asked of lipsyncd (?latency=MS: 100 to 2000)
 const kLatencyWindow = 150;     // frames in the percentile (5 s at 30 frames/s)
-const kMaxQueuedBytes = 512 * 1024;
-const kMaxLogged = 100000;      // frames kept in live.log (an hour at 30 frames/s)  // unsent voice beyond which the page says lipsyncd is not keeping up
+const kMaxQueuedBytes = 512 * 1024;  // unsent voice beyond which the page says lipsyncd is not keeping up
+const kMaxLogged = 100000;      // frames kept in live.log (an hour at 30 frames/s)
+const kMaxPieces = 500;         // pieces awaiting their frames (10 s): older ones are dropped if frames stop
 
 const live = {
   state: "off",       // "starting", "running", "ending", "ended", "error"
@@ -36,6 +37,7 @@ const live = {
   zeroUs: null,       // the session's anchor
   capturedUs: 0,      // audio time at the end of the last piece
   pieces: [],         // [{endUs: audio time at the piece's end, atMs: performance.now() when it came}]
+  droppedUs: 0,       // audio time up to which pieces were dropped unanswered (kMaxPieces)
   piecesSent: 0,
   bytesSent: 0,
   latencies: [],      // ms, the last kLatencyWindow frames
@@ -69,7 +71,7 @@ function noteLiveFrames(batch) {
   const now = performance.now();
   for (const t of batch.tUs) {
     const piece = live.pieces.find((p) => p.endUs >= t);
-    if (!piece) continue;
+    if (!piece || t <= live.droppedUs) continue;  // its piece is gone: no latency to measure
     live.latencies.push(now - piece.atMs);
     if (live.log.length < kMaxLogged) live.log.push([t, Math.round(now - piece.atMs)]);
   }
@@ -140,6 +142,7 @@ function onPiece(data) {
   }
   live.capturedUs += samples / live.sampleRate * 1e6;
   live.pieces.push({ endUs: live.capturedUs, atMs: now });
+  if (live.pieces.length > kMaxPieces) live.droppedUs = live.pieces.shift().endUs;  // no frames for 10 s
   if (live.socket && live.socket.readyState === WebSocket.OPEN) sendPiece(data);
   else live.queued.push(data);
 }
@@ -196,7 +199,7 @@ async function startLiveVoice(file) {
   if (live.socket && live.socket.readyState <= WebSocket.OPEN) live.socket.close();
   if (viewer.socket && viewer.socket.readyState <= WebSocket.OPEN) viewer.socket.close(1000);
   Object.assign(live, { state: "starting", source: file ? "file" : "microphone", error: null, summary: null,
-    zeroUs: null, pieces: [], capturedUs: 0, piecesSent: 0, bytesSent: 0, latencies: [], log: [], latencyMs: null,
+    zeroUs: null, pieces: [], droppedUs: 0, capturedUs: 0, piecesSent: 0, bytesSent: 0, latencies: [], log: [], latencyMs: null,
     latencyP95Ms: null, queued: [], socket: null, behind: false, budgetMs: liveBudgetMs() });
   live.session = document.getElementById("session-input").value.trim() ||
     "mic-" + Array.from(crypto.getRandomValues(new Uint8Array(4)), (b) => b.toString(16).padStart(2, "0")).join("");

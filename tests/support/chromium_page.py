@@ -2,8 +2,9 @@
 python3-websocket; no npm, nothing fetched at test time), and what they read off its screenshots:
 PNG decoding (8-bit RGB/RGBA, what Chromium writes) and the count of open-mouth pixels.
 
-Used by tests/server/viewer_browser_test.py (the page following sessions) and
-tests/server/viewer_microphone_test.py (the page's own voice through a fake microphone).
+Used by tests/server/viewer_browser_test.py (the page following sessions),
+tests/server/viewer_microphone_test.py (the page's own voice through a fake microphone) and
+tests/server/viewer_file_test.py (the page playing a file as its voice).
 """
 
 import base64
@@ -103,6 +104,14 @@ class DevTools:
         if "exceptionDetails" in result:
             raise RuntimeError(f"{expression}: {result['exceptionDetails']}")
         return result["result"].get("value")
+
+    def set_files(self, selector, paths):
+        """Chooses `paths` in the page's file input `selector`, as a user would (it fires 'change')."""
+        root = self.call("DOM.getDocument")["root"]["nodeId"]
+        node = self.call("DOM.querySelector", nodeId=root, selector=selector)["nodeId"]
+        if not node:
+            raise AssertionError(f"the page has no {selector}")
+        self.call("DOM.setFileInputFiles", nodeId=node, files=list(paths))
 
     def screenshot(self, clip=None):
         params = {"format": "png"}

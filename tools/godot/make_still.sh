@@ -14,7 +14,7 @@ trap 'rm -rf "$work"' EXIT
 mkdir -p "$work/project"
 printf 'config_version=4\n\n[application]\n\nconfig/name="lipsync still"\n' >"$work/project/project.godot"
 cp -r clients/godot/addons "$work/project/"
-cp tools/godot/make_still.gd "$work/project/"
+cp tools/godot/make_still.gd tools/godot/viewer_face_scene.gd tests/integrations/godot/face_fixture.gd "$work/project/"
 "$build/clients/cli/lipsync" render tests/data/closures/flite_1.psdur -o "$work/papa.json"
 read -r closure_us open_us < <(python3 - "$work/papa.json" <<'PY'
 import json, sys
