@@ -3,8 +3,11 @@
 // reading, pocketsphinx-testdata) and flite's reading of the first Harvard sentence, heard by the
 // LiveRecognizer in 20 ms pieces with the transcript (a grammar of the next words) and without it
 // (the phone loop), each with the LiveRenderer's deadlines at the default budget; the baseline is
-// align_speech on the whole recording. Counters: `rtf`, seconds of CPU per second of audio, whose
-// inverse is the streams one core holds at real-time pace.
+// align_speech on the whole recording. In another language (Festival's Italian "Il bambino beve
+// un bicchiere di latte freddo ogni mattina.", tests/data/recorded_languages/it_1.wav) the
+// LiveSynthesisAligner warps it live against espeak-ng's rendering of the transcript, against the
+// offline warp (align_speech_to_synthesis) on the whole file. Counters: `rtf`, seconds of CPU per
+// second of audio, whose inverse is the streams one core holds at real-time pace.
 #include <benchmark/benchmark.h>
 
 #include <cstdio>
@@ -12,7 +15,6 @@
 #include <fstream>
 #include <iterator>
 #include <memory>
-#include <optional>
 #include <string>
 
 #include "lipsync/coarticulation.hpp"
@@ -21,7 +23,9 @@
 #include "lipsync/phone_set.hpp"
 #include "lipsync/speech/aligner.hpp"
 #include "lipsync/speech/audio.hpp"
+#include "lipsync/speech/dtw_aligner.hpp"
 #include "lipsync/speech/live_recognizer.hpp"
+#include "lipsync/speech/live_synthesis_aligner.hpp"
 
 namespace {
 
@@ -60,6 +64,17 @@ const Speech& flite() {
   return speech;
 }
 
+const Speech& italian() {
+  static const Speech speech = [] {
+    const std::filesystem::path corpus = std::filesystem::path(LIPSYNC_TEST_DATA_DIR) / "recorded_languages";
+    std::ifstream in(corpus / "it_1.wav", std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    return Speech{speech::decode_wav(bytes, "it_1.wav").audio,
+                  "Il bambino beve un bicchiere di latte freddo ogni mattina."};
+  }();
+  return speech;
+}
+
 void set_rtf(benchmark::State& state, const speech::PcmAudio& audio) {
   // Seconds of audio per second of CPU, inverted: CPU seconds per second of audio.
   state.counters["rtf"] =
@@ -67,21 +82,21 @@ void set_rtf(benchmark::State& state, const speech::PcmAudio& audio) {
                          benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 
-void live(benchmark::State& state, const Speech& speech, bool with_transcript) {
+// A stream of `speech` heard by what `make_hearer` makes, in 20 ms pieces, and rendered live.
+template <class MakeHearer>
+void live_stream(benchmark::State& state, const Speech& speech, const std::string& phone_set, MakeHearer make_hearer) {
   const ArticulationModel& model = ArticulationModel::builtin();
-  static const PhoneSet arpabet = *PhoneSet::builtin("arpabet", model);
+  const PhoneSet phones = *PhoneSet::builtin(phone_set, model);
   const auto tables = std::make_shared<const CoarticulationTables>(model);
-  speech::LiveRecognitionOptions options;
-  options.sample_rate_hz = speech.audio.sample_rate_hz;
-  if (with_transcript) options.transcript = speech.transcript;
   const auto piece = static_cast<std::size_t>(speech.audio.sample_rate_hz / 50);
   const auto& samples = speech.audio.samples;
-  // The model is loaded once per stream; a stream of minutes pays it once, so it is left out.
-  std::optional<speech::LiveRecognizer> recognizer;
+  // The model is loaded (or the transcript spoken by espeak-ng) once per stream; a stream of
+  // minutes pays it once, so it is left out.
+  std::unique_ptr<speech::LivePhoneSource> recognizer;
   for (auto _ : state) {
     state.PauseTiming();
-    recognizer.emplace(options, "bench");
-    LiveRenderer renderer(tables, model, arpabet, "bench", {}, {});
+    recognizer = make_hearer();
+    LiveRenderer renderer(tables, model, phones, "bench", {}, {});
     Track track;
     track.channel_count = model.channel_count();
     state.ResumeTiming();
@@ -99,6 +114,13 @@ void live(benchmark::State& state, const Speech& speech, bool with_transcript) {
   set_rtf(state, speech.audio);
 }
 
+void live(benchmark::State& state, const Speech& speech, bool with_transcript) {
+  speech::LiveRecognitionOptions options;
+  options.sample_rate_hz = speech.audio.sample_rate_hz;
+  if (with_transcript) options.transcript = speech.transcript;
+  live_stream(state, speech, "arpabet", [&] { return std::make_unique<speech::LiveRecognizer>(options, "bench"); });
+}
+
 void offline(benchmark::State& state, const Speech& speech, bool with_transcript) {
   speech::AlignmentOptions options;
   if (with_transcript) options.transcript = speech.transcript;
@@ -112,6 +134,23 @@ void BM_OfflineAlignmentLibrivoxAudioOnly(benchmark::State& state) { offline(sta
 void BM_LiveLibrivoxAudioOnly(benchmark::State& state) { live(state, librivox(), false); }
 void BM_LiveFliteTranscript(benchmark::State& state) { live(state, flite(), true); }
 void BM_LiveFliteAudioOnly(benchmark::State& state) { live(state, flite(), false); }
+void BM_OfflineWarpItalianTranscript(benchmark::State& state) {
+  speech::DtwAlignmentOptions options;
+  options.transcript = italian().transcript;
+  options.synthesis.voice = "it";
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(speech::align_speech_to_synthesis(italian().audio, "bench", options));
+  }
+  set_rtf(state, italian().audio);
+}
+void BM_LiveWarpItalianTranscript(benchmark::State& state) {
+  speech::LiveSynthesisOptions options;
+  options.transcript = italian().transcript;
+  options.synthesis.voice = "it";
+  options.sample_rate_hz = italian().audio.sample_rate_hz;
+  live_stream(state, italian(), "ipa",
+              [&] { return std::make_unique<speech::LiveSynthesisAligner>(options, "bench"); });
+}
 
 BENCHMARK(BM_OfflineAlignmentLibrivoxTranscript)->Unit(benchmark::kMillisecond)->MinTime(2);
 BENCHMARK(BM_LiveLibrivoxTranscript)->Unit(benchmark::kMillisecond)->MinTime(2);
@@ -119,6 +158,8 @@ BENCHMARK(BM_OfflineAlignmentLibrivoxAudioOnly)->Unit(benchmark::kMillisecond)->
 BENCHMARK(BM_LiveLibrivoxAudioOnly)->Unit(benchmark::kMillisecond)->MinTime(2);
 BENCHMARK(BM_LiveFliteTranscript)->Unit(benchmark::kMillisecond)->MinTime(2);
 BENCHMARK(BM_LiveFliteAudioOnly)->Unit(benchmark::kMillisecond)->MinTime(2);
+BENCHMARK(BM_OfflineWarpItalianTranscript)->Unit(benchmark::kMillisecond)->MinTime(2);
+BENCHMARK(BM_LiveWarpItalianTranscript)->Unit(benchmark::kMillisecond)->MinTime(2);
 
 }  // namespace
 

@@ -203,9 +203,13 @@ std::int64_t carry_time_us(const WarpPath& path, std::int64_t a_us) {
   return feature_frame_centre_us(0) + static_cast<std::int64_t>(std::llround(column * kFeatureHopUs));
 }
 
-Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view source_view,
-                                    const DtwAlignmentOptions& options) {
-  const std::string source(source_view);
+namespace {
+
+// The steps of align_speech_to_synthesis, in order.
+
+// espeak-ng's rendering of the transcript, once the transcript and the audio passed the checks
+// and the two are no more than kMostDurationRatio apart in length.
+Synthesis spoken_transcript(const PcmAudio& input, const std::string& source, const DtwAlignmentOptions& options) {
   const std::string& voice = options.synthesis.voice;
   if (!has_word_character(options.transcript)) {
     throw InputError(source, 0, "the transcript is empty: alignment with --voice " + voice + " needs the words spoken");
@@ -221,47 +225,45 @@ Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view sour
   if (synthesis.phonemes.intervals.empty()) {
     throw InputError(source, 0, "espeak-ng voice '" + voice + "' spoke no phonemes for the transcript");
   }
-  char text[400];
   const double duration_s = double(input.samples.size()) / input.sample_rate_hz;
   const double synthesis_s = double(synthesis.audio.samples.size()) / synthesis.audio.sample_rate_hz;
   if (duration_s > kMostDurationRatio * synthesis_s || synthesis_s > kMostDurationRatio * duration_s) {
+    char text[400];
     std::snprintf(text, sizeof text,
                   "the recording (%.1f s) cannot be the transcript: espeak-ng voice '%s' speaks it in %.1f s "
                   "(more than %.0f times longer or shorter)",
                   duration_s, voice.c_str(), synthesis_s, kMostDurationRatio);
     throw InputError(source, 0, text);
   }
+  return synthesis;
+}
 
-  Alignment result;
-  result.phones.source = source;
-  result.phones.phone_set = phone_set_for_voice(voice);
-  // How espeak-ng read the transcript, when that needs saying (words read by another language's rules).
-  for (const std::string& note : synthesis.notes) result.notes.push_back("the transcript: " + note);
-  if (input.sample_rate_hz != kFeatureRateHz) {
-    result.notes.push_back("resampled from " + std::to_string(input.sample_rate_hz) + " Hz to " +
-                           std::to_string(kFeatureRateHz) + " Hz for the alignment");
-  }
-  const PcmAudio recording = resample(input, kFeatureRateHz);
-  const PcmAudio spoken = padded(resample(synthesis.audio, kFeatureRateHz));
-  LabeledUtterance synthesis_phones = synthesis.phonemes;
+// The rendering's phones on its padded audio (`spoken_end_us` long): moved by the padding, which
+// is pause, merged with a pause espeak-ng begins or ends with.
+LabeledUtterance padded_phones(const LabeledUtterance& phonemes, std::int64_t spoken_end_us) {
+  LabeledUtterance synthesis_phones = phonemes;
   for (LabeledInterval& interval : synthesis_phones.intervals) {
     interval.start_us += kSynthesisPaddingUs;
     interval.end_us += kSynthesisPaddingUs;
   }
-  // The padding is pause: its own intervals (merged with a pause espeak-ng begins or ends with).
   std::vector<LabeledInterval>& padded_phones = synthesis_phones.intervals;
   if (padded_phones.front().label.empty()) {
     padded_phones.front().start_us = 0;
   } else {
     padded_phones.insert(padded_phones.begin(), LabeledInterval{"", 0, kSynthesisPaddingUs, 0});
   }
-  const std::int64_t spoken_end_us = spoken.duration_us();
   if (padded_phones.back().label.empty()) {
     padded_phones.back().end_us = spoken_end_us;
   } else {
     padded_phones.push_back(LabeledInterval{"", padded_phones.back().end_us, spoken_end_us, 0});
   }
-  const FeatureFrames recording_frames = mfcc_features(recording);
+  return synthesis_phones;
+}
+
+// The rendering the recording is warped to and that warp: the first, or the second with the
+// recording's pauses put into the rendering and its own cut where that brings the frames nearer.
+std::pair<Rendering, WarpPath> best_warp(const PcmAudio& spoken, const LabeledUtterance& synthesis_phones,
+                                         const FeatureFrames& recording_frames, const DtwAlignmentOptions& options) {
   const auto band_frames = static_cast<std::size_t>(std::max(1.0, options.band_s * 1e6 / kFeatureHopUs));
   const auto warp_to_recording = [&](const Rendering& rendering) {
     return warp(rendering.frames, recording_frames, band_frames, speech_frames(rendering.frames),
@@ -282,6 +284,14 @@ Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view sour
       path = std::move(paused_path);
     }
   }
+  return {std::move(rendering), std::move(path)};
+}
+
+// The note saying how near the warp's frames are; InputError when they are too far apart for the
+// recording to say the transcript.
+std::string checked_match(const WarpPath& path, const std::string& source, const DtwAlignmentOptions& options) {
+  const std::string& voice = options.synthesis.voice;
+  char text[400];
   if (path.mean_distance > options.max_distance_ratio * path.unrelated_distance) {
     std::snprintf(text, sizeof text,
                   "the recording does not match the transcript as espeak-ng voice '%s' speaks it (the best warp's "
@@ -295,24 +305,55 @@ Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view sour
                 "aligned against espeak-ng voice '%s' (mean distance along the warp %.2f, %.0f %% of unrelated "
                 "frames)",
                 voice.c_str(), path.mean_distance, 100.0 * path.mean_distance / path.unrelated_distance);
-  result.notes.push_back(text);
+  return text;
+}
 
+// The rendering's phones carried across the warp to the recording (`end_us` long), by the rules of
+// carried_boundary_rules.hpp and the /m/ murmur; an empty phone is left out.
+std::vector<LabeledInterval> carried_phones(const Rendering& rendering, const WarpPath& path, const PcmAudio& recording,
+                                            const FeatureFrames& recording_frames, std::int64_t end_us) {
   const std::vector<LabeledInterval>& spoken_phones = rendering.phones.intervals;
-  const std::size_t count = spoken_phones.size();
-  const std::int64_t end_us = input.duration_us();
   std::vector<std::int64_t> bounds = detail::carried_bounds(path, spoken_phones, rendering.bursts_us, end_us,
                                                             detail::pause_frames(recording_frames), recording);
   start_bilabial_nasals_at_murmur(bounds, spoken_phones, formant_band_levels_db(recording, 10'000, 1'000));
-  for (std::size_t k = 0; k < count; ++k) {
+  std::vector<LabeledInterval> phones;
+  for (std::size_t k = 0; k < spoken_phones.size(); ++k) {
     LabeledInterval interval = spoken_phones[k];
     interval.start_us = bounds[k];
     interval.end_us = bounds[k + 1];
     interval.line = static_cast<int>(k + 1);
-    if (interval.end_us > interval.start_us) result.phones.intervals.push_back(std::move(interval));
+    if (interval.end_us > interval.start_us) phones.push_back(std::move(interval));
   }
+  return phones;
+}
+
+}  // namespace
+
+Alignment align_speech_to_synthesis(const PcmAudio& input, std::string_view source_view,
+                                    const DtwAlignmentOptions& options) {
+  const std::string source(source_view);
+  const Synthesis synthesis = spoken_transcript(input, source, options);
+
+  Alignment result;
+  result.phones.source = source;
+  result.phones.phone_set = phone_set_for_voice(options.synthesis.voice);
+  // How espeak-ng read the transcript, when that needs saying (words read by another language's rules).
+  for (const std::string& note : synthesis.notes) result.notes.push_back("the transcript: " + note);
+  if (input.sample_rate_hz != kFeatureRateHz) {
+    result.notes.push_back("resampled from " + std::to_string(input.sample_rate_hz) + " Hz to " +
+                           std::to_string(kFeatureRateHz) + " Hz for the alignment");
+  }
+  const PcmAudio recording = resample(input, kFeatureRateHz);
+  const PcmAudio spoken = padded(resample(synthesis.audio, kFeatureRateHz));
+  const FeatureFrames recording_frames = mfcc_features(recording);
+  const auto [rendering, path] =
+      best_warp(spoken, padded_phones(synthesis.phonemes, spoken.duration_us()), recording_frames, options);
+  result.notes.push_back(checked_match(path, source, options));
+
+  result.phones.intervals = carried_phones(rendering, path, recording, recording_frames, input.duration_us());
   if (result.phones.intervals.empty()) throw InputError(source, 0, "the audio is too short for the transcript");
   result.phones.intervals.front().start_us = 0;
-  result.phones.intervals.back().end_us = end_us;
+  result.phones.intervals.back().end_us = input.duration_us();
   if (options.refine_closures) result.refined = detail::refine_lip_phones(recording, result.phones, options.refiner);
   return result;
 }

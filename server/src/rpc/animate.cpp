@@ -48,6 +48,7 @@
 #include "rpc/outbox.hpp"
 #include "rpc/phoneme_input.hpp"
 #include "rpc/plan.hpp"
+#include "rpc/producer_admission.hpp"
 #include "rpc/service.hpp"
 #include "rpc/wire.hpp"
 #include "sessions/live_streams.hpp"
@@ -77,23 +78,9 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
         outbox_(*this),
         log_("Animate", *context, &service.metrics()),
         frames_counter_(service.metrics().frames_sent.with({"Animate"})),
-        messages_counter_(service.metrics().messages_sent.with({"Animate"})) {
-    const grpc::Status admission = service_.admission().admit_stream(context_->peer());
-    if (!admission.ok()) {
-      outbox_.close(admission);
-      return;
-    }
-    admitted_ = true;
-    service_.live_streams().add(*this);
-    outbox_.measure(service_.metrics().write_latency, service_.metrics().queued_messages);
-    if (auto status = service_.tenants().authenticate(*context_, "Animate", caller_); !status.ok()) {
-      outbox_.close(status);
-      return;
-    }
-    log_.set_tenant(caller_.tenant());
-    open_stream_ = &service_.metrics().open_streams.with({"Animate", caller_.tenant()});
-    open_stream_->add(1);
-    if (auto status = caller_.hold(Quota::streams, stream_hold_); !status.ok()) {
+        messages_counter_(service.metrics().messages_sent.with({"Animate"})),
+        admission_(service, "Animate", "Animate") {
+    if (auto status = admission_.admit(*context_, *this, outbox_, log_, caller_); !status.ok()) {
       outbox_.close(status);
       return;
     }
@@ -152,11 +139,10 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
 
   void OnDone() override {
     last_reaction();
-    if (admitted_) service_.live_streams().remove(*this);
+    admission_.leave_live_streams(*this);
     const auto status = cancelled_ ? cancelled_status() : outbox_.final_status().value_or(grpc::Status::OK);
     log_.ended(status, {{"phonemes", static_cast<std::uint64_t>(phonemes())}, {"frames", frames_sent_.load()}});
-    if (open_stream_) open_stream_->add(-1);
-    if (admitted_) service_.admission().release_stream();
+    admission_.give_back();
     stopped_ = true;
     if (mesh_weight_milli_ > 0) service_.face_capacity().release(mesh_weight_milli_);
     if (audio_reserved_bytes_ > 0) service_.audio_budget().release(audio_reserved_bytes_);
@@ -426,13 +412,12 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
   LipSyncService& service_;
   grpc::CallbackServerContext* context_;
   Caller caller_;  // the tenant; its quotas are held until the reactor is deleted
-  QuotaHold stream_hold_, session_hold_, mesh_hold_;
+  QuotaHold session_hold_, mesh_hold_;
   Outbox outbox_;
   CallLog log_;
   Counter& frames_counter_;
   Counter& messages_counter_;
-  bool admitted_ = false;
-  Level* open_stream_ = nullptr;         // lipsyncd_streams{method="Animate",tenant}, once authenticated
+  ProducerAdmission admission_;          // the stream quota's unit is held until the reactor is deleted
   std::atomic<bool> cancelled_ = false;  // OnCancel came: the client got CANCELLED (or gRPC's own status)
   Phase phase_ = Phase::awaiting_settings;
   v1::AnimateRequest request_;

@@ -57,6 +57,7 @@
 #include "lipsync/tsan_handoff.hpp"
 #include "rpc/outbox.hpp"
 #include "rpc/plan.hpp"
+#include "rpc/producer_admission.hpp"
 #include "rpc/service.hpp"
 #include "rpc/wire.hpp"
 #include "sessions/live_streams.hpp"
@@ -96,21 +97,9 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
         outbox_(*this),
         log_("Listen", *context, &service.metrics()),
         frames_counter_(service.metrics().frames_sent.with({"Listen"})),
-        lane_(service.recognition_workers()) {
-    const grpc::Status admission = service_.admission().admit_stream(context_->peer());
-    if (!admission.ok()) {
-      outbox_.close(admission);
-      return;
-    }
-    admitted_ = true;
-    service_.live_streams().add(*this);
-    outbox_.measure(service_.metrics().write_latency, service_.metrics().queued_messages);
-    if (auto status = service_.tenants().authenticate(*context_, "Listen", caller_); !status.ok()) {
-      outbox_.close(status);
-      return;
-    }
-    log_.set_tenant(caller_.tenant());
-    if (auto status = caller_.hold(Quota::streams, stream_hold_); !status.ok()) {
+        lane_(service.recognition_workers()),
+        admission_(service, "Listen", nullptr) {
+    if (auto status = admission_.admit(*context_, *this, outbox_, log_, caller_); !status.ok()) {
       outbox_.close(status);
       return;
     }
@@ -164,10 +153,10 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
 
   void OnDone() override {
     last_reaction();
-    if (admitted_) service_.live_streams().remove(*this);
+    admission_.leave_live_streams(*this);
     const auto status = cancelled_ ? cancelled_status() : outbox_.final_status().value_or(grpc::Status::OK);
     log_.ended(status, {{"audio_bytes", bytes_received_.load()}, {"frames", frames_sent_.load()}});
-    if (admitted_) service_.admission().release_stream();
+    admission_.give_back();
     stopped_ = true;
     service_.call_ended();
     lane_.retire([this] { delete this; });  // after the jobs still queued
@@ -667,12 +656,12 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
   LipSyncService& service_;
   grpc::CallbackServerContext* context_;
   Caller caller_;  // the tenant; its quotas are held until the reactor is deleted
-  QuotaHold stream_hold_, session_hold_;
+  QuotaHold session_hold_;
   Outbox outbox_;
   CallLog log_;
   Counter& frames_counter_;
-  FaceLane lane_;  // on the recognition workers: everything after the header runs here
-  bool admitted_ = false;
+  FaceLane lane_;                // on the recognition workers: everything after the header runs here
+  ProducerAdmission admission_;  // the stream quota's unit is held until the reactor is deleted
   std::atomic<bool> cancelled_ = false;
   std::atomic<bool> stopped_ = false;  // failed, cancelled or done: queued lane jobs do nothing
   Phase phase_ = Phase::awaiting_settings;
