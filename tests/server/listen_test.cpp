@@ -647,8 +647,8 @@ TEST_F(ListenTest, AProducerThatVanishesMidWordEndsItsSessionForTheSubscribers) 
 
 TEST(ListenCli, LipsyncListenWritesWhatLipsyncRenderWritesForARecordingAndReadsAMicrophoneFromStandardInput) {
   // As a user runs them: lipsyncd on a port of its own; `lipsync listen X.wav --recording` writes
-  // the same file, byte for byte, as `lipsync render X.wav`; raw PCM on standard input (what
-  // `arecord -f S16_LE -r 16000 -c 1` gives) comes back as a track, with the latency it saw printed.
+  // the same file, byte for byte, as `lipsync render X.wav` (with `--voice it` on Italian too); raw PCM on standard
+  // input (what `arecord -f S16_LE -r 16000 -c 1` gives) comes back as a track, with the latency it saw printed.
   const auto dir = lipsync::testing::make_temp_dir("lipsync-listen-cli-");
   const std::string text = "Papa bought five more big maps.";
   const Spoken spoken = speak(false, text);
@@ -667,6 +667,22 @@ TEST(ListenCli, LipsyncListenWritesWhatLipsyncRenderWritesForARecordingAndReadsA
                                                       dir, dir);
   ASSERT_EQ(listened.status, 0) << listened.err;
   EXPECT_EQ(lipsync::testing::read_text(dir / "listened.json"), lipsync::testing::read_text(dir / "rendered.json"));
+
+  // In another language too: Festival's Italian with `--voice it`, aligned by the warp against
+  // espeak-ng as `lipsync render X.wav --voice it` aligns it.
+  const auto italian = std::filesystem::path(LIPSYNC_TEST_DATA_DIR) / "recorded_languages" / "it_3.wav";
+  const std::string italian_text = "La mamma compra le mele rosse al mercato di Bologna.";
+  const auto rendered_italian = lipsync::testing::run_program({LIPSYNC_CLI_BINARY, "render", italian.string(), "--text",
+                                                               italian_text, "--voice", "it", "-o", "rendered_it.json"},
+                                                              dir, dir);
+  ASSERT_EQ(rendered_italian.status, 0) << rendered_italian.err;
+  const auto listened_italian =
+      lipsync::testing::run_program({LIPSYNC_CLI_BINARY, "listen", italian.string(), "--recording", "--text",
+                                     italian_text, "--voice", "it", "--server", address, "-o", "listened_it.json"},
+                                    dir, dir);
+  ASSERT_EQ(listened_italian.status, 0) << listened_italian.err;
+  EXPECT_EQ(lipsync::testing::read_text(dir / "listened_it.json"),
+            lipsync::testing::read_text(dir / "rendered_it.json"));
 
   const auto microphone =
       lipsync::testing::run_program({LIPSYNC_CLI_BINARY, "listen", "-", "--rate", "16000", "--text", text, "--server",
