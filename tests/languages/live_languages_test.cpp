@@ -11,6 +11,8 @@
 //   and their closures are heard as when each is heard alone (one fewer at most), with the whole
 //   transcript first and with each sentence's words sent only as it starts (a TTS's sentence at a
 //   time).
+// - A transcript of 16 KiB is spoken by espeak-ng a few sentences ahead of the speech, not whole
+//   before the first piece.
 // - A minute of silence after the speech keeps the window (the audio the aligner holds) as short as
 //   the commit delay; audio with no words to hear is silence, and a note says so.
 // - Bad input: an unknown voice, a sample rate outside 8000-48000.
@@ -203,6 +205,24 @@ TEST(LiveLanguages, AMinuteOfSilenceKeepsTheWindowShortAndAudioWithoutWordsIsSil
   EXPECT_EQ(label_at(heard.phones, item.audio.duration_us() + 30'000'000), "");
   EXPECT_EQ(label_at(heard.phones, audio.duration_us() - item.audio.duration_us() / 2), "");
   EXPECT_THAT(heard.notes, ::testing::Contains(HasSubstr("after the transcript's last word is shown as silence")));
+}
+
+TEST(LiveLanguages, ALongTranscriptIsSpokenAFewSentencesAheadOfTheSpeech) {
+  // 16 KiB of words (a quarter of an hour of speech) are spoken by espeak-ng a few sentences at a
+  // time, as the speech nears them, not all before the first piece of audio.
+  const Item item = load("it_3");
+  LiveSynthesisOptions options = options_for(item);
+  options.transcript.clear();
+  while (options.transcript.size() + item.transcript.size() < 16 * 1024) options.transcript += item.transcript + " ";
+  const std::size_t sentences = options.transcript.size() / (item.transcript.size() + 1);
+  LiveSynthesisAligner aligner(options, "a long transcript");
+  EXPECT_EQ(aligner.words_ahead(), sentences * 10);
+  const std::size_t spoken_at_start = aligner.rendering_phones();
+  EXPECT_GT(spoken_at_start, 0u);
+  EXPECT_LT(spoken_at_start * 10, sentences * 45);  // under a tenth of the sentences' phones
+  // Its first sentence is heard as it is heard alone.
+  const Heard heard = listen(aligner, item.audio);
+  EXPECT_EQ(closed_at(heard.phones, item.bilabial_middles_us, 0, "it_3 of many"), closed_alone(item, "it_3"));
 }
 
 TEST(LiveLanguages, BadSettingsAreErrorsNamingWhatIsWrong) {

@@ -38,6 +38,11 @@ constexpr std::size_t kExtraRows = 60;
 // Frames of the rendering's means that the recording's are drawn toward (a second's worth): until the
 // recording has that much speech of its own, its means lean on the rendering's.
 constexpr double kPriorFrames = 100.0;
+// The transcript is spoken by espeak-ng in chunks of sentences of at least this many words, each
+// when the rendering ahead of the anchor is shorter than kRowsSpokenAhead (30 s): a transcript of
+// 16 KiB (a quarter of an hour of speech) would take espeak-ng seconds to speak at once.
+constexpr std::size_t kChunkWords = 12;
+constexpr std::size_t kRowsSpokenAhead = 3000;
 // Rendering rows and phones behind the anchor kept before they are dropped (a minute's worth).
 constexpr std::size_t kDropRowsAfter = 6000;
 
@@ -193,7 +198,8 @@ LiveSynthesisAligner::LiveSynthesisAligner(const LiveSynthesisOptions& options, 
   }
   if (const auto unknown = unknown_voice_error(options_.synthesis.voice)) throw InputError(source_, 0, *unknown);
   rows_.dimensions = 0;
-  if (word_count(options_.transcript) > 0) append_rendering(options_.transcript, "the transcript");
+  queue_words(options_.transcript, "the transcript");
+  speak_words_due();
 }
 
 LiveSynthesisAligner::~LiveSynthesisAligner() = default;
@@ -259,9 +265,47 @@ void LiveSynthesisAligner::append_rendering(std::string_view text, std::string_v
   words_ += word_count(text);
 }
 
+void LiveSynthesisAligner::queue_words(std::string_view text, const std::string& what) {
+  // A chunk ends after a sentence's end (. ! ? followed by a space) once it holds kChunkWords words.
+  std::string chunk;
+  std::size_t chunk_words = 0;
+  const auto flush = [&] {
+    if (chunk_words == 0) return;
+    const std::string range =
+        "words " + std::to_string(queued_words_ + 1) + "-" + std::to_string(queued_words_ + chunk_words);
+    pending_.push_back({chunk, what == "words" ? range : what + " (" + range + ")", chunk_words});
+    queued_words_ += chunk_words;
+    chunk.clear();
+    chunk_words = 0;
+  };
+  std::istringstream words{std::string(text)};
+  for (std::string word; words >> word;) {
+    chunk += (chunk.empty() ? "" : " ") + word;
+    ++chunk_words;
+    const char last = word.back();
+    if ((last == '.' || last == '!' || last == '?') && chunk_words >= kChunkWords) flush();
+  }
+  flush();
+}
+
+void LiveSynthesisAligner::speak_words_due() {
+  while (!pending_.empty()) {
+    const std::size_t phones_end = phones_base_ + phones_.size();
+    const std::size_t rows_end = rows_base_ + rows_.size();
+    const std::size_t first_row =
+        next_phone_ < phones_end
+            ? static_cast<std::size_t>(phones_[next_phone_ - phones_base_].start_us / kFeatureHopUs)
+            : rows_end;
+    if (rows_end > first_row + kRowsSpokenAhead) return;
+    const PendingWords words = std::move(pending_.front());
+    pending_.pop_front();
+    append_rendering(words.text, words.what);
+  }
+}
+
 void LiveSynthesisAligner::add_words(std::string_view text) {
-  if (word_count(text) == 0) return;
-  append_rendering(text, "words " + std::to_string(words_ + 1) + "-" + std::to_string(words_ + word_count(text)));
+  queue_words(text, "words");
+  speak_words_due();
 }
 
 void LiveSynthesisAligner::add_timed_words(std::span<const TimedWord> words) {
@@ -277,8 +321,10 @@ void LiveSynthesisAligner::add_timed_words(std::span<const TimedWord> words) {
 
 std::size_t LiveSynthesisAligner::words_ahead() const {
   if (next_phone_ >= phones_base_ + phones_.size()) return 0;
+  std::size_t pending = 0;
+  for (const PendingWords& words : pending_) pending += words.count;
   const auto reached = static_cast<std::size_t>(phones_[next_phone_ - phones_base_].line);
-  return words_ > reached ? words_ - reached : 0;
+  return (words_ > reached ? words_ - reached : 0) + pending;
 }
 
 void LiveSynthesisAligner::push(std::span<const std::int16_t> samples) {
@@ -371,6 +417,7 @@ void LiveSynthesisAligner::drop_behind_anchor() {
 
 void LiveSynthesisAligner::update(bool ended) {
   guess_.clear();
+  speak_words_due();
   const std::int64_t commit_limit_us =
       ended ? std::numeric_limits<std::int64_t>::max() : heard_us_ - options_.commit_us;
   const std::size_t phones_end = phones_base_ + phones_.size();

@@ -1,8 +1,9 @@
 // Live audio in any espeak-ng language with a transcript: the offline warp against espeak-ng's
 // rendering (dtw_aligner.hpp), done in windows as the audio arrives.
 //
-// The transcript is spoken by espeak-ng once, when it comes (words that come later are spoken as
-// they come and appended), and its MFCC frames are the rows of the warp; the recording's frames are
+// The transcript is spoken by espeak-ng a few sentences at a time, each when the speech comes
+// within 30 s of it (words that come later are queued after it), and its MFCC frames are the rows
+// of the warp; the recording's frames are
 // its columns. The window runs from the anchor, the end of the last final phone (in the recording)
 // and the start of the next phone (in the rendering), to the newest audio heard. After each piece
 // the warp is searched from the anchor with an open end: the path must end at the newest column,
@@ -28,6 +29,7 @@
 #pragma once
 
 #include <cstdint>
+#include <deque>
 #include <span>
 #include <string>
 #include <string_view>
@@ -84,6 +86,13 @@ class LiveSynthesisAligner final : public LivePhoneSource {
 
  private:
   struct Window;
+  struct PendingWords {
+    std::string text;
+    std::string what;  // for errors: "the transcript (words 1-14)", "words 15-20"
+    std::size_t count = 0;
+  };
+  void queue_words(std::string_view text, const std::string& what);
+  void speak_words_due();
   void append_rendering(std::string_view text, std::string_view what);
   void measure_new_frames();
   void update(bool ended);
@@ -106,7 +115,9 @@ class LiveSynthesisAligner final : public LivePhoneSource {
   std::vector<std::int64_t> bursts_us_;
   std::size_t phones_base_ = 0;
   std::vector<double> rendering_means_;
-  std::size_t words_ = 0;  // words spoken by espeak-ng so far
+  std::size_t words_ = 0;             // words spoken by espeak-ng so far
+  std::deque<PendingWords> pending_;  // words not spoken yet, in chunks of sentences
+  std::size_t queued_words_ = 0;      // words given so far
   bool said_timed_words_ = false;
 
   // The recording from the anchor's frame on (16 kHz), each 10 ms frame's level, the loudest.
