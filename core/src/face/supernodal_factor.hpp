@@ -36,6 +36,7 @@ struct SupernodalFactor {
   std::vector<std::uint32_t> row32;  // otherwise
   std::vector<float> value;
   std::vector<float> inverse_diagonal;
+  bool use_avx = false;  // the rows' loops in 256-bit AVX (chosen in build() where the CPU has it)
 
   /// From the n × n factor L in compressed columns, diagonal first, rows ascending (Eigen's
   /// SimplicialLLT): `outer` has n + 1 column starts, `inner` the row of each value in `l`.
@@ -46,7 +47,7 @@ struct SupernodalFactor {
   void solve_in_place(Float4* z) const;
 
  private:
-  template <typename Index>
+  template <typename Kernels, typename Index>
   void solve(const Index* row, Float4* z) const;
 };
 
