@@ -1,6 +1,7 @@
 // The face solver's linear solve: a sparse lower Cholesky factor of the (already permuted) system
 // matrix, A = L Lᵀ, copied in single precision into supernodes, and the forward and backward
-// substitutions over it with x, y and z of a node in one SSE vector.
+// substitutions over it with x, y and z of a node in one SSE vector (two nodes in one AVX register
+// in the loops over the rows below a supernode, where the CPU has AVX).
 //
 // Supernodes are runs of consecutive columns whose structure below the run is the same
 // (fundamental supernodes; at level 1, 82 % of the 94k entries are in runs of 4 columns or more).
