@@ -1,6 +1,7 @@
 // The face solver's linear solve: a sparse lower Cholesky factor of the (already permuted) system
 // matrix, A = L Lᵀ, copied in single precision into supernodes, and the forward and backward
-// substitutions over it with x, y and z of a node in one SSE vector.
+// substitutions over it with x, y and z of a node in one SSE vector (two nodes in one AVX register
+// in the loops over the rows below a supernode, where the CPU has AVX).
 //
 // Supernodes are runs of consecutive columns whose structure below the run is the same
 // (fundamental supernodes; at level 1, 82 % of the 94k entries are in runs of 4 columns or more).
@@ -36,6 +37,7 @@ struct SupernodalFactor {
   std::vector<std::uint32_t> row32;  // otherwise
   std::vector<float> value;
   std::vector<float> inverse_diagonal;
+  bool use_avx = false;  // the rows' loops in 256-bit AVX (chosen in build() where the CPU has it)
 
   /// From the n × n factor L in compressed columns, diagonal first, rows ascending (Eigen's
   /// SimplicialLLT): `outer` has n + 1 column starts, `inner` the row of each value in `l`.
@@ -46,7 +48,7 @@ struct SupernodalFactor {
   void solve_in_place(Float4* z) const;
 
  private:
-  template <typename Index>
+  template <typename Kernels, typename Index>
   void solve(const Index* row, Float4* z) const;
 };
 
