@@ -12,7 +12,8 @@
 //   transcript first and with each sentence's words sent only as it starts (a TTS's sentence at a
 //   time).
 // - A transcript of 16 KiB is spoken by espeak-ng a few sentences ahead of the speech, not whole
-//   before the first piece.
+//   before the first piece; a stream of three minutes drops what it has heard and hears its last
+//   sentence as its first.
 // - A minute of silence after the speech keeps the window (the audio the aligner holds) as short as
 //   the commit delay; audio with no words to hear is silence, and a note says so.
 // - Bad input: an unknown voice, a sample rate outside 8000-48000.
@@ -223,6 +224,33 @@ TEST(LiveLanguages, ALongTranscriptIsSpokenAFewSentencesAheadOfTheSpeech) {
   // Its first sentence is heard as it is heard alone.
   const Heard heard = listen(aligner, item.audio);
   EXPECT_EQ(closed_at(heard.phones, item.bilabial_middles_us, 0, "it_3 of many"), closed_alone(item, "it_3"));
+}
+
+TEST(LiveLanguages, AStreamOfMinutesDropsWhatItHasHeardAndItsLastSentenceIsHeardAsTheFirst) {
+  // Forty-five times the same sentence, three minutes of speech, with its transcript: the rendering
+  // behind the anchor is dropped as the stream goes (past two minutes), and the last sentence's
+  // closures are heard as the first's.
+  const Item item = load("it_3");
+  LiveSynthesisOptions options = options_for(item);
+  options.transcript.clear();
+  PcmAudio audio{item.audio.sample_rate_hz, {}};
+  constexpr int kTimes = 45;
+  for (int k = 0; k < kTimes; ++k) {
+    options.transcript += item.transcript + " ";
+    audio.samples.insert(audio.samples.end(), item.audio.samples.begin(), item.audio.samples.end());
+    audio.samples.resize(audio.samples.size() + static_cast<std::size_t>(audio.sample_rate_hz) / 2, 0);
+  }
+  LiveSynthesisAligner aligner(options, "minutes");
+  const Heard heard = listen(aligner, audio);
+  expect_tiles(heard.phones, 0, audio.duration_us(), "minutes");
+  const auto rate = static_cast<std::int64_t>(item.audio.sample_rate_hz);
+  const std::int64_t last_at_us =
+      (kTimes - 1) * (static_cast<std::int64_t>(item.audio.samples.size()) + rate / 2) * 1'000'000 / rate;
+  EXPECT_EQ(closed_at(heard.phones, item.bilabial_middles_us, last_at_us, "it_3, the last"),
+            closed_at(heard.phones, item.bilabial_middles_us, 0, "it_3, the first"));
+  EXPECT_EQ(aligner.words_ahead(), 0u);
+  EXPECT_GT(aligner.rendering_frames(), 12'000u);  // over two minutes of espeak-ng
+  EXPECT_LT(aligner.rendering_frames_held(), 10'000u);
 }
 
 TEST(LiveLanguages, BadSettingsAreErrorsNamingWhatIsWrong) {

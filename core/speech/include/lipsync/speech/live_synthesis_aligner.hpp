@@ -83,6 +83,10 @@ class LiveSynthesisAligner final : public LivePhoneSource {
   std::int64_t final_us() const { return final_us_; }
   /// The rendering's phones (every word spoken so far by espeak-ng), pauses included.
   std::size_t rendering_phones() const { return phones_base_ + phones_.size(); }
+  /// The rendering's frames held (those more than a minute behind the anchor are dropped), and all
+  /// it has had.
+  std::size_t rendering_frames_held() const { return rows_.size(); }
+  std::size_t rendering_frames() const { return rows_base_ + rows_.size(); }
 
  private:
   struct Window;
