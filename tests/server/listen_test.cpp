@@ -780,7 +780,10 @@ TEST(ListenCli, LipsyncListenSendsATtsWordMarksAsItsTranscript) {
 TEST(ListenLongStream, AnHourOfSpeechAndSilenceKeepsTheServersMemoryFlat) {
   // A kiosk's hour: a sentence every minute, silence between, sent as fast as lipsyncd takes it,
   // from a lipsyncd of its own; its resident memory sampled every ten minutes of audio. Utterances
-  // end at the pauses, so the recogniser's state does not grow with the stream.
+  // end at the pauses, so the recogniser's state does not grow with the stream. After each minute
+  // the test waits for that minute's frames, so that what is measured is what lipsyncd keeps, not
+  // frames queued for a reader slower than the server (a busy machine), which a live voice, paced
+  // by its speaker, never piles up.
   const Spoken spoken = speak(false, "Papa bought five more big maps.");
   ASSERT_EQ(spoken.recording.audio.sample_rate_hz, 16000);
   const auto dir = lipsync::testing::make_temp_dir("lipsyncd-listen-hour-");
@@ -797,7 +800,7 @@ TEST(ListenLongStream, AnHourOfSpeechAndSilenceKeepsTheServersMemoryFlat) {
   ASSERT_TRUE(stream->Write(request));
   // Frames are counted as they come (a reader of its own, so that the server is never held back).
   std::atomic<std::uint64_t> frames = 0;
-  std::int64_t last_t_us = -1;
+  std::atomic<std::int64_t> last_t_us = -1;
   bool in_order = true;
   std::thread reader([&] {
     v1::TrackMessage message;
@@ -821,6 +824,11 @@ TEST(ListenLongStream, AnHourOfSpeechAndSilenceKeepsTheServersMemoryFlat) {
         request.mutable_audio()->set_data(part->substr(at, kPiece));
         if (!stream->Write(request)) refused_at_minute = minute;
       }
+    }
+    // This minute's frames, to within a second of its end (30 s at most).
+    const std::int64_t minute_end_us = std::int64_t{minute + 1} * 60'000'000;
+    for (int wait = 0; wait < 3000 && refused_at_minute < 0 && last_t_us < minute_end_us - 1'000'000; ++wait) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
     if (minute % 10 == 9) rss_kib.push_back(status_kib(child.pid(), "VmRSS"));
   }
