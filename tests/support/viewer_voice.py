@@ -193,9 +193,10 @@ class LiveVoicePage:
         for label, t_us, pixels in opened:
             self.assertGreaterEqual(pixels, OPEN_PIXELS, f"/{label}/ at {t_us} µs shows a closed mouth")
 
-    def check_latency(self, state):
+    def check_latency(self, state, beyond_budget_ms=0):
         """The page's own figure, and over the frames after the first second (the start of a voice
-        waits for lipsyncd to set up its recogniser: printed, not judged)."""
+        waits for lipsyncd to set up its recogniser: printed, not judged). `beyond_budget_ms`: what
+        the path is known to take beyond the budget at its 95th percentile (the audio alone)."""
         log = state["log"]
         steady = sorted(ms for t, ms in log if t >= 1_000_000)
         p95 = steady[min(len(steady) - 1, int(0.95 * len(steady)))]
@@ -209,4 +210,4 @@ class LiveVoicePage:
         self.assertAlmostEqual(int(shown[1]), state["latencyMs"], delta=0.5)
         self.assertAlmostEqual(int(shown[2]), state["latencyP95Ms"], delta=0.5)
         self.assertEqual(int(shown[3]), self.BUDGET_MS)
-        self.assertLessEqual(p95, self.BUDGET_MS + self.PAGE_MARGIN_MS)
+        self.assertLessEqual(p95, self.BUDGET_MS + beyond_budget_ms + self.PAGE_MARGIN_MS)
