@@ -37,6 +37,18 @@
 namespace lipsync::server {
 namespace {
 
+#if defined(__SANITIZE_THREAD__)
+constexpr bool kUnderThreadSanitizer = true;
+#elif defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+constexpr bool kUnderThreadSanitizer = true;
+#else
+constexpr bool kUnderThreadSanitizer = false;
+#endif
+#else
+constexpr bool kUnderThreadSanitizer = false;
+#endif
+
 using namespace harness;
 using ::testing::ElementsAre;
 using ::testing::ElementsAreArray;
@@ -847,9 +859,12 @@ TEST(ListenLongStream, AnHourOfSpeechAndSilenceKeepsTheServersMemoryFlat) {
   std::printf("[ measured ] resident memory after 10, 20, ... 60 minutes of audio (MB):");
   for (const long kib : rss_kib) std::printf(" %ld", kib / 1024);
   std::printf("\n");
-  // Flat: after the first ten minutes (buffers warmed up), at most 8 MB more by the end.
+  // Flat: after the first ten minutes (buffers warmed up), at most 8 MB more by the end. Under
+  // ThreadSanitizer lipsyncd's resident memory also holds TSan's shadow of every address the heap
+  // touches and its records of every mutex and atomic (473 -> 481 MB in one CI run, where the plain
+  // build stays within 2 MB): there the bound is three times the plain build's.
   ASSERT_EQ(rss_kib.size(), 6U);
-  EXPECT_LT(rss_kib.back() - rss_kib.front(), 8 * 1024)
+  EXPECT_LT(rss_kib.back() - rss_kib.front(), (kUnderThreadSanitizer ? 24 : 8) * 1024)
       << "grew from " << rss_kib.front() << " to " << rss_kib.back() << " kB";
   child.terminate();
   child.wait();
