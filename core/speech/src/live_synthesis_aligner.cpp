@@ -154,7 +154,8 @@ std::vector<LabeledInterval> with_silence(const std::vector<LabeledInterval>& ph
                                           std::int64_t to_us) {
   std::vector<LabeledInterval> result;
   for (const LabeledInterval& phone : phones) {
-    const bool starts_before = phone.start_us<from_us, ends_after = phone.end_us> to_us;
+    const bool starts_before = phone.start_us < from_us;
+    const bool ends_after = phone.end_us > to_us;
     if (phone.label.empty() || phone.end_us <= from_us || phone.start_us >= to_us) {
       append_merged(result, phone);
     } else if (starts_before && (!ends_after || from_us - phone.start_us >= phone.end_us - to_us)) {
@@ -290,17 +291,16 @@ void LiveSynthesisAligner::queue_words(std::string_view text, const std::string&
 
 void LiveSynthesisAligner::speak_words_due() {
   while (!pending_.empty()) {
-    const std::size_t phones_end = phones_base_ + phones_.size();
-    const std::size_t rows_end = rows_base_ + rows_.size();
-    const std::size_t first_row =
-        next_phone_ < phones_end
-            ? static_cast<std::size_t>(phones_[next_phone_ - phones_base_].start_us / kFeatureHopUs)
-            : rows_end;
-    if (rows_end > first_row + kRowsSpokenAhead) return;
+    if (rows_base_ + rows_.size() > next_phone_row() + kRowsSpokenAhead) return;
     const PendingWords words = std::move(pending_.front());
     pending_.pop_front();
     append_rendering(words.text, words.what);
   }
+}
+
+std::size_t LiveSynthesisAligner::next_phone_row() const {
+  if (next_phone_ >= phones_base_ + phones_.size()) return rows_base_ + rows_.size();
+  return static_cast<std::size_t>(phones_[next_phone_ - phones_base_].start_us / kFeatureHopUs);
 }
 
 void LiveSynthesisAligner::add_words(std::string_view text) {
@@ -401,8 +401,7 @@ void LiveSynthesisAligner::move_anchor_to(std::int64_t end_us, std::size_t next_
 void LiveSynthesisAligner::drop_behind_anchor() {
   if (next_phone_ <= phones_base_ || next_phone_ - phones_base_ > phones_.size()) return;
   const std::size_t next = next_phone_ - phones_base_;
-  const std::size_t row = next < phones_.size() ? static_cast<std::size_t>(phones_[next].start_us / kFeatureHopUs)
-                                                : rows_base_ + rows_.size();
+  const std::size_t row = next_phone_row();
   if (row < rows_base_ + kDropRowsAfter * 2 || next == 0) return;
   const std::size_t drop_rows = row - kDropRowsAfter - rows_base_;
   const auto dimensions = static_cast<std::size_t>(rows_.dimensions);
@@ -422,28 +421,24 @@ void LiveSynthesisAligner::update(bool ended) {
       ended ? std::numeric_limits<std::int64_t>::max() : heard_us_ - options_.commit_us;
   const std::size_t phones_end = phones_base_ + phones_.size();
   // The rendering's rows from the next phone on.
-  const std::size_t first_row =
-      next_phone_ < phones_end ? static_cast<std::size_t>(phones_[next_phone_ - phones_base_].start_us / kFeatureHopUs)
-                               : rows_base_ + rows_.size();
+  const std::size_t first_row = next_phone_row();
   const std::size_t rows_ahead = rows_base_ + rows_.size() > first_row ? rows_base_ + rows_.size() - first_row : 0;
   const std::size_t frames = levels_db_.size();
   if (rows_ahead < 2 || next_phone_ >= phones_end) {
     // Nothing of the transcript to hear: silence (final once it is commit_us old).
     if (!said_silence_ && heard_us_ > final_us_ + options_.commit_us) {
       said_silence_ = true;
-      notes_.push_back(words_ == 0 ? "audio before the transcript's first word is shown as silence (voice '" +
-                                         options_.synthesis.voice + "' has no recogniser without the words)"
-                                   : "audio after the transcript's last word is shown as silence (voice '" +
-                                         options_.synthesis.voice + "' has no recogniser without the words)");
+      notes_.push_back(std::string(words_ == 0 ? "audio before the transcript's first word"
+                                               : "audio after the transcript's last word") +
+                       " is shown as silence: voice '" + options_.synthesis.voice +
+                       "' is heard only against its words; send them (settings.transcript, ListenWords)");
     }
     finalise_silence_until(ended ? heard_us_ : commit_limit_us);
-    if (heard_us_ > final_us_) guess_.push_back({"", final_us_, heard_us_, 0});
     return;
   }
   said_silence_ = false;
   if (frames < 3) {
     if (ended) finalise_silence_until(heard_us_);
-    if (heard_us_ > final_us_) guess_.push_back({"", final_us_, heard_us_, 0});
     return;
   }
 
@@ -487,7 +482,6 @@ void LiveSynthesisAligner::update(bool ended) {
   FeatureStatistics statistics;
   const FeatureFrames columns = mfcc_features(window.audio, normalisation_, &statistics);
   if (columns.size() < 2) {
-    if (heard_us_ > final_us_) guess_.push_back({"", final_us_, heard_us_, 0});
     return;
   }
   const auto dimensions = static_cast<std::size_t>(columns.dimensions);
@@ -538,7 +532,6 @@ void LiveSynthesisAligner::update(bool ended) {
       carried.intervals.push_back({phones[k].label, bounds[k], bounds[k + 1], phones[k].line});
   }
   if (carried.intervals.empty()) {
-    if (heard_us_ > final_us_) guess_.push_back({"", final_us_, heard_us_, 0});
     return;
   }
   if (options_.refine_closures) detail::refine_lip_phones(window.audio, carried, options_.refiner);

@@ -104,6 +104,8 @@ class LiveSynthesisAligner final : public LivePhoneSource {
   void move_anchor_to(std::int64_t end_us, std::size_t next_phone);
   void drop_behind_anchor();
   void cover_heard_with_guess();
+  /// The rendering's row where the next phone (the first not final) starts; its end without one.
+  std::size_t next_phone_row() const;
 
   LiveSynthesisOptions options_;
   std::string source_;
