@@ -217,11 +217,14 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
     // An English voice (or none) is heard by PocketSphinx in ARPAbet; any other espeak-ng voice by the
     // warp against espeak-ng's rendering of the transcript, in IPA.
     const std::string& voice = settings.voice();
+    std::string heard_phone_set = "arpabet";
     if (!voice.empty()) {
       if (auto unknown = speech::unknown_voice_error(voice)) return invalid("settings.voice: " + *unknown);
-      if (speech::phone_set_for_voice(voice) != "espeak") synthesis_voice_ = voice;
+      if (std::string set = speech::phone_set_for_voice(voice); set != "espeak") {
+        synthesis_voice_ = voice;
+        heard_phone_set = std::move(set);
+      }
     }
-    const std::string heard_phone_set = synthesis_voice_ ? speech::phone_set_for_voice(voice) : "arpabet";
     if (!animation.phone_set().empty() && animation.phone_set() != heard_phone_set) {
       return invalid("settings.animation.phone_set: '" + animation.phone_set() + "' given, but Listen animates the " +
                      (synthesis_voice_ ? "IPA phonemes of voice '" + voice + "'" : "recogniser's ARPAbet phonemes") +
