@@ -8,6 +8,9 @@
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -657,6 +660,116 @@ TEST_F(ListenTest, AProducerThatVanishesMidWordEndsItsSessionForTheSubscribers) 
   EXPECT_THAT(subscribed.status.error_message(), HasSubstr("producer disconnected"));
 }
 
+/// Frames read off a Listen stream as they come: how many, the last one's time, and whether each
+/// came after the one before. `frames` and `last_t_us` may be watched from another thread.
+struct FrameTally {
+  std::atomic<std::uint64_t> frames = 0;
+  std::atomic<std::int64_t> last_t_us = -1;
+  bool in_order = true;
+
+  /// Reads `stream` to its end.
+  template <class Stream>
+  void read_to_end(Stream& stream) {
+    v1::TrackMessage message;
+    while (stream.Read(&message)) {
+      if (!message.has_frames()) continue;
+      for (const std::int64_t t : message.frames().t_us()) {
+        in_order = in_order && t > last_t_us;
+        last_t_us = t;
+      }
+      frames += static_cast<std::uint64_t>(message.frames().t_us_size());
+    }
+  }
+};
+
+TEST_F(ListenTest, AProducerThatDoesNotReadIsHeldBackAndLosesNoFrame) {
+  // Twenty minutes of speech and silence sent as fast as lipsyncd takes them by a client that
+  // reads no frame for a while (a game engine's thread busy elsewhere): once thousands of frames
+  // wait for it, lipsyncd stops reading its audio (HTTP/2 flow control then holds the client's
+  // writes back) instead of recognising the whole stream and queueing every frame. A subscriber of
+  // the session shows how far lipsyncd got. Once the client reads, every frame arrives, in order,
+  // to the audio's end, to both.
+  const Spoken spoken = speak(false, "Papa bought five more big maps.");
+  ASSERT_EQ(spoken.recording.audio.sample_rate_hz, 16000);
+  // Without BDP probing the client's receive window stays at 64 kB, so lipsyncd's writes to it
+  // wait in lipsyncd (with it, the connection's buffers grow to megabytes first).
+  auto stub = v1::LipSync::NewStub(connect(server_->address(), false));
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::minutes(10));
+  auto stream = stub->Listen(&context);
+  v1::ListenRequest request;
+  request.mutable_settings()->set_sample_rate_hz(16000);
+  request.mutable_settings()->mutable_animation()->set_session("held");
+  ASSERT_TRUE(stream->Write(request));
+  v1::TrackMessage header;
+  ASSERT_TRUE(stream->Read(&header));
+  ASSERT_TRUE(header.has_header());
+
+  std::atomic<std::size_t> followed = 0;
+  Received subscribed;
+  std::thread follower([&] {
+    grpc::ClientContext follow_context;
+    follow_context.set_deadline(std::chrono::system_clock::now() + std::chrono::minutes(10));
+    v1::SubscribeRequest follow;
+    follow.set_session("held");
+    auto reader = stub_->Subscribe(&follow_context, follow);
+    v1::TrackMessage message;
+    while (reader->Read(&message)) {
+      take(subscribed, message);
+      followed = subscribed.frames.t_us.size();
+    }
+    subscribed.status = reader->Finish();
+  });
+
+  constexpr int kMinutes = 20;
+  constexpr std::size_t kPiece = 3200;  // 100 ms
+  const std::string speech = speech::pcm_s16le_bytes(spoken.recording.audio.samples);
+  const std::string minute_of_silence(2 * 16000 * 60 - speech.size(), '\0');
+  std::atomic<bool> refused = false;
+  std::thread writer([&] {
+    v1::ListenRequest piece;
+    for (int minute = 0; minute < kMinutes && !refused; ++minute) {
+      for (const std::string* part : {&speech, &minute_of_silence}) {
+        for (std::size_t at = 0; at < part->size() && !refused; at += kPiece) {
+          piece.mutable_audio()->set_data(part->substr(at, kPiece));
+          refused = !stream->Write(piece);
+        }
+      }
+    }
+    piece.mutable_end();
+    refused = refused || !stream->Write(piece);
+    stream->WritesDone();
+  });
+  // Until lipsyncd stops making progress on this stream's audio (or reaches its end).
+  constexpr std::size_t kAllFrames = std::size_t{kMinutes} * 60U * 30U;
+  std::size_t seen = 0;
+  auto progress = std::chrono::steady_clock::now();
+  while (followed < kAllFrames - 60 && std::chrono::steady_clock::now() - progress < std::chrono::seconds(5)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    if (followed != seen) {
+      seen = followed;
+      progress = std::chrono::steady_clock::now();
+    }
+  }
+  const std::size_t followed_unread = followed;
+  FrameTally read;
+  read.read_to_end(*stream);
+  writer.join();
+  const grpc::Status status = stream->Finish();
+  follower.join();
+  std::printf("[ measured ] frames made while the client read none: %zu of %zu\n", followed_unread, kAllFrames);
+  ASSERT_TRUE(status.ok()) << status.error_code() << " " << status.error_message();
+  EXPECT_FALSE(refused);
+  // 2,946 frames here (98 s of the audio); before Listen stopped reading at 4096 frames queued for
+  // its client (as Animate does), all 35,960 were made and queued in lipsyncd.
+  EXPECT_LT(followed_unread, kAllFrames / 4) << "lipsyncd recognised the stream although its client read no frame";
+  EXPECT_TRUE(read.in_order);
+  EXPECT_GE(read.last_t_us, std::int64_t{kMinutes} * 60'000'000 - 34'000);
+  EXPECT_GE(read.frames, std::uint64_t{kMinutes} * 60U * 29U);
+  EXPECT_TRUE(subscribed.status.ok()) << subscribed.status.error_message();
+  EXPECT_EQ(subscribed.frames.t_us.size(), read.frames);
+}
+
 TEST(ListenCli, LipsyncListenWritesWhatLipsyncRenderWritesForARecordingAndReadsAMicrophoneFromStandardInput) {
   // As a user runs them: lipsyncd on a port of its own; `lipsync listen X.wav --recording` writes
   // the same file, byte for byte, as `lipsync render X.wav` (with `--voice it` on Italian too); raw PCM on standard
@@ -794,8 +907,9 @@ TEST(ListenLongStream, AnHourOfSpeechAndSilenceKeepsTheServersMemoryFlat) {
   // from a lipsyncd of its own; its resident memory sampled every ten minutes of audio. Utterances
   // end at the pauses, so the recogniser's state does not grow with the stream. After each minute
   // the test waits for that minute's frames, so that what is measured is what lipsyncd keeps, not
-  // frames queued for a reader slower than the server (a busy machine), which a live voice, paced
-  // by its speaker, never piles up.
+  // up to 4096 frames queued for a reader slower than the server on a busy machine (the bound of
+  // AProducerThatDoesNotReadIsHeldBackAndLosesNoFrame), which a live voice, paced by its speaker,
+  // never fills.
   const Spoken spoken = speak(false, "Papa bought five more big maps.");
   ASSERT_EQ(spoken.recording.audio.sample_rate_hz, 16000);
   const auto dir = lipsync::testing::make_temp_dir("lipsyncd-listen-hour-");
@@ -811,20 +925,8 @@ TEST(ListenLongStream, AnHourOfSpeechAndSilenceKeepsTheServersMemoryFlat) {
   request.mutable_settings()->set_sample_rate_hz(16000);
   ASSERT_TRUE(stream->Write(request));
   // Frames are counted as they come (a reader of its own, so that the server is never held back).
-  std::atomic<std::uint64_t> frames = 0;
-  std::atomic<std::int64_t> last_t_us = -1;
-  bool in_order = true;
-  std::thread reader([&] {
-    v1::TrackMessage message;
-    while (stream->Read(&message)) {
-      if (!message.has_frames()) continue;
-      for (const std::int64_t t : message.frames().t_us()) {
-        in_order = in_order && t > last_t_us;
-        last_t_us = t;
-      }
-      frames += static_cast<std::uint64_t>(message.frames().t_us_size());
-    }
-  });
+  FrameTally read;
+  std::thread reader([&] { read.read_to_end(*stream); });
   const std::string speech = speech::pcm_s16le_bytes(spoken.recording.audio.samples);
   const std::string minute_of_silence(2 * 16000 * 60 - speech.size(), '\0');
   std::vector<long> rss_kib;
@@ -839,7 +941,7 @@ TEST(ListenLongStream, AnHourOfSpeechAndSilenceKeepsTheServersMemoryFlat) {
     }
     // This minute's frames, to within a second of its end (30 s at most).
     const std::int64_t minute_end_us = std::int64_t{minute + 1} * 60'000'000;
-    for (int wait = 0; wait < 3000 && refused_at_minute < 0 && last_t_us < minute_end_us - 1'000'000; ++wait) {
+    for (int wait = 0; wait < 3000 && refused_at_minute < 0 && read.last_t_us < minute_end_us - 1'000'000; ++wait) {
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
     if (minute % 10 == 9) rss_kib.push_back(status_kib(child.pid(), "VmRSS"));
@@ -853,9 +955,9 @@ TEST(ListenLongStream, AnHourOfSpeechAndSilenceKeepsTheServersMemoryFlat) {
                                    << status.error_code() << " " << status.error_message() << "; its log:\n"
                                    << lipsync::testing::read_text(dir / "err");
   ASSERT_TRUE(status.ok()) << status.error_message();
-  EXPECT_TRUE(in_order);
-  EXPECT_GE(last_t_us, 3'600'000'000 - 34'000);  // the frames reach the hour's end
-  EXPECT_GE(frames.load(), 3600U * 29U);         // about 30 a second throughout (the grid restarts at closures)
+  EXPECT_TRUE(read.in_order);
+  EXPECT_GE(read.last_t_us, 3'600'000'000 - 34'000);  // the frames reach the hour's end
+  EXPECT_GE(read.frames.load(), 3600U * 29U);         // about 30 a second throughout (the grid restarts at closures)
   std::printf("[ measured ] resident memory after 10, 20, ... 60 minutes of audio (MB):");
   for (const long kib : rss_kib) std::printf(" %ld", kib / 1024);
   std::printf("\n");

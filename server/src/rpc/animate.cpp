@@ -56,12 +56,6 @@
 namespace lipsync::server {
 namespace {
 
-// Backpressure on a producer that reads its frames slower than it sends
-// phonemes: with more than kReadPauseFrames frames waiting for it (queued for
-// writing, or for its face), the stream stops reading phonemes, so HTTP/2 flow
-// control holds the client back; it reads again once at most kReadResumeFrames wait.
-constexpr std::size_t kReadPauseFrames = 4096;
-constexpr std::size_t kReadResumeFrames = 1024;
 // Frames the track of released frames has room for from the start.
 constexpr std::size_t kTypicalReleaseFrames = 16;
 // The most audio a producer may attach to its session (AudioAttachment, all pieces): about 3 minutes

@@ -24,6 +24,9 @@
 // renderer. The reactions only check the messages, queue the audio and read on; while more than
 // kReadPauseBytes of audio wait for the lane the stream reads no more, so HTTP/2 flow control holds
 // back a client that sends faster than the server decodes ("as fast as the server takes it").
+// Likewise while more than kReadPauseFrames frames wait in the Outbox for a client that reads them
+// slower than it sends audio (producer_admission.hpp): the stream reads again once the lane has
+// caught up and at most kReadResumeFrames wait, so such a client's frames do not pile up here.
 // Everything after the header leaves from the lane, through the Outbox (one write in flight). The
 // reactor deletes itself through the lane (retire), after the jobs queued before OnDone; a job of a
 // stream that failed or was cancelled does nothing.
@@ -131,8 +134,8 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
       return;
     }
     std::lock_guard lock(audio_mutex_);
-    if (pending_bytes_ > kReadPauseBytes) {
-      read_paused_ = true;  // the lane resumes reading once it has caught up
+    if (pending_bytes_ > kReadPauseBytes || outbox_.queued_frames() > kReadPauseFrames) {
+      read_paused_ = true;  // the lane or a write's completion reads on once both have caught up
       return;
     }
     StartRead(&request_);
@@ -141,6 +144,8 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
   void OnWriteDone(bool ok) override {
     const HandoffScope handoff = reaction();
     outbox_.on_write_done(ok);
+    std::lock_guard lock(audio_mutex_);
+    resume_reading_if_caught_up();
   }
 
   void OnCancel() override {
@@ -443,10 +448,7 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
       taken.swap(pending_);
       pending_bytes_ = 0;
       job_posted_ = false;
-      if (read_paused_) {
-        read_paused_ = false;
-        StartRead(&request_);
-      }
+      resume_reading_if_caught_up();
     }
     for (auto& item : taken) {
       grpc::Status status = std::holds_alternative<std::string>(item) ? decode(std::get<std::string>(item))
@@ -454,6 +456,16 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
       if (!status.ok()) return status;
     }
     return grpc::Status();
+  }
+
+  /// Under audio_mutex_: reads on if reading waits and neither the lane (audio) nor the client
+  /// (frames) is behind any more; not once the stream is stopping.
+  void resume_reading_if_caught_up() {
+    if (!read_paused_ || stopped_ || pending_bytes_ > kReadPauseBytes || outbox_.queued_frames() > kReadResumeFrames) {
+      return;
+    }
+    read_paused_ = false;
+    StartRead(&request_);
   }
 
   /// On the lane: `bytes` of audio decoded (live) or gathered (a recording).

@@ -17,6 +17,13 @@
 
 namespace lipsync::server {
 
+/// Backpressure on a producer that reads its frames slower than it sends their input (phonemes,
+/// audio): with more than kReadPauseFrames frames waiting for it (queued for writing, or for its
+/// face), the stream stops reading, so HTTP/2 flow control holds the client back; it reads again
+/// once at most kReadResumeFrames wait. 4096 frames are 2.3 minutes at 30 frames/s.
+constexpr std::size_t kReadPauseFrames = 4096;
+constexpr std::size_t kReadResumeFrames = 1024;
+
 class ProducerAdmission {
  public:
   /// `method` names the call to the tenants' authentication; `gauge_method`, when not null, is the
