@@ -16,14 +16,27 @@
 //   sentence as its first.
 // - A minute of silence after the speech keeps the window (the audio the aligner holds) as short as
 //   the commit delay; audio with no words to hear is silence, and a note says so.
-// - Bad input: an unknown voice, a sample rate outside 8000-48000.
+// - Words with times (a TTS's marks) place the speech after a pause: a sentence after another
+//   sentence's audio (or after noise), with its own words alone, timed, shows its closures as it
+//   does alone, after a pause of 1.5 s or of 300 ms; the same words untimed leave it silent (after
+//   noise: half its closures at most).
+//   Two sentences whose speech follows their timed words show the closures they show untimed.
+// - Bad input: an unknown voice, a sample rate outside 8000-48000; timed words before 0, out of
+//   order or without letters, each naming the word as the English recogniser does.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <sstream>
+#include <utility>
 
 #include "../support/recorded_languages.hpp"
 #include "lipsync/error.hpp"
 #include "lipsync/speech/audio.hpp"
 #include "lipsync/speech/live_synthesis_aligner.hpp"
+#include "lipsync/word_marks.hpp"
 
 namespace lipsync::speech {
 namespace {
@@ -251,6 +264,211 @@ TEST(LiveLanguages, AStreamOfMinutesDropsWhatItHasHeardAndItsLastSentenceIsHeard
   EXPECT_EQ(aligner.words_ahead(), 0u);
   EXPECT_GT(aligner.rendering_frames(), 12'000u);  // over two minutes of espeak-ng
   EXPECT_LT(aligner.rendering_frames_held(), 10'000u);
+}
+
+/// The stretch of `audio` that is speech, µs: from the first to the last 10 ms within 35 dB of the
+/// loudest.
+std::pair<std::int64_t, std::int64_t> speech_span_us(const PcmAudio& audio) {
+  const std::size_t hop = static_cast<std::size_t>(audio.sample_rate_hz / 100);
+  std::vector<double> levels_db;
+  for (std::size_t at = 0; at + hop <= audio.samples.size(); at += hop) {
+    double energy = 1e-12;
+    for (std::size_t i = at; i < at + hop; ++i) energy += std::pow(audio.samples[i] / 32768.0, 2) / double(hop);
+    levels_db.push_back(10 * std::log10(energy));
+  }
+  const double loud_db = *std::max_element(levels_db.begin(), levels_db.end()) - 35;
+  const auto first = std::find_if(levels_db.begin(), levels_db.end(), [&](double db) { return db > loud_db; });
+  const auto last = std::find_if(levels_db.rbegin(), levels_db.rend(), [&](double db) { return db > loud_db; });
+  return {(first - levels_db.begin()) * 10'000, (levels_db.rend() - last) * 10'000};
+}
+
+/// `item`'s words with times as a TTS gives them, on a stream where its audio starts at `offset_us`:
+/// the first at the start of its speech, the others spread over the speech by their letters (marks
+/// a little off, as a TTS's are).
+std::vector<TimedWord> timed_words_of(const Item& item, std::int64_t offset_us) {
+  const auto [from_us, to_us] = speech_span_us(item.audio);
+  std::vector<std::string> words;
+  std::istringstream text(item.transcript);
+  std::size_t letters = 0;
+  for (std::string word; text >> word; letters += word.size()) words.push_back(word);
+  std::vector<TimedWord> timed;
+  std::size_t before = 0;
+  for (const std::string& word : words) {
+    timed.push_back(
+        {word, offset_us + from_us +
+                   (to_us - from_us) * static_cast<std::int64_t>(before) / static_cast<std::int64_t>(letters)});
+    before += word.size();
+  }
+  return timed;
+}
+
+/// Audio the words do not describe (`before`), `silence_us` of silence (1.5 s), then `item`, whose
+/// words alone are the transcript (sent before the audio, with their times or without).
+struct AfterOtherAudio {
+  PcmAudio audio;
+  std::int64_t item_at_us = 0;
+};
+
+AfterOtherAudio after_other_audio(const PcmAudio& before, const Item& item, std::int64_t silence_us = 1'500'000) {
+  AfterOtherAudio both{before, 0};
+  both.audio.samples.resize(
+      both.audio.samples.size() + static_cast<std::size_t>(silence_us * both.audio.sample_rate_hz / 1'000'000), 0);
+  both.item_at_us = both.audio.duration_us();
+  both.audio.samples.insert(both.audio.samples.end(), item.audio.samples.begin(), item.audio.samples.end());
+  return both;
+}
+
+/// `audio` from `from_us` to `to_us`.
+PcmAudio cut(const PcmAudio& audio, std::int64_t from_us, std::int64_t to_us) {
+  const auto sample = [&](std::int64_t us) {
+    return audio.samples.begin() + static_cast<std::ptrdiff_t>(us * audio.sample_rate_hz / 1'000'000);
+  };
+  return PcmAudio{audio.sample_rate_hz, std::vector<std::int16_t>(sample(from_us), sample(to_us))};
+}
+
+/// The closures of `item` heard at their middles in `both`, its words sent before the audio with
+/// their times or without.
+int closed_after_other_audio(const AfterOtherAudio& both, const Item& item, bool timed, const std::string& name) {
+  LiveSynthesisOptions options = options_for(item);
+  options.transcript = "";
+  LiveSynthesisAligner aligner(options, name);
+  if (timed) {
+    aligner.add_timed_words(timed_words_of(item, both.item_at_us));
+  } else {
+    aligner.add_words(item.transcript);
+  }
+  const Heard heard = listen(aligner, both.audio);
+  expect_tiles(heard.phones, 0, both.audio.duration_us(), name);
+  return closed_at(heard.phones, item.bilabial_middles_us, both.item_at_us, name);
+}
+
+TEST(LiveLanguages, WordTimesPlaceTheSpeechAfterAPauseSoSpeechTheWordsDoNotDescribeDoesNotDragTheRest) {
+  // One sentence's audio, then another's, with the second's words alone: the warp hears the first
+  // as the second's words. With the words' times, the second's speech after the pause is warped
+  // from its first word again, and its closures are heard as when it is heard alone; without them
+  // the warp has spent the words on the first sentence, and the second is silence.
+  for (const auto& [other_name, name] : {std::pair{"it_1", "it_3"}, {"cs_1", "cs_2"}, {"cs_2", "cs_1"}}) {
+    SCOPED_TRACE(name);
+    const Item other = load(other_name);
+    const Item item = load(name);
+    const AfterOtherAudio both = after_other_audio(other.audio, item);
+    const int alone = closed_alone(item, name);
+    const int timed = closed_after_other_audio(both, item, true, std::string(name) + " after speech, timed");
+    const int untimed = closed_after_other_audio(both, item, false, std::string(name) + " after speech, untimed");
+    std::cerr << name << " after " << other_name << ": " << timed << " closures with times, " << untimed << " without, "
+              << alone << " alone, of " << item.bilabial_middles_us.size() << "\n";
+    EXPECT_EQ(timed, alone);
+    EXPECT_EQ(untimed, 0);
+  }
+}
+
+TEST(LiveLanguages, WordTimesPlaceTheSpeechAfterAShortPauseToo) {
+  // As above with the recordings' own silences cut, 300 ms of pause between the speech: the pause
+  // is cut from the window while the speech before it is still there, and the speech after it is
+  // warped from the timed word as after a long one.
+  for (const auto& [other_name, name] : {std::pair{"it_1", "it_3"}, {"cs_1", "cs_2"}}) {
+    SCOPED_TRACE(name);
+    const Item other = load(other_name);
+    Item item = load(name);
+    const std::int64_t item_from_us = speech_span_us(item.audio).first - 50'000;
+    item.audio = cut(item.audio, item_from_us, item.audio.duration_us());
+    for (std::int64_t& middle_us : item.bilabial_middles_us) middle_us -= item_from_us;
+    const AfterOtherAudio both =
+        after_other_audio(cut(other.audio, 0, speech_span_us(other.audio).second), item, 250'000);
+    const int alone = closed_alone(item, name);
+    const int timed = closed_after_other_audio(both, item, true, std::string(name) + " after a short pause, timed");
+    const int untimed =
+        closed_after_other_audio(both, item, false, std::string(name) + " after a short pause, untimed");
+    std::cerr << name << " 300 ms after " << other_name << ": " << timed << " closures with times, " << untimed
+              << " without, " << alone << " alone, of " << item.bilabial_middles_us.size() << "\n";
+    EXPECT_EQ(timed, alone);
+    EXPECT_EQ(untimed, 0);
+  }
+}
+
+/// `duration_us` of white noise at `rms` (of full scale), the same every run.
+PcmAudio noise(int rate_hz, std::int64_t duration_us, double rms) {
+  std::mt19937 random(7);
+  std::normal_distribution<double> normal(0.0, rms * 32767.0);
+  PcmAudio audio{rate_hz, std::vector<std::int16_t>(static_cast<std::size_t>(duration_us * rate_hz / 1'000'000))};
+  for (std::int16_t& sample : audio.samples)
+    sample = static_cast<std::int16_t>(std::clamp(normal(random), -32767.0, 32767.0));
+  return audio;
+}
+
+TEST(LiveLanguages, WordTimesPlaceTheSpeechAfterAPauseThatFollowsNoise) {
+  // Two seconds of white noise (at a twentieth of full scale), the pause, then the sentence:
+  // with the times its closures are heard as alone; without them the warp has matched the noise
+  // to its first words, and fewer than half are heard.
+  for (const char* name : {"it_3", "cs_2"}) {
+    SCOPED_TRACE(name);
+    const Item item = load(name);
+    const AfterOtherAudio both = after_other_audio(noise(item.audio.sample_rate_hz, 2'000'000, 0.05), item);
+    const int alone = closed_alone(item, name);
+    const int timed = closed_after_other_audio(both, item, true, std::string(name) + " after noise, timed");
+    const int untimed = closed_after_other_audio(both, item, false, std::string(name) + " after noise, untimed");
+    std::cerr << name << " after noise: " << timed << " closures with times, " << untimed << " without, " << alone
+              << " alone, of " << item.bilabial_middles_us.size() << "\n";
+    EXPECT_EQ(timed, alone);
+    EXPECT_LE(untimed * 2, alone);
+  }
+}
+
+TEST(LiveLanguages, WordTimesOfSpeechThatFollowsTheWordsShowTheSameClosures) {
+  // The two sentences with the pause between, the words of both sent before the audio with their
+  // times: the second is warped from its first word after the pause, where the warp had come
+  // anyway, and both show the closures they show with the same words untimed.
+  const TwoSentences both = two_sentences();
+  LiveSynthesisOptions options = options_for(both.first);
+  options.transcript = "";
+  std::vector<TimedWord> words = timed_words_of(both.first, 0);
+  const std::vector<TimedWord> second = timed_words_of(both.second, both.second_at_us);
+  words.insert(words.end(), second.begin(), second.end());
+  const auto closed = [&](const std::vector<LabeledInterval>& phones) {
+    return closed_at(phones, both.first.bilabial_middles_us, 0, "it_1") +
+           closed_at(phones, both.second.bilabial_middles_us, both.second_at_us, "it_3");
+  };
+  LiveSynthesisAligner timed(options, "two sentences, timed");
+  timed.add_timed_words(words);
+  const Heard heard_timed = listen(timed, both.audio);
+  expect_tiles(heard_timed.phones, 0, both.audio.duration_us(), "two sentences, timed");
+  LiveSynthesisAligner untimed(options, "two sentences, untimed");
+  untimed.add_words(both.first.transcript + " " + both.second.transcript);
+  const Heard heard_untimed = listen(untimed, both.audio);
+  const int closed_timed = closed(heard_timed.phones);
+  const int closed_untimed = closed(heard_untimed.phones);
+  std::cerr << "two sentences: " << closed_timed << " closures with times, " << closed_untimed << " without\n";
+  EXPECT_EQ(closed_timed, closed_untimed);
+  EXPECT_EQ(label_at(heard_timed.phones, both.second_at_us - 700'000), "");
+}
+
+TEST(LiveLanguages, BadWordTimesAreErrorsNamingTheWord) {
+  const Item item = load("it_3");
+  LiveSynthesisOptions options = options_for(item);
+  options.transcript = "";
+  LiveSynthesisAligner aligner(options, "settings.transcript");
+  const auto refused = [&](const std::vector<TimedWord>& words) {
+    try {
+      aligner.add_timed_words(words);
+    } catch (const InputError& error) {
+      return std::string(error.message());
+    }
+    return std::string("(accepted)");
+  };
+  EXPECT_EQ(refused({{"La", -5}}),
+            "timed word 1 'La' starts at -5 us, before the word before it (0 us): timed words come in the order "
+            "they are spoken, on the stream's clock");
+  EXPECT_EQ(refused({{"La", 0}, {"mamma", 200'000}, {"compra", 100'000}}),
+            "timed word 3 'compra' starts at 100000 us, before the word before it (200000 us): timed words come in "
+            "the order they are spoken, on the stream's clock");
+  EXPECT_EQ(refused({{"La", 0}, {"--", 100'000}}), "timed word 2 '--' has no letters or digits");
+  EXPECT_EQ(aligner.words_ahead(), 0u);  // nothing of a refused message is added
+  // Later messages go on from the last time given.
+  EXPECT_EQ(refused({{"La", 300'000}, {"mamma", 400'000}}), "(accepted)");
+  EXPECT_EQ(refused({{"compra", 350'000}}),
+            "timed word 3 'compra' starts at 350000 us, before the word before it (400000 us): timed words come in "
+            "the order they are spoken, on the stream's clock");
+  EXPECT_EQ(aligner.words_ahead(), 2u);
 }
 
 TEST(LiveLanguages, BadSettingsAreErrorsNamingWhatIsWrong) {

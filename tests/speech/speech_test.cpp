@@ -1,7 +1,8 @@
 // lipsync::speech on real espeak-ng, real PocketSphinx and real WAV bytes: text
-// to timed phonemes to a track, the WAV reader's conversions and refusals, and
-// the aligner's accuracy and its answers to bad input (silence, too long, a
-// transcript that does not fit, a word the dictionary lacks).
+// to timed phonemes (and where each word starts) to a track, the WAV reader's
+// conversions and refusals, and the aligner's accuracy and its answers to bad
+// input (silence, too long, a transcript that does not fit, a word the
+// dictionary lacks).
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -119,6 +120,26 @@ TEST(Synthesis, BilabialsAreWhereTheTextHasThem) {
   std::vector<std::string> labels;
   for (const LabeledInterval& phoneme : speech.phonemes.intervals) labels.push_back(phoneme.label);
   EXPECT_EQ(std::count(labels.begin(), labels.end(), "p"), 3);
+}
+
+TEST(Synthesis, EachWordOfTheTextStartsAtItsFirstPhoneme) {
+  // From espeak-ng's word events: one start per word of the text as white space separates them (a
+  // number read as several words is one), each where that word's first phoneme starts.
+  const auto first_labels = [](const speech::Synthesis& speech) {
+    std::vector<std::string> labels;
+    for (const std::int64_t start_us : speech.word_starts_us) {
+      const auto phoneme = std::find_if(speech.phonemes.intervals.begin(), speech.phonemes.intervals.end(),
+                                        [&](const LabeledInterval& p) { return p.start_us == start_us; });
+      labels.push_back(phoneme == speech.phonemes.intervals.end() ? "(none)" : phoneme->label);
+    }
+    return labels;
+  };
+  EXPECT_THAT(first_labels(speech::synthesize("Papa parked the car.")), ::testing::ElementsAre("p", "p", "D", "k"));
+  const speech::Synthesis numbers = speech::synthesize("Bob ate 123 plums.");
+  EXPECT_THAT(first_labels(numbers), ::testing::ElementsAre("b", "eI", "w", "p"));
+  EXPECT_TRUE(std::is_sorted(numbers.word_starts_us.begin(), numbers.word_starts_us.end()));
+  EXPECT_THAT(first_labels(speech::synthesize("Il bambino, beve il latte.", {.voice = "it"})),
+              ::testing::ElementsAre("i", "b", "b", "i", "l"));
 }
 
 TEST(Synthesis, TheSameTextGivesTheSameSpeechWhateverTheProcessSpokeBefore) {

@@ -10,7 +10,10 @@
 // The text may be spoken in several runs (Mandarin characters and Latin words, espeak_readings.hpp),
 // one espeak_Synth call each; espeak-ng counts samples and text positions from each call's start,
 // so the collector adds the run's offsets. Its word events and the phonemes after each are judged
-// at the end (judge_reading): a nonsense reading is refused, a doubtful one noted.
+// at the end (judge_reading): a nonsense reading is refused, a doubtful one noted. A word event
+// comes before the phonemes of its word (a pause after a word is among that word's phonemes), so
+// each word of the text starts where the first phoneme after its first word event starts (a
+// number read as several words gives several events inside one word of the text).
 #include "espeak_synthesis.hpp"
 
 #include <espeak-ng/espeak_ng.h>
@@ -42,8 +45,9 @@ struct Collector {
   std::vector<std::int16_t> samples;
   std::vector<PhonemeStart> phonemes;
   std::vector<SpokenWord> words;
-  std::int64_t run_first_sample = 0;    // samples of the runs before this one
-  std::size_t run_first_character = 0;  // code points of the text before this run
+  std::vector<std::size_t> words_first_phoneme;  // per word event: the index of the phoneme after it
+  std::int64_t run_first_sample = 0;             // samples of the runs before this one
+  std::size_t run_first_character = 0;           // code points of the text before this run
 };
 Collector* active_collector = nullptr;  // set during espeak_Synth
 
@@ -63,6 +67,7 @@ int collect(short* wav, int sample_count, espeak_EVENT* events) {
       collector->words.push_back({collector->run_first_character + static_cast<std::size_t>(event->text_position),
                                   static_cast<std::size_t>(event->length),
                                   {}});
+      collector->words_first_phoneme.push_back(collector->phonemes.size());
     }
   }
   return 0;  // continue synthesis
@@ -149,6 +154,41 @@ LabeledUtterance phoneme_intervals(const Collector& collector, bool english) {
   return phonemes;
 }
 
+/// Where each word of `text` (as white space separates them) starts, µs on the audio's clock: the
+/// start of the phoneme after its first word event (as phoneme_intervals() clamps it); -1 for a
+/// word with no event or no phoneme after it.
+std::vector<std::int64_t> word_starts(std::string_view text, const Collector& collector) {
+  // Each code point's word (1-based positions, as the events count them); white space is no word.
+  std::vector<std::int64_t> word_of_point(1, -1);
+  std::int64_t words = 0;
+  bool in_word = false;
+  for (const char byte : text) {
+    if ((static_cast<unsigned char>(byte) & 0xC0U) == 0x80U) continue;  // a UTF-8 continuation byte
+    const bool space = byte == ' ' || byte == '\t' || byte == '\n' || byte == '\r' || byte == '\v' || byte == '\f';
+    if (!space && !in_word) ++words;
+    in_word = !space;
+    word_of_point.push_back(space ? -1 : words - 1);
+  }
+  const auto total = static_cast<std::int64_t>(collector.samples.size());
+  std::vector<std::int64_t> starts(static_cast<std::size_t>(words), -1);
+  std::int64_t previous_start = 0;
+  std::size_t next_phoneme = 0;
+  for (std::size_t e = 0; e < collector.words.size(); ++e) {
+    const std::size_t position = collector.words[e].position;
+    const std::size_t phoneme = collector.words_first_phoneme[e];
+    if (position >= word_of_point.size() || word_of_point[position] < 0 || phoneme >= collector.phonemes.size()) {
+      continue;
+    }
+    // The phoneme's start as phoneme_intervals() clamps it: no earlier than the phonemes before it.
+    for (; next_phoneme <= phoneme; ++next_phoneme) {
+      previous_start = std::clamp<std::int64_t>(collector.phonemes[next_phoneme].sample, previous_start, total);
+    }
+    std::int64_t& start = starts[static_cast<std::size_t>(word_of_point[position])];
+    if (start < 0) start = previous_start * 1'000'000 / espeak_rate_hz;
+  }
+  return starts;
+}
+
 }  // namespace
 
 Synthesis synthesize_with_espeak(std::string_view text, const SynthesisOptions& options) {
@@ -186,6 +226,7 @@ Synthesis synthesize_with_espeak(std::string_view text, const SynthesisOptions& 
 
   Synthesis result;
   result.phonemes = phoneme_intervals(collector, english);
+  result.word_starts_us = word_starts(prepared, collector);
   result.audio.sample_rate_hz = espeak_rate_hz;
   result.audio.samples = std::move(collector.samples);
   result.notes = std::move(verdict.notes);

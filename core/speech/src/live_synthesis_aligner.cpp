@@ -1,9 +1,11 @@
 // The live warp against espeak-ng's rendering (lipsync/speech/live_synthesis_aligner.hpp). This file
-// holds the rendering that grows with the transcript, the recording's window and its cut pauses, the
-// open-ended warp, and the commit of phones that moves the anchor.
+// holds the rendering that grows with the transcript (and where each of its words starts), the
+// recording's window and its cut pauses, the split of the window at a pause that timed words
+// place, the open-ended warp, and the commit of phones that moves the anchor.
 #include "lipsync/speech/live_synthesis_aligner.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -239,6 +241,18 @@ void LiveSynthesisAligner::append_rendering(std::string_view text, std::string_v
   }
   append_merged(phones.intervals, {"", phones.intervals.back().end_us, end_us, 0});
   if (phones.intervals.front().end_us <= 0) phones.intervals.erase(phones.intervals.begin());
+  // Each word's first phone: the first starting where espeak-ng's word starts, or after it (before
+  // the stops move to their closures, which moves their starts).
+  const std::size_t chunk_words = word_count(text);
+  std::vector<std::int64_t> first_phones(chunk_words, -1);
+  for (std::size_t w = 0; w < chunk_words && w < synthesis.word_starts_us.size(); ++w) {
+    if (synthesis.word_starts_us[w] < 0) continue;
+    const std::int64_t start_us = synthesis.word_starts_us[w] + before_us;
+    const auto phone = std::find_if(phones.intervals.begin(), phones.intervals.end(),
+                                    [&](const LabeledInterval& interval) { return interval.start_us >= start_us; });
+    if (phone == phones.intervals.end()) continue;
+    first_phones[w] = static_cast<std::int64_t>(phones_base_ + phones_.size()) + (phone - phones.intervals.begin());
+  }
   const std::vector<std::int64_t> bursts = detail::move_stop_starts_to_closures(audio, phones);
 
   // Onto the rendering's clock, after what is there.
@@ -263,7 +277,8 @@ void LiveSynthesisAligner::append_rendering(std::string_view text, std::string_v
       for (std::size_t d = 0; d < dimensions; ++d) rendering_means_[d] += statistics.unweighted[k * dimensions + d];
     for (double& mean : rendering_means_) mean /= static_cast<double>(frames.size());
   }
-  words_ += word_count(text);
+  word_phones_.insert(word_phones_.end(), first_phones.begin(), first_phones.end());
+  words_ += chunk_words;
 }
 
 void LiveSynthesisAligner::queue_words(std::string_view text, const std::string& what) {
@@ -298,9 +313,11 @@ void LiveSynthesisAligner::speak_words_due() {
   }
 }
 
-std::size_t LiveSynthesisAligner::next_phone_row() const {
-  if (next_phone_ >= phones_base_ + phones_.size()) return rows_base_ + rows_.size();
-  return static_cast<std::size_t>(phones_[next_phone_ - phones_base_].start_us / kFeatureHopUs);
+std::size_t LiveSynthesisAligner::next_phone_row() const { return phone_row(next_phone_); }
+
+std::size_t LiveSynthesisAligner::phone_row(std::size_t phone) const {
+  if (phone >= phones_base_ + phones_.size()) return rows_base_ + rows_.size();
+  return static_cast<std::size_t>(phones_[phone - phones_base_].start_us / kFeatureHopUs);
 }
 
 void LiveSynthesisAligner::add_words(std::string_view text) {
@@ -309,13 +326,30 @@ void LiveSynthesisAligner::add_words(std::string_view text) {
 }
 
 void LiveSynthesisAligner::add_timed_words(std::span<const TimedWord> words) {
+  // Checked as the English recogniser checks them, all before any is added.
   std::string text;
-  for (const TimedWord& word : words) text += (text.empty() ? "" : " ") + word.text;
-  if (!said_timed_words_ && !words.empty()) {
-    said_timed_words_ = true;
-    notes_.push_back("the words' times are not used with voice '" + options_.synthesis.voice +
-                     "': its words are placed by the warp against espeak-ng's rendering");
+  std::vector<TimedStart> timed;
+  std::size_t word = queued_words_;
+  std::int64_t previous_us = last_timed_us_;
+  for (const TimedWord& timed_word : words) {
+    const std::string number = "timed word " + std::to_string(word + 1) + " '" + timed_word.text + "'";
+    const bool has_letters = std::any_of(timed_word.text.begin(), timed_word.text.end(), [](char c) {
+      return static_cast<unsigned char>(c) >= 0x80 || std::isalnum(static_cast<unsigned char>(c)) != 0;
+    });
+    if (!has_letters) throw InputError(source_, 0, number + " has no letters or digits");
+    if (timed_word.start_us < previous_us) {
+      throw InputError(source_, 0,
+                       number + " starts at " + std::to_string(timed_word.start_us) +
+                           " us, before the word before it (" + std::to_string(previous_us) +
+                           " us): timed words come in the order they are spoken, on the stream's clock");
+    }
+    previous_us = timed_word.start_us;
+    timed.push_back({word, timed_word.start_us});
+    word += word_count(timed_word.text);
+    text += (text.empty() ? "" : " ") + timed_word.text;
   }
+  last_timed_us_ = previous_us;
+  timed_words_.insert(timed_words_.end(), timed.begin(), timed.end());
   add_words(text);
 }
 
@@ -412,41 +446,25 @@ void LiveSynthesisAligner::drop_behind_anchor() {
   phones_.erase(phones_.begin(), phones_.begin() + static_cast<std::ptrdiff_t>(next));
   bursts_us_.erase(bursts_us_.begin(), bursts_us_.begin() + static_cast<std::ptrdiff_t>(next));
   phones_base_ += next;
+  // The words whose first phone went with them (and the words before those), and their times.
+  std::size_t dropped_words = 0;
+  while (dropped_words < word_phones_.size() && word_phones_[dropped_words] < static_cast<std::int64_t>(phones_base_)) {
+    ++dropped_words;
+  }
+  word_phones_.erase(word_phones_.begin(), word_phones_.begin() + static_cast<std::ptrdiff_t>(dropped_words));
+  word_phones_base_ += dropped_words;
+  std::erase_if(timed_words_, [&](const TimedStart& timed) { return timed.word < word_phones_base_; });
 }
 
-void LiveSynthesisAligner::update(bool ended) {
-  guess_.clear();
-  speak_words_due();
-  const std::int64_t commit_limit_us =
-      ended ? std::numeric_limits<std::int64_t>::max() : heard_us_ - options_.commit_us;
-  const std::size_t phones_end = phones_base_ + phones_.size();
-  // The rendering's rows from the next phone on.
-  const std::size_t first_row = next_phone_row();
-  const std::size_t rows_ahead = rows_base_ + rows_.size() > first_row ? rows_base_ + rows_.size() - first_row : 0;
-  const std::size_t frames = levels_db_.size();
-  if (rows_ahead < 2 || next_phone_ >= phones_end) {
-    // Nothing of the transcript to hear: silence (final once it is commit_us old).
-    if (!said_silence_ && heard_us_ > final_us_ + options_.commit_us) {
-      said_silence_ = true;
-      notes_.push_back(std::string(words_ == 0 ? "audio before the transcript's first word"
-                                               : "audio after the transcript's last word") +
-                       " is shown as silence: voice '" + options_.synthesis.voice +
-                       "' is heard only against its words; send them (settings.transcript, ListenWords)");
-    }
-    finalise_silence_until(ended ? heard_us_ : commit_limit_us);
-    return;
-  }
-  said_silence_ = false;
-  if (frames < 3) {
-    if (ended) finalise_silence_until(heard_us_);
-    return;
-  }
+std::int64_t LiveSynthesisAligner::frame_us(std::size_t frame) const {
+  return sample_us(audio_base_sample_ + static_cast<std::int64_t>(frame) * kHopSamples);
+}
 
-  // The window's frames at pause level, and its long pauses cut.
+LiveSynthesisAligner::Window LiveSynthesisAligner::cut_window(std::size_t from, std::size_t to,
+                                                              double quiet_below_db) const {
   Window window;
-  const double quiet_below_db = std::max(loudest_level_db_ - kSpeechRangeDb, kQuietDbfs);
   const auto cut_frames = static_cast<std::size_t>(options_.pause_cut_us / kFeatureHopUs);
-  for (std::size_t k = 0; k < frames;) {
+  for (std::size_t k = from; k < to;) {
     if (levels_db_[k] >= quiet_below_db) {
       window.kept.push_back(k);
       window.quiet.push_back(false);
@@ -454,8 +472,8 @@ void LiveSynthesisAligner::update(bool ended) {
       continue;
     }
     std::size_t end = k;
-    while (end < frames && levels_db_[end] < quiet_below_db) ++end;
-    const std::size_t head = k == 0 ? 0 : kPauseHeadFrames;
+    while (end < to && levels_db_[end] < quiet_below_db) ++end;
+    const std::size_t head = k == from ? 0 : kPauseHeadFrames;
     if (end - k > cut_frames && end - k > head + kPauseTailFrames) {
       window.cuts.emplace_back(k + head, end - kPauseTailFrames);
       for (std::size_t f = k; f < k + head; ++f) window.kept.push_back(f);
@@ -467,23 +485,79 @@ void LiveSynthesisAligner::update(bool ended) {
     k = end;
   }
   for (const std::size_t f : window.kept) {
-    const auto from = audio_.begin() + static_cast<std::ptrdiff_t>(f * kHopSamples);
-    window.audio.samples.insert(window.audio.samples.end(), from, from + kHopSamples);
+    const auto first = audio_.begin() + static_cast<std::ptrdiff_t>(f * kHopSamples);
+    window.audio.samples.insert(window.audio.samples.end(), first, first + kHopSamples);
   }
-  {
-    const auto tail_from = static_cast<std::size_t>((window.kept.back() + 1) * kHopSamples);
-    const std::size_t tail_end =
-        std::min(audio_.size(), tail_from + static_cast<std::size_t>(kWindowSamples - kHopSamples));
-    window.audio.samples.insert(window.audio.samples.end(), audio_.begin() + static_cast<std::ptrdiff_t>(tail_from),
-                                audio_.begin() + static_cast<std::ptrdiff_t>(tail_end));
-  }
+  const auto tail_from = static_cast<std::size_t>((window.kept.back() + 1) * kHopSamples);
+  const std::size_t tail_end =
+      std::min(audio_.size(), tail_from + static_cast<std::size_t>(kWindowSamples - kHopSamples));
+  window.audio.samples.insert(window.audio.samples.end(), audio_.begin() + static_cast<std::ptrdiff_t>(tail_from),
+                              audio_.begin() + static_cast<std::ptrdiff_t>(tail_end));
+  return window;
+}
 
+std::optional<std::size_t> LiveSynthesisAligner::timed_phone_after(std::int64_t from_us) {
+  const auto first = std::lower_bound(timed_words_.begin(), timed_words_.end(), from_us,
+                                      [](const TimedStart& timed, std::int64_t us) { return timed.start_us < us; });
+  for (auto timed = first; timed != timed_words_.end(); ++timed) {
+    const std::size_t word = timed->word;
+    while (word >= words_ && !pending_.empty()) {
+      const PendingWords words = std::move(pending_.front());
+      pending_.pop_front();
+      append_rendering(words.text, words.what);
+    }
+    if (word < word_phones_base_ || word - word_phones_base_ >= word_phones_.size()) continue;
+    const std::int64_t phone = word_phones_[word - word_phones_base_];
+    if (phone >= static_cast<std::int64_t>(phones_base_) &&
+        phone < static_cast<std::int64_t>(phones_base_ + phones_.size())) {
+      return static_cast<std::size_t>(phone);
+    }
+  }
+  return std::nullopt;
+}
+
+bool LiveSynthesisAligner::find_split(std::size_t frames, double quiet_below_db, Split& split) {
+  const auto cut_frames = static_cast<std::size_t>(options_.pause_cut_us / kFeatureHopUs);
+  for (std::size_t k = 0; k < frames;) {
+    if (levels_db_[k] >= quiet_below_db) {
+      ++k;
+      continue;
+    }
+    std::size_t end = k;
+    while (end < frames && levels_db_[end] < quiet_below_db) ++end;
+    if (end == frames) break;  // a pause still going on
+    // A pause the anchor is in began where it was seen beginning (or, not seen, at the anchor).
+    std::int64_t pause_from_us = frame_us(k);
+    if (k == 0) {
+      const auto after = std::upper_bound(pause_starts_us_.begin(), pause_starts_us_.end(), pause_from_us);
+      if (after != pause_starts_us_.begin()) pause_from_us = *(after - 1);
+    }
+    const std::size_t head = k == 0 ? 0 : kPauseHeadFrames;
+    const bool cut = end - k > cut_frames && end - k > head + kPauseTailFrames;
+    const bool long_before = k == 0 && frame_us(end) - pause_from_us > options_.pause_cut_us;
+    // The stream's first pause is not one: its first speech starts at the first word, as the anchor does.
+    if ((cut || long_before) && pause_from_us > 0) {
+      if (const auto phone = timed_phone_after((pause_from_us + frame_us(end)) / 2)) {
+        // From the rendering's pause before the word where it has one: the pause's last frames,
+        // kept before the speech, have a pause to match, as at the stream's start.
+        const bool pause_before = *phone > phones_base_ && phones_[*phone - 1 - phones_base_].label.empty();
+        const std::size_t silence_from = k + head;
+        split = {silence_from, std::max(silence_from, end - std::min(end, kPauseTailFrames)),
+                 pause_before ? *phone - 1 : *phone};
+        return true;
+      }
+    }
+    k = end;
+  }
+  return false;
+}
+
+std::vector<LabeledInterval> LiveSynthesisAligner::hear(const Window& window, std::size_t first_phone,
+                                                        std::int64_t start_us, std::int64_t end_us) {
   // The window's features, normalised by the stream so far; the new frames' into the stream's means.
   FeatureStatistics statistics;
   const FeatureFrames columns = mfcc_features(window.audio, normalisation_, &statistics);
-  if (columns.size() < 2) {
-    return;
-  }
+  if (columns.size() < 2) return {};
   const auto dimensions = static_cast<std::size_t>(columns.dimensions);
   if (mean_sums_.empty()) mean_sums_.assign(dimensions, 0.0);
   const auto window_first_frame = static_cast<std::size_t>(audio_base_sample_ / kHopSamples);
@@ -501,7 +575,11 @@ void LiveSynthesisAligner::update(bool ended) {
         (mean_sums_[d] + kPriorFrames * rendering_means_[d]) / (static_cast<double>(mean_count_) + kPriorFrames);
   }
 
-  // The open-ended warp from the anchor.
+  // The open-ended warp from the phone's row.
+  const std::size_t phones_end = phones_base_ + phones_.size();
+  const std::size_t first_row = phone_row(first_phone);
+  const std::size_t rows_ahead = rows_base_ + rows_.size() > first_row ? rows_base_ + rows_.size() - first_row : 0;
+  if (rows_ahead < 2 || first_phone >= phones_end) return {};
   const std::size_t row0 = first_row - rows_base_;
   const std::size_t row_count = std::min(rows_ahead, kRowsPerColumn * columns.size() + kExtraRows);
   std::vector<bool> columns_quiet(window.quiet.begin(),
@@ -513,7 +591,7 @@ void LiveSynthesisAligner::update(bool ended) {
   const std::int64_t reached_us = static_cast<std::int64_t>(path.first.size()) * kFeatureHopUs;
   std::vector<LabeledInterval> phones;
   std::vector<std::int64_t> bursts;
-  for (std::size_t p = next_phone_; p < phones_end; ++p) {
+  for (std::size_t p = first_phone; p < phones_end; ++p) {
     LabeledInterval phone = phones_[p - phones_base_];
     phone.start_us = std::max<std::int64_t>(0, phone.start_us - origin_us);
     if (!phones.empty() && phone.start_us >= reached_us) break;
@@ -531,9 +609,7 @@ void LiveSynthesisAligner::update(bool ended) {
     if (bounds[k + 1] > bounds[k])
       carried.intervals.push_back({phones[k].label, bounds[k], bounds[k + 1], phones[k].line});
   }
-  if (carried.intervals.empty()) {
-    return;
-  }
+  if (carried.intervals.empty()) return {};
   if (options_.refine_closures) detail::refine_lip_phones(window.audio, carried, options_.refiner);
 
   // Back onto the stream's clock, with the cut pauses as silence.
@@ -542,14 +618,84 @@ void LiveSynthesisAligner::update(bool ended) {
   };
   std::vector<LabeledInterval> heard;
   for (const LabeledInterval& interval : carried.intervals) {
-    const std::int64_t start = heard.empty() ? final_us_ : std::max(stream_us(interval.start_us), final_us_);
+    const std::int64_t start = heard.empty() ? start_us : std::max(stream_us(interval.start_us), start_us);
     const std::int64_t end =
-        &interval == &carried.intervals.back() ? heard_us_ : std::max(stream_us(interval.end_us), start);
+        &interval == &carried.intervals.back() ? end_us : std::max(stream_us(interval.end_us), start);
     append_merged(heard, {interval.label, start, end, interval.line});
   }
-  for (const auto& [cut_first, cut_end] : window.cuts) {
-    heard = with_silence(heard, sample_us(audio_base_sample_ + static_cast<std::int64_t>(cut_first) * kHopSamples),
-                         sample_us(audio_base_sample_ + static_cast<std::int64_t>(cut_end) * kHopSamples));
+  for (const auto& [cut_first, cut_end] : window.cuts)
+    heard = with_silence(heard, frame_us(cut_first), frame_us(cut_end));
+  return heard;
+}
+
+void LiveSynthesisAligner::update(bool ended) {
+  guess_.clear();
+  speak_words_due();
+  const std::int64_t commit_limit_us =
+      ended ? std::numeric_limits<std::int64_t>::max() : heard_us_ - options_.commit_us;
+  const std::size_t frames = levels_db_.size();
+  const double quiet_below_db = std::max(loudest_level_db_ - kSpeechRangeDb, kQuietDbfs);
+  // With timed words, the speech after a pause may be placed by them (the top of the header).
+  Split split;
+  const bool splits = !timed_words_.empty() && frames >= 3 && find_split(frames, quiet_below_db, split);
+  const int line_before_split = static_cast<int>(split.phone) - 1;  // the split silence's line
+  if (frames > 0) {
+    // The starts of the pauses seen beginning: of the one the anchor may be in, and those after it.
+    std::size_t first_quiet = frames;
+    while (first_quiet > 0 && levels_db_[first_quiet - 1] < quiet_below_db) --first_quiet;
+    if (first_quiet > 0 && first_quiet < frames &&
+        (pause_starts_us_.empty() || pause_starts_us_.back() < frame_us(first_quiet))) {
+      pause_starts_us_.push_back(frame_us(first_quiet));
+    }
+    const auto after = std::upper_bound(pause_starts_us_.begin(), pause_starts_us_.end(), frame_us(0));
+    if (after - pause_starts_us_.begin() > 1) pause_starts_us_.erase(pause_starts_us_.begin(), after - 1);
+  }
+  const std::size_t phones_end = phones_base_ + phones_.size();
+  // The rendering's rows from the next phone on.
+  const std::size_t first_row = next_phone_row();
+  const std::size_t rows_ahead = rows_base_ + rows_.size() > first_row ? rows_base_ + rows_.size() - first_row : 0;
+  if (!splits && (rows_ahead < 2 || next_phone_ >= phones_end)) {
+    // Nothing of the transcript to hear: silence (final once it is commit_us old).
+    if (!said_silence_ && heard_us_ > final_us_ + options_.commit_us) {
+      said_silence_ = true;
+      notes_.push_back(std::string(words_ == 0 ? "audio before the transcript's first word"
+                                               : "audio after the transcript's last word") +
+                       " is shown as silence: voice '" + options_.synthesis.voice +
+                       "' is heard only against its words; send them (settings.transcript, ListenWords)");
+    }
+    finalise_silence_until(ended ? heard_us_ : commit_limit_us);
+    return;
+  }
+  said_silence_ = false;
+  if (frames < 3) {
+    if (ended) finalise_silence_until(heard_us_);
+    return;
+  }
+
+  // The window's phones: from the anchor, or, split at a pause, before it and from the timed word
+  // after it, the pause silent between (its silence carries the line of the phone before the word).
+  std::vector<LabeledInterval> before_split;
+  std::size_t split_at = 0;   // heard's first phone from the split's silence on
+  std::size_t last_from = 0;  // the window frame the last part starts at
+  std::int64_t last_from_us = final_us_;
+  if (splits) {
+    if (split.silence_from > 0) {
+      before_split =
+          hear(cut_window(0, split.silence_from, quiet_below_db), next_phone_, final_us_, frame_us(split.silence_from));
+    }
+    last_from = split.speech_from;
+    last_from_us = std::max(final_us_, frame_us(last_from));
+    const std::int64_t silence_from_us = before_split.empty() ? final_us_ : before_split.back().end_us;
+    split_at = before_split.size();
+    if (last_from_us > silence_from_us) {
+      before_split.push_back({"", silence_from_us, last_from_us, line_before_split});
+    }
+  }
+  const Window window = cut_window(last_from, frames, quiet_below_db);
+  std::vector<LabeledInterval> heard = hear(window, splits ? split.phone : next_phone_, last_from_us, heard_us_);
+  if (heard.empty()) {
+    if (!splits) return;
+    if (heard_us_ > last_from_us) heard.push_back({"", last_from_us, heard_us_, line_before_split});
   }
   // A pause still going on is silence up to kShownQuietUs before the newest audio (the warp matched
   // its frames to whatever comes next in the rendering: the next word's first sound), and final as
@@ -558,14 +704,15 @@ void LiveSynthesisAligner::update(bool ended) {
   if (!ended && !window.quiet.empty() && window.quiet.back()) {
     std::size_t first_quiet = frames;
     while (first_quiet > 0 && levels_db_[first_quiet - 1] < quiet_below_db) --first_quiet;
-    const std::int64_t from = sample_us(audio_base_sample_ + static_cast<std::int64_t>(first_quiet) * kHopSamples) +
-                              (first_quiet == 0 ? 0 : static_cast<std::int64_t>(kPauseHeadFrames) * kFeatureHopUs);
+    const std::int64_t from =
+        frame_us(first_quiet) + (first_quiet == 0 ? 0 : static_cast<std::int64_t>(kPauseHeadFrames) * kFeatureHopUs);
     const std::int64_t to = heard_us_ - kShownQuietUs;
     if (to > from) {
       heard = with_silence(heard, from, to);
       if (from <= commit_limit_us) pause_end_us = to;
     }
   }
+  if (splits) heard.insert(heard.begin(), before_split.begin(), before_split.end());
 
   // The phones commit_us old are final, and the anchor moves past them.
   std::size_t final_count = 0;
@@ -584,12 +731,20 @@ void LiveSynthesisAligner::update(bool ended) {
     }
   }
   if (final_count > 0) {
-    int last_line = static_cast<int>(next_phone_) - 1;
+    // Past a split, the next phone follows the phones after it alone (it may lie behind the anchor's).
+    const bool past_split = splits && final_count > split_at;
+    int last_line = past_split ? line_before_split : static_cast<int>(next_phone_) - 1;
     for (std::size_t k = 0; k < final_count; ++k) {
       append_merged(final_, heard[k]);
-      last_line = std::max(last_line, heard[k].line);
+      if (!past_split || k >= split_at) last_line = std::max(last_line, heard[k].line);
     }
     const int next_phone = last_line + 1;
+    if (past_split) {
+      next_phone_ = static_cast<std::size_t>(next_phone);
+      // That pause is behind the anchor now (its last frames, in the window, are no pause to split at).
+      const std::int64_t anchor_us = heard[final_count - 1].end_us;
+      std::erase_if(pause_starts_us_, [&](std::int64_t start_us) { return start_us <= anchor_us; });
+    }
     move_anchor_to(heard[final_count - 1].end_us, static_cast<std::size_t>(next_phone));
   }
   for (std::size_t k = final_count; k < heard.size(); ++k) append_merged(guess_, heard[k]);

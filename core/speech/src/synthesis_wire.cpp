@@ -1,5 +1,6 @@
 // The synthesis worker's request and answer as bytes (synthesis_wire.hpp): fixed-size values as
-// their bytes, strings as a 64-bit length and the bytes, the samples as one block, then the notes.
+// their bytes, strings as a 64-bit length and the bytes, the samples as one block, then the words'
+// starts and the notes.
 #include "synthesis_wire.hpp"
 
 #include <cstdint>
@@ -81,6 +82,8 @@ std::string encode_answer(const Synthesis& synthesis) {
     put(out, interval.end_us);
     put(out, interval.line);
   }
+  put(out, static_cast<std::uint64_t>(synthesis.word_starts_us.size()));
+  for (const std::int64_t start_us : synthesis.word_starts_us) put(out, start_us);
   put(out, static_cast<std::uint64_t>(synthesis.notes.size()));
   for (const std::string& note : synthesis.notes) put_string(out, note);
   return out;
@@ -119,6 +122,8 @@ Synthesis decode_answer(std::string_view bytes) {
     interval.line = in.get<int>();
     result.phonemes.intervals.push_back(std::move(interval));
   }
+  const auto words = in.get<std::uint64_t>();
+  for (std::uint64_t i = 0; i < words; ++i) result.word_starts_us.push_back(in.get<std::int64_t>());
   const auto notes = in.get<std::uint64_t>();
   for (std::uint64_t i = 0; i < notes; ++i) result.notes.push_back(in.get_string());
   return result;

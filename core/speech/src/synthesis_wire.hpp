@@ -21,8 +21,8 @@ std::string encode_request(std::string_view text, const SynthesisOptions& option
 /// What encode_request() wrote; std::runtime_error if it is cut short.
 SynthesisRequest decode_request(std::string_view bytes);
 
-/// An answer: [kind byte] then, for a synthesis, its phone set, rate, samples, intervals and notes; for an
-/// error, its message.
+/// An answer: [kind byte] then, for a synthesis, its phone set, rate, samples, intervals, word
+/// starts and notes; for an error, its message.
 std::string encode_answer(const Synthesis& synthesis);
 /// The answer for an InputError (`message`: InputError::message()), thrown again as one by
 /// decode_answer().

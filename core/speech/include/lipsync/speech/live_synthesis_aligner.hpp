@@ -24,12 +24,22 @@
 // The recording's features are normalised by the stream so far (its loudest band and its means,
 // drawn toward the rendering's means over the first second), not by the window alone.
 //
+// Words with times (a TTS's word marks, add_timed_words) place the speech after each pause, as the
+// English recogniser places an utterance: once the speech comes out of a pause longer than
+// `pause_cut_us` (the stream's first pause aside), the audio after it is warped from the first
+// timed word that starts after the pause's middle (from the rendering's pause before that word,
+// where espeak-ng makes one; espeak-ng's word events give each word's first phone), the audio
+// before it as before, and the pause is silence. So a stretch the warp got wrong (speech the words
+// do not describe, noise) does not drag the rest of the stream. Without times nothing of this
+// happens.
+//
 // Audio before any word, or after the transcript's last, shows as silence (there is no phone loop
 // in other languages) and a note says so. Not thread-safe: one stream, one aligner.
 #pragma once
 
 #include <cstdint>
 #include <deque>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -67,7 +77,10 @@ class LiveSynthesisAligner final : public LivePhoneSource {
   ~LiveSynthesisAligner() override;
 
   void add_words(std::string_view text) override;
-  /// The words' times are not used (their text is added as add_words adds it); a note says so once.
+  /// Adds the words as add_words does; their times (µs from the stream's first sample, in order)
+  /// place the speech after each pause (above). Throws InputError naming the word (its number in
+  /// the whole transcript): one without letters or digits, one that starts before the timed word
+  /// before it (or before 0). Nothing is added when one is refused.
   void add_timed_words(std::span<const TimedWord> words) override;
   std::size_t words_ahead() const override;
 
@@ -90,6 +103,17 @@ class LiveSynthesisAligner final : public LivePhoneSource {
 
  private:
   struct Window;
+  /// Where a pause splits the window: window frames [silence_from, speech_from) are silence, and
+  /// the speech from speech_from on is warped from rendering phone `phone`.
+  struct Split {
+    std::size_t silence_from = 0;
+    std::size_t speech_from = 0;
+    std::size_t phone = 0;
+  };
+  struct TimedStart {
+    std::size_t word = 0;  // its number in the stream's words, from 0
+    std::int64_t start_us = 0;
+  };
   struct PendingWords {
     std::string text;
     std::string what;  // for errors: "the transcript (words 1-14)", "words 15-20"
@@ -100,12 +124,29 @@ class LiveSynthesisAligner final : public LivePhoneSource {
   void append_rendering(std::string_view text, std::string_view what);
   void measure_new_frames();
   void update(bool ended);
+  /// Window frames [from, to) of the recording with their long pauses cut.
+  Window cut_window(std::size_t from, std::size_t to, double quiet_below_db) const;
+  /// The phones heard in `window`, warped against the rendering from phone `first_phone` on: on the
+  /// stream's clock, tiling [start_us, end_us), the window's cuts silent. Empty when the window is
+  /// too short to warp or the rendering has no rows left there.
+  std::vector<LabeledInterval> hear(const Window& window, std::size_t first_phone, std::int64_t start_us,
+                                    std::int64_t end_us);
+  /// With timed words: whether the window holds a pause that the speech has come out of and that
+  /// the times place (see the top of this file); the first such is `split`.
+  bool find_split(std::size_t frames, double quiet_below_db, Split& split);
+  /// The first rendering phone of the first timed word starting at or after `from_us` whose phones are
+  /// held (its words are spoken first if they are still queued).
+  std::optional<std::size_t> timed_phone_after(std::int64_t from_us);
+  /// The stream's time of window frame `frame` (frames from the anchor's frame), µs.
+  std::int64_t frame_us(std::size_t frame) const;
   void finalise_silence_until(std::int64_t end_us);
   void move_anchor_to(std::int64_t end_us, std::size_t next_phone);
   void drop_behind_anchor();
   void cover_heard_with_guess();
   /// The rendering's row where the next phone (the first not final) starts; its end without one.
   std::size_t next_phone_row() const;
+  /// The rendering's row where phone `phone` starts; its end for a phone past the last.
+  std::size_t phone_row(std::size_t phone) const;
 
   LiveSynthesisOptions options_;
   std::string source_;
@@ -124,7 +165,15 @@ class LiveSynthesisAligner final : public LivePhoneSource {
   std::size_t words_ = 0;             // words spoken by espeak-ng so far
   std::deque<PendingWords> pending_;  // words not spoken yet, in chunks of sentences
   std::size_t queued_words_ = 0;      // words given so far
-  bool said_timed_words_ = false;
+  // Each spoken word's first rendering phone (-1: espeak-ng spoke none), from word word_phones_base_
+  // on; the words that came with times, in order, and the last one's time.
+  std::vector<std::int64_t> word_phones_;
+  std::size_t word_phones_base_ = 0;
+  std::vector<TimedStart> timed_words_;
+  std::int64_t last_timed_us_ = 0;
+  // The starts of the recording's pauses seen beginning (stream µs), from that of the pause the
+  // anchor may be in on: where a pause that the anchor has moved into began.
+  std::vector<std::int64_t> pause_starts_us_;
 
   // The recording from the anchor's frame on (16 kHz), each 10 ms frame's level, the loudest.
   std::vector<std::int16_t> audio_;

@@ -18,6 +18,7 @@
 // threads are safe but run one at a time.
 #pragma once
 
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -41,6 +42,9 @@ struct SynthesisOptions {
 struct Synthesis {
   PcmAudio audio;             ///< mono 16-bit at espeak-ng's rate (22 050 Hz)
   LabeledUtterance phonemes;  ///< phone_set_for_voice(voice); covers [0, audio end] without gaps
+  /// Where each word of the text (as white space separates them) starts, µs: the start of the first
+  /// phoneme espeak-ng spoke for it (from its word events); -1 for a word it spoke nothing for.
+  std::vector<std::int64_t> word_starts_us;
   /// What the user should know about espeak-ng's reading, one sentence each, naming the words:
   /// words read by another language's rules, spelled out letter by letter, or (Hebrew) without vowels.
   std::vector<std::string> notes;
