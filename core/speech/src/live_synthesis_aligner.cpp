@@ -45,6 +45,9 @@ constexpr double kPriorFrames = 100.0;
 // 16 KiB (a quarter of an hour of speech) would take espeak-ng seconds to speak at once.
 constexpr std::size_t kChunkWords = 12;
 constexpr std::size_t kRowsSpokenAhead = 3000;
+// Words of a sentence whose end has not come wait for it while the rendering reaches this many rows
+// (0.3 s) past the newest audio's.
+constexpr std::size_t kRowsHeldAhead = 30;
 // Rendering rows and phones behind the anchor kept before they are dropped (a minute's worth).
 constexpr std::size_t kDropRowsAfter = 6000;
 
@@ -289,7 +292,9 @@ void LiveSynthesisAligner::queue_words(std::string_view text, const std::string&
     if (chunk_words == 0) return;
     const std::string range =
         "words " + std::to_string(queued_words_ + 1) + "-" + std::to_string(queued_words_ + chunk_words);
-    pending_.push_back({chunk, what == "words" ? range : what + " (" + range + ")", chunk_words});
+    const char last = chunk.back();
+    pending_.push_back({chunk, what == "words" ? range : what + " (" + range + ")", chunk_words, queued_words_ + 1,
+                        last == '.' || last == '!' || last == '?'});
     queued_words_ += chunk_words;
     chunk.clear();
     chunk_words = 0;
@@ -304,11 +309,31 @@ void LiveSynthesisAligner::queue_words(std::string_view text, const std::string&
   flush();
 }
 
-void LiveSynthesisAligner::speak_words_due() {
+void LiveSynthesisAligner::speak_words_due(bool ended) {
   while (!pending_.empty()) {
-    if (rows_base_ + rows_.size() > next_phone_row() + kRowsSpokenAhead) return;
-    const PendingWords words = std::move(pending_.front());
+    const std::size_t rendered = rows_base_ + rows_.size();
+    if (rendered > next_phone_row() + kRowsSpokenAhead) return;
+    // A sentence whose words come a few at a time (a TTS's word marks) is spoken whole once its end
+    // has come: each part spoken alone would be rendered as a sentence of its own. Its words wait
+    // while the rendering reaches kRowsHeldAhead past the row of the newest audio (the anchor's
+    // row and the audio heard since).
+    const auto end =
+        std::find_if(pending_.begin(), pending_.end(), [](const PendingWords& words) { return words.ends_sentence; });
+    const std::size_t newest_row =
+        next_phone_row() + static_cast<std::size_t>(std::max<std::int64_t>(0, heard_us_ - final_us_) / kFeatureHopUs);
+    if (end == pending_.end() && !ended && rendered > newest_row + kRowsHeldAhead) return;
+    const auto take = static_cast<std::size_t>(end == pending_.end() ? pending_.size() : end - pending_.begin() + 1);
+    PendingWords words = std::move(pending_.front());
     pending_.pop_front();
+    for (std::size_t taken = 1; taken < take; ++taken) {
+      words.text += " " + pending_.front().text;
+      words.count += pending_.front().count;
+      pending_.pop_front();
+    }
+    if (take > 1 && words.what.rfind("words ", 0) == 0) {
+      words.what =
+          "words " + std::to_string(words.first_word) + "-" + std::to_string(words.first_word + words.count - 1);
+    }
     append_rendering(words.text, words.what);
   }
 }
@@ -630,7 +655,7 @@ std::vector<LabeledInterval> LiveSynthesisAligner::hear(const Window& window, st
 
 void LiveSynthesisAligner::update(bool ended) {
   guess_.clear();
-  speak_words_due();
+  speak_words_due(ended);
   const std::int64_t commit_limit_us =
       ended ? std::numeric_limits<std::int64_t>::max() : heard_us_ - options_.commit_us;
   const std::size_t frames = levels_db_.size();

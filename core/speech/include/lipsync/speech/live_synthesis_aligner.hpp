@@ -2,15 +2,15 @@
 // rendering (dtw_aligner.hpp), done in windows as the audio arrives.
 //
 // The transcript is spoken by espeak-ng a few sentences at a time, each when the speech comes
-// within 30 s of it (words that come later are queued after it), and its MFCC frames are the rows
-// of the warp; the recording's frames are
-// its columns. The window runs from the anchor, the end of the last final phone (in the recording)
-// and the start of the next phone (in the rendering), to the newest audio heard. After each piece
-// the warp is searched from the anchor with an open end: the path must end at the newest column,
-// at whichever row gives the lowest mean distance, so the rendering need not be heard to its end.
-// The rendering's boundaries up to that row are carried across it with the offline rules
-// (carried_boundary_rules.hpp: stops from their closures, sounds after a pause from the recording's
-// speech, /m/ from its murmur, voiced /b/ from its closure) and the closure refiner moves the lip
+// within 30 s of it (words that come later are queued after it; words of a sentence whose end has
+// not come wait for it while the rendering reaches 0.3 s past the newest audio, so that words that
+// come one at a time are not spoken as one-word sentences), and its MFCC frames are the rows of the
+// warp; the recording's frames are its columns. The window runs from the anchor, the end of the last final phone (in
+// the recording) and the start of the next phone (in the rendering), to the newest audio heard. After each piece the
+// warp is searched from the anchor with an open end: the path must end at the newest column, at whichever row gives the
+// lowest mean distance, so the rendering need not be heard to its end. The rendering's boundaries up to that row are
+// carried across it with the offline rules (carried_boundary_rules.hpp: stops from their closures, sounds after a pause
+// from the recording's speech, /m/ from its murmur, voiced /b/ from its closure) and the closure refiner moves the lip
 // phones to the recording's energy steps. Phones that end `commit_us` or more before the newest
 // audio become final, and the anchor moves to the last of them; the rest are the guess.
 //
@@ -118,9 +118,11 @@ class LiveSynthesisAligner final : public LivePhoneSource {
     std::string text;
     std::string what;  // for errors: "the transcript (words 1-14)", "words 15-20"
     std::size_t count = 0;
+    std::size_t first_word = 0;  // 1-based
+    bool ends_sentence = false;  // its last word ends with . ! or ?
   };
   void queue_words(std::string_view text, const std::string& what);
-  void speak_words_due();
+  void speak_words_due(bool ended = false);
   void append_rendering(std::string_view text, std::string_view what);
   void measure_new_frames();
   void update(bool ended);
