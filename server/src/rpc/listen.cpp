@@ -459,9 +459,10 @@ class ListenReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::Li
   }
 
   /// Under audio_mutex_: reads on if reading waits and neither the lane (audio) nor the client
-  /// (frames) is behind any more; not once the stream is stopping.
+  /// (frames) is behind any more; not once the stream is stopping or finishing.
   void resume_reading_if_caught_up() {
-    if (!read_paused_ || stopped_ || pending_bytes_ > kReadPauseBytes || outbox_.queued_frames() > kReadResumeFrames) {
+    if (!read_paused_ || stopped_ || pending_bytes_ > kReadPauseBytes || outbox_.queued_frames() > kReadResumeFrames ||
+        outbox_.final_status().has_value()) {
       return;
     }
     read_paused_ = false;
