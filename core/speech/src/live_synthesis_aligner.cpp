@@ -48,6 +48,9 @@ constexpr std::size_t kRowsSpokenAhead = 3000;
 // Words of a sentence whose end has not come wait for it while the rendering reaches this many rows
 // (0.3 s) past the newest audio's.
 constexpr std::size_t kRowsHeldAhead = 30;
+// The most words of an open sentence spoken again with the words that continue it: a sentence that
+// never ends (a transcript without a full stop) is not spoken again from its start with every word.
+constexpr std::size_t kMostWordsSpokenAgain = 40;
 // Rendering rows and phones behind the anchor kept before they are dropped (a minute's worth).
 constexpr std::size_t kDropRowsAfter = 6000;
 
@@ -334,8 +337,73 @@ void LiveSynthesisAligner::speak_words_due(bool ended) {
       words.what =
           "words " + std::to_string(words.first_word) + "-" + std::to_string(words.first_word + words.count - 1);
     }
-    append_rendering(words.text, words.what);
+    speak(std::move(words));
   }
+}
+
+namespace {
+bool ends_sentence(const std::string& word) {
+  return !word.empty() && (word.back() == '.' || word.back() == '!' || word.back() == '?');
+}
+}  // namespace
+
+void LiveSynthesisAligner::speak(PendingWords words) {
+  std::vector<std::string> tokens;
+  std::istringstream split{words.text};
+  for (std::string token; split >> token;) tokens.push_back(std::move(token));
+  // The unheard rest of an open sentence is spoken again with the words that continue it: from its
+  // first word whose first phone the anchor has not reached, the rendering is cut and that word on
+  // is spoken anew, so the sentence is rendered as one (one intonation, no pause or falling end
+  // before the new words) wherever the speech has not got to yet.
+  std::string what = std::move(words.what);
+  for (std::size_t k = 0; k < open_sentence_.size(); ++k) {
+    const std::size_t word = open_sentence_first_ + k;
+    if (word < word_phones_base_) continue;
+    const std::int64_t phone = word_phones_[word - word_phones_base_];
+    if (phone < static_cast<std::int64_t>(std::max(next_phone_, phones_base_))) continue;
+    if (open_sentence_.size() - k > kMostWordsSpokenAgain) break;
+    cut_rendering_at(word, static_cast<std::size_t>(phone));
+    tokens.insert(tokens.begin(), open_sentence_.begin() + static_cast<std::ptrdiff_t>(k), open_sentence_.end());
+    open_sentence_.resize(k);
+    ++respoken_;
+    what = "words " + std::to_string(word + 1) + "-" + std::to_string(word + tokens.size());
+    break;
+  }
+  std::string text;
+  for (const std::string& token : tokens) text += (text.empty() ? "" : " ") + token;
+  if (open_sentence_.empty()) open_sentence_first_ = words_;
+  append_rendering(text, what);
+  // The sentence still open after these words: those after the last sentence's end.
+  open_sentence_.insert(open_sentence_.end(), tokens.begin(), tokens.end());
+  const auto last_end = std::find_if(open_sentence_.rbegin(), open_sentence_.rend(), ends_sentence);
+  if (last_end != open_sentence_.rend()) {
+    const auto closed = static_cast<std::size_t>(open_sentence_.rend() - last_end);
+    open_sentence_.erase(open_sentence_.begin(), open_sentence_.begin() + static_cast<std::ptrdiff_t>(closed));
+    open_sentence_first_ += closed;
+  }
+  // A word espeak-ng spoke nothing of, or the rendering cut short, leaves words_ behind the tokens:
+  // the open sentence is then given up (its words are spoken, just not again).
+  if (open_sentence_first_ + open_sentence_.size() != words_) open_sentence_.clear();
+}
+
+void LiveSynthesisAligner::cut_rendering_at(std::size_t word, std::size_t phone) {
+  const std::size_t row = std::max(phone_row(phone), rows_base_);
+  const auto dimensions = static_cast<std::size_t>(rows_.dimensions);
+  const std::size_t keep_rows = row - rows_base_;
+  rows_.values.resize(keep_rows * dimensions);
+  rows_.level_db.resize(keep_rows);
+  rows_quiet_.resize(keep_rows);
+  phones_.resize(phone - phones_base_);
+  bursts_us_.resize(phone - phones_base_);
+  // The phone before the cut ends where the rows do (a phone left without a row is dropped).
+  const auto end_us = static_cast<std::int64_t>(row) * kFeatureHopUs;
+  while (!phones_.empty() && phones_.back().start_us >= end_us) {
+    phones_.pop_back();
+    bursts_us_.pop_back();
+  }
+  if (!phones_.empty()) phones_.back().end_us = end_us;
+  word_phones_.resize(word - word_phones_base_);
+  words_ = word;
 }
 
 std::size_t LiveSynthesisAligner::next_phone_row() const { return phone_row(next_phone_); }
@@ -527,9 +595,9 @@ std::optional<std::size_t> LiveSynthesisAligner::timed_phone_after(std::int64_t 
   for (auto timed = first; timed != timed_words_.end(); ++timed) {
     const std::size_t word = timed->word;
     while (word >= words_ && !pending_.empty()) {
-      const PendingWords words = std::move(pending_.front());
+      PendingWords words = std::move(pending_.front());
       pending_.pop_front();
-      append_rendering(words.text, words.what);
+      speak(std::move(words));
     }
     if (word < word_phones_base_ || word - word_phones_base_ >= word_phones_.size()) continue;
     const std::int64_t phone = word_phones_[word - word_phones_base_];

@@ -4,7 +4,10 @@
 // The transcript is spoken by espeak-ng a few sentences at a time, each when the speech comes
 // within 30 s of it (words that come later are queued after it; words of a sentence whose end has
 // not come wait for it while the rendering reaches 0.3 s past the newest audio, so that words that
-// come one at a time are not spoken as one-word sentences), and its MFCC frames are the rows of the
+// come one at a time are not spoken as one-word sentences; and when a part of a sentence had to be
+// spoken before its end came, the words that continue it are spoken together with its rest that
+// the speech has not reached, the rendering cut before that rest: up to 40 words are spoken again),
+// and its MFCC frames are the rows of the
 // warp; the recording's frames are its columns. The window runs from the anchor, the end of the last final phone (in
 // the recording) and the start of the next phone (in the rendering), to the newest audio heard. After each piece the
 // warp is searched from the anchor with an open end: the path must end at the newest column, at whichever row gives the
@@ -100,6 +103,8 @@ class LiveSynthesisAligner final : public LivePhoneSource {
   /// it has had.
   std::size_t rendering_frames_held() const { return rows_.size(); }
   std::size_t rendering_frames() const { return rows_base_ + rows_.size(); }
+  /// Times the unheard rest of an open sentence was spoken again with the words that continue it.
+  std::size_t respoken() const { return respoken_; }
 
  private:
   struct Window;
@@ -123,6 +128,10 @@ class LiveSynthesisAligner final : public LivePhoneSource {
   };
   void queue_words(std::string_view text, const std::string& what);
   void speak_words_due(bool ended = false);
+  /// Speaks `words` after the rendering, with the unheard rest of the open sentence before them.
+  void speak(PendingWords words);
+  /// Drops the rendering from spoken word `word`, whose first phone is `phone`, on.
+  void cut_rendering_at(std::size_t word, std::size_t phone);
   void append_rendering(std::string_view text, std::string_view what);
   void measure_new_frames();
   void update(bool ended);
@@ -167,6 +176,11 @@ class LiveSynthesisAligner final : public LivePhoneSource {
   std::size_t words_ = 0;             // words spoken by espeak-ng so far
   std::deque<PendingWords> pending_;  // words not spoken yet, in chunks of sentences
   std::size_t queued_words_ = 0;      // words given so far
+  // The sentence spoken last while its end has not come yet: its words (as given) from stream word
+  // open_sentence_first_ on, up to words_; empty when the last words spoken ended a sentence.
+  std::vector<std::string> open_sentence_;
+  std::size_t open_sentence_first_ = 0;
+  std::size_t respoken_ = 0;
   // Each spoken word's first rendering phone (-1: espeak-ng spoke none), from word word_phones_base_
   // on; the words that came with times, in order, and the last one's time.
   std::vector<std::int64_t> word_phones_;
