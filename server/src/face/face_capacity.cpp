@@ -10,7 +10,7 @@ namespace {
 
 // Median ms per face frame at subdivision 0, 1, 2 (tests/bench/face_bench,
 // docs/performance.md "Face"), relative to level 1, in thousandths.
-constexpr std::array<std::int64_t, 3> kFrameCostMilliOfLevel1 = {194, 1000, 6343};  // 0.26, 1.34, 8.5 ms
+constexpr std::array<std::int64_t, 3> kFrameCostMilliOfLevel1 = {206, 1000, 4921};  // 0.13, 0.63, 3.1 ms
 constexpr std::int64_t kReferenceFps = 30;
 
 std::string units(std::int64_t milli) {

@@ -7,14 +7,15 @@
 // once hit a 30 s deadline). So mesh work is admitted up to a capacity and
 // refused beyond it with RESOURCE_EXHAUSTED naming the limit.
 //
-// Streams differ in cost: a face frame costs about 0.26, 1.34 and 8.5 ms at
+// Streams differ in cost: a face frame costs about 0.13, 0.63 and 3.1 ms at
 // subdivision 0, 1 and 2 (docs/performance.md, "Face"), and a stream needs fps
 // of them per second. Each stream therefore weighs its CPU need in units of a
-// level-1, 30 fps stream (1.34 ms × 30 = 40 ms of CPU per second of speech):
-// level 0 at 30 fps weighs 0.2, level 2 at 30 fps 6.3, level 1 at 60 fps 2.
+// level-1, 30 fps stream (0.63 ms × 30 = 19 ms of CPU per second of speech):
+// level 0 at 30 fps weighs 0.21, level 2 at 30 fps 4.9, level 1 at 60 fps 2.
 // The capacity is --max-mesh-streams-per-face-thread such units per face
-// thread (default 8: a third of each face thread's core, which leaves the rest
-// to the channel-only sessions; docs/server.md, "Face capacity").
+// thread (default 16: about a third of each face thread's core, which leaves
+// the rest to the channel-only sessions; measured beside 1,000 of them in
+// docs/performance.md, "With the physics face on").
 //
 // An admitted stream that still falls behind (the machine busier than the
 // capacity assumes) fails fast: see FaceDeadline.

@@ -72,7 +72,7 @@ struct ServerConfig {
   std::string face_priority = "idle";
   /// Mesh work admitted, in level-1 30 fps streams per face thread (a stream weighs its CPU
   /// need: server/src/face/face_capacity.hpp); beyond it mesh streams get RESOURCE_EXHAUSTED.
-  std::size_t max_mesh_streams_per_face_thread = 8;
+  std::size_t max_mesh_streams_per_face_thread = 16;
   /// An admitted mesh stream whose face falls further behind real time than this ends with
   /// DEADLINE_EXCEEDED.
   std::int64_t mesh_max_lag_ms = 3'000;
