@@ -110,8 +110,8 @@ class PageVoice(LiveVoicePage, unittest.TestCase):
         sealed = sum(1 for _, _, pixels in closed if pixels == 0)
         print(f"mic-audio: from the audio alone {sealed} of {len(closed)} /p b m/ middles closed", flush=True)
         self.check_open(opened)
-        # The first voice of its kind waited for its recogniser to load; lipsyncd then loaded a
-        # spare decoder, so the next voice's first frames are as timely as the rest.
+        # The page's first voice (test 1, with words) waited for its recogniser to load; lipsyncd
+        # then loaded a spare decoder of each kind, so this voice and the next start on time.
         again = self.talk("mic-audio-again", "")
         first_second = [ms for t, ms in again["log"] if t < 1_000_000]
         print(f"mic-audio-again: the first second's frames {first_second} ms", flush=True)

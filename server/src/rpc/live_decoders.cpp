@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <exception>
 #include <mutex>
+#include <optional>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -25,12 +27,25 @@ LiveDecoderPool::LiveDecoderPool(FaceWorkers& workers) : workers_(workers), shel
 
 speech::PreparedLiveDecoder LiveDecoderPool::take(const speech::LiveRecognitionOptions& options) {
   speech::PreparedLiveDecoder taken;
+  std::vector<speech::LiveRecognitionOptions> to_load;
   {
     std::lock_guard lock(shelf_->mutex);
     auto& kinds = shelf_->kinds;
-    auto kind = std::find_if(kinds.begin(), kinds.end(),
-                             [&](const Shelf::Kind& k) { return speech::same_live_decoder(k.options, options); });
+    const auto find = [&](const speech::LiveRecognitionOptions& wanted) {
+      return std::find_if(kinds.begin(), kinds.end(),
+                          [&](const Shelf::Kind& k) { return speech::same_live_decoder(k.options, wanted); });
+    };
+    auto kind = find(options);
     if (kind == kinds.end()) {
+      // The other kind (with a transcript, or from the audio alone) is loaded too: a server that
+      // listens is asked for both (the page's voice with words and without), and the first stream
+      // of the second kind then starts on time as well.
+      speech::LiveRecognitionOptions other = options;
+      other.transcript = options.transcript ? std::nullopt : std::optional<std::string>("");
+      if (kinds.size() + 2 <= kMaxKinds && find(other) == kinds.end()) {
+        kinds.push_back({other, nullptr, true});
+        to_load.push_back(other);
+      }
       if (kinds.size() == kMaxKinds) kinds.erase(kinds.begin());
       kinds.push_back({options, nullptr, false});
     } else {
@@ -38,9 +53,16 @@ speech::PreparedLiveDecoder LiveDecoderPool::take(const speech::LiveRecognitionO
     }
     Shelf::Kind& asked = kinds.back();
     taken = std::move(asked.ready);
-    if (asked.loading) return taken;
-    asked.loading = true;
+    if (!asked.loading) {
+      asked.loading = true;
+      to_load.push_back(options);
+    }
   }
+  for (const speech::LiveRecognitionOptions& options_to_load : to_load) load(options_to_load);
+  return taken;
+}
+
+void LiveDecoderPool::load(const speech::LiveRecognitionOptions& options) {
   speech::LiveRecognitionOptions load_options = options;
   load_options.transcript = options.transcript ? std::optional<std::string>("") : std::nullopt;
   workers_.post([shelf = shelf_, load_options] {
@@ -58,7 +80,6 @@ speech::PreparedLiveDecoder LiveDecoderPool::take(const speech::LiveRecognitionO
       return;
     }  // the kind was pushed out meanwhile: the decoder goes
   });
-  return taken;
 }
 
 std::size_t LiveDecoderPool::ready() const {

@@ -7,8 +7,10 @@
 // transcript, and the recogniser's tuning: speech::same_live_decoder): a stream takes it and its
 // first frames leave within the budget, and the next spare is loaded on the recognition workers
 // while the stream runs. A kind's first stream finds none and loads its own (the pool then starts
-// keeping one), so a server that never listens loads nothing; at most kMaxKinds kinds are kept,
-// the one least recently asked for goes first. A spare is a whole decoder (about 30 MB).
+// keeping one, and one of the other kind: with a transcript or from the audio alone, the same
+// tuning), so a server that never listens loads nothing and only a server's first live stream
+// waits for its decoder; at most kMaxKinds kinds are kept, the one least recently asked for goes
+// first. A spare is a whole decoder (about 30 MB).
 #pragma once
 
 #include <cstddef>
@@ -45,6 +47,8 @@ class LiveDecoderPool {
 
  private:
   struct Shelf;
+  /// Loads a decoder of `options`' kind on the workers and shelves it.
+  void load(const speech::LiveRecognitionOptions& options);
   FaceWorkers& workers_;
   std::shared_ptr<Shelf> shelf_;  // shared with the loads under way, which may outlive the pool
 };
