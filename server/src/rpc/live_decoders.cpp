@@ -28,6 +28,7 @@ LiveDecoderPool::LiveDecoderPool() : shelf_(std::make_shared<Shelf>()) {}
 speech::PreparedLiveDecoder LiveDecoderPool::take(const speech::LiveRecognitionOptions& options) {
   speech::PreparedLiveDecoder taken;
   std::vector<speech::LiveRecognitionOptions> to_load;
+  std::optional<speech::LiveRecognitionOptions> companion;
   {
     std::lock_guard lock(shelf_->mutex);
     auto& kinds = shelf_->kinds;
@@ -44,7 +45,7 @@ speech::PreparedLiveDecoder LiveDecoderPool::take(const speech::LiveRecognitionO
       other.transcript = options.transcript ? std::nullopt : std::optional<std::string>("");
       if (kinds.size() + 2 <= kMaxKinds && find(other) == kinds.end()) {
         kinds.push_back({other, nullptr, true});
-        to_load.push_back(other);
+        companion = other;  // loaded after the asked kind's spare
       }
       if (kinds.size() == kMaxKinds) kinds.erase(kinds.begin());
       kinds.push_back({options, nullptr, false});
@@ -57,6 +58,7 @@ speech::PreparedLiveDecoder LiveDecoderPool::take(const speech::LiveRecognitionO
       asked.loading = true;
       to_load.push_back(options);
     }
+    if (companion) to_load.push_back(*companion);
   }
   for (const speech::LiveRecognitionOptions& options_to_load : to_load) load(options_to_load);
   return taken;
