@@ -57,6 +57,11 @@ constexpr std::size_t kDropRowsAfter = 6000;
 std::int64_t sample_us(std::int64_t sample) { return sample * 1'000'000 / kFeatureRateHz; }
 std::int64_t us_sample(std::int64_t us) { return us * kFeatureRateHz / 1'000'000; }
 
+/// Whether `word` (or a chunk of words) ends a sentence: its last character is . ! or ?.
+bool ends_sentence(std::string_view word) {
+  return !word.empty() && (word.back() == '.' || word.back() == '!' || word.back() == '?');
+}
+
 std::size_t word_count(std::string_view text) {
   std::istringstream words{std::string(text)};
   std::size_t count = 0;
@@ -295,9 +300,8 @@ void LiveSynthesisAligner::queue_words(std::string_view text, const std::string&
     if (chunk_words == 0) return;
     const std::string range =
         "words " + std::to_string(queued_words_ + 1) + "-" + std::to_string(queued_words_ + chunk_words);
-    const char last = chunk.back();
     pending_.push_back({chunk, what == "words" ? range : what + " (" + range + ")", chunk_words, queued_words_ + 1,
-                        last == '.' || last == '!' || last == '?'});
+                        ends_sentence(chunk)});
     queued_words_ += chunk_words;
     chunk.clear();
     chunk_words = 0;
@@ -306,8 +310,7 @@ void LiveSynthesisAligner::queue_words(std::string_view text, const std::string&
   for (std::string word; words >> word;) {
     chunk += (chunk.empty() ? "" : " ") + word;
     ++chunk_words;
-    const char last = word.back();
-    if ((last == '.' || last == '!' || last == '?') && chunk_words >= kChunkWords) flush();
+    if (ends_sentence(word) && chunk_words >= kChunkWords) flush();
   }
   flush();
 }
@@ -341,12 +344,6 @@ void LiveSynthesisAligner::speak_words_due(bool ended) {
   }
 }
 
-namespace {
-bool ends_sentence(const std::string& word) {
-  return !word.empty() && (word.back() == '.' || word.back() == '!' || word.back() == '?');
-}
-}  // namespace
-
 void LiveSynthesisAligner::speak(PendingWords words) {
   std::vector<std::string> tokens;
   std::istringstream split{words.text};
@@ -375,7 +372,8 @@ void LiveSynthesisAligner::speak(PendingWords words) {
   append_rendering(text, what);
   // The sentence still open after these words: those after the last sentence's end.
   open_sentence_.insert(open_sentence_.end(), tokens.begin(), tokens.end());
-  const auto last_end = std::find_if(open_sentence_.rbegin(), open_sentence_.rend(), ends_sentence);
+  const auto last_end = std::find_if(open_sentence_.rbegin(), open_sentence_.rend(),
+                                     [](const std::string& word) { return ends_sentence(word); });
   if (last_end != open_sentence_.rend()) {
     const auto closed = static_cast<std::size_t>(open_sentence_.rend() - last_end);
     open_sentence_.erase(open_sentence_.begin(), open_sentence_.begin() + static_cast<std::ptrdiff_t>(closed));
