@@ -19,6 +19,11 @@ Each WAV goes, as a user sends it, to:
                           this tool starts (--lipsyncd, on a free port), one stream at a time
   live, transcript        the same with `--text-file T --voice V` (espeak-ng voice it, fi, cs: the
                           live warp against espeak-ng's rendering, docs/languages.md)
+  live, words one at a time
+                          the same with `--word-times MARKS --voice V` instead of the transcript:
+                          the sentence's words as a TTS's word marks (Amazon Polly's JSON lines),
+                          each at the start Festival gave its first segment, so `lipsync listen`
+                          sends each word a second before the audio reaches it
   offline, audio alone    `lipsync render WAV`
   offline, transcript     `lipsync render WAV --text-file T --voice V` (espeak-ng voice it, fi, cs:
                           the DTW aligner of docs/languages.md), what a non-English user should use
@@ -38,8 +43,8 @@ worst run's 95th percentile.
 audio that waited for it in larger pieces, so its guesses see further.
 
 Outside the build and CI. Needs festival with festvox-italp16k, festvox-suopuhe-lj and
-festvox-czech-dita (Debian); about 3 minutes on two cores (real-time pace takes the audio's
-duration, 2 minutes for the 36 sentences).
+festvox-czech-dita (Debian); about 8 minutes on two cores (real-time pace takes the audio's
+duration, 2 minutes for the 36 sentences, for each of the three live paths).
 Usage: tools/speech/measure_live_languages.py --lipsync build/clients/cli/lipsync
        --lipsyncd build/server/lipsyncd [--languages it,fi,cs] [--pace realtime|asap]
        [--latency-ms 200] [--misses] [--keep DIR]
@@ -58,7 +63,8 @@ import tempfile
 # Beside this script: the scoring of compare_headaudio.py, Festival's voices and labels of
 # measure_language_alignment.py.
 from compare_headaudio import Recording, Tally, read_viseme_steps
-from measure_language_alignment import FESTIVAL_TO_IPA, PAUSES, VOICES, read_festival_segs, speak_with_festival
+from measure_language_alignment import (FESTIVAL_ENCODING, FESTIVAL_TO_IPA, PAUSES, VOICES, read_festival_segs,
+                                        speak_with_festival)
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "tests", "support"))
 from listening_address import ServerProcess  # noqa: E402
@@ -150,9 +156,21 @@ def class_label(ipa):
     return ipa.replace("ː", "")
 
 
+def festival_word_starts(festival_voice, text):
+    """Where Festival starts each word of `text`, s: its first syllable's first segment (Festival
+    speaks deterministically, so these are the times of the WAV speak_with_festival wrote)."""
+    escaped = text.replace("\\", "\\\\").replace('"', '\\"')
+    encoding = FESTIVAL_ENCODING.get(festival_voice, "utf-8")
+    command = ["festival", "-b", f"(voice_{festival_voice})", f'(set! u (SynthText "{escaped}"))',
+               '(mapcar (lambda (w) (format t "%s %f\\n" (item.name w) '
+               '(item.feat w "R:SylStructure.daughter1.daughter1.segment_start"))) (utt.relation.items u (quote Word)))']
+    spoken = subprocess.run([c.encode(encoding) for c in command], check=True, capture_output=True, timeout=120)
+    return [float(line.split()[-1]) for line in spoken.stdout.decode(encoding).splitlines() if line.strip()]
+
+
 def speak(code, number, text, work):
-    """Festival speaks `text`: the WAV, the transcript file, Festival's phones in IPA [(ipa, start_s,
-    end_s)] and the utterance JSON of those phones."""
+    """Festival speaks `text`: the WAV, the transcript file, its words as timed marks, Festival's
+    phones in IPA [(ipa, start_s, end_s)] and the utterance JSON of those phones."""
     stem = os.path.join(work, f"{code}-{number}")
     try:
         speak_with_festival(VOICES[code][0], text, stem + ".wav", stem + ".segs")
@@ -162,6 +180,13 @@ def speak(code, number, text, work):
     phones = [(festival_ipa(code, label), start, end) for label, start, end in read_festival_segs(stem + ".segs")]
     with open(stem + ".txt", "w", encoding="utf-8") as f:
         f.write(text + "\n")
+    words, starts = text.split(), festival_word_starts(VOICES[code][0], text)
+    if len(starts) != len(words):
+        raise RuntimeError(f"Festival spoke {len(starts)} words of the {len(words)} in \"{text}\"")
+    with open(stem + ".marks", "w", encoding="utf-8") as f:
+        for word, start in zip(words, starts):
+            f.write(json.dumps({"time": round(start * 1000), "type": "word", "start": 0, "end": 0, "value": word},
+                               ensure_ascii=False) + "\n")
     with open(stem + ".phones.json", "w", encoding="utf-8") as f:
         json.dump({"phone_set": "ipa", "text": text,
                    "phonemes": [{"label": ipa, "start": start, "end": end} for ipa, start, end in phones]},
@@ -201,6 +226,7 @@ def main():
         sys.exit(f"measure_live_languages: {error}")
     live = f"live, audio alone, {args.latency_ms} ms"
     live_transcript = f"live, transcript, {args.latency_ms} ms"
+    live_words = f"live, words one at a time, {args.latency_ms} ms"
     visemes = ["--format", "visemes-oculus"]
     listen = lambda stem: [args.lipsync, "listen", stem + ".wav", "--server", server.address, "--pace", args.pace,
                            "--latency-ms", str(args.latency_ms)]
@@ -208,6 +234,8 @@ def main():
         live: lambda code, stem: listen(stem) + visemes,
         live_transcript: lambda code, stem: listen(stem) + ["--text-file", stem + ".txt", "--voice", VOICES[code][1]]
                                             + visemes,
+        live_words: lambda code, stem: listen(stem) + ["--word-times", stem + ".marks", "--voice", VOICES[code][1]]
+                                       + visemes,
         "offline, audio alone": lambda code, stem: [args.lipsync, "render", stem + ".wav"] + visemes,
         "offline, transcript": lambda code, stem: [args.lipsync, "render", stem + ".wav", "--text-file", stem + ".txt",
                                                    "--voice", VOICES[code][1]] + visemes,
@@ -229,7 +257,7 @@ def main():
                     result = subprocess.run(command, capture_output=True, text=True)
                     if result.returncode != 0:
                         raise RuntimeError(f"{shlex.join(command)} failed ({result.returncode}): {result.stderr.strip()[-400:]}")
-                    if path in (live, live_transcript):
+                    if path in (live, live_transcript, live_words):
                         with open(out + ".stderr", "w", encoding="utf-8") as f:
                             f.write(result.stderr)
                         found = LATENCY.search(result.stderr)
@@ -255,8 +283,8 @@ def main():
                 latency = (f"{statistics.median(p50 for p50, _ in runs):.0f} / "
                            f"{statistics.median(p95 for _, p95 in runs):.0f} ms ({max(p95 for _, p95 in runs):.0f})")
             else:
-                latency = "–" if path in (live, live_transcript) else "(whole file)"
-            name = f"{path}, `--voice {VOICES[code][1]}`" if "transcript" in path else path
+                latency = "–" if path in (live, live_transcript, live_words) else "(whole file)"
+            name = f"{path}, `--voice {VOICES[code][1]}`" if "transcript" in path or "words" in path else path
             print(f"| {language} | {name} | {latency} | " + " | ".join(tally.cells(language, path)) + " |")
     if args.misses:
         tally.print_shown_instead()
