@@ -54,6 +54,11 @@ InputFormat parse_input_format_option(std::string_view text) {
                    std::string(kNameList<kInputFormats, ListStyle::choice>.view()) + ")");
 }
 
+bool parse_fast_mesh_solve_option(std::string_view text) {
+  if (text == "fast" || text == "full") return text == "fast";
+  throw UsageError("--mesh-solve: unknown solve '" + std::string(text) + "' (choose full or fast)");
+}
+
 RenderPlan parse_render_plan(const Arguments& arguments, std::optional<std::int64_t> fps_when_not_given) {
   static constexpr SettingNames kOptionNames = {.fps = "--fps",
                                                 .lookahead = "--lookahead",

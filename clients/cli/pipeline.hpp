@@ -95,6 +95,9 @@ struct RenderFormat {
 };
 RenderFormat parse_render_format_option(std::string_view text);
 InputFormat parse_input_format_option(std::string_view text);
+/// --mesh-solve (render, say, stream, loadtest): true for "fast", false for "full" (docs/face.md,
+/// "Solves"); UsageError otherwise.
+bool parse_fast_mesh_solve_option(std::string_view text);
 
 /// Names of the built-in phone sets plus "auto", for messages.
 std::string phone_set_choices();

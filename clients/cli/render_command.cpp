@@ -64,6 +64,7 @@ constexpr OptionSpec kOptions[] = {
     kStillOption,
     kStillAtOption,
     kNoBlinksOption,
+    kMeshSolveOption,
     kTextOption,
     kTextFileOption,
     kRecordingVoiceOption,
@@ -250,6 +251,7 @@ OutputRequest parse_output_request(const Arguments& arguments) {
   out.still_path = arguments.value("still");
   out.subdivision = plan.mesh_subdivision;
   out.blinks = !arguments.flag("no-blinks");
+  if (const auto solve = arguments.value("mesh-solve")) out.fast_solve = parse_fast_mesh_solve_option(*solve);
   if (const auto text = arguments.value("still-at")) {
     out.still_at_s = parse_double_option("still-at", *text);
     if (!(out.still_at_s >= 0.0 && std::isfinite(out.still_at_s)))
@@ -269,6 +271,7 @@ OutputRequest parse_output_request(const Arguments& arguments) {
   if (!face_outputs && arguments.value("mesh-subdivision"))
     throw UsageError("--mesh-subdivision needs --mesh, --video or --still");
   if (!face_outputs && !out.blinks) throw UsageError("--no-blinks needs --mesh, --video or --still");
+  if (!face_outputs && arguments.value("mesh-solve")) throw UsageError("--mesh-solve needs --mesh, --video or --still");
   const std::pair<const char*, std::optional<std::string>> face_files[] = {
       {"mesh", out.mesh_path}, {"video", out.video_path}, {"still", out.still_path}};
   for (const auto& [option, path] : face_files) {
@@ -324,8 +327,9 @@ void render_outputs(const OutputRequest& out, LabeledUtterance utterance) {
   // One face per input: the track's own frames (key frames included) stepped as lipsyncd steps its
   // mesh output (face::FaceTrackStepper); the glb keeps those poses, the video and the still show
   // them on the --fps grid, linear between frames as a glTF player does.
-  const face::FaceAnimation track_faces =
-      face::simulate_track_frames(mesh, rig, track, {}, {.enabled = out.blinks, .seed = 1});
+  const face::FaceAnimation track_faces = face::simulate_track_frames(
+      mesh, rig, track, out.fast_solve ? face::fast_face_solver_params() : face::FaceSolverParams{},
+      {.enabled = out.blinks, .seed = 1});
   if (out.mesh_path) {
     AtomicOutputFile file(*out.mesh_path);
     // Keys within 0.01 mm of every track frame: the glb plays the streamed poses (docs/face.md).

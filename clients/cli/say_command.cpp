@@ -41,6 +41,7 @@ constexpr OptionSpec kOptions[] = {
     kStillOption,
     kStillAtOption,
     kNoBlinksOption,
+    kMeshSolveOption,
 };
 
 constexpr std::string_view kUsage = "lipsync say TEXT [options]";

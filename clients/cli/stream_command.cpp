@@ -15,8 +15,8 @@
 // that is the lookahead's release delay on read speech (release_delay.hpp)
 // plus a margin, so that players on that clock get every frame in time.
 //
-// --visemes VOCABULARY and --viewer-mesh add the server's viseme events and its simulated
-// face to what the session's subscribers and viewers get (the track written here
+// --visemes VOCABULARY and --viewer-mesh (its solve: --mesh-solve) add the server's viseme
+// events and its simulated face to what the session's subscribers and viewers get (the track written here
 // stays the channels and ARKit weights).
 //
 // --audio FILE.wav attaches the utterance's sound to the session (AudioAttachment
@@ -69,6 +69,10 @@ constexpr auto kOptions = join(kConnectionOptions, std::to_array<OptionSpec>({
     {"viewer-mesh", 0, "",
      "also publish the server's simulated face (its vertices, every frame) for the session's viewers (needs --session)",
      "off"},
+    {"mesh-solve", 0, "full|fast",
+     "the --viewer-mesh face's solve: fast takes about 0.45 of the server's CPU, closures sealed (docs/face.md, "
+     "\"Solves\")",
+     "full"},
     {"playout-delay", 0, "MS",
      kRangedHelp<"media clock: utterance time 0 plays this long after the stream starts", kPlayoutDelaySetting>.view(),
      kJoinedText<"the lookahead's release delay on read speech + ", kDefaultText<IntSetting{0, 0, kPlayoutMarginMs}>,
@@ -132,6 +136,11 @@ int run_stream(std::span<const std::string_view> args) {
     if (settings.session().empty())
       throw UsageError("--viewer-mesh needs --session: the face goes to the session's viewers");
     settings.mutable_outputs()->mutable_mesh()->set_enabled(true);
+  }
+  if (const auto solve = arguments.value("mesh-solve")) {
+    if (!arguments.flag("viewer-mesh")) throw UsageError("--mesh-solve needs --viewer-mesh");
+    settings.mutable_outputs()->mutable_mesh()->set_solve(
+        parse_fast_mesh_solve_option(*solve) ? client::v1::MESH_SOLVE_FAST : client::v1::MESH_SOLVE_FULL);
   }
   const std::optional<std::string> phone_set_name = arguments.value("phone-set");
   if (phone_set_name && phone_set_name->empty()) throw UsageError("--phone-set: the name must not be empty");

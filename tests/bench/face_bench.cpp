@@ -14,6 +14,9 @@
 // face_frame_iterations/LEVEL/K: face_frame with K local–global iterations instead of 5, for the
 // cost side of fewer iterations at equal error (docs/performance.md, "The physics face's speed").
 //
+// face_frame_fast/LEVEL: face_frame with fast_face_solver_params() (two iterations from the
+// targets' shift), the solver of a mesh stream that asks for the fast solve.
+//
 // With --benchmark_repetitions the minimum over repetitions is reported too (the least disturbed
 // figure on a shared machine). Run pinned to one core:
 //   taskset -c 1 face_bench --benchmark_repetitions=10
@@ -48,10 +51,8 @@ const lipsync::Track& utterance_track() {
   return track;
 }
 
-void face_frame(benchmark::State& state) {
+void step_frames(benchmark::State& state, const FaceSolverParams& params) {
   const FaceMesh mesh = build_face_mesh(FaceAsset::builtin(), static_cast<int>(state.range(0)));
-  FaceSolverParams params;
-  if (state.range(1) > 0) params.iterations = static_cast<int>(state.range(1));
   FaceSolver solver(mesh, FaceRig::builtin(), params);
   const lipsync::Track& track = utterance_track();
   std::size_t frame = 0;
@@ -78,6 +79,14 @@ void face_frame(benchmark::State& state) {
       benchmark::Counter(static_cast<double>(simulated_us) * 1e-6, benchmark::Counter::kIsRate);
   state.counters["track_frames"] = static_cast<double>(track.frame_count());
 }
+
+void face_frame(benchmark::State& state) {
+  FaceSolverParams params;
+  if (state.range(1) > 0) params.iterations = static_cast<int>(state.range(1));
+  step_frames(state, params);
+}
+
+void face_frame_fast(benchmark::State& state) { step_frames(state, fast_face_solver_params()); }
 
 void face_step(benchmark::State& state) {
   const FaceMesh mesh = build_face_mesh(FaceAsset::builtin(), static_cast<int>(state.range(0)));
@@ -114,6 +123,7 @@ BENCHMARK(face_frame)
     ->Args({1, 4})
     ->Unit(benchmark::kMillisecond)
     ->ComputeStatistics("min", kMin);
+BENCHMARK(face_frame_fast)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->ComputeStatistics("min", kMin);
 BENCHMARK(face_step)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->ComputeStatistics("min", kMin);
 
 }  // namespace

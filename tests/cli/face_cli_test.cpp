@@ -96,11 +96,22 @@ TEST_F(FaceCliTest, NoBlinksTakesTheFirstBlinkOutOfTheGlb) {
   EXPECT_NE(read_text(dir_ / "open.glb"), read_text(dir_ / "blinks.glb"));
 }
 
+TEST_F(FaceCliTest, MeshSolveFastWritesTheFastSolversFace) {
+  ASSERT_EQ(run({"render", kInput, "--mesh", "full.glb", "--mesh-subdivision=0", "--mesh-solve", "full"}).status, 0);
+  ASSERT_EQ(run({"render", kInput, "--mesh", "default.glb", "--mesh-subdivision=0"}).status, 0);
+  const RunResult result = run({"render", kInput, "--mesh", "fast.glb", "--mesh-subdivision=0", "--mesh-solve=fast"});
+  ASSERT_EQ(result.status, 0) << result.err;
+  EXPECT_EQ(read_text(dir_ / "full.glb"), read_text(dir_ / "default.glb"));
+  EXPECT_NE(read_text(dir_ / "fast.glb"), read_text(dir_ / "full.glb"));
+}
+
 TEST_F(FaceCliTest, BadOptionsLeaveNoFile) {
   for (const std::vector<std::string>& args :
        {std::vector<std::string>{"render", kInput, "--mesh", "face.glb", "--mesh-subdivision", "3"},
         std::vector<std::string>{"render", kInput, "--audio", "x.wav"},
         std::vector<std::string>{"render", kInput, "--no-blinks", "-o", "track.json"},
+        std::vector<std::string>{"render", kInput, "--mesh-solve", "fast", "-o", "track.json"},
+        std::vector<std::string>{"render", kInput, "--mesh", "face.glb", "--mesh-solve", "quick"},
         std::vector<std::string>{"render", kInput, "--mesh", "no/such/dir/face.glb"}}) {
     const RunResult result = run(args);
     EXPECT_NE(result.status, 0);

@@ -650,10 +650,12 @@ TEST_F(NetworkCliTest, StreamWithAnUnknownServerModelExits1NamingIt) {
 // --- the load test with the mesh output ----------------------------------------------------------
 
 TEST_F(NetworkCliTest, LoadtestWithAMeshShareReportsMeshFramesApartWithoutErrors) {
-  const RunResult report = run({"loadtest", "--server", server(), "--producers", "4", "--mesh-share", "0.5",
-                                "--mesh-subdivision", "0", "--fast", "--duration", "2", "--json"});
+  const RunResult report =
+      run({"loadtest", "--server", server(), "--producers", "4", "--mesh-share", "0.5", "--mesh-subdivision", "0",
+           "--mesh-solve", "fast", "--fast", "--duration", "2", "--json"});
   ASSERT_EQ(report.status, 0) << report.out << report.err;
   const auto json = nlohmann::json::parse(report.out);
+  EXPECT_EQ(json["mesh"]["solve"], "fast");
   EXPECT_TRUE(json["every_frame_arrived"].get<bool>());
   EXPECT_THAT(json["errors"], IsEmpty());
   const auto& mesh = json["by_output"]["mesh"];
@@ -679,6 +681,12 @@ TEST_F(NetworkCliTest, LoadtestMeshOptionsOutOfRangeAreUsageErrors) {
   const RunResult level = run({"loadtest", "--server", server(), "--mesh-share", "1", "--mesh-subdivision", "3"});
   EXPECT_EQ(level.status, 2);
   EXPECT_THAT(level.err, HasSubstr("--mesh-subdivision"));
+  const RunResult solve = run({"loadtest", "--server", server(), "--mesh-share", "1", "--mesh-solve", "quick"});
+  EXPECT_EQ(solve.status, 2);
+  EXPECT_THAT(solve.err, HasSubstr("--mesh-solve: unknown solve 'quick'"));
+  const RunResult alone = run({"loadtest", "--server", server(), "--mesh-solve", "fast"});
+  EXPECT_EQ(alone.status, 2);
+  EXPECT_THAT(alone.err, HasSubstr("need --mesh-share above 0"));
 }
 
 }  // namespace

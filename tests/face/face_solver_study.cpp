@@ -2,9 +2,11 @@
 // levers (docs/performance.md, "The physics face's speed"). Steps the level-1 face through the 30
 // files of tests/data/closures at 30 frames/s with key frames, exactly as face_closure_test and the
 // server's mesh stream do, and
-//   face_solver_study run DUMP [ITERATIONS]   prints the widest bilabial key-frame gap and the
+//   face_solver_study run DUMP [ITERATIONS | fast]
+//                                              prints the widest bilabial key-frame gap and the
 //                                              farthest labiodental lower lip, and writes every
-//                                              frame's soft-node positions (doubles) to DUMP;
+//                                              frame's soft-node positions (doubles) to DUMP (fast:
+//                                              fast_face_solver_params());
 //   face_solver_study compare REFERENCE DUMP   prints how far DUMP's skin and lips (soft nodes of
 //                                              ring depth ≤ 2) are from REFERENCE's: mean and worst
 //                                              node over all frames and over the key frames.
@@ -81,9 +83,8 @@ bool has(const Utterance& u, std::size_t frame, testing::ClosurePlace place) {
   return it != u.closure_at.end() && it->second.count(place) > 0;
 }
 
-void run(const std::vector<Utterance>& utterances, const std::string& dump_path, int iterations) {
-  FaceSolverParams params;
-  params.iterations = iterations;
+void run(const std::vector<Utterance>& utterances, const std::string& dump_path, const FaceSolverParams& params) {
+  const int iterations = params.iterations;
   FaceSolver solver(level1(), FaceRig::builtin(), params);
   std::ofstream dump(dump_path, std::ios::binary);
   double worst_gap_m = 0, worst_teeth_m = 0;
@@ -334,7 +335,12 @@ void subspace(const std::vector<Utterance>& utterances, const std::string& dump_
 int main(int argc, char** argv) {
   const std::vector<std::string> args(argv + 1, argv + argc);
   if (args.size() >= 2 && args.size() <= 3 && args[0] == "run") {
-    run(corpus(), args[1], args.size() == 3 ? std::stoi(args[2]) : FaceSolverParams{}.iterations);
+    FaceSolverParams params;
+    if (args.size() == 3 && args[2] == "fast")
+      params = lipsync::face::fast_face_solver_params();
+    else if (args.size() == 3)
+      params.iterations = std::stoi(args[2]);
+    run(corpus(), args[1], params);
     return 0;
   }
   if (args.size() == 3 && args[0] == "compare") {
@@ -354,7 +360,7 @@ int main(int argc, char** argv) {
     return 0;
   }
   std::fprintf(stderr,
-               "usage: face_solver_study run DUMP [ITERATIONS]\n"
+               "usage: face_solver_study run DUMP [ITERATIONS | fast]\n"
                "       face_solver_study compare REFERENCE DUMP\n"
                "       face_solver_study subspace DUMP [K...]\n");
   return 2;

@@ -937,14 +937,22 @@ TEST(ListenLongStream, AnHourOfSpeechAndSilenceKeepsTheServersMemoryFlat) {
   // the test waits for that minute's frames, so that what is measured is what lipsyncd keeps, not
   // up to 4096 frames queued for a reader slower than the server on a busy machine (the bound of
   // AProducerThatDoesNotReadIsHeldBackAndLosesNoFrame), which a live voice, paced by its speaker,
-  // never fills.
+  // never fills. The stream's start has lipsyncd load two spare decoders (about 30 MB each, at a low
+  // priority: ListenDecoderTest); the test waits for them after the first minute, so that a load
+  // the machine's other work delays past the first sample is not taken for growth.
   const Spoken spoken = speak(false, "Papa bought five more big maps.");
   ASSERT_EQ(spoken.recording.audio.sample_rate_hz, 16000);
   const auto dir = lipsync::testing::make_temp_dir("lipsyncd-listen-hour-");
-  lipsync::testing::ChildProcess child({LIPSYNCD_PATH, "--listen", "127.0.0.1:0", "--log-level", "warn"}, dir,
-                                       dir / "out", dir / "err");
+  lipsync::testing::ChildProcess child(
+      {LIPSYNCD_PATH, "--listen", "127.0.0.1:0", "--metrics-listen", "127.0.0.1:0", "--log-level", "warn"}, dir,
+      dir / "out", dir / "err");
   const std::string address = lipsync::testing::wait_for_listening_address(dir / "out");
   ASSERT_FALSE(address.empty());
+  const std::string metrics_address = lipsync::testing::wait_for_listening_address(dir / "out", "lipsyncd metrics on ");
+  ASSERT_FALSE(metrics_address.empty());
+  const auto spare_decoders = [&] {
+    return parse_exposition(http_get(metrics_address, "/metrics")).at("lipsyncd_listen_spare_decoders");
+  };
   auto stub = v1::LipSync::NewStub(connect(address));
   grpc::ClientContext context;
   context.set_deadline(std::chrono::system_clock::now() + std::chrono::minutes(15));
@@ -971,6 +979,13 @@ TEST(ListenLongStream, AnHourOfSpeechAndSilenceKeepsTheServersMemoryFlat) {
     const std::int64_t minute_end_us = std::int64_t{minute + 1} * 60'000'000;
     for (int wait = 0; wait < 3000 && refused_at_minute < 0 && read.last_t_us < minute_end_us - 1'000'000; ++wait) {
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    if (minute == 0) {
+      const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+      while (spare_decoders() < 2 && std::chrono::steady_clock::now() < deadline) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      }
+      EXPECT_EQ(spare_decoders(), 2) << "lipsyncd did not load its two spare decoders within 30 s";
     }
     if (minute % 10 == 9) rss_kib.push_back(status_kib(child.pid(), "VmRSS"));
   }

@@ -1,7 +1,8 @@
 // lipsyncd's mesh output over the network: the topology once in the header,
 // per-frame positions equal to FaceSolver run offline on render_track's frames by
 // FaceTrackStepper (the solver's poses with the eyelids' seeded blinks; without
-// them for settings.outputs.mesh.no_blinks) (bit for bit as float32, within half
+// them for settings.outputs.mesh.no_blinks; the fast solve's for
+// settings.outputs.mesh.solve = FAST) (bit for bit as float32, within half
 // a quantisation step as int16), Render =
 // Animate, subscribers get the producer's mesh, channel-only streams carry no
 // mesh bytes, bad mesh settings rejected naming the field; and, measured on the
@@ -17,10 +18,12 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "../support/child_process.hpp"
 #include "../support/lip_measures.hpp"
@@ -73,9 +76,9 @@ std::vector<double> solver_positions(const Track& track, int level) {
 
 /// The documented rule, offline: the solver stepped as above, then the eyelids of the default
 /// blink schedule (face::FaceTrackStepper). Metres, double.
-std::vector<double> reference_positions(const Track& track, int level) {
+std::vector<double> reference_positions(const Track& track, int level, const face::FaceSolverParams& params = {}) {
   const face::FaceMesh mesh = face::build_face_mesh(face::FaceAsset::builtin(), level);
-  face::FaceSolver solver(mesh, face::FaceRig::builtin());
+  face::FaceSolver solver(mesh, face::FaceRig::builtin(), params);
   face::FaceTrackStepper stepper(solver);
   std::vector<double> out;
   for (std::size_t frame = 0; frame < track.frame_count(); ++frame)
@@ -515,6 +518,63 @@ TEST_F(MeshTest, MeshStreamsBeyondTheFaceCapacityAreRefusedNamingTheLimit) {
   }));
 }
 
+TEST_F(MeshTest, TheFastSolveStreamsTheOfflineFastSolversPosesAndSaysSoInTheHeader) {
+  const auto intervals = utterance(30, 11);
+  const Track track = reference_track(intervals);
+  v1::AnimationSettings fast = mesh_settings(1);
+  fast.mutable_outputs()->mutable_mesh()->set_solve(v1::MESH_SOLVE_FAST);
+  const Received received = animate(fast, intervals);
+  ASSERT_TRUE(received.status.ok()) << received.status.error_message();
+  ASSERT_EQ(received.headers.size(), 1u);
+  EXPECT_EQ(received.headers[0].mesh().solve(), v1::MESH_SOLVE_FAST);
+  EXPECT_EQ(received.values(), track.values);  // the channels do not depend on the solve
+  const std::vector<double> expected = reference_positions(track, 1, face::fast_face_solver_params());
+  EXPECT_TRUE(received.positions() == std::vector<float>(expected.begin(), expected.end()));
+  const std::vector<double> full = reference_positions(track, 1);
+  EXPECT_FALSE(received.positions() == std::vector<float>(full.begin(), full.end()));
+  v1::RenderResponse rendered;
+  ASSERT_TRUE(render(fast, intervals, rendered).ok());
+  EXPECT_EQ(rendered.header().mesh().solve(), v1::MESH_SOLVE_FAST);
+  const Received unset = animate(mesh_settings(1), intervals);
+  ASSERT_TRUE(unset.status.ok()) << unset.status.error_message();
+  EXPECT_EQ(unset.headers[0].mesh().solve(), v1::MESH_SOLVE_FULL);
+}
+
+TEST_F(MeshTest, TwoFastLevel1StreamsAreAdmittedWhereOneFullOneFits) {
+  ServerConfig config;
+  config.face_threads = 1;
+  config.max_mesh_streams_per_face_thread = 1;  // one level-1, 30 fps full solve
+  start(config);
+  v1::AnimationSettings fast = mesh_settings(1);
+  fast.mutable_outputs()->mutable_mesh()->set_solve(v1::MESH_SOLVE_FAST);
+  std::vector<std::unique_ptr<grpc::ClientContext>> contexts;
+  std::vector<std::unique_ptr<grpc::ClientReaderWriter<v1::AnimateRequest, v1::TrackMessage>>> held;
+  for (int i = 0; i < 2; ++i) {
+    contexts.push_back(std::make_unique<grpc::ClientContext>());
+    set_deadline(*contexts.back());
+    held.push_back(stub_->Animate(contexts.back().get()));
+    v1::AnimateRequest settings_request;
+    *settings_request.mutable_settings() = fast;
+    ASSERT_TRUE(held.back()->Write(settings_request));
+    v1::TrackMessage header;
+    ASSERT_TRUE(held.back()->Read(&header)) << "fast stream " << i << " was not admitted";
+    ASSERT_TRUE(header.has_header());
+  }
+  const Received refused = animate(fast, utterance(5));
+  EXPECT_EQ(refused.status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_THAT(refused.status.error_message(), HasSubstr("the face is at capacity"));
+  for (auto& stream : held) {
+    v1::AnimateRequest end;
+    end.mutable_end();
+    stream->Write(end);
+    stream->WritesDone();
+    v1::TrackMessage message;
+    while (stream->Read(&message)) {
+    }
+    EXPECT_TRUE(stream->Finish().ok());
+  }
+}
+
 TEST_F(MeshTest, AMeshStreamThatFallsBehindRealTimeEndsWithDeadlineExceeded) {
   // Three level-2 faces at 240 fps on one thread need several times the CPU of
   // real time on any machine: they fall behind and must be told so quickly.
@@ -552,6 +612,11 @@ TEST_F(MeshTest, BadMeshSettingsAreRejectedNamingTheField) {
   const grpc::Status encoding = render(settings, intervals, response);
   EXPECT_EQ(encoding.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(encoding.error_message(), HasSubstr("settings.outputs.mesh.encoding"));
+  settings = mesh_settings(1);
+  settings.mutable_outputs()->mutable_mesh()->set_solve(static_cast<v1::MeshSolve>(7));
+  const grpc::Status solve = render(settings, intervals, response);
+  EXPECT_EQ(solve.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(solve.error_message(), HasSubstr("settings.outputs.mesh.solve: unknown solve 7"));
 }
 
 // What a client sees: it sent the phonemes, it receives frames with kinds, ARKit weights and
@@ -687,9 +752,26 @@ TEST_F(MeshTest, LipsyncStreamWithMeshAndVisemesPublishesTheFaceAndTheVisemesWit
   ASSERT_EQ(plain.status, 0) << plain.err;
   EXPECT_EQ(lipsync::testing::read_text(dir / "faced.json"), lipsync::testing::read_text(dir / "plain.json"));
 
+  const auto fast = stream("fast.json", {"--session", "fast", "--viewer-mesh", "--mesh-solve", "fast"});
+  ASSERT_EQ(fast.status, 0) << fast.err;
+  grpc::ClientContext fast_context;
+  set_deadline(fast_context);
+  request.set_session("fast");
+  auto fast_reader = stub_->Subscribe(&fast_context, request);
+  Received fast_subscribed;
+  while (fast_reader->Read(&message)) take(fast_subscribed, message);
+  ASSERT_TRUE(fast_reader->Finish().ok());
+  ASSERT_EQ(fast_subscribed.headers.size(), 1U);
+  EXPECT_EQ(fast_subscribed.headers.front().mesh().solve(), v1::MESH_SOLVE_FAST);
+  EXPECT_EQ(header.mesh().solve(), v1::MESH_SOLVE_FULL);
+  EXPECT_EQ(lipsync::testing::read_text(dir / "fast.json"), lipsync::testing::read_text(dir / "plain.json"));
+
   const auto without_session = stream("x.json", {"--viewer-mesh"});
   EXPECT_EQ(without_session.status, 2);
   EXPECT_THAT(without_session.err, HasSubstr("--viewer-mesh needs --session"));
+  const auto solve_alone = stream("x.json", {"--session", "x", "--mesh-solve", "fast"});
+  EXPECT_EQ(solve_alone.status, 2);
+  EXPECT_THAT(solve_alone.err, HasSubstr("--mesh-solve needs --viewer-mesh"));
   std::filesystem::remove_all(dir);
 }
 

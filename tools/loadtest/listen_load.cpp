@@ -168,7 +168,7 @@ ListenLoadConfig parse_config(const Arguments& arguments) {
     throw UsageError("loadtest takes no arguments, got '" + arguments.positional().front() + "'");
   }
   for (const char* option : {"subscribers-per-session", "fast", "phonemes-per-utterance", "seed", "connections",
-                             "client", "no-verify", "mesh-share", "mesh-subdivision", "mesh-encoding"}) {
+                             "client", "no-verify", "mesh-share", "mesh-subdivision", "mesh-encoding", "mesh-solve"}) {
     if (arguments.value(option) || arguments.flag(option)) {
       throw UsageError(std::string("--") + option + ": not an option of --listen (live voices through gRPC's client)");
     }

@@ -33,7 +33,7 @@
 //
 // --mesh-share F asks for the physics face (settings.outputs.mesh) on a share
 // F of the producers, spread evenly over them (producer p has it when
-// round((p+1)·F) > round(p·F)), with --mesh-subdivision and --mesh-encoding.
+// round((p+1)·F) > round(p·F)), with --mesh-subdivision, --mesh-encoding and --mesh-solve.
 // Their frames are checked as the others' are, and each frame must also carry
 // the positions of the header's vertex count (V × 3 floats, or V × 3 int16).
 // The report gives frames and latency for mesh and non-mesh producers (and
@@ -105,6 +105,7 @@ constexpr auto kOptions = join(
          kRangedHelp<"subdivision level of their mesh", kMeshSubdivisionSetting, " (1061, 2643, 8903 vertices)">.view(),
          kDefaultText<kMeshSubdivisionSetting>.view()},
         {"mesh-encoding", 0, "ENC", "encoding of their vertex positions: float32 or int16", "float32"},
+        {"mesh-solve", 0, "full|fast", "the face's solve (settings.outputs.mesh.solve)", "full"},
         {"listen", 0, "",
          "audio mode: each producer is a live voice, a Listen stream of espeak-ng speech sent at a speaker's pace "
          "(--duration up to 3600)",
@@ -338,6 +339,7 @@ class LoadTest {
       mesh.set_enabled(true);
       mesh.set_subdivision(config_.mesh.subdivision);
       mesh.set_encoding(config_.mesh.encoding);
+      mesh.set_solve(config_.mesh.solve);
     }
     const std::string session = config_.subscribers > 0
                                     ? "loadtest-" + std::to_string(::getpid()) + "-" + std::to_string(producer.index) +
@@ -543,9 +545,13 @@ Request parse_request(const Arguments& arguments) {
   } else {
     throw UsageError("--mesh-encoding: unknown encoding '" + encoding + "' (choose float32 or int16)");
   }
-  const bool mesh_options = arguments.value("mesh-subdivision") || arguments.value("mesh-encoding");
+  config.mesh.solve = parse_fast_mesh_solve_option(arguments.value("mesh-solve").value_or("full"))
+                          ? client::v1::MESH_SOLVE_FAST
+                          : client::v1::MESH_SOLVE_FULL;
+  const bool mesh_options =
+      arguments.value("mesh-subdivision") || arguments.value("mesh-encoding") || arguments.value("mesh-solve");
   if (mesh_options && config.mesh.share == 0.0) {
-    throw UsageError("--mesh-subdivision and --mesh-encoding need --mesh-share above 0");
+    throw UsageError("--mesh-subdivision, --mesh-encoding and --mesh-solve need --mesh-share above 0");
   }
   return request;
 }

@@ -93,7 +93,8 @@ void write_json_report(const LoadTestConfig& config, const std::string& address,
       {"mesh",
        {{"share", config.mesh.share},
         {"subdivision", config.mesh.subdivision},
-        {"encoding", encoding_name(config.mesh)}}},
+        {"encoding", encoding_name(config.mesh)},
+        {"solve", config.mesh.solve == client::v1::MESH_SOLVE_FAST ? "fast" : "full"}}},
       {"utterances", {{"started", totals.utterances_started}, {"complete", totals.utterances_complete}}},
       {"subscriptions", {{"started", totals.subscriptions}, {"complete", totals.subscriptions_complete}}},
       {"frames",
@@ -126,8 +127,10 @@ void write_text_report(const LoadTestConfig& config, const std::string& client_n
                 static_cast<unsigned long long>(config.seed), client_name.c_str());
   out << line;
   if (groups[1].producers > 0) {
-    std::snprintf(line, sizeof line, "mesh: %d of %d producers (share %.2f), subdivision %u, %s\n", groups[1].producers,
-                  config.producers, config.mesh.share, config.mesh.subdivision, encoding_name(config.mesh).c_str());
+    std::snprintf(line, sizeof line, "mesh: %d of %d producers (share %.2f), subdivision %u, %s, %s solve\n",
+                  groups[1].producers, config.producers, config.mesh.share, config.mesh.subdivision,
+                  encoding_name(config.mesh).c_str(),
+                  config.mesh.solve == client::v1::MESH_SOLVE_FAST ? "fast" : "full");
     out << line;
   }
   out << "utterances: " << totals.utterances_started << " started, " << totals.utterances_complete

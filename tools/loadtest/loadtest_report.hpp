@@ -19,11 +19,13 @@
 
 namespace lipsync::cli {
 
-/// The physics face asked of a share of the producers (--mesh-share, --mesh-subdivision, --mesh-encoding).
+/// The physics face asked of a share of the producers (--mesh-share, --mesh-subdivision, --mesh-encoding,
+/// --mesh-solve).
 struct MeshRequest {
   double share = 0.0;  ///< fraction of the producers
   std::uint32_t subdivision = 1;
   client::v1::MeshEncoding encoding = client::v1::MESH_ENCODING_FLOAT32;
+  client::v1::MeshSolve solve = client::v1::MESH_SOLVE_FULL;
 };
 
 /// The run's shape, as the command line asked for it: the engine runs it, the report names it.

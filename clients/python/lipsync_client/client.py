@@ -25,7 +25,8 @@ Settings (keyword arguments of render, animate, speak and listen; all optional, 
     ("float32" or "int16": int16 halves the bytes, error <= half the header's
     quantisation_scale_m, about 2.1 µm; Frame.mesh is decoded to metres either way),
     mesh_blinks (bool; unset = True: the face's upper lids blink on lipsyncd's seeded schedule;
-    False keeps the eyes open, for clients that drive the eyes themselves),
+    False keeps the eyes open, for clients that drive the eyes themselves), mesh_solve
+    ("full" or "fast": about 0.4 of the server's CPU per face, closures still sealed; docs/face.md),
     visemes (str: "oculus", "azure", "polly" or "rhubarb": also the viseme weights,
     Frame.visemes, and events, Frame.viseme_event and Track.viseme_events()),
     rhubarb_extended_shapes (str, rhubarb only: Rhubarb's --extendedShapes letters; unset = "GHX").
@@ -224,6 +225,7 @@ def make_settings(
     mesh_subdivision: Optional[int] = None,
     mesh_encoding: str = "float32",
     mesh_blinks: bool = True,
+    mesh_solve: str = "full",
     visemes: Optional[str] = None,
     rhubarb_extended_shapes: Optional[str] = None,
 ) -> Any:
@@ -251,6 +253,10 @@ def make_settings(
             raise ValueError(f"mesh_encoding must be 'float32' or 'int16', not {mesh_encoding!r}")
         settings.outputs.mesh.encoding = encodings[mesh_encoding]
         settings.outputs.mesh.no_blinks = not mesh_blinks
+        solves = {"full": lipsync_pb2.MESH_SOLVE_FULL, "fast": lipsync_pb2.MESH_SOLVE_FAST}
+        if mesh_solve not in solves:
+            raise ValueError(f"mesh_solve must be 'full' or 'fast', not {mesh_solve!r}")
+        settings.outputs.mesh.solve = solves[mesh_solve]
     if visemes is not None:
         if visemes not in VISEME_VOCABULARIES:
             raise ValueError(f"visemes must be one of {', '.join(VISEME_VOCABULARIES)}, not {visemes!r}")

@@ -25,6 +25,7 @@ import wave
 
 import grpc
 
+from lipsync.v1 import lipsync_pb2
 from lipsync_client import tts
 from lipsyncd_test_server import RPC_TIMEOUT_S, LipsyncdTestCase
 
@@ -142,6 +143,19 @@ class LiveServerTest(LipsyncdTestCase):
         self.assertTrue(all(f.channels == {} and len(f.arkit) == 52 for f in track.frames))
         fixed = self.client.render(self.phonemes, phone_set="radio", fixed_rate=True)
         self.assertEqual({f.kind for f in fixed.frames}, {"uniform"})
+
+    def test_mesh_settings_reach_the_server_and_the_fast_solve_is_named_in_the_header(self):
+        full = self.client.render(self.phonemes, phone_set="radio", mesh=True, mesh_subdivision=0)
+        fast = self.client.render(self.phonemes, phone_set="radio", mesh=True, mesh_subdivision=0, mesh_solve="fast")
+        self.assertEqual(full.header.mesh.subdivision, 0)
+        self.assertEqual(full.header.mesh.solve, lipsync_pb2.MESH_SOLVE_FULL)
+        self.assertEqual(fast.header.mesh.solve, lipsync_pb2.MESH_SOLVE_FAST)
+        width = full.header.mesh.vertex_count * 3
+        self.assertTrue(width > 0 and all(len(f.mesh) == width for f in full.frames + fast.frames))
+        self.assertEqual([f.channels for f in fast.frames], [f.channels for f in full.frames])
+        self.assertNotEqual([f.mesh for f in fast.frames], [f.mesh for f in full.frames])
+        with self.assertRaises(ValueError):
+            self.client.render(self.phonemes, phone_set="radio", mesh=True, mesh_solve="quick")
 
     def test_visemes_stream_equal_render_with_names_weights_and_events(self):
         rendered = self.client.render(self.phonemes, phone_set="radio", visemes="rhubarb", rhubarb_extended_shapes="GX")

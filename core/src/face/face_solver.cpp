@@ -178,7 +178,8 @@ struct FaceSolver::Impl {
 
   // State and per-step scratch (allocated once).
   std::vector<double> x, x_previous_step, velocity, y, target, inertia_and_attachment, residual;
-  std::vector<double> diagonal_n_per_m;  // M/s² + W per node for the substep length diagonal_step_s
+  std::vector<double> last_substep_target;  // FaceSolverStart::targets_shift only
+  std::vector<double> diagonal_n_per_m;     // M/s² + W per node for the substep length diagonal_step_s
   double diagonal_step_s = 0;
   float relaxation = 1;            // ω for substeps of diagonal_step_s
   double lowest_frequency_sq = 0;  // ω₀², rad²/s²: the smallest eigenvalue of (K + W) v = ω² M v
@@ -206,6 +207,7 @@ struct FaceSolver::Impl {
     x.assign(3 * n, 0.0);
     velocity.assign(3 * n, 0.0);
     y = x_previous_step = target = inertia_and_attachment = residual = x;
+    if (params.start == FaceSolverStart::targets_shift) last_substep_target = x;
     correction.assign(n, Float4{0, 0, 0, 0});
     diagonal_n_per_m.resize(n);
     lowest_frequency_sq = estimate_lowest_frequency_sq();
@@ -499,6 +501,7 @@ struct FaceSolver::Impl {
     std::fill(velocity.begin(), velocity.end(), 0.0);
     x_previous_step = x;
     target = x;
+    if (!last_substep_target.empty()) last_substep_target = target;
     jaw = skin_jaw = x_rotation(mesh.anatomy.jaw_hinge_m, 0.0);
     tongue = x_rotation(mesh.tongue_root_m, 0.0);
     tongue_protrusion_m = 0.0;
@@ -575,6 +578,12 @@ struct FaceSolver::Impl {
     for (std::size_t k = 0; k < 3 * n; ++k) y[k] = x[k] + s * decay * velocity[k];
     x_previous_step = x;
     x = y;
+    if (!last_substep_target.empty()) {
+      for (std::size_t k = 0; k < 3 * n; ++k) {
+        x[k] += target[k] - last_substep_target[k];
+        last_substep_target[k] = target[k];
+      }
+    }
     for (std::size_t i = 0; i < n; ++i) {
       const double m = mass_kg[i] * inv_s2, w = attachment_n_per_m[i];
       for (std::size_t c = 0; c < 3; ++c) inertia_and_attachment[3 * i + c] = m * y[3 * i + c] + w * target[3 * i + c];
@@ -739,6 +748,13 @@ struct FaceSolver::Impl {
     return e;
   }
 };
+
+FaceSolverParams fast_face_solver_params() {
+  FaceSolverParams params;
+  params.iterations = 2;
+  params.start = FaceSolverStart::targets_shift;
+  return params;
+}
 
 FaceSolver::FaceSolver(const FaceMesh& mesh, const FaceRig& rig, const FaceSolverParams& params)
     : impl_(std::make_unique<Impl>(mesh, rig, params)) {}

@@ -11,6 +11,9 @@ namespace {
 // Median ms per face frame at subdivision 0, 1, 2 (tests/bench/face_bench,
 // docs/performance.md "Face"), relative to level 1, in thousandths.
 constexpr std::array<std::int64_t, 3> kFrameCostMilliOfLevel1 = {206, 1000, 4921};  // 0.13, 0.63, 3.1 ms
+// The same for the fast solve: the level's weight times face_bench's face_frame_fast/LEVEL over
+// face_frame/LEVEL/0, measured in pairs (0.45, 0.45, 0.41).
+constexpr std::array<std::int64_t, 3> kFastFrameCostMilliOfLevel1 = {92, 446, 2032};
 constexpr std::int64_t kReferenceFps = 30;
 
 std::string units(std::int64_t milli) {
@@ -26,9 +29,10 @@ FaceCapacity::FaceCapacity(std::size_t streams_per_thread, std::size_t threads)
       threads_(threads),
       capacity_milli_(static_cast<std::int64_t>(streams_per_thread * threads) * 1000) {}
 
-std::int64_t FaceCapacity::weight_milli(int subdivision, int fps) {
+std::int64_t FaceCapacity::weight_milli(int subdivision, int fps, v1::MeshSolve solve) {
   const auto level = static_cast<std::size_t>(std::clamp(subdivision, 0, 2));
-  return std::max<std::int64_t>(1, kFrameCostMilliOfLevel1[level] * fps / kReferenceFps);
+  const auto& cost = solve == v1::MESH_SOLVE_FAST ? kFastFrameCostMilliOfLevel1 : kFrameCostMilliOfLevel1;
+  return std::max<std::int64_t>(1, cost[level] * fps / kReferenceFps);
 }
 
 grpc::Status FaceCapacity::admit(std::int64_t weight_milli) {
@@ -39,7 +43,8 @@ grpc::Status FaceCapacity::admit(std::int64_t weight_milli) {
               "the face is at capacity: mesh streams in progress weigh " + units(used) + " and this one " +
                   units(weight_milli) + " level-1 30 fps streams, more than the " + units(capacity_milli_) +
                   " the server takes on (--max-mesh-streams-per-face-thread=" + std::to_string(streams_per_thread_) +
-                  " x " + std::to_string(threads_) + " face threads); retry later or ask for a lower subdivision"};
+                  " x " + std::to_string(threads_) +
+                  " face threads); retry later or ask for a lower subdivision or the FAST solve"};
     }
     if (used_milli_.compare_exchange_weak(used, used + weight_milli)) return grpc::Status::OK;
   }

@@ -12,6 +12,8 @@
 // of them per second. Each stream therefore weighs its CPU need in units of a
 // level-1, 30 fps stream (0.63 ms × 30 = 19 ms of CPU per second of speech):
 // level 0 at 30 fps weighs 0.21, level 2 at 30 fps 4.9, level 1 at 60 fps 2.
+// The fast solve (settings.outputs.mesh.solve = FAST) costs about 0.45, 0.45
+// and 0.41 of that at levels 0, 1 and 2, and weighs so (level 1: 0.45).
 // The capacity is --max-mesh-streams-per-face-thread such units per face
 // thread (default 16: about a third of each face thread's core, which leaves
 // the rest to the channel-only sessions; measured beside 1,000 of them in
@@ -29,6 +31,8 @@
 #include <cstdint>
 #include <string>
 
+#include "lipsync/v1/lipsync.pb.h"
+
 namespace lipsync::server {
 
 class FaceCapacity {
@@ -36,8 +40,9 @@ class FaceCapacity {
   /// `streams_per_thread` level-1 30 fps streams per face thread, `threads` face threads.
   FaceCapacity(std::size_t streams_per_thread, std::size_t threads);
 
-  /// What a mesh stream at `subdivision` and `fps` weighs, in thousandths of a level-1, 30 fps stream.
-  static std::int64_t weight_milli(int subdivision, int fps);
+  /// What a mesh stream at `subdivision` and `fps` with `solve` (FULL or FAST) weighs, in
+  /// thousandths of a level-1, 30 fps FULL stream.
+  static std::int64_t weight_milli(int subdivision, int fps, v1::MeshSolve solve = v1::MESH_SOLVE_FULL);
 
   /// Counts a mesh stream in, or RESOURCE_EXHAUSTED naming the capacity and the flag.
   grpc::Status admit(std::int64_t weight_milli);

@@ -100,25 +100,29 @@ const face::FaceRig& FaceLibrary::rig(const ArticulationModel& model) {
   return *rig;
 }
 
-FaceLibrary::PooledSolver FaceLibrary::solver(const FaceTopology& topology, const face::FaceRig& rig) {
-  SolverReturn give_back{this, &topology, &rig};
+FaceLibrary::PooledSolver FaceLibrary::solver(const FaceTopology& topology, const face::FaceRig& rig,
+                                              v1::MeshSolve solve) {
+  const bool fast = solve == v1::MESH_SOLVE_FAST;
+  SolverReturn give_back{this, &topology, &rig, fast};
   {
     std::lock_guard lock(pool_mutex_);
-    auto& pooled = pool_[{&topology, &rig}];
+    auto& pooled = pool_[{&topology, &rig, fast}];
     if (!pooled.empty()) {
       PooledSolver solver(pooled.back().release(), give_back);
       pooled.pop_back();
       return solver;
     }
   }
-  return PooledSolver(new face::FaceSolver(topology.mesh, rig), give_back);
+  return PooledSolver(
+      new face::FaceSolver(topology.mesh, rig, fast ? face::fast_face_solver_params() : face::FaceSolverParams{}),
+      give_back);
 }
 
 void FaceLibrary::SolverReturn::operator()(face::FaceSolver* solver) const {
   std::unique_ptr<face::FaceSolver> owned(solver);
   owned->reset();
   std::lock_guard lock(library->pool_mutex_);
-  auto& pooled = library->pool_[{topology, rig}];
+  auto& pooled = library->pool_[{topology, rig, fast}];
   if (pooled.size() < kPooledSolvers) pooled.push_back(std::move(owned));
 }
 

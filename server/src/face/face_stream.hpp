@@ -4,14 +4,15 @@
 // FaceLibrary holds what every stream shares: the FaceMesh and its wire
 // topology per subdivision level (built on first use, once, under a
 // std::once_flag per level), the FaceRig validated per model, and a pool of
-// solvers at rest, so that a stream (one utterance) does not pay for binding
-// and factoring a new one. A FaceStream
-// is one stream's FaceSolver (its own state: the face moves with that stream
-// only); it steps once per released frame with dt = t_i − t_{i−1} (t_{−1} = 0:
-// key frames make the steps uneven; FaceSolver simulates each dt exactly, in
-// substeps of at most its 1/30 s step), by face::FaceTrackStepper, the rule
-// `lipsync render --mesh/--video` follows too (one face per input), and appends the positions as float32 or
-// int16 (MeshTopology documents the quantisation). It runs on the face threads
+// solvers at rest per level, rig and solve (FULL or FAST:
+// settings.outputs.mesh.solve), so that a stream (one utterance) does not pay
+// for binding and factoring a new one. A FaceStream is one stream's FaceSolver
+// (its own state: the face moves with that stream only); it steps once per
+// released frame with dt = t_i − t_{i−1} (t_{−1} = 0: key frames make the steps
+// uneven; FaceSolver simulates each dt exactly, in substeps of at most its
+// 1/30 s step), by face::FaceTrackStepper, the rule `lipsync render
+// --mesh/--video` follows too (one face per input), and appends the positions
+// as float32 or int16 (MeshTopology documents the quantisation). It runs on the face threads
 // (face_workers.hpp). Streams that do not ask for the mesh never touch any of this.
 #pragma once
 
@@ -21,6 +22,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -55,7 +57,7 @@ class FaceLibrary {
 
  public:
   static constexpr int kMaxSubdivision = static_cast<int>(kMeshSubdivisionSetting.max);
-  /// Solvers at rest kept per (level, rig) for the next stream.
+  /// Solvers at rest kept per (level, rig, solve) for the next stream.
   static constexpr std::size_t kPooledSolvers = 16;
 
   /// A solver at rest on its way back to the pool when released.
@@ -66,20 +68,23 @@ class FaceLibrary {
   /// The built-in rig validated against `model`, on first use. Thread-safe.
   /// Throws InputError if the model's channels cannot drive the face.
   const face::FaceRig& rig(const ArticulationModel& model);
-  /// A solver for `topology` driven by `rig`, at rest: one a finished stream gave
-  /// back (reset, so it computes exactly what a new one would), else a new one
-  /// (binding and factoring: tens of milliseconds at level 1). Thread-safe. The
-  /// library must outlive it.
-  PooledSolver solver(const FaceTopology& topology, const face::FaceRig& rig);
+  /// A solver for `topology` driven by `rig` with `solve`'s parameters (FAST:
+  /// face::fast_face_solver_params(); anything else the defaults), at rest: one a
+  /// finished stream gave back (reset, so it computes exactly what a new one
+  /// would), else a new one (binding and factoring: tens of milliseconds at
+  /// level 1). Thread-safe. The library must outlive it.
+  PooledSolver solver(const FaceTopology& topology, const face::FaceRig& rig,
+                      v1::MeshSolve solve = v1::MESH_SOLVE_FULL);
 
  private:
   struct SolverReturn {
     FaceLibrary* library = nullptr;
     const FaceTopology* topology = nullptr;
     const face::FaceRig* rig = nullptr;
+    bool fast = false;
     void operator()(face::FaceSolver* solver) const;
   };
-  using PoolKey = std::pair<const FaceTopology*, const face::FaceRig*>;
+  using PoolKey = std::tuple<const FaceTopology*, const face::FaceRig*, bool>;  // bool: FAST
 
   std::array<std::once_flag, kMaxSubdivision + 1> built_;
   std::array<std::unique_ptr<FaceTopology>, kMaxSubdivision + 1> topologies_;

@@ -250,7 +250,8 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
     if (auto status = prepare_face(plan_, service_.faces(), face_setup_); !status.ok()) return status;
     if (plan_.mesh) {
       if (auto status = caller_.hold(Quota::mesh_streams, mesh_hold_); !status.ok()) return status;
-      const std::int64_t weight = FaceCapacity::weight_milli(plan_.engine.mesh_subdivision, plan_.engine.render.fps);
+      const std::int64_t weight =
+          FaceCapacity::weight_milli(plan_.engine.mesh_subdivision, plan_.engine.render.fps, plan_.mesh_solve);
       if (auto status = service_.face_capacity().admit(weight); !status.ok()) return status;
       mesh_weight_milli_ = weight;
       face_deadline_.emplace(FaceDeadline::Clock::now(), std::chrono::milliseconds(service_.config().mesh_max_lag_ms));
@@ -282,10 +283,10 @@ class AnimateReactor final : public HandoffReactor<grpc::ServerBidiReactor<v1::A
     if (plan_.mesh) {
       // From here on everything that leaves this stream goes through the lane, in order.
       lane_.emplace(service_.face_workers());
-      lane_->post([this, encoding = plan_.mesh_encoding, blinks = plan_.blinks] {
+      lane_->post([this, encoding = plan_.mesh_encoding, solve = plan_.mesh_solve, blinks = plan_.blinks] {
         if (!stopped_) {
           face_ = std::make_unique<FaceStream>(*face_setup_.topology,
-                                               service_.faces().solver(*face_setup_.topology, *face_setup_.rig),
+                                               service_.faces().solver(*face_setup_.topology, *face_setup_.rig, solve),
                                                encoding, blinks);
         }
       });

@@ -123,6 +123,18 @@ grpc::Status resolve_settings(const v1::AnimationSettings& settings, const Model
         return invalid("settings.outputs.mesh.encoding: unknown encoding " + std::to_string(encoding) +
                        " (FLOAT32 or INT16)");
     }
+    const v1::MeshSolve solve = settings.outputs().mesh().solve();
+    switch (solve) {
+      case v1::MESH_SOLVE_UNSPECIFIED:
+      case v1::MESH_SOLVE_FULL:
+        plan.mesh_solve = v1::MESH_SOLVE_FULL;
+        break;
+      case v1::MESH_SOLVE_FAST:
+        plan.mesh_solve = v1::MESH_SOLVE_FAST;
+        break;
+      default:
+        return invalid("settings.outputs.mesh.solve: unknown solve " + std::to_string(solve) + " (FULL or FAST)");
+    }
   }
   if (auto status = resolve_visemes(settings, plan); !status.ok()) return status;
   plan.header = encode_header(plan, settings, with_session);
@@ -141,6 +153,7 @@ grpc::Status prepare_face(Plan& plan, FaceLibrary& faces, FaceSetup& setup) {
   // batch would hold each frame back until the solver has done the ones after it.
   setup.frames_per_batch = 1;
   *plan.header.mutable_mesh() = header_topology(*setup.topology, plan.mesh_encoding);
+  plan.header.mutable_mesh()->set_solve(plan.mesh_solve);
   return grpc::Status::OK;
 }
 

@@ -35,7 +35,8 @@ struct Plan {
   bool arkit = true;
   bool mesh = false;
   v1::MeshEncoding mesh_encoding = v1::MESH_ENCODING_FLOAT32;
-  face::BlinkSettings blinks;  ///< settings.outputs.mesh.no_blinks turns them off
+  v1::MeshSolve mesh_solve = v1::MESH_SOLVE_FULL;  ///< FULL or FAST (settings.outputs.mesh.solve)
+  face::BlinkSettings blinks;                      ///< settings.outputs.mesh.no_blinks turns them off
   /// The viseme output's classifier (null unless asked for); each stream brings its own event detector.
   std::shared_ptr<const VisemeClassifier> visemes;
   v1::VisemeVocabulary viseme_vocabulary = v1::VISEME_VOCABULARY_UNSPECIFIED;

@@ -33,9 +33,9 @@ grpc::Status render(LipSyncService& service, Plan& plan, const v1::RenderRequest
   if (auto status = prepare_face(plan, service.faces(), face_setup); !status.ok()) return status;
   std::unique_ptr<FaceStream> face_stream;
   if (plan.mesh) {
-    face_stream = std::make_unique<FaceStream>(*face_setup.topology,
-                                               service.faces().solver(*face_setup.topology, *face_setup.rig),
-                                               plan.mesh_encoding, plan.blinks);
+    face_stream = std::make_unique<FaceStream>(
+        *face_setup.topology, service.faces().solver(*face_setup.topology, *face_setup.rig, plan.mesh_solve),
+        plan.mesh_encoding, plan.blinks);
   }
   StreamEncoder encoder{.face = face_stream.get(), .viseme_detector = {}};
   const Track track = render_track(plan.model->tables, segments, plan.engine.render);
@@ -93,7 +93,8 @@ grpc::ServerUnaryReactor* LipSyncService::Render(grpc::CallbackServerContext* co
   }
   // Seconds of solver work for a long utterance: off the reaction (face_workers.hpp),
   // admitted against the face's capacity (face_capacity.hpp) for as long as it runs.
-  const std::int64_t weight = FaceCapacity::weight_milli(plan->engine.mesh_subdivision, plan->engine.render.fps);
+  const std::int64_t weight =
+      FaceCapacity::weight_milli(plan->engine.mesh_subdivision, plan->engine.render.fps, plan->mesh_solve);
   if (grpc::Status capacity = face_capacity_.admit(weight); !capacity.ok()) {
     call->run([&] { return capacity; });
     return call;

@@ -35,11 +35,21 @@
 
 namespace lipsync::face {
 
+/// Where a substep's iterations start. The inertial prediction y (the previous pose carried by its
+/// damped velocity) is the physics' own; shifting every node by its attachment target's change
+/// since the last substep lands the first iteration nearer the new pose, which is what lets two
+/// iterations keep the lips sealed (docs/performance.md, "The physics face's speed").
+enum class FaceSolverStart {
+  inertial_prediction,  ///< x₀ = y (the default; the 5-iteration solver's golden output)
+  targets_shift,        ///< x₀ = y + (target − the last substep's target)
+};
+
 struct FaceSolverParams {
   /// The longest substep, and the step the matrix is factored for: step() divides its dt into
   /// ⌈dt / time_step_s⌉ equal substeps (one per 30 frames/s frame by default).
   double time_step_s = 1.0 / 30.0;
   int iterations = 5;  ///< local–global iterations per step
+  FaceSolverStart start = FaceSolverStart::inertial_prediction;
   /// Skin membrane: stiffness of one edge spring (a triangle spring network's membrane stiffness
   /// does not depend on its edge length, so this holds at every subdivision level).
   double skin_stiffness_n_per_m = 450.0;
@@ -59,6 +69,11 @@ struct FaceSolverParams {
   double teeth_margin_m = 0.0005;  ///< skin kept this far outside the teeth
   double max_skin_sink_m = 0.004;  ///< skin may not sink deeper than this below its rest (skull)
 };
+
+/// The fast solve: two iterations from the targets' shift. About 0.45 of the default's time a
+/// frame, with every bilabial closure of the real-speech tests sealed; its poses are 0.1 mm from
+/// the default's on average, not within 0.3 mm at every node (docs/face.md, "Solves").
+FaceSolverParams fast_face_solver_params();
 
 class FaceSolver {
  public:
