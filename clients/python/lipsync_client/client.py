@@ -26,7 +26,7 @@ Settings (keyword arguments of render, animate, speak and listen; all optional, 
     quantisation_scale_m, about 2.1 µm; Frame.mesh is decoded to metres either way),
     mesh_blinks (bool; unset = True: the face's upper lids blink on lipsyncd's seeded schedule;
     False keeps the eyes open, for clients that drive the eyes themselves), mesh_solve
-    ("full" or "fast": about 0.4 of the server's CPU per face, closures still sealed; docs/face.md),
+    ("full" or "fast": about 0.45 of the server's CPU per face, closures still sealed; docs/face.md),
     visemes (str: "oculus", "azure", "polly" or "rhubarb": also the viseme weights,
     Frame.visemes, and events, Frame.viseme_event and Track.viseme_events()),
     rhubarb_extended_shapes (str, rhubarb only: Rhubarb's --extendedShapes letters; unset = "GHX").
