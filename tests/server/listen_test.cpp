@@ -27,6 +27,7 @@
 #include "../support/harvard_sentences.hpp"
 #include "../support/prometheus_text.hpp"
 #include "../support/recorded_languages.hpp"
+#include "../support/sanitizers.hpp"
 #include "../support/server_harness.hpp"
 #include "lipsync/client/animation_client.hpp"
 #include "lipsync/model.hpp"
@@ -40,17 +41,7 @@
 namespace lipsync::server {
 namespace {
 
-#if defined(__SANITIZE_THREAD__)
-constexpr bool kUnderThreadSanitizer = true;
-#elif defined(__has_feature)
-#if __has_feature(thread_sanitizer)
-constexpr bool kUnderThreadSanitizer = true;
-#else
-constexpr bool kUnderThreadSanitizer = false;
-#endif
-#else
-constexpr bool kUnderThreadSanitizer = false;
-#endif
+using lipsync::testing::kUnderThreadSanitizer;
 
 using namespace harness;
 using ::testing::ElementsAre;

@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "../support/sanitizers.hpp"
 #include "../support/server_harness.hpp"
 
 namespace lipsync::server {
@@ -104,7 +105,10 @@ double median(std::vector<double> values) {
 // other work loads it (docs/server.md, "Shutdown"). So each run also times the kernel's part alone,
 // in the same conditions: SIGKILL to the end of the same lipsyncd (face threads at normal priority,
 // or SIGKILL too would wait for them). The promise: the median exit, less the median SIGKILL, under
-// 100 ms; and no run over 1 s (the old hang took seconds).
+// 100 ms; and no run over 1 s (the old hang took seconds). Under ThreadSanitizer only the second
+// holds: there the exit runs every destructor and thread exit instrumented, which SIGKILL skips, and
+// on a busy machine (2026-12-07) the medians' difference was 116-270 ms for this build and the one
+// before it alike, where the product build stays under 100 ms.
 TEST(Shutdown, SigtermAfterAMeshRenderExitsWithin100MsOfTheLastStatusBeyondTheKernelsOwnTimeWithTheCpuLoaded) {
   std::vector<double> exit_ms, kill_ms;
   for (int run = 0; run < 5; ++run) {
@@ -130,8 +134,10 @@ TEST(Shutdown, SigtermAfterAMeshRenderExitsWithin100MsOfTheLastStatusBeyondTheKe
     std::printf("%u busy processes: last status to exit %.0f ms, SIGKILL to exit %.0f ms\n",
                 std::max(2u, std::thread::hardware_concurrency()) + 1, exit_ms.back(), kill_ms.back());
   }
-  EXPECT_LT(median(exit_ms) - median(kill_ms), 100.0)
-      << "exit " << ::testing::PrintToString(exit_ms) << ", SIGKILL " << ::testing::PrintToString(kill_ms);
+  if (!lipsync::testing::kUnderThreadSanitizer) {
+    EXPECT_LT(median(exit_ms) - median(kill_ms), 100.0)
+        << "exit " << ::testing::PrintToString(exit_ms) << ", SIGKILL " << ::testing::PrintToString(kill_ms);
+  }
   EXPECT_LT(*std::max_element(exit_ms.begin(), exit_ms.end()), 1000.0) << ::testing::PrintToString(exit_ms);
 }
 
