@@ -96,7 +96,7 @@ TEST_F(FaceCliTest, NoBlinksTakesTheFirstBlinkOutOfTheGlb) {
   EXPECT_NE(read_text(dir_ / "open.glb"), read_text(dir_ / "blinks.glb"));
 }
 
-TEST_F(FaceCliTest, MeshSolveFastWritesTheFastSolversFace) {
+TEST_F(FaceCliTest, MeshSolveFullIsTheDefaultAndFastWritesAnotherFace) {
   ASSERT_EQ(run({"render", kInput, "--mesh", "full.glb", "--mesh-subdivision=0", "--mesh-solve", "full"}).status, 0);
   ASSERT_EQ(run({"render", kInput, "--mesh", "default.glb", "--mesh-subdivision=0"}).status, 0);
   const RunResult result = run({"render", kInput, "--mesh", "fast.glb", "--mesh-subdivision=0", "--mesh-solve=fast"});

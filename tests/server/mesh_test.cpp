@@ -535,6 +535,8 @@ TEST_F(MeshTest, TheFastSolveStreamsTheOfflineFastSolversPosesAndSaysSoInTheHead
   v1::RenderResponse rendered;
   ASSERT_TRUE(render(fast, intervals, rendered).ok());
   EXPECT_EQ(rendered.header().mesh().solve(), v1::MESH_SOLVE_FAST);
+  EXPECT_TRUE(std::vector<float>(rendered.frames().mesh_positions().begin(),
+                                 rendered.frames().mesh_positions().end()) == received.positions());
   const Received unset = animate(mesh_settings(1), intervals);
   ASSERT_TRUE(unset.status.ok()) << unset.status.error_message();
   EXPECT_EQ(unset.headers[0].mesh().solve(), v1::MESH_SOLVE_FULL);
@@ -562,7 +564,8 @@ TEST_F(MeshTest, TwoFastLevel1StreamsAreAdmittedWhereOneFullOneFits) {
   }
   const Received refused = animate(fast, utterance(5));
   EXPECT_EQ(refused.status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
-  EXPECT_THAT(refused.status.error_message(), HasSubstr("the face is at capacity"));
+  EXPECT_THAT(refused.status.error_message(),
+              HasSubstr("the face is at capacity: mesh streams in progress weigh 0.9 and this one 0.4"));
   for (auto& stream : held) {
     v1::AnimateRequest end;
     end.mutable_end();

@@ -501,7 +501,7 @@ struct FaceSolver::Impl {
     std::fill(velocity.begin(), velocity.end(), 0.0);
     x_previous_step = x;
     target = x;
-    if (!last_substep_target.empty()) last_substep_target = target;
+    if (params.start == FaceSolverStart::targets_shift) last_substep_target = target;
     jaw = skin_jaw = x_rotation(mesh.anatomy.jaw_hinge_m, 0.0);
     tongue = x_rotation(mesh.tongue_root_m, 0.0);
     tongue_protrusion_m = 0.0;
@@ -578,7 +578,7 @@ struct FaceSolver::Impl {
     for (std::size_t k = 0; k < 3 * n; ++k) y[k] = x[k] + s * decay * velocity[k];
     x_previous_step = x;
     x = y;
-    if (!last_substep_target.empty()) {
+    if (params.start == FaceSolverStart::targets_shift) {
       for (std::size_t k = 0; k < 3 * n; ++k) {
         x[k] += target[k] - last_substep_target[k];
         last_substep_target[k] = target[k];

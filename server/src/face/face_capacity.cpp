@@ -44,7 +44,8 @@ grpc::Status FaceCapacity::admit(std::int64_t weight_milli) {
                   units(weight_milli) + " level-1 30 fps streams, more than the " + units(capacity_milli_) +
                   " the server takes on (--max-mesh-streams-per-face-thread=" + std::to_string(streams_per_thread_) +
                   " x " + std::to_string(threads_) +
-                  " face threads); retry later or ask for a lower subdivision or the FAST solve"};
+                  " face threads); retry later or ask for a lower subdivision or the FAST solve "
+                  "(settings.outputs.mesh.solve)"};
     }
     if (used_milli_.compare_exchange_weak(used, used + weight_milli)) return grpc::Status::OK;
   }
