@@ -203,6 +203,11 @@ class LiveVoicePage:
         print(f"{state['session']}: the page shows {state['latencyText']!r}; over {len(log)} frames max "
               f"{max(ms for _, ms in log)} ms, the first second's frames {[ms for t, ms in log if t < 1_000_000]} ms, "
               f"after it p50 {steady[len(steady) // 2]} p95 {p95} max {steady[-1]} ms", flush=True)
+        allowed = self.BUDGET_MS + beyond_budget_ms + self.PAGE_MARGIN_MS
+        late = [(round(t / 1000), ms) for t, ms in log if t >= 1_000_000 and ms > allowed]
+        if late:
+            print(f"{state['session']}: frames later than {allowed} ms after the first second (frame ms, latency ms) "
+                  f"{late}", flush=True)
         self.assertEqual(state["budgetMs"], self.BUDGET_MS)
         self.assertGreater(len(log), 60)
         shown = re.fullmatch(r"(\d+) ms \(p95 (\d+), budget (\d+)\)", state["latencyText"])
@@ -210,4 +215,4 @@ class LiveVoicePage:
         self.assertAlmostEqual(int(shown[1]), state["latencyMs"], delta=0.5)
         self.assertAlmostEqual(int(shown[2]), state["latencyP95Ms"], delta=0.5)
         self.assertEqual(int(shown[3]), self.BUDGET_MS)
-        self.assertLessEqual(p95, self.BUDGET_MS + beyond_budget_ms + self.PAGE_MARGIN_MS)
+        self.assertLessEqual(p95, allowed)
