@@ -90,7 +90,7 @@ class PageVoice(LiveVoicePage, unittest.TestCase):
 
         Why once more: on these two cores Chromium renders the face with software WebGL beside its
         fake microphone and lipsyncd, and alone a run failed about 1 in 8 times, each time in another
-        check and never twice in a row: a one-second stall of the page's latency (p95 880 ms, the
+        check: a one-second stall of the page's latency (p95 880 ms, the
         rest at 165), a correlation of 0.67-0.70 between the sentence and what the page sent (0.99
         otherwise), one /p/ drawn open. Something lipsyncd does wrong fails both voices; the first
         failure is printed either way."""
