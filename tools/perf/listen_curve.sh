@@ -1,14 +1,15 @@
 #!/usr/bin/env bash
-# Live voices per core: lipsyncd pinned to one core (SERVER_CPUS, default 0; --listen-threads 1),
-# `lipsync loadtest --listen` on another (CLIENT_CPUS, default 1), at each count of STREAMS live
-# voices for DURATION seconds, with and without transcripts (docs/performance.md, "Live audio").
+# Live voices per core: lipsyncd pinned to one core (SERVER_CPUS, default 0; --listen-threads
+# LISTEN_THREADS, default 1), `lipsync loadtest --listen` on another (CLIENT_CPUS, default 1), at
+# each count of STREAMS live voices for DURATION seconds, with and without transcripts
+# (docs/performance.md, "Live audio").
 #
 #   tools/perf/listen_curve.sh [BUILD_DIR]      (default build)
 #
 # Environment: STREAMS="1 2 4 8 16 32", DURATION=20 seconds per step, MODES="transcript audio"
 # (transcript: each sentence's words sent ahead of its audio; audio: recognised from the audio
-# alone), LATENCY_MS (unset: the server's 200). A fresh lipsyncd for every step, so that one step's
-# backlog does not spill into the next. Prints one markdown table row per step; raw JSON reports go
+# alone), LATENCY_MS (unset: the server's 200), LISTEN_THREADS (default 1). A fresh lipsyncd for
+# every step, so that one step's backlog does not spill into the next. Prints one markdown table row per step; raw JSON reports go
 # to $OUT_DIR (default a temporary folder).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
@@ -20,6 +21,7 @@ DURATION=${DURATION:-20}
 MODES=${MODES:-"transcript audio"}
 SERVER_CPUS=${SERVER_CPUS:-0}
 CLIENT_CPUS=${CLIENT_CPUS:-1}
+LISTEN_THREADS=${LISTEN_THREADS:-1}
 OUT_DIR=${OUT_DIR:-$(mktemp -d)}
 mkdir -p "$OUT_DIR"
 lipsyncd="$BUILD/server/lipsyncd"
@@ -35,7 +37,7 @@ echo "|---|---:|---:|---|---:|---:|---:|"
 for mode in $MODES; do
   for streams in $STREAMS; do
     out="$OUT_DIR/server-$mode-$streams.out"
-    taskset -c "$SERVER_CPUS" "$lipsyncd" --listen 127.0.0.1:0 --listen-threads 1 --log-level warn >"$out" 2>&1 &
+    taskset -c "$SERVER_CPUS" "$lipsyncd" --listen 127.0.0.1:0 --listen-threads "$LISTEN_THREADS" --log-level warn >"$out" 2>&1 &
     server=$!
     address=$(wait_for_listening_address "$out" 10 "$server") || { echo "listen_curve: lipsyncd did not start" >&2; exit 1; }
     before=$(awk '{print $14 + $15}' "/proc/$server/stat")
