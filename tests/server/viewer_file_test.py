@@ -48,7 +48,8 @@ RECORD_STATUS = ("window.statusSeen = []; new MutationObserver((records) => { fo
                  ".observe(document.getElementById('status'), {childList: true, subtree: true})")
 # One look at the page while the file plays: its clock against the session's anchor, the frame it shows.
 LOOK = ("JSON.stringify({state: lipsyncViewer.live.state, nowUs: (performance.timeOrigin + performance.now()) * 1000,"
-        " zeroUs: lipsyncViewer.live.zeroUs, utteranceUs: lipsyncViewer.utteranceTime,"
+        " zeroUs: lipsyncViewer.live.zeroUs, clockZeroUs: lipsyncViewer.utteranceZeroUs, clock: lipsyncViewer.clock,"
+        " utteranceUs: lipsyncViewer.utteranceTime,"
         " frameUs: lipsyncViewer.frameTime, newestUs: (lipsyncViewer.visemes().pop() || [null])[0]})")
 
 
@@ -127,18 +128,24 @@ class PlayAFile(LiveVoicePage, unittest.TestCase):
         # frame due then had come (frames come ahead of their sound), and the frame drawn is that one,
         # never a later one (the median at most a frame and three redraws at 60 Hz behind).
         steady = [look for look in looks if look["utteranceUs"] is not None and look["utteranceUs"] > 1e6]
+        # The page's clock is the anchor's: its zero is the one the page sent with the voice, to the µs.
+        # (Read against performance.now() in the same look, the two differ by the time between the
+        # two reads: 0.1 ms, Chromium's clock resolution, unless the OS stops the page between them:
+        # 2.4 ms on a quiet run here, 3.8 ms once in a pre-check; so that is printed, not judged.)
+        clock_zeros = {(look["clock"], look["clockZeroUs"] - look["zeroUs"]) for look in steady}
         clock_errors = sorted(abs(look["utteranceUs"] - (look["nowUs"] - look["zeroUs"])) for look in steady)
         ahead = sorted(look["newestUs"] - look["utteranceUs"] for look in steady)
         behind = sorted(look["utteranceUs"] - look["frameUs"] for look in steady)
         came = sum(1 for a in ahead if a > -FRAME_US)
         print(f"{session}: {len(steady)} looks while it played (after 1 s): the page's clock against the anchor "
-              f"within {clock_errors[-1] / 1000:.1f} ms; the newest frame ahead of the clock by median "
+              f"{sorted(clock_zeros)} (clock, its zero less the page's), read within {clock_errors[-1] / 1000:.1f} ms; "
+              f"the newest frame ahead of the clock by median "
               f"{ahead[len(ahead) // 2] / 1000:.0f} ms, min {ahead[0] / 1000:.0f} ms (the due frame there at "
               f"{came} of {len(steady)}); the frame drawn behind the clock by median "
               f"{behind[len(behind) // 2] / 1000:.0f} ms, min {behind[0] / 1000:.0f}, max {behind[-1] / 1000:.0f} ms",
               flush=True)
         self.assertGreater(len(steady), 20)
-        self.assertLess(clock_errors[-1], 2000)
+        self.assertEqual(clock_zeros, {("unix", 0)})
         self.assertGreaterEqual(came, 0.9 * len(steady))
         self.assertGreaterEqual(behind[0], 0)
         self.assertLessEqual(behind[len(behind) // 2], FRAME_US + 50_000)
