@@ -107,8 +107,8 @@ double median(std::vector<double> values) {
 // or SIGKILL too would wait for them). The promise: the median exit, less the median SIGKILL, under
 // 100 ms; and no run over 1 s (the old hang took seconds). Under ThreadSanitizer only the second
 // holds: there the exit runs every destructor and thread exit instrumented, which SIGKILL skips, and
-// on a busy machine (2026-12-07) the medians' difference was 116-270 ms for this build and the one
-// before it alike, where the product build stays under 100 ms.
+// on a busy machine the medians' difference was 116-270 ms, where the product build stays under
+// 100 ms.
 TEST(Shutdown, SigtermAfterAMeshRenderExitsWithin100MsOfTheLastStatusBeyondTheKernelsOwnTimeWithTheCpuLoaded) {
   std::vector<double> exit_ms, kill_ms;
   for (int run = 0; run < 5; ++run) {

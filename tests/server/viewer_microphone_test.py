@@ -108,7 +108,6 @@ class PageVoice(LiveVoicePage, unittest.TestCase):
                 if attempt == 2:
                     raise
                 print(f"{name}: FAILED once, talking again: {failure}", flush=True)
-        return None
 
     def test_1_talking_with_the_words_closes_the_lips_at_every_bilabial_within_the_latency_budget(self):
         def check(session, state):

@@ -523,23 +523,11 @@ TEST_F(ViewerTest, AttachedAudioOver32MibIsResourceExhaustedNamingAudioWav) {
   // the attached-audio limit is what this test is for.
   Received produced;
   for (int attempt = 0; attempt < 3; ++attempt) {
-    grpc::ClientContext context;
-    set_deadline(context);
-    auto stream = stub_->Animate(&context);
-    produced = Received{};
-    std::thread reader([&] { read_all(*stream, produced); });
-    v1::AnimateRequest settings = settings_request(papa_settings("papa-too-loud-" + std::to_string(attempt)));
-    bool open = stream->Write(settings);
-    v1::AnimateRequest audio;
-    audio.mutable_audio()->set_wav(piece);
-    for (int i = 0; i < 11 && open; ++i) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-      open = stream->Write(audio);
-    }
-    if (open) stream->Write(end_request());
-    stream->WritesDone();
-    reader.join();
-    produced.status = stream->Finish();
+    std::vector<v1::AnimateRequest> requests{
+        settings_request(papa_settings("papa-too-loud-" + std::to_string(attempt)))};
+    for (int i = 0; i < 11; ++i) requests.emplace_back().mutable_audio()->set_wav(piece);
+    requests.push_back(end_request());
+    produced = animate(*stub_, requests, std::chrono::milliseconds(50));
     if (produced.status.error_message().rfind("Received RST_STREAM", 0) != 0) break;
     std::printf("attempt %d: the transport's quota ended the stream first (%s)\n", attempt,
                 produced.status.error_message().c_str());

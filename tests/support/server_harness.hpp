@@ -133,14 +133,16 @@ inline std::shared_ptr<grpc::Channel> connect(const std::string& address, bool b
   return grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
 }
 
-/// One Animate call: writes `requests` (then WritesDone) while another thread reads.
-inline Received animate(v1::LipSync::Stub& stub, const std::vector<v1::AnimateRequest>& requests) {
+/// One Animate call: writes `requests` (then WritesDone), `gap` apart, while another thread reads.
+inline Received animate(v1::LipSync::Stub& stub, const std::vector<v1::AnimateRequest>& requests,
+                        std::chrono::milliseconds gap = std::chrono::milliseconds(0)) {
   grpc::ClientContext context;
   set_deadline(context);
   auto stream = stub.Animate(&context);
   Received received;
   std::thread reader([&] { read_all(*stream, received); });
   for (const auto& request : requests) {
+    if (&request != &requests.front()) std::this_thread::sleep_for(gap);
     if (!stream->Write(request)) break;
   }
   stream->WritesDone();
